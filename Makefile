@@ -1,0 +1,38 @@
+# The two commands a newcomer runs: `make demo` and `make test`.
+# Both create .venv when missing and install the project into it; only python3 and make are assumed.
+
+PYTHON ?= python3
+VENV ?= .venv
+PY := $(VENV)/bin/python
+STAMP := $(VENV)/.arenabench-installed
+DEMO_OUT ?= demo-out
+PYTEST_ARGS ?=
+
+.PHONY: demo test lint venv system-deps clean
+
+$(STAMP): pyproject.toml
+	@test -x $(PY) || $(PYTHON) -m venv $(VENV) || { \
+	  echo "could not create $(VENV): on Debian/Ubuntu install python3-venv (apt-get install -y python3-venv)" >&2; exit 1; }
+	$(PY) -m pip install --quiet --upgrade pip
+	$(PY) -m pip install --quiet -e '.[test]'
+	@touch $(STAMP)
+
+venv: $(STAMP)
+
+system-deps:
+	@bash tools/ensure-system-deps.sh
+
+test: $(STAMP) system-deps
+	@$(PY) -m pytest $(PYTEST_ARGS); rc=$$?; \
+	  if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests - failing" >&2; exit 1; fi; \
+	  exit $$rc
+
+demo: $(STAMP) system-deps
+	$(PY) -m arenabench detect --image tests/data/task1c_image.jpg --output $(DEMO_OUT)/obstacles.txt --json
+	@echo "obstacles.txt written to $(DEMO_OUT)/obstacles.txt:"; cat $(DEMO_OUT)/obstacles.txt
+
+lint: $(STAMP)
+	$(PY) -m ruff check .
+
+clean:
+	rm -rf $(VENV) $(DEMO_OUT) build *.egg-info src/*.egg-info

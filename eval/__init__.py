@@ -1,0 +1,1 @@
+"""arenabench.eval: pipeline adapters, metrics, reports and robustness sweeps."""

@@ -1,0 +1,1 @@
+"""arenabench.generator: scene model, sampling, off-screen rendering and analytic ground truth."""

@@ -1,0 +1,63 @@
+"""The rectified frame: the 1000 x 1000 top-down view every part of the project agrees on.
+
+Conventions (see README "Coordinates"):
+
+- World: metres, floor plane z = 0, z up; the arena is a square of side L centred at the
+  origin; north is +y, east is +x.
+- The homography H maps image px to frame px so that the four *reference corners* go to
+  (0, 0), (S, 0), (S, S), (0, S) in the order north-west, north-east, south-east, south-west
+  as seen from above, with S the frame size.
+- Reference corners are the markers' ``inner`` corners (nearest the arena centre; the
+  competition default) or their ``outer`` corners (the arena's extreme corners).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+
+#: Corner names in frame order.
+CORNER_ORDER: tuple[str, ...] = ("nw", "ne", "se", "sw")
+
+#: The competition arena's marker ids by corner (DICT_4X4_100 family).
+COMPETITION_MARKER_IDS: dict[str, int] = {"nw": 80, "ne": 85, "se": 90, "sw": 95}
+
+CornerConvention = Literal["inner", "outer"]
+
+
+@dataclass(frozen=True)
+class FrameSpec:
+    """Size and corner convention of the rectified frame.
+
+    Parameters
+    ----------
+    size : int
+        Side of the square frame in px (default 1000).
+    corners : {"inner", "outer"}
+        Which marker corners map to the frame corners.
+    """
+
+    size: int = 1000
+    corners: CornerConvention = "inner"
+
+    def __post_init__(self) -> None:
+        if int(self.size) != self.size or self.size < 16:
+            raise ValueError(f"frame size must be an integer >= 16, got {self.size!r}")
+        if self.corners not in ("inner", "outer"):
+            raise ValueError(f"frame corners must be 'inner' or 'outer', got {self.corners!r}")
+
+    def corners_px(self) -> np.ndarray:
+        """Frame corners (4, 2) float64 in NW, NE, SE, SW order."""
+        s = float(self.size)
+        return np.array([[0.0, 0.0], [s, 0.0], [s, s], [0.0, s]])
+
+    def to_dict(self) -> dict:
+        """JSON form used in ground truth: ``{"size": [S, S], "corners": ...}``."""
+        return {"size": [int(self.size), int(self.size)], "corners": self.corners}
+
+
+def world_to_frame_scale(dx_m: float, dy_m: float, size: int = 1000) -> tuple[float, float]:
+    """Pixels per metre along x and y for reference corners ``dx_m`` x ``dy_m`` metres apart."""
+    return size / dx_m, size / dy_m

@@ -1,0 +1,106 @@
+"""Choose the OpenGL platform for off-screen rendering before anything imports OpenGL.
+
+PyOpenGL reads ``PYOPENGL_PLATFORM`` once, at import; pyrender otherwise tries pyglet and a
+display. :func:`configure` must therefore run before ``import pyrender``. Order of choice:
+
+1. ``PYOPENGL_PLATFORM`` if the user set it;
+2. ``egl`` when libEGL and a vendor library (Mesa's ``libEGL_mesa`` or NVIDIA's
+   ``libEGL_nvidia``) are present: Mesa llvmpipe on CPU machines, the NVIDIA driver on GPUs;
+3. ``osmesa`` when libOSMesa is present;
+4. otherwise :class:`GLPlatformError` with the exact packages to install.
+"""
+
+from __future__ import annotations
+
+import ctypes.util
+import os
+import sys
+from dataclasses import dataclass
+
+#: Debian/Ubuntu packages that provide EGL off-screen rendering through Mesa (llvmpipe).
+EGL_PACKAGES = ("libegl1", "libegl-mesa0", "libgl1-mesa-dri")
+#: Debian/Ubuntu package that provides OSMesa.
+OSMESA_PACKAGES = ("libosmesa6",)
+#: PyOpenGL release that has working OSMesa bindings (pyrender pins 3.1.0, which lacks some).
+OSMESA_PYOPENGL = "PyOpenGL==3.1.7"
+
+
+class GLPlatformError(RuntimeError):
+    """No usable off-screen OpenGL platform; the message says what to install."""
+
+
+@dataclass(frozen=True)
+class GLLibraries:
+    """Which system OpenGL libraries the dynamic loader can find."""
+
+    egl: str | None
+    egl_vendor: str | None
+    osmesa: str | None
+
+    @property
+    def egl_usable(self) -> bool:
+        return self.egl is not None and self.egl_vendor is not None
+
+
+def find_gl_libraries() -> GLLibraries:
+    """Look up libEGL, an EGL vendor library and libOSMesa with the dynamic loader's rules."""
+    vendor = ctypes.util.find_library("EGL_mesa") or ctypes.util.find_library("EGL_nvidia")
+    return GLLibraries(
+        egl=ctypes.util.find_library("EGL"),
+        egl_vendor=vendor,
+        osmesa=ctypes.util.find_library("OSMesa"),
+    )
+
+
+def install_hint() -> str:
+    """The one command that makes EGL off-screen rendering work on Debian/Ubuntu."""
+    return "apt-get install -y " + " ".join(EGL_PACKAGES)
+
+
+def choose_platform(libs: GLLibraries | None = None) -> str:
+    """Return the platform to use (``"egl"`` or ``"osmesa"`` or the user's choice).
+
+    Raises
+    ------
+    GLPlatformError
+        When neither EGL nor OSMesa is available; the message names the packages.
+    """
+    user = os.environ.get("PYOPENGL_PLATFORM")
+    if user:
+        return user
+    libs = libs or find_gl_libraries()
+    if libs.egl_usable:
+        return "egl"
+    if libs.osmesa:
+        return "osmesa"
+    missing = []
+    if libs.egl is None:
+        missing.append("libEGL.so.1 (package libegl1)")
+    if libs.egl_vendor is None:
+        missing.append("an EGL vendor library (package libegl-mesa0, or the NVIDIA driver)")
+    raise GLPlatformError(
+        "no off-screen OpenGL platform: missing " + "; ".join(missing)
+        + f". Install with: {install_hint()}  (or, for OSMesa: apt-get install -y "
+        + " ".join(OSMESA_PACKAGES) + f" && pip install {OSMESA_PYOPENGL})"
+    )
+
+
+def configure() -> str:
+    """Set ``PYOPENGL_PLATFORM`` for this process (if unset) and return it.
+
+    Call before the first ``import pyrender`` / ``import OpenGL``.
+
+    Raises
+    ------
+    GLPlatformError
+        When no platform is available, or OpenGL was already imported with another platform.
+    """
+    platform = choose_platform()
+    current = os.environ.get("PYOPENGL_PLATFORM")
+    if "OpenGL" in sys.modules and current != platform:
+        raise GLPlatformError(
+            "OpenGL was imported before arenabench chose a platform; set "
+            f"PYOPENGL_PLATFORM={platform} in the environment or import arenabench first"
+        )
+    os.environ["PYOPENGL_PLATFORM"] = platform
+    return platform
