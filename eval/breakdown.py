@@ -1,0 +1,111 @@
+"""Metrics binned by the scene parameters that vary in a dataset (so failures that cluster at
+high tilt or low light show at a glance)."""
+
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+
+from .records import CATEGORIES, ImageResult
+
+#: Parameters with at most this many distinct values get one bin per value.
+MAX_DISCRETE = 6
+
+
+def bin_edges(values: Sequence[float], *, bins: int = 4) -> list[float]:
+    """Quantile bin edges of ``values`` (duplicates removed; at least two edges).
+
+    Parameters
+    ----------
+    values : sequence of float
+        Parameter values.
+    bins : int
+        Number of quantile bins wanted (fewer when values repeat).
+    """
+    if bins < 1:
+        raise ValueError(f"bins must be >= 1, got {bins!r}")
+    arr = np.asarray(values, dtype=np.float64)
+    edges = np.unique(np.quantile(arr, np.linspace(0.0, 1.0, bins + 1)))
+    if edges.size < 2:
+        edges = np.array([arr.min(), arr.max()])
+    return [float(e) for e in edges]
+
+
+def _fmt(x: float) -> str:
+    return f"{x:.4g}"
+
+
+def _bin_stats(results: Sequence[ImageResult]) -> dict[str, Any]:
+    n = len(results)
+    passed = sum(r.passed for r in results)
+    rels = [
+        abs(r.score.area_rel_err)
+        for r in results
+        if r.score.area_rel_err is not None and r.score.area_err_kind == "relative"
+    ]
+    failures = {c: 0 for c in CATEGORIES}
+    for r in results:
+        if r.category is not None:
+            failures[r.category] += 1
+    return {
+        "n": n,
+        "pass_rate": passed / n if n else None,
+        "count_exact_rate": (
+            sum(1 for r in results if r.prediction.status == "ok" and r.score.count_err == 0) / n
+            if n
+            else None
+        ),
+        "area_rel_err_median": float(np.median(rels)) if rels else None,
+        "failures": {c: v for c, v in failures.items() if v},
+    }
+
+
+def breakdown(results: Sequence[ImageResult], *, bins: int = 4) -> dict[str, list[dict[str, Any]]]:
+    """Per-parameter binned metrics for the parameters that vary.
+
+    Parameters
+    ----------
+    results : sequence of ImageResult
+        Scored images with their ``params``.
+    bins : int
+        Quantile bins for continuous parameters.
+
+    Returns
+    -------
+    dict
+        ``{param: [{"bin": label, "lo": lo, "hi": hi, "n", "pass_rate", "count_exact_rate",
+        "area_rel_err_median", "failures"}, ...]}``; bins are ``[lo, hi)`` except the last,
+        which is closed. Parameters missing from some images are binned over the others.
+    """
+    keys = sorted({k for r in results for k in r.params})
+    out: dict[str, list[dict[str, Any]]] = {}
+    for key in keys:
+        have = [r for r in results if key in r.params and np.isfinite(r.params[key])]
+        values = np.array([r.params[key] for r in have], dtype=np.float64)
+        distinct = np.unique(values)
+        if distinct.size < 2:
+            continue
+        rows: list[dict[str, Any]] = []
+        if distinct.size <= MAX_DISCRETE:
+            for v in distinct:
+                members = [r for r, x in zip(have, values, strict=True) if x == v]
+                rows.append({"bin": _fmt(v), "lo": float(v), "hi": float(v), **_bin_stats(members)})
+        else:
+            edges = bin_edges(values, bins=bins)
+            for i, (lo, hi) in enumerate(itertools.pairwise(edges)):
+                last = i == len(edges) - 2
+                mask = (values >= lo) & ((values <= hi) if last else (values < hi))
+                members = [r for r, m in zip(have, mask, strict=True) if m]
+                label = f"[{_fmt(lo)}, {_fmt(hi)}{']' if last else ')'}"
+                rows.append({"bin": label, "lo": lo, "hi": hi, **_bin_stats(members)})
+        out[key] = rows
+    return out
+
+
+def spread(rows: Sequence[dict[str, Any]]) -> float:
+    """Difference between the best and worst bin pass rate (how much a parameter matters)."""
+    rates = [r["pass_rate"] for r in rows if r.get("pass_rate") is not None and r["n"] > 0]
+    return (max(rates) - min(rates)) if rates else 0.0

@@ -1,0 +1,172 @@
+"""``arenabench eval``: score a pipeline on a dataset, write reports, gate CI with exit codes.
+
+Exit status: 0 all thresholds met; 1 a ``--fail-under`` threshold missed (one-line reason on
+stderr); 2 usage error (bad options, bad dataset, unreadable report).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
+
+EPILOG = """\
+examples:
+  arenabench eval DATASET --pipeline reference --out out/
+  arenabench eval DATASET --pipeline mypkg.module:function
+  arenabench eval DATASET --cmd "python3 map.py --image {image}" --timeout 30
+  arenabench eval DATASET --pipeline seed --fail-under pass_rate=0.95,area_rel_err.p95=0.05
+  arenabench eval --compare OLD/report.json NEW/report.json
+
+--cmd: split into arguments without a shell; {image} is the image's absolute path and {python}
+the Python running arenabench. Each image runs in its own empty temporary working directory;
+the command writes obstacles.txt there (or prints a JSON line with --output json). Exit
+status 3 means "markers not found".
+
+--fail-under metric=value (comma-separated or repeated). Minimums (fail when below):
+pass_rate, pass_rate_ci95.0, count_exact_rate, marker_id_accuracy. Maximums (fail when above):
+count_mae, area_rel_err.median|p95|max, latency_ms.median|p95, failures.<category>.
+
+exit status: 0 ok, 1 a threshold missed, 2 usage error.
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``arenabench eval``."""
+    p = argparse.ArgumentParser(
+        prog="arenabench eval",
+        description="Score an obstacle-detection pipeline on a dataset written by the generator.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("dataset", nargs="?", help="dataset folder (holds manifest.jsonl and gt/)")
+    src = p.add_mutually_exclusive_group()
+    src.add_argument(
+        "--pipeline",
+        help=f"built-in ({', '.join(BUILTIN_PIPELINES)}) or a callable 'pkg.module:function'",
+    )
+    src.add_argument(
+        "--cmd", help="external command template, e.g. 'python3 map.py --image {image}'"
+    )
+    src.add_argument(
+        "--compare", nargs=2, metavar=("OLD", "NEW"), help="compare two report.json files"
+    )
+    p.add_argument(
+        "--output",
+        choices=OUTPUT_MODES,
+        default="obstacles",
+        help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line",
+    )
+    p.add_argument("--timeout", type=float, default=60.0, help="seconds per image for --cmd")
+    p.add_argument("--workers", type=int, default=None, help="parallel workers (default: cores)")
+    p.add_argument(
+        "--executor",
+        choices=("thread", "process"),
+        default="thread",
+        help="pool for in-process pipelines (default thread)",
+    )
+    p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
+    p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible")
+    p.add_argument("--out", type=Path, default=None, help="folder for the report files")
+    p.add_argument(
+        "--formats",
+        default="json,csv,md,html,junit",
+        help="report files to write (default: json,csv,md,html,junit)",
+    )
+    p.add_argument(
+        "--fail-under",
+        action="append",
+        default=[],
+        metavar="METRIC=VALUE",
+        help="threshold(s); see below",
+    )
+    p.add_argument("--limit", type=int, default=None, help="evaluate only the first N images")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p
+
+
+def _usage_error(parser: argparse.ArgumentParser, message: str) -> int:
+    print(f"arenabench eval: error: {message}", file=sys.stderr)
+    return 2
+
+
+def _run_compare(old: str, new: str) -> int:
+    from .compare import compare, format_comparison
+    from .reports.json_report import read_json
+
+    try:
+        a, b = read_json(old), read_json(new)
+    except ValueError as exc:
+        print(f"arenabench eval: error: {exc}", file=sys.stderr)
+        return 2
+    print(format_comparison(compare(a, b), old_name=old, new_name=new), end="")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``arenabench eval``; returns the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help (0) or usage error (2)
+        return int(exc.code or 0)
+    if args.compare:
+        return _run_compare(*args.compare)
+    if not args.dataset:
+        return _usage_error(parser, "a DATASET folder is required (or --compare OLD NEW)")
+    if not args.pipeline and not args.cmd:
+        return _usage_error(parser, "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE")
+    if args.workers is not None and args.workers < 1:
+        return _usage_error(parser, f"--workers must be >= 1, got {args.workers}")
+    if args.limit is not None and args.limit < 1:
+        return _usage_error(parser, f"--limit must be >= 1, got {args.limit}")
+
+    from .dataset import DatasetError, load_dataset
+    from .pipelines import CommandPipeline, make_pipeline
+    from .reports import FORMATS, write_reports
+    from .reports.summary_rows import headline
+    from .runner import evaluate
+    from .thresholds import check_thresholds, parse_thresholds
+
+    formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
+    bad = [f for f in formats if f not in FORMATS]
+    if bad:
+        return _usage_error(parser, f"--formats: unknown {bad} (known: {', '.join(FORMATS)})")
+    try:
+        thresholds = parse_thresholds(args.fail_under)
+        pipeline = (
+            CommandPipeline(args.cmd, timeout_s=args.timeout, output=args.output)
+            if args.cmd
+            else make_pipeline(args.pipeline)
+        )
+        dataset = load_dataset(args.dataset, limit=args.limit)
+    except (DatasetError, ValueError) as exc:
+        return _usage_error(parser, str(exc))
+    try:
+        report = evaluate(
+            args.pipeline if args.pipeline else pipeline,
+            dataset,
+            workers=args.workers,
+            tolerance=args.tolerance,
+            area_reference=args.area_reference,
+            executor=args.executor,
+            progress=not args.no_progress,
+        )
+    except ValueError as exc:
+        return _usage_error(parser, str(exc))
+    print(headline(report))
+    if args.out is not None:
+        written = write_reports(report, args.out, formats=formats, dataset=dataset)
+        for fmt, path in written.items():
+            print(f"  {fmt:<5} {path}")
+    reasons = check_thresholds(report.summary, thresholds)
+    if reasons:
+        print(f"arenabench eval: FAILED: {'; '.join(reasons)}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

@@ -1,0 +1,90 @@
+"""Compare two reports: metrics side by side and images that changed verdict."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from .records import CATEGORIES, Report
+from .reports.summary_rows import fmt
+
+#: (label, dotted path into the summary JSON, higher is better)
+COMPARED_METRICS: tuple[tuple[str, str, bool], ...] = (
+    ("pass_rate", "pass_rate", True),
+    ("count_exact_rate", "count_exact_rate", True),
+    ("count_mae", "count_mae", False),
+    ("area_rel_err.median", "area_rel_err.median", False),
+    ("area_rel_err.p95", "area_rel_err.p95", False),
+    ("area_rel_err.max", "area_rel_err.max", False),
+    ("marker_id_accuracy", "marker_id_accuracy", True),
+    ("latency_ms.median", "latency_ms.median", False),
+    ("latency_ms.p95", "latency_ms.p95", False),
+    *((f"failures.{c}", f"failures.{c}", False) for c in CATEGORIES),
+)
+
+
+def lookup(summary: dict[str, Any], dotted: str) -> Any:
+    """Value at ``dotted`` (``"area_rel_err.p95"``) in a summary dict, ``None`` if absent."""
+    node: Any = summary
+    for part in dotted.split("."):
+        if not isinstance(node, dict) or part not in node:
+            return None
+        node = node[part]
+    return node
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """What changed between two reports."""
+
+    metrics: list[tuple[str, Any, Any, bool]]  # (name, old, new, higher_is_better)
+    newly_failing: list[tuple[str, str | None]]  # (id, new category)
+    newly_passing: list[tuple[str, str | None]]  # (id, old category)
+    category_changed: list[tuple[str, str | None, str | None]]
+    only_old: list[str]
+    only_new: list[str]
+
+
+def compare(old: Report, new: Report) -> Comparison:
+    """Compare ``old`` with ``new`` (images matched by id)."""
+    so, sn = old.summary.to_dict(), new.summary.to_dict()
+    metrics = [(n, lookup(so, p), lookup(sn, p), hib) for n, p, hib in COMPARED_METRICS]
+    a = {r.id: r for r in old.images}
+    b = {r.id: r for r in new.images}
+    common = [i for i in a if i in b]
+    return Comparison(
+        metrics=metrics,
+        newly_failing=[(i, b[i].category) for i in common if a[i].passed and not b[i].passed],
+        newly_passing=[(i, a[i].category) for i in common if not a[i].passed and b[i].passed],
+        category_changed=[
+            (i, a[i].category, b[i].category)
+            for i in common
+            if not a[i].passed and not b[i].passed and a[i].category != b[i].category
+        ],
+        only_old=[i for i in a if i not in b],
+        only_new=[i for i in b if i not in a],
+    )
+
+
+def format_comparison(cmp: Comparison, *, old_name: str = "old", new_name: str = "new") -> str:
+    """Plain-text rendering: a metrics table (with better/worse marks) and verdict changes."""
+    rows = [("metric", old_name, new_name, "change")]
+    for name, o, n, hib in cmp.metrics:
+        change = ""
+        if isinstance(o, (int, float)) and isinstance(n, (int, float)) and o != n:
+            better = (n > o) == hib
+            change = f"{n - o:+.4g} ({'better' if better else 'worse'})"
+        rows.append((name, fmt(o), fmt(n), change))
+    widths = [max(len(r[i]) for r in rows) for i in range(4)]
+    lines = ["  ".join(c.ljust(w) for c, w in zip(r, widths, strict=True)).rstrip() for r in rows]
+    lines.append("")
+    lines.append(f"pass -> fail: {len(cmp.newly_failing)}")
+    lines += [f"  {i}: now {c}" for i, c in cmp.newly_failing]
+    lines.append(f"fail -> pass: {len(cmp.newly_passing)}")
+    lines += [f"  {i}: was {c}" for i, c in cmp.newly_passing]
+    if cmp.category_changed:
+        lines.append(f"failure category changed: {len(cmp.category_changed)}")
+        lines += [f"  {i}: {o} -> {n}" for i, o, n in cmp.category_changed]
+    if cmp.only_old or cmp.only_new:
+        lines.append(f"images only in old: {len(cmp.only_old)}; only in new: {len(cmp.only_new)}")
+    return "\n".join(lines) + "\n"

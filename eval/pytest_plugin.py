@@ -1,0 +1,83 @@
+"""pytest plugin (entry point ``pytest11``): a cached dataset fixture for teams' own tests.
+
+Usage in a team's test suite::
+
+    from arenabench.eval import score
+
+    def test_my_pipeline(arenabench_dataset):
+        assert score(my_pipeline, arenabench_dataset).pass_rate >= 0.95
+
+``arenabench_dataset`` (session scope) is the path of a small generated dataset, cached under
+pytest's cache folder (``.pytest_cache/d/arenabench/``) and keyed by preset, count, seed and
+arenabench version, so it is rendered once and reused by later runs. Options:
+``--arenabench-preset`` (default ``eyrc``), ``--arenabench-count`` (default 12),
+``--arenabench-seed`` (default 0), or ``--arenabench-dataset DIR`` to use an existing dataset.
+
+This module imports only the standard library and pytest at start-up; the generator is
+imported when the fixture is first used.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+from pathlib import Path
+
+import pytest
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    group = parser.getgroup("arenabench", "arenabench dataset fixture")
+    group.addoption("--arenabench-preset", default="eyrc", help="generator preset (default eyrc)")
+    group.addoption("--arenabench-count", type=int, default=12, help="images (default 12)")
+    group.addoption("--arenabench-seed", type=int, default=0, help="generator seed (default 0)")
+    group.addoption(
+        "--arenabench-dataset", default=None, help="use this existing dataset folder instead"
+    )
+
+
+def dataset_key(preset: str, count: int, seed: int, version: str) -> str:
+    """Cache folder name of a generated dataset."""
+    return f"{preset}-n{count}-s{seed}-v{version}"
+
+
+def _generate(out: Path, *, preset: str, count: int, seed: int) -> None:
+    from arenabench.generator.cli import main as generate_main
+
+    argv = ["--preset", preset, "--count", str(count), "--seed", str(seed), "--out", str(out)]
+    rc = generate_main(argv)
+    if rc != 0 or not (out / "manifest.jsonl").is_file():
+        raise RuntimeError(f"arenabench generate {' '.join(argv)} failed with exit status {rc}")
+
+
+@pytest.fixture(scope="session")
+def arenabench_dataset(request: pytest.FixtureRequest) -> Path:
+    """Path of a small generated dataset (generated once, then reused from pytest's cache)."""
+    config = request.config
+    given = config.getoption("--arenabench-dataset")
+    if given:
+        path = Path(given).resolve()
+        if not (path / "manifest.jsonl").is_file():
+            raise pytest.UsageError(f"--arenabench-dataset {path}: no manifest.jsonl there")
+        return path
+    from arenabench import __version__
+
+    preset = config.getoption("--arenabench-preset")
+    count = config.getoption("--arenabench-count")
+    seed = config.getoption("--arenabench-seed")
+    if config.cache is not None:
+        root = config.cache.mkdir("arenabench")
+    else:  # cache provider disabled (-p no:cacheprovider)
+        root = Path(request.config.rootpath, ".arenabench-cache")
+        root.mkdir(exist_ok=True)
+    final = Path(root) / dataset_key(preset, count, seed, __version__)
+    if (final / "manifest.jsonl").is_file():
+        return final
+    tmp = Path(root) / f".{final.name}.tmp-{os.getpid()}"
+    shutil.rmtree(tmp, ignore_errors=True)
+    _generate(tmp, preset=preset, count=count, seed=seed)
+    try:
+        os.replace(tmp, final)
+    except OSError:  # another process won the race: use its copy
+        shutil.rmtree(tmp, ignore_errors=True)
+    return final

@@ -1,0 +1,306 @@
+"""Typed records of an evaluation: what a pipeline predicted, per-image results, summary, report.
+
+Every record converts to and from the JSON of ``report.json`` (schema ``arenabench.report/1``,
+keys as in the project's design contract; extra keys are only ever added, never renamed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+REPORT_SCHEMA = "arenabench.report/1"
+
+#: Pipeline statuses. ``ok`` and ``markers_not_found`` come from the pipeline itself; the
+#: other three are assigned by the harness when the pipeline did not produce a usable answer.
+STATUSES: tuple[str, ...] = ("ok", "markers_not_found", "crash", "timeout", "bad_output")
+
+#: Failure categories, in the order reports list them.
+CATEGORIES: tuple[str, ...] = (
+    "markers_not_found",
+    "wrong_count",
+    "area_off",
+    "crash",
+    "timeout",
+    "bad_output",
+)
+
+#: Longest stdout/stderr tail kept per image (characters).
+TAIL_CHARS = 2000
+
+
+def tail(text: str | None, limit: int = TAIL_CHARS) -> str:
+    """Last ``limit`` characters of ``text`` (empty for ``None``), prefixed with an ellipsis
+    when cut."""
+    if not text:
+        return ""
+    return text if len(text) <= limit else "..." + text[-limit:]
+
+
+@dataclass(frozen=True)
+class Truth:
+    """The ground truth one image is scored against.
+
+    Parameters
+    ----------
+    count : int
+        Number of obstacles in the frame.
+    area : float
+        Reference area in frame px (``visible_px`` or ``footprint_px``).
+    marker_ids : tuple of int
+        Ids of the markers fully in view.
+    """
+
+    count: int
+    area: float
+    marker_ids: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """What a pipeline reported for one image (or why it reported nothing usable).
+
+    Parameters
+    ----------
+    status : str
+        One of :data:`STATUSES`.
+    count, area : int or None, float or None
+        Reported obstacle count and total area (frame px); ``None`` when not reported.
+    marker_ids : tuple of int or None
+        Reported marker ids; ``None`` when the pipeline does not report ids.
+    message : str
+        Why the pipeline failed (empty when it did not).
+    stdout, stderr : str
+        Tails of the pipeline's output streams (external commands; tracebacks in-process).
+    latency_ms : float
+        Wall time of the pipeline call in milliseconds.
+    """
+
+    status: str
+    count: int | None = None
+    area: float | None = None
+    marker_ids: tuple[int, ...] | None = None
+    message: str = ""
+    stdout: str = ""
+    stderr: str = ""
+    latency_ms: float = 0.0
+
+    def __post_init__(self) -> None:
+        if self.status not in STATUSES:
+            raise ValueError(f"status must be one of {STATUSES}, got {self.status!r}")
+
+
+@dataclass(frozen=True)
+class ImageScore:
+    """Metrics of one image (output of :func:`arenabench.eval.metrics.score_image`).
+
+    ``area_err_kind`` is ``"relative"`` normally and ``"absolute_px"`` when the ground-truth
+    area is 0 (``area_rel_err`` then holds the absolute error in px, per the design contract).
+    """
+
+    passed: bool
+    category: str | None
+    count_err: int | None
+    area_rel_err: float | None
+    area_err_kind: str
+    marker_ids_ok: bool | None
+
+
+@dataclass(frozen=True)
+class ImageResult:
+    """Everything the report says about one image."""
+
+    id: str
+    image: str
+    truth: Truth
+    prediction: Prediction
+    score: ImageScore
+    gt_area_visible: float = 0.0
+    gt_area_footprint: float = 0.0
+    params: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def passed(self) -> bool:
+        """Whether the image passed."""
+        return self.score.passed
+
+    @property
+    def category(self) -> str | None:
+        """Failure category, ``None`` when the image passed."""
+        return self.score.category
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form (the ``images[]`` entries of ``report.json``)."""
+        p, s = self.prediction, self.score
+        return {
+            "id": self.id,
+            "image": self.image,
+            "pass": s.passed,
+            "category": s.category,
+            "status": p.status,
+            "message": p.message,
+            "gt": {
+                "count": self.truth.count,
+                "area": self.truth.area,
+                "marker_ids": list(self.truth.marker_ids),
+                "area_visible_px": self.gt_area_visible,
+                "area_footprint_px": self.gt_area_footprint,
+            },
+            "pred": {
+                "count": p.count,
+                "area": p.area,
+                "marker_ids": None if p.marker_ids is None else list(p.marker_ids),
+            },
+            "area_rel_err": s.area_rel_err,
+            "area_err_kind": s.area_err_kind,
+            "count_err": s.count_err,
+            "marker_ids_ok": s.marker_ids_ok,
+            "latency_ms": p.latency_ms,
+            "stdout_tail": p.stdout,
+            "stderr_tail": p.stderr,
+            "params": dict(self.params),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> ImageResult:
+        """Inverse of :meth:`to_dict` (tolerates the minimal keys of the design example)."""
+        gt, pred = d.get("gt", {}), d.get("pred", {})
+        ids = pred.get("marker_ids")
+        prediction = Prediction(
+            status=d.get("status", "ok"),
+            count=pred.get("count"),
+            area=pred.get("area"),
+            marker_ids=None if ids is None else tuple(int(i) for i in ids),
+            message=d.get("message", ""),
+            stdout=d.get("stdout_tail", ""),
+            stderr=d.get("stderr_tail", ""),
+            latency_ms=float(d.get("latency_ms") or 0.0),
+        )
+        truth = Truth(
+            count=int(gt.get("count", 0)),
+            area=float(gt.get("area", 0.0)),
+            marker_ids=tuple(int(i) for i in gt.get("marker_ids", [])),
+        )
+        score = ImageScore(
+            passed=bool(d.get("pass")),
+            category=d.get("category"),
+            count_err=d.get("count_err"),
+            area_rel_err=d.get("area_rel_err"),
+            area_err_kind=d.get("area_err_kind", "relative"),
+            marker_ids_ok=d.get("marker_ids_ok"),
+        )
+        return cls(
+            id=str(d["id"]),
+            image=d.get("image", ""),
+            truth=truth,
+            prediction=prediction,
+            score=score,
+            gt_area_visible=float(gt.get("area_visible_px", truth.area)),
+            gt_area_footprint=float(gt.get("area_footprint_px", truth.area)),
+            params={k: float(v) for k, v in d.get("params", {}).items()},
+        )
+
+
+@dataclass(frozen=True)
+class Summary:
+    """Summary metrics of a run (the ``summary`` object of ``report.json``).
+
+    ``area_rel_err`` holds statistics of ``|area_rel_err|``; ``area_rel_err_signed`` of the
+    signed value. Both use only images where the pipeline answered (status ``ok``) and the
+    ground-truth area is non-zero. ``count_mae`` uses images with a reported count.
+    ``marker_id_accuracy`` is ``None`` when the pipeline never reports ids.
+    """
+
+    n: int
+    pass_rate: float
+    pass_rate_ci95: tuple[float, float]
+    count_exact_rate: float
+    count_mae: float | None
+    area_rel_err: dict[str, float | None]
+    area_rel_err_signed: dict[str, float | None]
+    marker_id_accuracy: float | None
+    failures: dict[str, int]
+    latency_ms: dict[str, float | None]
+    n_passed: int = 0
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form."""
+        return {
+            "n": self.n,
+            "n_passed": self.n_passed,
+            "pass_rate": self.pass_rate,
+            "pass_rate_ci95": list(self.pass_rate_ci95),
+            "count_exact_rate": self.count_exact_rate,
+            "count_mae": self.count_mae,
+            "area_rel_err": dict(self.area_rel_err),
+            "area_rel_err_signed": dict(self.area_rel_err_signed),
+            "marker_id_accuracy": self.marker_id_accuracy,
+            "failures": dict(self.failures),
+            "latency_ms": dict(self.latency_ms),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Summary:
+        """Inverse of :meth:`to_dict`."""
+        lo, hi = d.get("pass_rate_ci95", [0.0, 1.0])
+        return cls(
+            n=int(d["n"]),
+            n_passed=int(d.get("n_passed", round(d["pass_rate"] * d["n"]))),
+            pass_rate=float(d["pass_rate"]),
+            pass_rate_ci95=(float(lo), float(hi)),
+            count_exact_rate=float(d.get("count_exact_rate", 0.0)),
+            count_mae=d.get("count_mae"),
+            area_rel_err=dict(d.get("area_rel_err", {})),
+            area_rel_err_signed=dict(d.get("area_rel_err_signed", {})),
+            marker_id_accuracy=d.get("marker_id_accuracy"),
+            failures={k: int(v) for k, v in d.get("failures", {}).items()},
+            latency_ms=dict(d.get("latency_ms", {})),
+        )
+
+
+@dataclass(frozen=True)
+class Report:
+    """A whole evaluation: settings, summary, per-image results and the parameter breakdown."""
+
+    pipeline: str
+    dataset: str
+    area_reference: str
+    tolerance: float
+    summary: Summary
+    images: tuple[ImageResult, ...]
+    breakdown: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+    schema: str = REPORT_SCHEMA
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form (``report.json``)."""
+        return {
+            "schema": self.schema,
+            "pipeline": self.pipeline,
+            "dataset": self.dataset,
+            "area_reference": self.area_reference,
+            "tolerance": self.tolerance,
+            "summary": self.summary.to_dict(),
+            "breakdown": self.breakdown,
+            "images": [r.to_dict() for r in self.images],
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Report:
+        """Inverse of :meth:`to_dict`.
+
+        Raises
+        ------
+        ValueError
+            When ``schema`` is not ``arenabench.report/1``.
+        """
+        if d.get("schema") != REPORT_SCHEMA:
+            raise ValueError(f"report schema must be {REPORT_SCHEMA!r}, got {d.get('schema')!r}")
+        return cls(
+            pipeline=str(d.get("pipeline", "")),
+            dataset=str(d.get("dataset", "")),
+            area_reference=str(d.get("area_reference", "visible")),
+            tolerance=float(d.get("tolerance", 0.05)),
+            summary=Summary.from_dict(d["summary"]),
+            images=tuple(ImageResult.from_dict(i) for i in d.get("images", [])),
+            breakdown=dict(d.get("breakdown", {})),
+        )

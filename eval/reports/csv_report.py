@@ -1,0 +1,69 @@
+"""``results.csv``: one row per image (metrics, numbers, then the scene parameters)."""
+
+from __future__ import annotations
+
+import csv
+import io
+import os
+from pathlib import Path
+
+from arenabench.fileio import atomic_write_text
+
+from ..records import Report
+
+COLUMNS: tuple[str, ...] = (
+    "id",
+    "pass",
+    "category",
+    "status",
+    "gt_count",
+    "pred_count",
+    "gt_area",
+    "pred_area",
+    "area_rel_err",
+    "area_err_kind",
+    "marker_ids_ok",
+    "gt_marker_ids",
+    "pred_marker_ids",
+    "latency_ms",
+    "message",
+    "image",
+)
+
+
+def _cell(value: object) -> object:
+    if value is None:
+        return ""
+    if isinstance(value, (list, tuple)):
+        return " ".join(str(v) for v in value)
+    return value
+
+
+def write_csv(report: Report, path: str | os.PathLike[str]) -> Path:
+    """Write one row per image; scene parameters follow as ``param:<name>`` columns."""
+    params = sorted({k for r in report.images for k in r.params})
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow([*COLUMNS, *(f"param:{p}" for p in params)])
+    for r in report.images:
+        p, s = r.prediction, r.score
+        row = [
+            r.id,
+            int(s.passed),
+            s.category,
+            p.status,
+            r.truth.count,
+            p.count,
+            r.truth.area,
+            p.area,
+            s.area_rel_err,
+            s.area_err_kind,
+            "" if s.marker_ids_ok is None else int(s.marker_ids_ok),
+            list(r.truth.marker_ids),
+            None if p.marker_ids is None else list(p.marker_ids),
+            round(p.latency_ms, 3),
+            p.message,
+            r.image,
+        ]
+        writer.writerow([_cell(v) for v in row] + [_cell(r.params.get(k)) for k in params])
+    return atomic_write_text(path, buf.getvalue())

@@ -1,0 +1,78 @@
+"""``junit.xml``: one test case per image, so CI systems show failing images natively."""
+
+from __future__ import annotations
+
+import os
+import re
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+from arenabench.fileio import atomic_write_bytes
+
+from ..records import Report
+
+_INVALID_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
+
+
+def xml_safe(text: str) -> str:
+    """``text`` without the characters XML 1.0 cannot hold (pipelines may print binary)."""
+    return _INVALID_XML.sub("\ufffd", text)
+
+
+def junit_tree(report: Report) -> ET.ElementTree:
+    """The JUnit document: a ``testsuite`` of ``testcase`` elements, a ``failure`` element
+    (``type`` = category, ``message`` = what was wrong) on each failing image."""
+    s = report.summary
+    failed = s.n - s.n_passed
+    total_s = sum(r.prediction.latency_ms for r in report.images) / 1000.0
+    suites = ET.Element("testsuites", name="arenabench", tests=str(s.n), failures=str(failed))
+    suite = ET.SubElement(
+        suites,
+        "testsuite",
+        name=f"arenabench.eval[{report.pipeline}]",
+        tests=str(s.n),
+        failures=str(failed),
+        errors="0",
+        skipped="0",
+        time=f"{total_s:.3f}",
+    )
+    props = ET.SubElement(suite, "properties")
+    for key, value in (
+        ("dataset", report.dataset),
+        ("pipeline", report.pipeline),
+        ("area_reference", report.area_reference),
+        ("tolerance", str(report.tolerance)),
+        ("pass_rate", f"{s.pass_rate:.4f}"),
+    ):
+        ET.SubElement(props, "property", name=key, value=value)
+    for r in report.images:
+        case = ET.SubElement(
+            suite,
+            "testcase",
+            classname=f"arenabench.{Path(report.dataset).name or 'dataset'}",
+            name=r.id,
+            time=f"{r.prediction.latency_ms / 1000.0:.3f}",
+        )
+        if not r.passed:
+            p, sc = r.prediction, r.score
+            detail = (
+                f"gt count {r.truth.count} area {r.truth.area:.1f}; "
+                f"pred count {p.count} area {p.area}; area_rel_err {sc.area_rel_err}"
+            )
+            msg = f"{sc.category}: {p.message or detail}"
+            fail = ET.SubElement(
+                case, "failure", type=str(sc.category), message=xml_safe(msg[:1000])
+            )
+            fail.text = xml_safe(f"{detail}\nimage: {r.image}")
+        if r.prediction.stdout:
+            ET.SubElement(case, "system-out").text = xml_safe(r.prediction.stdout)
+        if r.prediction.stderr:
+            ET.SubElement(case, "system-err").text = xml_safe(r.prediction.stderr)
+    ET.indent(suites)
+    return ET.ElementTree(suites)
+
+
+def write_junit(report: Report, path: str | os.PathLike[str]) -> Path:
+    """Write ``junit.xml``."""
+    buf = ET.tostring(junit_tree(report).getroot(), encoding="utf-8", xml_declaration=True)
+    return atomic_write_bytes(path, buf + b"\n")

@@ -1,0 +1,3 @@
+"""A pipeline that crashes at once."""
+
+raise RuntimeError("deliberate crash in the test pipeline")
