@@ -1,0 +1,369 @@
+"""Writing datasets to disk: images, GT files, manifest, dataset.json and coco.json.
+
+Layout of ``DIR``::
+
+    images/NNNNNN.png   gt/NNNNNN.json   manifest.jsonl   dataset.json   coco.json
+
+Every file is written atomically. ``dataset.json`` is written first (``"complete": false``)
+with the run's arguments, so a re-run can tell an interrupted run of the same arguments
+(resumed: scenes whose image and GT exist are skipped) from a different one (refused); the
+manifest and ``coco.json`` are written last, in id order, and ``dataset.json`` is rewritten
+with ``"complete": true``. Output is byte-identical for the same arguments whatever the
+number of workers (one spawned process per worker, one renderer each).
+"""
+
+from __future__ import annotations
+
+import json
+import multiprocessing
+import os
+import sys
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+from arenabench.generator.groundtruth import rounded
+from arenabench.generator.presets import Value, format_value, get_preset, resolve
+from arenabench.generator.sample import GENERATOR_VERSION, make_sample, scene_id
+from shapely.geometry import Polygon, box
+
+from arenabench import __version__
+from arenabench.fileio import (
+    atomic_write_bytes,
+    atomic_write_json,
+    atomic_write_text,
+    dumps_json,
+    sha256_bytes,
+    sha256_file,
+)
+
+#: dataset.json schema id.
+DATASET_SCHEMA = "arenabench.dataset/1"
+#: PNG compression level (1 = fast; the output is lossless whatever the level).
+PNG_COMPRESSION = 1
+
+
+class DatasetError(ValueError):
+    """The output directory cannot be used for this run (the message says why)."""
+
+
+@dataclass(frozen=True)
+class DatasetArgs:
+    """The arguments that define a dataset's content."""
+
+    preset: str
+    count: int
+    seed: int
+    overrides: dict[str, Value] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        get_preset(self.preset)
+        if int(self.count) != self.count or self.count < 0:
+            raise ValueError(f"count must be an integer >= 0, got {self.count!r}")
+        if int(self.seed) != self.seed or self.seed < 0:
+            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        resolve(self.preset, self.overrides)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form stored under ``dataset.json["args"]``."""
+        return {
+            "preset": self.preset, "count": int(self.count), "seed": int(self.seed),
+            "overrides": {k: format_value(v) for k, v in sorted(self.overrides.items())},
+            "generator_version": GENERATOR_VERSION,
+        }
+
+
+@dataclass
+class DatasetResult:
+    """What :func:`generate_dataset` did.
+
+    Attributes
+    ----------
+    out : Path
+        The dataset directory.
+    rendered, skipped : int
+        Scenes rendered now / found already on disk.
+    seconds : float
+        Wall time.
+    timings_ms : dict
+        Median per-image ms of ``sample``, ``render``, ``gt``, ``encode``, ``write`` (rendered
+        scenes only; empty when nothing was rendered).
+    """
+
+    out: Path
+    rendered: int
+    skipped: int
+    seconds: float
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+    def summary(self) -> str:
+        """One line for the CLI."""
+        rate = self.rendered / self.seconds if self.seconds > 0 and self.rendered else 0.0
+        parts = [f"{self.rendered} rendered", f"{self.skipped} already present",
+                 f"{self.seconds:.1f} s", f"{rate:.1f} images/s"]
+        if self.timings_ms:
+            parts.append("median ms/image " + ", ".join(
+                f"{k} {v:.1f}" for k, v in self.timings_ms.items()))
+        return f"{self.out}: " + "; ".join(parts)
+
+
+# ----------------------------------------------------------------------------- workers
+
+_WORKER: dict[str, Any] = {}
+
+
+def _init_worker(lp_threads: int | None) -> None:
+    if lp_threads and "LP_NUM_THREADS" not in os.environ:
+        os.environ["LP_NUM_THREADS"] = str(lp_threads)
+    from arenabench.generator.render import Renderer
+
+    _WORKER["renderer"] = Renderer()
+
+
+def _encode_png(rgb: np.ndarray) -> bytes:
+    params = [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION]
+    if hasattr(cv2, "IMWRITE_PNG_FILTER"):  # OpenCV >= 4.11: no row filter, 2-3x faster
+        params += [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE]
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[:, :, ::-1]), params)
+    if not ok:  # pragma: no cover - OpenCV failure
+        raise RuntimeError("PNG encoding failed")
+    return buf.tobytes()
+
+
+def _render_one(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
+    args_dict, out, index = task[1], Path(task[4]), task[3]
+    renderer = _WORKER["renderer"]
+    sample = make_sample(args_dict["preset"], seed=task[2], index=index,
+                         overrides=_parse_stored(args_dict["overrides"]), renderer=renderer)
+    t1 = time.perf_counter()
+    png = _encode_png(sample.rgb)
+    t2 = time.perf_counter()
+    atomic_write_bytes(out / "images" / f"{sample.id}.png", png)
+    atomic_write_text(out / "gt" / f"{sample.id}.json", dumps_json(sample.gt))
+    t3 = time.perf_counter()
+    if "gl" not in _WORKER:
+        _WORKER["gl"] = renderer.gl_info()
+    return {"id": sample.id, **sample.timings_ms, "encode": (t2 - t1) * 1000,
+            "write": (t3 - t2) * 1000, "gl": _WORKER["gl"]}
+
+
+def _parse_stored(overrides: dict[str, str]) -> dict[str, Value]:
+    from arenabench.generator.presets import parse_override
+
+    return dict(parse_override(f"{k}={v}") for k, v in overrides.items())
+
+
+# ----------------------------------------------------------------------------- checks
+
+def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
+    """The existing dataset.json when ``out`` holds a run of the same arguments, else None.
+
+    Raises
+    ------
+    DatasetError
+        When ``out`` holds something else (the message names the differing argument).
+    """
+    meta_path = out / "dataset.json"
+    if not out.exists():
+        return None
+    if not meta_path.exists():
+        if any(out.iterdir()):
+            raise DatasetError(f"{out} is not empty and holds no dataset.json: refusing to "
+                               "write a dataset into it")
+        return None
+    try:
+        meta = json.loads(meta_path.read_text())
+        old = meta["args"]
+    except (ValueError, KeyError) as exc:
+        raise DatasetError(f"{meta_path} is unreadable ({exc}): refusing to overwrite") from exc
+    new = args.to_dict()
+    for key in ("preset", "count", "seed", "overrides", "generator_version"):
+        if old.get(key) != new[key]:
+            name = {"overrides": "--set"}.get(key, f"--{key}")
+            raise DatasetError(
+                f"{out} was generated with different arguments: {name} was "
+                f"{old.get(key)!r}, now {new[key]!r} (use another --out)"
+            )
+    return meta
+
+
+def _present(out: Path, sid: str) -> bool:
+    return (out / "images" / f"{sid}.png").is_file() and (out / "gt" / f"{sid}.json").is_file()
+
+
+# ----------------------------------------------------------------------------- outputs
+
+def coco_from_gts(gts: list[dict[str, Any]]) -> dict[str, Any]:
+    """COCO instances for a list of GT records (obstacles: category 1, markers: category 2).
+
+    Polygons are the image-space polygons (convex hull of each box's projected vertices,
+    marker quadrilaterals) shifted by +0.5 px to COCO's pixel-corner convention and clipped
+    to the image; ``area`` is the clipped polygon's area and ``bbox`` its bounds.
+    """
+    images, annotations = [], []
+    for gt in gts:
+        image_id = int(gt["index"])
+        w, h = gt["image_size"]
+        images.append({"id": image_id, "file_name": gt["image"], "width": w, "height": h})
+        frame = box(0.0, 0.0, float(w), float(h))
+        polys = [(1, ob["image_polygon_px"]) for ob in gt["obstacles"]]
+        polys += [(2, m["corners_px"]) for m in gt["markers"]]
+        for category, pts in polys:
+            if len(pts) < 3:
+                continue
+            poly = Polygon(np.asarray(pts) + 0.5).intersection(frame)
+            if poly.is_empty or poly.area <= 0 or poly.geom_type != "Polygon":
+                continue
+            coords = np.asarray(poly.exterior.coords)[:-1]
+            x0, y0, x1, y1 = poly.bounds
+            annotations.append({
+                "id": len(annotations) + 1, "image_id": image_id, "category_id": category,
+                "segmentation": [coords.reshape(-1).tolist()], "area": poly.area,
+                "bbox": [x0, y0, x1 - x0, y1 - y0], "iscrowd": 0,
+            })
+    return rounded({
+        "info": {"description": "arenabench synthetic arena scenes", "version": "1"},
+        "images": images,
+        "annotations": annotations,
+        "categories": [{"id": 1, "name": "obstacle", "supercategory": "object"},
+                       {"id": 2, "name": "marker", "supercategory": "object"}],
+    })
+
+
+def _versions(gl: dict[str, str] | None) -> dict[str, str]:
+    import pyrender
+
+    out = {"arenabench": __version__, "opencv": cv2.__version__, "numpy": np.__version__,
+           "pyrender": getattr(pyrender, "__version__", "unknown"),
+           "python": sys.version.split()[0]}
+    out.update(gl or {})
+    return out
+
+
+def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
+    ids = [scene_id(i) for i in range(args.count)]
+    lines, gts = [], []
+    for sid in ids:
+        gt_path, img_path = out / "gt" / f"{sid}.json", out / "images" / f"{sid}.png"
+        gt_bytes = gt_path.read_bytes()
+        gts.append(json.loads(gt_bytes))
+        lines.append(json.dumps({
+            "id": sid, "image": f"images/{sid}.png", "gt": f"gt/{sid}.json",
+            "image_sha256": sha256_file(img_path), "gt_sha256": sha256_bytes(gt_bytes),
+        }, sort_keys=True))
+    atomic_write_text(out / "manifest.jsonl", "".join(line + "\n" for line in lines))
+    atomic_write_json(out / "coco.json", coco_from_gts(gts))
+    _write_meta(out, args, complete=True, gl=gl)
+
+
+def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
+                gl: dict[str, str] | None = None) -> None:
+    params = resolve(args.preset, args.overrides)
+    meta = {
+        "schema": DATASET_SCHEMA, "args": args.to_dict(), "preset": args.preset,
+        "overrides": args.to_dict()["overrides"], "seed": int(args.seed),
+        "count": int(args.count), "complete": complete,
+        "params": {k: format_value(v) for k, v in sorted(params.items())},
+        "versions": _versions(gl) if complete else {},
+        "files": {"images": "images/", "gt": "gt/", "manifest": "manifest.jsonl",
+                  "coco": "coco.json"},
+    }
+    atomic_write_json(out / "dataset.json", meta)
+
+
+# ----------------------------------------------------------------------------- driver
+
+def generate_dataset(
+    out: str | os.PathLike[str],
+    *,
+    preset: str,
+    count: int,
+    seed: int,
+    overrides: dict[str, Value] | None = None,
+    workers: int = 1,
+    progress: bool = True,
+) -> DatasetResult:
+    """Render ``count`` scenes of ``preset`` into ``out`` (resuming an interrupted run).
+
+    Parameters
+    ----------
+    out : path-like
+        Dataset directory (created).
+    preset : str, keyword-only
+        Preset name.
+    count, seed : int, keyword-only
+        Number of scenes, run seed.
+    overrides : dict, keyword-only
+        Parsed ``--set`` values.
+    workers : int, keyword-only
+        Rendering processes (1 = this process).
+    progress : bool, keyword-only
+        Show a tqdm progress bar on stderr.
+
+    Returns
+    -------
+    DatasetResult
+
+    Raises
+    ------
+    DatasetError
+        When ``out`` holds a dataset made with other arguments, or unrelated files.
+    ValueError
+        For invalid arguments.
+    """
+    if int(workers) != workers or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    args = DatasetArgs(preset=preset, count=int(count), seed=int(seed),
+                       overrides=dict(overrides or {}))
+    root = Path(out)
+    start = time.perf_counter()
+    meta = _check_existing(root, args)
+    todo = [i for i in range(args.count) if not _present(root, scene_id(i))]
+    skipped = args.count - len(todo)
+    if meta is not None and meta.get("complete") and not todo:
+        return DatasetResult(root, 0, skipped, time.perf_counter() - start)
+    (root / "images").mkdir(parents=True, exist_ok=True)
+    (root / "gt").mkdir(parents=True, exist_ok=True)
+    if meta is None:
+        _write_meta(root, args, complete=False)
+    stored = args.to_dict()
+    tasks = [("task", stored, args.seed, i, str(root)) for i in todo]
+    results: list[dict[str, Any]] = []
+    bar = _progress(len(tasks), progress)
+    try:
+        if workers == 1 or len(tasks) <= 1:
+            _init_worker(None)
+            for task in tasks:
+                results.append(_render_one(task))
+                bar.update(1)
+        else:
+            cores = os.cpu_count() or 1
+            lp = max(1, cores // workers)
+            ctx = multiprocessing.get_context("spawn")
+            with ctx.Pool(workers, initializer=_init_worker, initargs=(lp,)) as pool:
+                for res in pool.imap_unordered(_render_one, tasks, chunksize=1):
+                    results.append(res)
+                    bar.update(1)
+    finally:
+        bar.close()
+    gl = results[0]["gl"] if results else (meta or {}).get("versions") or None
+    if gl is None:
+        _init_worker(None)
+        gl = _WORKER["renderer"].gl_info()
+    gl = {k: v for k, v in gl.items() if k.startswith("gl_")}
+    _finish(root, args, gl)
+    timings = {}
+    if results:
+        for key in ("sample", "render", "gt", "encode", "write"):
+            timings[key] = float(np.median([r[key] for r in results]))
+    return DatasetResult(root, len(results), skipped, time.perf_counter() - start, timings)
+
+
+def _progress(total: int, enabled: bool):
+    from tqdm import tqdm
+
+    return tqdm(total=total, unit="img", disable=not enabled or not sys.stderr.isatty(),
+                file=sys.stderr, dynamic_ncols=True)

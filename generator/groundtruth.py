@@ -1,0 +1,189 @@
+"""Analytic ground truth (DESIGN.md "Ground truth"): geometry only, never read from pixels.
+
+- Image -> frame homography ``H = world_to_frame @ inv(K [r1 r2 t])`` (floor plane z = 0).
+- Visible silhouette of a box: its vertices projected from the camera centre onto z = 0
+  (floor vertices stay put), convex hull, clipped to the frame square.
+- ``count``: obstacles whose footprint overlaps the frame; ``components``: connected pieces of
+  the union of visible silhouettes; areas are unions, in frame px.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import cv2
+import numpy as np
+import shapely
+from arenabench.generator import camera as cam
+from arenabench.generator.layout import (
+    MARKER_Z,
+    box_footprint,
+    box_vertices,
+    marker_corners_world,
+    world_to_frame,
+)
+from arenabench.generator.scene import Scene
+from shapely.geometry import MultiPoint, Polygon, box
+
+from arenabench.frame import CORNER_ORDER, FrameSpec
+
+#: Decimal places kept in ground-truth JSON (stable, byte-identical files).
+DECIMALS = 6
+#: A marker is in view when its corners lie this many px inside the image border.
+IN_VIEW_MARGIN_PX = 2.0
+
+
+def rounded(obj: Any, decimals: int = DECIMALS) -> Any:
+    """Round every float in a nested structure (numpy values become Python numbers)."""
+    if isinstance(obj, dict):
+        return {k: rounded(v, decimals) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [rounded(v, decimals) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return rounded(obj.tolist(), decimals)
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        value = round(float(obj), decimals)
+        return 0.0 if value == 0 else value
+    return obj
+
+
+def _apply(h: np.ndarray, pts: np.ndarray) -> np.ndarray:
+    p = np.column_stack([pts, np.ones(len(pts))]) @ h.T
+    return p[:, :2] / p[:, 2:3]
+
+
+def _coords(geom) -> list[list[float]]:
+    """Exterior ring (without the closing point) of a polygon; [] when empty or not a polygon."""
+    if geom.is_empty:
+        return []
+    if geom.geom_type != "Polygon":
+        geom = max(getattr(geom, "geoms", []), key=lambda g: g.area, default=None)
+        if geom is None or geom.geom_type != "Polygon":
+            return []
+    return [list(p) for p in np.asarray(geom.exterior.coords)[:-1]]
+
+
+def image_to_frame_homography(scene: Scene, frame: FrameSpec | None = None) -> np.ndarray:
+    """3x3 homography from image px to frame px, normalised so that ``H[2, 2] = 1``."""
+    K = cam.intrinsics(scene.camera)
+    pose = cam.world_from_camera(scene.camera)
+    h = world_to_frame(scene.arena, scene.markers, frame) @ np.linalg.inv(
+        cam.floor_homography(K, pose)
+    )
+    return h / h[2, 2]
+
+
+def visible_silhouette_world(scene: Scene, index: int) -> np.ndarray:
+    """Floor points (x, y) hidden by obstacle ``index``: projected vertices, shape (8, 2).
+
+    Raises
+    ------
+    ValueError
+        When the camera is not above the obstacle's top.
+    """
+    ob = scene.obstacles[index]
+    c = cam.world_from_camera(scene.camera)[:3, 3]
+    if c[2] <= ob.height_m:
+        raise ValueError(
+            f"camera height {c[2]:.3f} m is not above obstacle {index} (height {ob.height_m} m)"
+        )
+    v = box_vertices(ob)
+    t = c[2] / (c[2] - v[:, 2])
+    return c[None, :2] + (v[:, :2] - c[None, :2]) * t[:, None]
+
+
+def _components(geom) -> int:
+    if geom.is_empty:
+        return 0
+    return len(geom.geoms) if hasattr(geom, "geoms") else 1
+
+
+def compute_ground_truth(scene: Scene, *, frame: FrameSpec | None = None) -> dict[str, Any]:
+    """Ground truth of ``scene`` (the geometric part of the GT file, floats rounded).
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene description.
+    frame : FrameSpec, keyword-only
+        Rectified frame size and corner convention (default 1000 px, inner corners).
+
+    Returns
+    -------
+    dict
+        Keys ``image_size``, ``scene``, ``count``, ``components``, ``area``, ``frame``,
+        ``homography``, ``camera``, ``markers``, ``obstacles`` as in DESIGN.md.
+    """
+    frame = frame or FrameSpec()
+    K = cam.intrinsics(scene.camera)
+    pose = cam.world_from_camera(scene.camera)
+    rvec, tvec = cam.rvec_tvec(pose)
+    dist = np.zeros(5)
+    w, h = scene.camera.width, scene.camera.height
+    w2f = world_to_frame(scene.arena, scene.markers, frame)
+    homography = image_to_frame_homography(scene, frame)
+    frame_box = box(0.0, 0.0, float(frame.size), float(frame.size))
+
+    def inside(px: np.ndarray, margin: float = 0.0) -> bool:
+        return bool(
+            np.all(px[:, 0] >= -0.5 + margin) and np.all(px[:, 0] <= w - 0.5 - margin)
+            and np.all(px[:, 1] >= -0.5 + margin) and np.all(px[:, 1] <= h - 0.5 - margin)
+        )
+
+    obstacles, footprints, visibles = [], [], []
+    count = 0
+    for i, ob in enumerate(scene.obstacles):
+        fp = Polygon(_apply(w2f, box_footprint(ob)))
+        vis = MultiPoint(_apply(w2f, visible_silhouette_world(scene, i))).convex_hull
+        fp_in, vis_in = fp.intersection(frame_box), vis.intersection(frame_box)
+        if fp_in.area > 0:
+            count += 1
+        footprints.append(fp_in)
+        visibles.append(vis_in)
+        img_pts, _ = cv2.projectPoints(box_vertices(ob), rvec, tvec, K, dist)
+        img_pts = img_pts.reshape(-1, 2)
+        hull = MultiPoint(img_pts).convex_hull
+        obstacles.append({
+            "shape": "box",
+            "center_m": list(ob.center_m),
+            "yaw_deg": ob.yaw_deg,
+            "size_m": [ob.length_m, ob.width_m, ob.height_m],
+            "color_rgb": list(ob.color_rgb),
+            "footprint_frame_px": _coords(fp_in),
+            "visible_frame_px": _coords(vis_in),
+            "image_polygon_px": _coords(hull),
+            "footprint_area_px": fp_in.area,
+            "visible_area_px": vis_in.area,
+            "in_view": inside(img_pts),
+        })
+    vis_union = shapely.union_all(visibles) if visibles else Polygon()
+    fp_union = shapely.union_all(footprints) if footprints else Polygon()
+
+    markers = []
+    for corner, marker_id in zip(CORNER_ORDER, scene.markers.ids, strict=True):
+        xy = marker_corners_world(scene.arena, scene.markers, corner)
+        pts = np.column_stack([xy, np.full(4, MARKER_Z)])
+        px, _ = cv2.projectPoints(pts, rvec, tvec, K, dist)
+        px = px.reshape(4, 2)
+        markers.append({
+            "dictionary": scene.markers.dictionary, "id": int(marker_id), "corner": corner,
+            "corners_px": px, "in_view": inside(px, IN_VIEW_MARGIN_PX),
+        })
+
+    gt = {
+        "image_size": [w, h],
+        "scene": scene.to_dict(),
+        "count": count,
+        "components": _components(vis_union),
+        "area": {"visible_px": vis_union.area, "footprint_px": fp_union.area},
+        "frame": frame.to_dict(),
+        "homography": homography,
+        "camera": {"K": K, "dist": dist, "world_from_camera": pose},
+        "markers": markers,
+        "obstacles": obstacles,
+    }
+    return rounded(gt)

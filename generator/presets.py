@@ -1,0 +1,293 @@
+"""Named scene presets as data, and ``--set key=value`` override parsing and validation.
+
+A preset maps dotted parameter names to a fixed value or a range. Ranges are written
+``"lo:hi"``: uniform over [lo, hi) for real parameters, over the integers lo..hi inclusive for
+integer ones. Every parameter is declared in :data:`PARAMETERS` with its kind and bounds;
+anything else is refused with an error naming the key.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+#: A parameter value as stored in a preset: a fixed value or a (lo, hi) range.
+Value = Any
+
+
+@dataclass(frozen=True)
+class ParamDef:
+    """Declaration of one preset parameter.
+
+    Attributes
+    ----------
+    kind : {"float", "int", "str", "rgb", "ids", "bool"}
+        How values are parsed; only "float" and "int" accept ``lo:hi`` ranges.
+    lo, hi : float or None
+        Inclusive bounds for numbers.
+    help : str
+        One line for ``arenabench presets``.
+    choices : tuple of str
+        Allowed values for a "str" parameter (empty = any).
+    """
+
+    kind: str
+    help: str
+    lo: float | None = None
+    hi: float | None = None
+    choices: tuple[str, ...] = ()
+
+
+PARAMETERS: dict[str, ParamDef] = {
+    "arena.side_m": ParamDef("float", "side of the border-line square (m)", 0.5, 1000),
+    "arena.margin_m": ParamDef("float", "floor beyond the border line (m)", 0, 100),
+    "arena.floor_rgb": ParamDef("rgb", "floor albedo R,G,B"),
+    "arena.texture": ParamDef("str", "floor texture", choices=("plain", "speckle")),
+    "arena.border_width_m": ParamDef("float", "border line width (m), 0 = none", 0, 1),
+    "arena.border_rgb": ParamDef("rgb", "border line colour R,G,B"),
+    "arena.grid_step_m": ParamDef("float", "floor grid spacing (m), 0 = none", 0, 100),
+    "arena.grid_rgb": ParamDef("rgb", "floor grid colour R,G,B"),
+    "arena.logo_text": ParamDef("str", "text distractor in the south margin ('' = none)"),
+    "arena.logo_rgb": ParamDef("rgb", "text distractor colour R,G,B"),
+    "markers.dictionary": ParamDef("str", "cv2.aruco dictionary name"),
+    "markers.ids": ParamDef("ids", "marker ids NW,NE,SE,SW"),
+    "markers.side_m": ParamDef("float", "marker side (m)", 0.01, 100),
+    "markers.rotation_deg": ParamDef("float", "printed marker rotation (multiple of 90)", -360,
+                                     360),
+    "markers.quiet_zone_m": ParamDef("float", "white quiet zone around markers (m)", 0, 10),
+    "obstacles.count": ParamDef("int", "number of boxes", 0, 50),
+    "obstacles.length_m": ParamDef("float", "box length (m), per box", 0.01, 100),
+    "obstacles.width_m": ParamDef("float", "box width (m), per box", 0.01, 100),
+    "obstacles.height_m": ParamDef("float", "box height (m), per box", 0.001, 100),
+    "obstacles.yaw_deg": ParamDef("float", "box yaw (deg), per box", -360, 360),
+    "obstacles.gray": ParamDef("int", "box albedo grey level, per box", 0, 255),
+    "obstacles.min_gap_m": ParamDef("float", "minimum gap between footprints (m)", 0, 100),
+    "obstacles.edge_margin_m": ParamDef("float", "minimum distance to the frame edge (m)", 0,
+                                        100),
+    "obstacles.max_tries": ParamDef("int", "placement tries per box before failing", 1, 100000),
+    "camera.width": ParamDef("int", "image width (px)", 16, 16384),
+    "camera.height": ParamDef("int", "image height (px)", 16, 16384),
+    "camera.fov_deg": ParamDef("float", "vertical field of view (deg)", 1, 170),
+    "camera.altitude_m": ParamDef("float", "camera height above the floor (m)", 0.01, 10000),
+    "camera.tilt_deg": ParamDef("float", "optical axis angle from the nadir (deg)", 0, 79),
+    "camera.yaw_deg": ParamDef("float", "camera heading, CCW from north-up (deg)", -360, 360),
+    "camera.roll_deg": ParamDef("float", "rotation about the optical axis (deg)", -180, 180),
+    "camera.target_x_m": ParamDef("float", "where the optical axis meets the floor, x (m)",
+                                  -1000, 1000),
+    "camera.target_y_m": ParamDef("float", "where the optical axis meets the floor, y (m)",
+                                  -1000, 1000),
+    "camera.markers_in_view": ParamDef("bool", "redraw the camera until all markers are in view"),
+    "camera.max_tries": ParamDef("int", "camera draws before failing", 1, 100000),
+    "lighting.ambient": ParamDef("float", "ambient light", 0, 2),
+    "lighting.intensity": ParamDef("float", "directional light intensity", 0, 2),
+    "lighting.elevation_deg": ParamDef("float", "directional light elevation (deg)", 0, 90),
+    "lighting.azimuth_deg": ParamDef("float", "directional light azimuth, CCW from east (deg)",
+                                     -360, 360),
+    "background.gray": ParamDef("int", "grey level around the arena", 0, 255),
+}
+
+_EYRC: dict[str, Value] = {
+    "arena.side_m": 8.0,
+    "arena.margin_m": 0.45,
+    "arena.floor_rgb": (253, 253, 253),
+    "arena.texture": "plain",
+    "arena.border_width_m": 0.015,
+    "arena.border_rgb": (20, 20, 20),
+    "arena.grid_step_m": 0.0,
+    "arena.grid_rgb": (200, 200, 200),
+    "arena.logo_text": "eyantra",
+    "arena.logo_rgb": (220, 50, 50),
+    "markers.dictionary": "DICT_4X4_100",
+    "markers.ids": (80, 85, 90, 95),
+    "markers.side_m": 0.48,
+    "markers.rotation_deg": 180.0,
+    "markers.quiet_zone_m": 0.04,
+    "obstacles.count": (1, 5),
+    "obstacles.length_m": (0.7, 2.2),
+    "obstacles.width_m": (0.5, 1.2),
+    "obstacles.height_m": (0.2, 0.8),
+    "obstacles.yaw_deg": (-6.0, 6.0),
+    "obstacles.gray": (100, 140),
+    "obstacles.min_gap_m": 0.3,
+    "obstacles.edge_margin_m": 0.3,
+    "obstacles.max_tries": 500,
+    "camera.width": 1000,
+    "camera.height": 1000,
+    "camera.fov_deg": 60.0,
+    "camera.altitude_m": (8.3, 8.8),
+    "camera.tilt_deg": (0.0, 6.0),
+    "camera.yaw_deg": (-2.0, 2.0),
+    "camera.roll_deg": (-0.5, 0.5),
+    "camera.target_x_m": (-0.2, 0.2),
+    "camera.target_y_m": (-0.1, 0.7),
+    "camera.markers_in_view": True,
+    "camera.max_tries": 100,
+    "lighting.ambient": (0.58, 0.62),
+    "lighting.intensity": (0.42, 0.46),
+    "lighting.elevation_deg": (60.0, 70.0),
+    "lighting.azimuth_deg": (0.0, 360.0),
+    "background.gray": (218, 232),
+}
+
+#: Named presets: name -> (description, parameters).
+PRESETS: dict[str, tuple[str, dict[str, Value]]] = {
+    "eyrc": ("looks like the e-Yantra Task 1C example: near-nadir camera, 1-5 grey boxes, "
+             "markers 80/85/90/95 rotated 180 deg", _EYRC),
+    "eyrc-upright": ("eyrc with the markers printed upright (the published pipeline then "
+                     "warps to the outer corners)", {**_EYRC, "markers.rotation_deg": 0.0}),
+    "eyrc-oblique": ("eyrc seen obliquely: tilt 10-30 deg, any heading, higher camera",
+                     {**_EYRC, "camera.tilt_deg": (10.0, 30.0), "camera.yaw_deg": (-180.0, 180.0),
+                      "camera.altitude_m": (9.5, 11.0), "camera.target_x_m": (-0.3, 0.3),
+                      "camera.target_y_m": (-0.3, 0.3)}),
+}
+
+
+def preset_names() -> list[str]:
+    """Names of the built-in presets."""
+    return list(PRESETS)
+
+
+def get_preset(name: str) -> dict[str, Value]:
+    """A copy of preset ``name``'s parameters.
+
+    Raises
+    ------
+    ValueError
+        For an unknown name (the message lists the known ones).
+    """
+    if name not in PRESETS:
+        raise ValueError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})")
+    return dict(PRESETS[name][1])
+
+
+def _number(key: str, text: str, kind: str) -> float | int:
+    try:
+        if kind == "int":
+            value = float(text)
+            if value != int(value):
+                raise ValueError
+            return int(value)
+        return float(text)
+    except ValueError:
+        raise ValueError(f"--set {key}: invalid {kind} value {text!r}") from None
+
+
+def _check_bounds(key: str, value: float, spec: ParamDef, raw: Any) -> None:
+    if (spec.lo is not None and value < spec.lo) or (spec.hi is not None and value > spec.hi):
+        raise ValueError(
+            f"--set {key}: value {raw!r} out of range [{spec.lo:g}, {spec.hi:g}]"
+        )
+
+
+def validate_value(key: str, value: Value) -> Value:
+    """Check and normalise a parameter value (fixed or range) for ``key``.
+
+    Raises
+    ------
+    ValueError
+        Naming the key and the value: unknown key, wrong type, out of bounds, bad range.
+    """
+    if key not in PARAMETERS:
+        raise ValueError(f"--set: unknown parameter {key!r} (list them: arenabench presets "
+                         "--params)")
+    spec = PARAMETERS[key]
+    if spec.kind in ("float", "int"):
+        if isinstance(value, (tuple, list)):
+            if len(value) != 2:
+                raise ValueError(f"--set {key}: a range needs two ends, got {value!r}")
+            lo, hi = (_number(key, str(v), spec.kind) for v in value)
+            if lo > hi:
+                raise ValueError(f"--set {key}: empty range {value!r} (lo > hi)")
+            _check_bounds(key, lo, spec, value)
+            _check_bounds(key, hi, spec, value)
+            return (lo, hi) if lo != hi else lo
+        if isinstance(value, bool):
+            raise ValueError(f"--set {key}: invalid {spec.kind} value {value!r}")
+        number = _number(key, str(value), spec.kind)
+        _check_bounds(key, number, spec, value)
+        return number
+    if spec.kind == "bool":
+        if isinstance(value, bool):
+            return value
+        text = str(value).strip().lower()
+        if text in ("1", "true", "yes", "on"):
+            return True
+        if text in ("0", "false", "no", "off"):
+            return False
+        raise ValueError(f"--set {key}: invalid bool value {value!r} (true/false)")
+    if spec.kind in ("rgb", "ids"):
+        parts = value.split(",") if isinstance(value, str) else list(value)
+        want = 3 if spec.kind == "rgb" else 4
+        try:
+            nums = tuple(int(str(p).strip()) for p in parts)
+        except ValueError:
+            raise ValueError(f"--set {key}: invalid value {value!r}") from None
+        if len(nums) != want:
+            raise ValueError(f"--set {key}: expected {want} comma-separated integers, "
+                             f"got {value!r}")
+        if spec.kind == "rgb" and not all(0 <= n <= 255 for n in nums):
+            raise ValueError(f"--set {key}: colour values must be 0..255, got {value!r}")
+        if spec.kind == "ids" and not all(n >= 0 for n in nums):
+            raise ValueError(f"--set {key}: ids must be >= 0, got {value!r}")
+        return nums
+    text = str(value)
+    if spec.choices and text not in spec.choices:
+        raise ValueError(f"--set {key}: invalid value {text!r} (choices: "
+                         f"{', '.join(spec.choices)})")
+    return text
+
+
+def parse_override(text: str) -> tuple[str, Value]:
+    """Parse one ``key=value`` (``value`` may be ``lo:hi``) into a validated pair.
+
+    Raises
+    ------
+    ValueError
+        When the text has no ``=``, or the key or value is invalid.
+    """
+    if "=" not in text:
+        raise ValueError(f"--set: expected key=value, got {text!r}")
+    key, raw = (s.strip() for s in text.split("=", 1))
+    if key not in PARAMETERS:
+        validate_value(key, raw)
+    spec = PARAMETERS[key]
+    if spec.kind in ("float", "int") and ":" in raw:
+        lo, _, hi = raw.partition(":")
+        return key, validate_value(key, (lo, hi))
+    return key, validate_value(key, raw)
+
+
+def parse_overrides(items: list[str] | None) -> dict[str, Value]:
+    """Parse a list of ``key=value`` strings (later ones win)."""
+    out: dict[str, Value] = {}
+    for item in items or []:
+        key, value = parse_override(item)
+        out[key] = value
+    return out
+
+
+def resolve(preset: str | dict[str, Value], overrides: dict[str, Value] | None = None
+            ) -> dict[str, Value]:
+    """Preset parameters with ``overrides`` applied, every value validated."""
+    params = get_preset(preset) if isinstance(preset, str) else dict(preset)
+    for key, value in (overrides or {}).items():
+        params[key] = value
+    missing = sorted(set(PARAMETERS) - set(params))
+    if missing:
+        raise ValueError(f"preset lacks parameters: {', '.join(missing)}")
+    return {k: validate_value(k, v) for k, v in params.items()}
+
+
+def format_value(value: Value) -> str:
+    """The ``--set`` spelling of a value."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, tuple) and len(value) == 2 and all(
+        isinstance(v, (int, float)) for v in value
+    ):
+        return f"{value[0]:g}:{value[1]:g}"
+    if isinstance(value, tuple):
+        return ",".join(str(v) for v in value)
+    if isinstance(value, float):
+        return f"{value:g}"
+    return str(value)

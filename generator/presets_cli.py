@@ -1,0 +1,39 @@
+"""``arenabench presets``: list the scene presets and their parameters."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from arenabench.generator.presets import PARAMETERS, PRESETS, format_value
+
+
+def main(argv: list[str] | None = None) -> int:
+    """List presets (default), show one (``--show NAME``) or list parameters (``--params``)."""
+    p = argparse.ArgumentParser(prog="arenabench presets",
+                                description="List scene presets and their parameters.")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--show", metavar="NAME", help="print every parameter of preset NAME")
+    g.add_argument("--params", action="store_true", help="list every parameter with its help")
+    args = p.parse_args(argv)
+    if args.show:
+        if args.show not in PRESETS:
+            print(f"arenabench presets: error: unknown preset {args.show!r} "
+                  f"(known: {', '.join(PRESETS)})", file=sys.stderr)
+            return 2
+        for key, value in PRESETS[args.show][1].items():
+            print(f"{key}={format_value(value)}")
+        return 0
+    if args.params:
+        width = max(len(k) for k in PARAMETERS)
+        for key, spec in PARAMETERS.items():
+            print(f"{key:<{width}}  {spec.kind:<5}  {spec.help}")
+        return 0
+    width = max(len(k) for k in PRESETS)
+    for name, (desc, _) in PRESETS.items():
+        print(f"{name:<{width}}  {desc}")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

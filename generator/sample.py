@@ -1,0 +1,135 @@
+"""One call from (preset, seed, index) to an image and its ground truth, in memory.
+
+``render -> RGB array -> [degrade] -> encode``: :func:`make_sample` returns the RGB array
+(after the optional ``degrade`` hook) and the GT record; writers encode it. Streaming sweeps
+use this directly with one :class:`~arenabench.generator.render.Renderer` per process.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+from arenabench.generator.groundtruth import compute_ground_truth, rounded
+from arenabench.generator.presets import Value
+from arenabench.generator.render import Renderer, RenderOutput
+from arenabench.generator.sampler import sample_scene
+
+from arenabench.frame import FrameSpec
+
+#: Bumped whenever the same (preset, seed, index) would give different images or GT.
+GENERATOR_VERSION = "1"
+#: GT file schema id.
+GT_SCHEMA = "arenabench.gt/1"
+
+#: A post-render hook: (rgb uint8 (H, W, 3), rng) -> rgb uint8 (H, W, 3).
+Degrade = Callable[[np.ndarray, np.random.Generator], np.ndarray]
+
+
+@dataclass
+class Sample:
+    """A rendered scene and its ground truth record (``gt`` is the GT file's content)."""
+
+    id: str
+    gt: dict[str, Any]
+    render: RenderOutput
+    timings_ms: dict[str, float] = field(default_factory=dict)
+
+    @property
+    def rgb(self) -> np.ndarray:
+        """(H, W, 3) uint8 RGB image (after any degradation)."""
+        return self.render.rgb
+
+    @property
+    def bgr(self) -> np.ndarray:
+        """The image in OpenCV's BGR order."""
+        return np.ascontiguousarray(self.render.rgb[:, :, ::-1])
+
+
+def scene_id(index: int) -> str:
+    """Zero-padded id of scene ``index`` (``000042``)."""
+    return f"{int(index):06d}"
+
+
+def degrade_rng(seed: int, index: int) -> np.random.Generator:
+    """Random generator for post-render degradations, independent of the scene's draws."""
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index), 1]))
+
+
+def make_sample(
+    preset: str | dict[str, Value],
+    *,
+    seed: int,
+    index: int,
+    overrides: dict[str, Value] | None = None,
+    renderer: Renderer | None = None,
+    preset_name: str | None = None,
+    depth: bool = False,
+    masks: bool = False,
+    frame: FrameSpec | None = None,
+    degrade: Degrade | None = None,
+    image_ext: str = "png",
+) -> Sample:
+    """Sample, render and annotate scene ``index`` of a run.
+
+    Parameters
+    ----------
+    preset : str or dict
+        Preset name or parameter mapping.
+    seed, index : int, keyword-only
+        Run seed and scene index.
+    overrides : dict, keyword-only
+        Parsed ``--set`` values.
+    renderer : Renderer, keyword-only
+        Reused renderer; a temporary one is created (slow) when omitted.
+    preset_name : str, keyword-only
+        Name recorded in the GT when ``preset`` is a mapping.
+    depth, masks : bool, keyword-only
+        Also render depth / instance masks.
+    frame : FrameSpec, keyword-only
+        Rectified frame (default 1000 px, inner corners).
+    degrade : callable, keyword-only
+        Post-render hook ``(rgb, rng) -> rgb``.
+    image_ext : str, keyword-only
+        Extension of the image path recorded in the GT.
+
+    Returns
+    -------
+    Sample
+    """
+    t0 = time.perf_counter()
+    sampled = sample_scene(preset, seed=seed, index=index, overrides=overrides)
+    own = renderer is None
+    renderer = renderer or Renderer()
+    t1 = time.perf_counter()
+    try:
+        out = renderer.render(sampled.scene, depth=depth, masks=masks)
+    finally:
+        if own:
+            renderer.close()
+    if degrade is not None:
+        out.rgb = np.ascontiguousarray(degrade(out.rgb, degrade_rng(seed, index)))
+    t2 = time.perf_counter()
+    sid = scene_id(index)
+    gt = {
+        "schema": GT_SCHEMA,
+        "id": sid,
+        "image": f"images/{sid}.{image_ext}",
+        "preset": preset_name or (preset if isinstance(preset, str) else "custom"),
+        "seed": int(seed),
+        "index": int(index),
+        "generator_version": GENERATOR_VERSION,
+        "params": rounded(sampled.params),
+        "overrides": {k: _jsonable(v) for k, v in sorted((overrides or {}).items())},
+        **compute_ground_truth(sampled.scene, frame=frame),
+    }
+    t3 = time.perf_counter()
+    timings = {"sample": (t1 - t0) * 1e3, "render": (t2 - t1) * 1e3, "gt": (t3 - t2) * 1e3}
+    return Sample(id=sid, gt=gt, render=out, timings_ms=timings)
+
+
+def _jsonable(value: Any) -> Any:
+    return list(value) if isinstance(value, tuple) else value

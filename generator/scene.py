@@ -1,0 +1,302 @@
+"""The scene description: plain, typed, JSON-serialisable data (no rendering state).
+
+World frame: metres, floor plane z = 0, z up, north +y, east +x, arena centred at the origin.
+A scene fully determines its image and its ground truth; the renderer and the ground-truth code
+are adapters over it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, field
+from typing import Any
+
+Rgb = tuple[int, int, int]
+
+
+def _rgb(value: Any, name: str) -> Rgb:
+    try:
+        r, g, b = (round(float(c)) for c in value)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be three numbers 0..255, got {value!r}") from exc
+    if not all(0 <= c <= 255 for c in (r, g, b)):
+        raise ValueError(f"{name} must be three numbers 0..255, got {value!r}")
+    return (r, g, b)
+
+
+def _positive(value: float, name: str) -> float:
+    value = float(value)
+    if not value > 0:
+        raise ValueError(f"{name} must be > 0, got {value!r}")
+    return value
+
+
+@dataclass(frozen=True)
+class ArenaSpec:
+    """The arena floor.
+
+    Parameters
+    ----------
+    side_m : float
+        Side of the border-line square; the markers' outer corners sit at its corners.
+    margin_m : float
+        Width of floor beyond the border line on every side.
+    floor_rgb : tuple of int
+        Floor albedo (0..255).
+    texture : {"plain", "speckle"}
+        Plain colour or a faint procedural speckle (seeded by ``texture_seed``).
+    texture_seed : int
+        Seed of the procedural texture.
+    border_width_m : float
+        Width of the border line (0 = none).
+    border_rgb : tuple of int
+        Colour of the border line.
+    grid_step_m : float
+        Spacing of an optional floor grid (0 = none).
+    grid_rgb : tuple of int
+        Colour of the grid lines.
+    logo_text : str
+        Text distractor drawn centred just outside the south border ("" = none).
+    logo_rgb : tuple of int
+        Colour of the text distractor.
+    """
+
+    side_m: float = 8.0
+    margin_m: float = 0.45
+    floor_rgb: Rgb = (253, 253, 253)
+    texture: str = "plain"
+    texture_seed: int = 0
+    border_width_m: float = 0.015
+    border_rgb: Rgb = (20, 20, 20)
+    grid_step_m: float = 0.0
+    grid_rgb: Rgb = (200, 200, 200)
+    logo_text: str = ""
+    logo_rgb: Rgb = (220, 50, 50)
+
+    def __post_init__(self) -> None:
+        _positive(self.side_m, "arena.side_m")
+        if self.margin_m < 0:
+            raise ValueError(f"arena.margin_m must be >= 0, got {self.margin_m!r}")
+        if self.texture not in ("plain", "speckle"):
+            raise ValueError(f"arena.texture must be 'plain' or 'speckle', got {self.texture!r}")
+        if self.border_width_m < 0:
+            raise ValueError(f"arena.border_width_m must be >= 0, got {self.border_width_m!r}")
+        if self.grid_step_m < 0:
+            raise ValueError(f"arena.grid_step_m must be >= 0, got {self.grid_step_m!r}")
+        for name in ("floor_rgb", "border_rgb", "grid_rgb", "logo_rgb"):
+            object.__setattr__(self, name, _rgb(getattr(self, name), f"arena.{name}"))
+
+
+@dataclass(frozen=True)
+class MarkerSpec:
+    """The four corner markers.
+
+    Parameters
+    ----------
+    dictionary : str
+        cv2.aruco predefined dictionary name, e.g. ``"DICT_4X4_100"``.
+    ids : tuple of int
+        Marker ids at the north-west, north-east, south-east and south-west corners.
+    side_m : float
+        Marker side (black border included, quiet zone excluded).
+    rotation_deg : float
+        Rotation of every printed marker counter-clockwise seen from above, relative to
+        upright (the generated image's top towards north). 180 is the competition arena.
+    quiet_zone_m : float
+        Width of the white quiet zone drawn around each marker.
+    """
+
+    dictionary: str = "DICT_4X4_100"
+    ids: tuple[int, int, int, int] = (80, 85, 90, 95)
+    side_m: float = 0.48
+    rotation_deg: float = 180.0
+    quiet_zone_m: float = 0.04
+
+    def __post_init__(self) -> None:
+        ids = tuple(int(i) for i in self.ids)
+        if len(ids) != 4:
+            raise ValueError(f"markers.ids must be 4 ids (nw, ne, se, sw), got {self.ids!r}")
+        object.__setattr__(self, "ids", ids)
+        _positive(self.side_m, "markers.side_m")
+        if self.quiet_zone_m < 0:
+            raise ValueError(f"markers.quiet_zone_m must be >= 0, got {self.quiet_zone_m!r}")
+        if float(self.rotation_deg) % 90 != 0:
+            raise ValueError(
+                f"markers.rotation_deg must be a multiple of 90, got {self.rotation_deg!r}"
+            )
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A box obstacle standing on the floor.
+
+    Parameters
+    ----------
+    center_m : tuple of float
+        Footprint centre (x, y) in metres.
+    yaw_deg : float
+        Rotation about z, counter-clockwise seen from above; the length runs along x at 0.
+    length_m, width_m, height_m : float
+        Box dimensions.
+    color_rgb : tuple of int
+        Albedo (0..255); faces are shaded from the scene's lights.
+    """
+
+    center_m: tuple[float, float]
+    yaw_deg: float
+    length_m: float
+    width_m: float
+    height_m: float
+    color_rgb: Rgb = (124, 124, 124)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "center_m", tuple(float(c) for c in self.center_m))
+        for name in ("length_m", "width_m", "height_m"):
+            _positive(getattr(self, name), f"obstacle.{name}")
+        object.__setattr__(self, "color_rgb", _rgb(self.color_rgb, "obstacle.color_rgb"))
+
+
+@dataclass(frozen=True)
+class CameraSpec:
+    """Pinhole camera: image size, intrinsics and pose.
+
+    Intrinsics: ``K`` (3x3, OpenCV convention, pixel centres at integer coordinates) when
+    given, else a vertical field of view ``fov_deg`` with the principal point at the image
+    centre. Pose: ``eye_m`` + ``look_at_m`` when both are given (image up towards north,
+    then ``roll_deg``), else the orbit form: the optical axis hits the floor at ``target_m``,
+    the camera is ``altitude_m`` above the floor, tilted ``tilt_deg`` from the nadir, with
+    heading ``yaw_deg`` (counter-clockwise seen from above; at 0 the image's top points north
+    and the camera tilts towards north) and ``roll_deg`` about the optical axis.
+    """
+
+    width: int = 1000
+    height: int = 1000
+    fov_deg: float = 60.0
+    K: tuple[tuple[float, float, float], ...] | None = None
+    altitude_m: float = 8.7
+    tilt_deg: float = 0.0
+    yaw_deg: float = 0.0
+    roll_deg: float = 0.0
+    target_m: tuple[float, float] = (0.0, 0.0)
+    eye_m: tuple[float, float, float] | None = None
+    look_at_m: tuple[float, float, float] | None = None
+
+    def __post_init__(self) -> None:
+        for name in ("width", "height"):
+            value = getattr(self, name)
+            if int(value) != value or value < 16:
+                raise ValueError(f"camera.{name} must be an integer >= 16, got {value!r}")
+            object.__setattr__(self, name, int(value))
+        if not 1.0 <= float(self.fov_deg) <= 170.0:
+            raise ValueError(f"camera.fov_deg must be in [1, 170], got {self.fov_deg!r}")
+        _positive(self.altitude_m, "camera.altitude_m")
+        if not 0.0 <= float(self.tilt_deg) < 80.0:
+            raise ValueError(f"camera.tilt_deg must be in [0, 80), got {self.tilt_deg!r}")
+        object.__setattr__(self, "target_m", tuple(float(c) for c in self.target_m))
+        if self.K is not None:
+            k = tuple(tuple(float(v) for v in row) for row in self.K)
+            if len(k) != 3 or any(len(row) != 3 for row in k):
+                raise ValueError(f"camera.K must be 3x3, got {self.K!r}")
+            object.__setattr__(self, "K", k)
+        if (self.eye_m is None) != (self.look_at_m is None):
+            raise ValueError("camera.eye_m and camera.look_at_m must be given together")
+        if self.eye_m is not None:
+            object.__setattr__(self, "eye_m", tuple(float(c) for c in self.eye_m))
+            object.__setattr__(self, "look_at_m", tuple(float(c) for c in self.look_at_m))
+
+
+@dataclass(frozen=True)
+class DirectionalLight:
+    """A directional light: ``direction`` is where the light travels (towards the scene)."""
+
+    direction: tuple[float, float, float] = (0.3, -0.4, -1.0)
+    intensity: float = 0.3
+
+    def __post_init__(self) -> None:
+        d = tuple(float(c) for c in self.direction)
+        if len(d) != 3 or not any(d):
+            raise ValueError(f"light.direction must be a non-zero 3-vector, got {self.direction!r}")
+        object.__setattr__(self, "direction", d)
+        if self.intensity < 0:
+            raise ValueError(f"light.intensity must be >= 0, got {self.intensity!r}")
+
+
+@dataclass(frozen=True)
+class LightingSpec:
+    """Ambient term plus up to four directional lights (Lambertian, baked into colours)."""
+
+    ambient: float = 0.7
+    directional: tuple[DirectionalLight, ...] = field(
+        default_factory=lambda: (DirectionalLight(),)
+    )
+
+    def __post_init__(self) -> None:
+        if self.ambient < 0:
+            raise ValueError(f"lighting.ambient must be >= 0, got {self.ambient!r}")
+        lights = tuple(
+            d if isinstance(d, DirectionalLight) else DirectionalLight(**d)
+            for d in self.directional
+        )
+        if len(lights) > 4:
+            raise ValueError(f"lighting.directional: at most 4 lights, got {len(lights)}")
+        object.__setattr__(self, "directional", lights)
+
+
+@dataclass(frozen=True)
+class Scene:
+    """Everything needed to render one image and compute its ground truth."""
+
+    arena: ArenaSpec
+    markers: MarkerSpec
+    obstacles: tuple[Obstacle, ...]
+    camera: CameraSpec
+    lighting: LightingSpec = field(default_factory=LightingSpec)
+    background_rgb: Rgb = (225, 225, 225)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "obstacles", tuple(self.obstacles))
+        object.__setattr__(self, "background_rgb", _rgb(self.background_rgb, "background_rgb"))
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready nested dict (tuples become lists)."""
+        return _listify(asdict(self))
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> Scene:
+        """Inverse of :meth:`to_dict`.
+
+        Raises
+        ------
+        ValueError
+            On a missing section or an invalid value.
+        """
+        try:
+            cam = dict(data["camera"])
+            if cam.get("K") is not None:
+                cam["K"] = tuple(tuple(r) for r in cam["K"])
+            lighting = dict(data.get("lighting", {}))
+            if "directional" in lighting:
+                lighting["directional"] = tuple(
+                    DirectionalLight(**d) for d in lighting["directional"]
+                )
+            return cls(
+                arena=ArenaSpec(**_tuplify(data["arena"])),
+                markers=MarkerSpec(**_tuplify(data["markers"])),
+                obstacles=tuple(Obstacle(**_tuplify(o)) for o in data["obstacles"]),
+                camera=CameraSpec(**_tuplify(cam)),
+                lighting=LightingSpec(**lighting),
+                background_rgb=tuple(data.get("background_rgb", (225, 225, 225))),
+            )
+        except (KeyError, TypeError) as exc:
+            raise ValueError(f"invalid scene description: {exc}") from exc
+
+
+def _listify(obj: Any) -> Any:
+    if isinstance(obj, dict):
+        return {k: _listify(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_listify(v) for v in obj]
+    return obj
+
+
+def _tuplify(d: dict[str, Any]) -> dict[str, Any]:
+    return {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}

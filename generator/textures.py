@@ -1,0 +1,108 @@
+"""Procedural textures: the arena floor and the ArUco marker sheets (cached, deterministic).
+
+Texture arrays are RGB uint8 with row 0 at the top of the image: north for the floor, the
+marker image's top for a marker sheet (before the sheet is rotated on the floor).
+"""
+
+from __future__ import annotations
+
+import functools
+
+import cv2
+import numpy as np
+from arenabench.generator.layout import floor_extent
+from arenabench.generator.scene import ArenaSpec
+
+#: Floor texture side in texels.
+FLOOR_TEXELS = 2048
+#: Texels per marker module (cell): 4x4 markers are 6 modules wide with the black border.
+MODULE_TEXELS = 32
+
+
+def aruco_dictionary(name: str):
+    """The cv2.aruco predefined dictionary called ``name`` (e.g. ``"DICT_4X4_100"``).
+
+    Raises
+    ------
+    ValueError
+        When OpenCV has no such dictionary.
+    """
+    code = getattr(cv2.aruco, name, None)
+    if not name.startswith("DICT_") or not isinstance(code, int):
+        raise ValueError(f"markers.dictionary: unknown ArUco dictionary {name!r}")
+    return cv2.aruco.getPredefinedDictionary(code)
+
+
+@functools.lru_cache(maxsize=64)
+def marker_texture(dictionary: str, marker_id: int, side_m: float, quiet_zone_m: float):
+    """A marker sheet: the marker image with a white quiet zone.
+
+    Returns
+    -------
+    image : numpy.ndarray
+        (N, N, 3) uint8 RGB, N = marker px + 2 * quiet px.
+    pad_m : float
+        The quiet zone actually drawn, in metres (rounded to whole texels), so that the sheet's
+        outline is the marker square grown by ``pad_m``.
+    """
+    d = aruco_dictionary(dictionary)
+    if not 0 <= marker_id < d.bytesList.shape[0]:
+        raise ValueError(f"markers.ids: id {marker_id} is not in {dictionary}")
+    side_px = (d.markerSize + 2) * MODULE_TEXELS
+    img = cv2.aruco.generateImageMarker(d, int(marker_id), side_px, borderBits=1)
+    pad_px = round(quiet_zone_m / side_m * side_px)
+    img = cv2.copyMakeBorder(img, pad_px, pad_px, pad_px, pad_px, cv2.BORDER_CONSTANT, value=255)
+    rgb = np.ascontiguousarray(np.repeat(img[:, :, None], 3, axis=2))
+    rgb.setflags(write=False)
+    return rgb, pad_px * side_m / side_px
+
+
+def floor_texture(arena: ArenaSpec, *, texels: int = FLOOR_TEXELS) -> np.ndarray:
+    """The floor texture (albedo, unlit) covering the floor square; cached by ``arena``."""
+    return _floor_texture(arena, texels)
+
+
+@functools.lru_cache(maxsize=8)
+def _floor_texture(arena: ArenaSpec, texels: int) -> np.ndarray:
+    e = floor_extent(arena)
+    scale = texels / (2.0 * e)  # texels per metre
+    centres = (np.arange(texels) + 0.5) / scale - e  # x of column centres; y = -x of rows
+    x = centres[None, :]
+    y = -centres[:, None]
+    img = np.empty((texels, texels, 3), np.uint8)
+    img[:] = arena.floor_rgb
+    if arena.texture == "speckle":
+        rng = np.random.default_rng(arena.texture_seed)
+        noise = rng.normal(0.0, 2.0, size=(texels // 4, texels // 4)).astype(np.float32)
+        noise = cv2.resize(noise, (texels, texels), interpolation=cv2.INTER_LINEAR)
+        img = np.clip(img.astype(np.float32) + noise[:, :, None], 0, 255).astype(np.uint8)
+    if arena.grid_step_m > 0:
+        half = max(0.5 / scale, 0.005)
+        on_x = np.abs((x + half) % arena.grid_step_m - half) < half
+        on_y = np.abs((y + half) % arena.grid_step_m - half) < half
+        img[on_x | on_y] = arena.grid_rgb
+    if arena.border_width_m > 0:
+        h, w = arena.side_m / 2.0, arena.border_width_m / 2.0
+        ax, ay = np.abs(x), np.abs(y)
+        outer = (ax <= h + w) & (ay <= h + w)
+        inner = (ax < h - w) & (ay < h - w)
+        img[outer & ~inner] = arena.border_rgb
+    if arena.logo_text and arena.margin_m > 0:
+        _draw_logo(img, arena, scale)
+    img.setflags(write=False)
+    return img
+
+
+def _draw_logo(img: np.ndarray, arena: ArenaSpec, scale: float) -> None:
+    """Draw ``arena.logo_text`` centred in the south margin, about half the margin high."""
+    e = floor_extent(arena)
+    font = cv2.FONT_HERSHEY_SIMPLEX
+    target_h = 0.45 * arena.margin_m * scale
+    (_, th), _ = cv2.getTextSize(arena.logo_text, font, 1.0, 2)
+    font_scale = target_h / max(th, 1)
+    thickness = max(1, round(font_scale * 2))
+    (tw, th), _ = cv2.getTextSize(arena.logo_text, font, font_scale, thickness)
+    row_centre = (e + arena.side_m / 2.0 + arena.margin_m / 2.0) * scale
+    org = (round(img.shape[1] / 2 - tw / 2), round(row_centre + th / 2))
+    cv2.putText(img, arena.logo_text, org, font, font_scale, arena.logo_rgb, thickness,
+                cv2.LINE_AA)
