@@ -1,0 +1,114 @@
+"""``arenabench detect`` (also ``python -m arenabench.detect``): competition-compatible I/O.
+
+Runs the pipeline on ``--image PATH`` and writes ``obstacles.txt`` in the competition's exact
+format to the working directory (or ``--output FILE``); ``--json`` also prints the full
+Detection on stdout. Drops into any place a team's ``map.py --image PATH`` would run.
+
+Exit status: 0 ok; 2 bad input or usage (one line on stderr, ``arenabench detect: error:
+...``); 3 markers not found (``obstacles.txt`` is still written, with the ids found, count 0
+and area 0.0, so graders can parse it).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+from arenabench.competition import OBSTACLES_FILE, format_obstacles_txt
+from arenabench.fileio import atomic_write_text
+from arenabench.frame import FrameSpec
+
+PROG = "arenabench detect"
+EXIT_OK, EXIT_USAGE, EXIT_MARKERS = 0, 2, 3
+
+
+class _UsageError(Exception):
+    pass
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message: str) -> None:  # type: ignore[override]
+        raise _UsageError(message)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The command's argument parser."""
+    p = _Parser(
+        prog=PROG,
+        description="Detect the arena markers and obstacles in one overhead image and write "
+        "obstacles.txt in the competition's format.",
+    )
+    p.add_argument("--image", required=True, help="input image (PNG, JPEG, ...)")
+    p.add_argument("--output", default=OBSTACLES_FILE, metavar="FILE",
+                   help="where to write the competition output (default: ./obstacles.txt)")
+    p.add_argument("--json", action="store_true", help="also print the full Detection as JSON")
+    p.add_argument("--profile", choices=("reference", "seed"), default="reference",
+                   help="reference (default): the sound method; seed: as published")
+    p.add_argument("--threshold", type=int, default=70,
+                   help="global threshold before the marker search (default 70)")
+    p.add_argument("--min-area", type=float, default=500.0,
+                   help="contours larger than this (frame px^2) count (default 500)")
+    p.add_argument("--corners", choices=("inner", "outer"), default="inner",
+                   help="marker corners mapped to the frame corners (default inner)")
+    p.add_argument("--frame-size", type=int, default=1000,
+                   help="side of the rectified frame in px (default 1000)")
+    p.add_argument("--obstacle-threshold", type=int, default=None,
+                   help="reference: fixed colour distance from the floor (default: automatic)")
+    p.add_argument("--area-method", choices=("contour", "pixels"), default="contour",
+                   help="obstacle area: cv2.contourArea (default) or pixel count")
+    return p
+
+
+def _error(message: str) -> int:
+    first = " ".join(str(message).split())
+    print(f"{PROG}: error: {first}", file=sys.stderr)
+    return EXIT_USAGE
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the command; return its exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except _UsageError as exc:
+        return _error(str(exc))
+    except SystemExit as exc:  # --help
+        return int(exc.code or 0)
+
+    from arenabench.imageio import ImageLoadError, load_image
+    from arenabench.pipeline import DetectConfig, detect
+
+    try:
+        config = DetectConfig(
+            profile=args.profile,
+            threshold=args.threshold,
+            min_area=args.min_area,
+            frame=FrameSpec(size=args.frame_size, corners=args.corners),
+            obstacle_threshold=args.obstacle_threshold,
+            area_method=args.area_method,
+        )
+    except ValueError as exc:
+        return _error(str(exc))
+    try:
+        image = load_image(args.image)
+    except ImageLoadError as exc:
+        return _error(str(exc))
+    try:
+        result = detect(image, config)
+    except ValueError as exc:
+        return _error(str(exc))
+    text = format_obstacles_txt(result.marker_ids, result.count, result.total_area)
+    try:
+        atomic_write_text(args.output, text)
+    except OSError as exc:
+        return _error(f"cannot write {args.output}: {exc.strerror or exc}")
+    if args.json:
+        print(result.to_json())
+    if not result.ok:
+        print(f"{PROG}: markers not found: {result.message}", file=sys.stderr)
+        return EXIT_MARKERS
+    return EXIT_OK
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,119 @@
+"""Loading images for the pipeline: always BGR uint8 with three channels, or a clear error.
+
+Conversions: grayscale -> BGR; BGRA/RGBA -> BGR by dropping the alpha channel (the colour
+channels are what a camera sees; a transparent background keeps whatever colour it stores);
+16-bit -> 8-bit by scaling (value / 257, rounded); EXIF orientation is applied as
+``cv2.imread`` does. Refused with :class:`ImageLoadError` (a ``ValueError`` whose message is
+one line naming the file): a missing path, a directory, an empty file, a truncated PNG or
+JPEG (``cv2.imread`` may silently return a partly grey image for those), and anything OpenCV
+cannot decode.
+"""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+_PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+_JPEG_MAGIC = b"\xff\xd8\xff"
+
+
+class ImageLoadError(ValueError):
+    """An image could not be loaded; the message is one line and names the file."""
+
+
+def _check_complete(data: bytes, name: str) -> None:
+    """Raise when a PNG lacks its IEND chunk or a JPEG its end-of-image marker."""
+    if data.startswith(_PNG_MAGIC):
+        if b"IEND" not in data[-64:]:
+            raise ImageLoadError(f"{name}: truncated PNG (no IEND chunk at the end)")
+    elif data.startswith(_JPEG_MAGIC):
+        tail = data[-256:].rstrip(b"\x00\r\n\t ")
+        if not tail.endswith(b"\xff\xd9"):
+            raise ImageLoadError(f"{name}: truncated JPEG (no end-of-image marker)")
+
+
+def to_bgr8(image: np.ndarray, *, name: str = "image") -> np.ndarray:
+    """Convert a decoded image to BGR uint8 with three channels.
+
+    Parameters
+    ----------
+    image : numpy.ndarray
+        uint8 or uint16, H x W or H x W x 1/3/4 (BGR or BGRA order).
+    name : str
+        Used in error messages.
+
+    Raises
+    ------
+    ImageLoadError
+        For other dtypes or shapes.
+    """
+    if image.dtype == np.uint16:
+        image = cv2.convertScaleAbs(image, alpha=1.0 / 257.0)
+    elif image.dtype != np.uint8:
+        raise ImageLoadError(f"{name}: unsupported pixel type {image.dtype} (need 8 or 16 bit)")
+    if image.ndim == 3 and image.shape[2] == 1:
+        image = image[:, :, 0]
+    if image.ndim == 2:
+        return cv2.cvtColor(image, cv2.COLOR_GRAY2BGR)
+    if image.ndim == 3 and image.shape[2] == 4:
+        return cv2.cvtColor(image, cv2.COLOR_BGRA2BGR)
+    if image.ndim == 3 and image.shape[2] == 3:
+        return np.ascontiguousarray(image)
+    raise ImageLoadError(f"{name}: unsupported image shape {image.shape}")
+
+
+def decode_image(data: bytes, *, name: str = "image") -> np.ndarray:
+    """Decode encoded image bytes to BGR uint8 (see the module docstring).
+
+    Raises
+    ------
+    ImageLoadError
+        Empty, truncated or undecodable data; the message starts with ``name``.
+    """
+    if not data:
+        raise ImageLoadError(f"{name}: empty file")
+    _check_complete(data, name)
+    buf = np.frombuffer(data, dtype=np.uint8)
+    try:
+        image = cv2.imdecode(buf, cv2.IMREAD_ANYDEPTH | cv2.IMREAD_ANYCOLOR)
+    except cv2.error as exc:  # some codecs raise instead of returning None
+        msg = str(exc).strip().splitlines()[-1] if str(exc).strip() else "decoder error"
+        raise ImageLoadError(f"{name}: not a decodable image ({msg})") from None
+    if image is None or image.size == 0:
+        raise ImageLoadError(f"{name}: not a decodable image")
+    return to_bgr8(image, name=name)
+
+
+def load_image(path: str | os.PathLike[str]) -> np.ndarray:
+    """Read an image file as BGR uint8 (H x W x 3).
+
+    Parameters
+    ----------
+    path : path-like
+        Image file (PNG, JPEG, BMP, TIFF, WebP, ... whatever OpenCV decodes).
+
+    Returns
+    -------
+    numpy.ndarray
+        BGR uint8 image.
+
+    Raises
+    ------
+    ImageLoadError
+        Missing file, directory, unreadable, empty, truncated or not an image.
+    """
+    p = Path(path)
+    name = str(p)
+    if not p.exists():
+        raise ImageLoadError(f"{name}: no such file")
+    if p.is_dir():
+        raise ImageLoadError(f"{name}: is a directory, not an image file")
+    try:
+        data = p.read_bytes()
+    except OSError as exc:
+        raise ImageLoadError(f"{name}: cannot read ({exc.strerror or exc})") from None
+    return decode_image(data, name=name)
