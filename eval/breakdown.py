@@ -109,3 +109,10 @@ def spread(rows: Sequence[dict[str, Any]]) -> float:
     """Difference between the best and worst bin pass rate (how much a parameter matters)."""
     rates = [r["pass_rate"] for r in rows if r.get("pass_rate") is not None and r["n"] > 0]
     return (max(rates) - min(rates)) if rates else 0.0
+
+
+def importance(rows: Sequence[dict[str, Any]]) -> tuple[float, float]:
+    """Sort key of a parameter: pass-rate spread across its bins, then the spread of the bins'
+    median ``|area_rel_err|`` (larger = the parameter matters more)."""
+    errs = [r["area_rel_err_median"] for r in rows if r.get("area_rel_err_median") is not None]
+    return spread(rows), (max(errs) - min(errs)) if errs else 0.0

@@ -3,6 +3,7 @@ usage errors, ``--compare``, the breakdown and the pytest plugin."""
 
 import csv
 import json
+import os
 import subprocess
 import sys
 import xml.etree.ElementTree as ET
@@ -188,15 +189,13 @@ def test_pytest_plugin_fixture_and_score(toy, tmp_path):
         "def test_pipeline(arenabench_dataset):\n"
         "    assert score(toy_arena.detect, arenabench_dataset).pass_rate >= 0.95\n"
     )
-    env = {**__import__("os").environ, "PYTHONPATH": str(PIPES)}
+    env = {**os.environ, "PYTHONPATH": str(PIPES)}
     proc = subprocess.run(
         [
             sys.executable,
             "-m",
             "pytest",
             "-q",
-            "-p",
-            "no:randomly",
             str(test_file),
             f"--arenabench-dataset={toy}",
             "--rootdir",

@@ -185,3 +185,40 @@ def test_adapter_arguments_are_validated():
         CallablePipeline("no_colon")
     with pytest.raises(ValueError, match="cannot import"):
         CallablePipeline("no_such_module_xyz:f")
+
+
+@pytest.mark.parametrize(
+    "script, category, status",
+    [
+        ("crash.py", "crash", 1),
+        ("hang.py", "timeout", 1),
+        ("garbage.py", "bad_output", 1),
+        ("total_area.py", None, 0),
+    ],
+)
+def test_broken_pipelines_through_the_cli(script, category, status, toy, tmp_path, capsys):
+    from arenabench.eval.reports.json_report import read_json
+
+    rc = eval_main(
+        [
+            str(toy),
+            "--cmd",
+            f"{PY} {PIPES / script} --image {{image}}",
+            "--timeout",
+            "1.5",
+            "--limit",
+            "2",
+            "--workers",
+            "2",
+            "--no-progress",
+            "--fail-under",
+            "pass_rate=1",
+            "--out",
+            str(tmp_path),
+        ]
+    )
+    assert rc == status
+    report = read_json(tmp_path / "report.json")
+    assert [r.category for r in report.images] == [category, category]
+    err = capsys.readouterr().err
+    assert ("FAILED: pass_rate 0 < 1" in err) == (status == 1)

@@ -16,7 +16,7 @@ import numpy as np
 
 from arenabench.fileio import atomic_write_text
 
-from ..breakdown import spread
+from ..breakdown import importance
 from ..dataset import Dataset, DatasetError, load_dataset
 from ..records import ImageResult, Report
 from .summary_rows import fmt, summary_rows
@@ -90,17 +90,21 @@ def _figures(report: Report) -> list[tuple[str, str]]:
     ax.set_title("Count confusion")
     out.append(("Count confusion", _png_data_uri(fig)))
 
-    keys = sorted(report.breakdown, key=lambda k: -spread(report.breakdown[k]))[:4]
+    keys = sorted(report.breakdown, key=lambda k: importance(report.breakdown[k]), reverse=True)[:4]
     if keys:
         fig = Figure(figsize=(12, 2.8 * ((len(keys) + 1) // 2)))
         for i, key in enumerate(keys):
             ax = fig.add_subplot((len(keys) + 1) // 2, 2, i + 1)
             rows = report.breakdown[key]
-            rates = [r["pass_rate"] or 0.0 for r in rows]
-            ax.bar(range(len(rows)), rates, color="#55a868")
-            ax.set_xticks(range(len(rows)), [r["bin"] for r in rows], fontsize=7)
-            ax.set_ylim(0, 1.05)
-            ax.set_title(f"pass rate by {key}", fontsize=9)
+            rates = np.array([r["pass_rate"] or 0.0 for r in rows])
+            x = np.arange(len(rows))
+            ax.bar(x, rates, color="#55a868", label="pass")
+            ax.bar(x, 1.0 - rates, bottom=rates, color="#c44e52", label="fail")
+            for xi, row in zip(x, rows, strict=True):
+                ax.text(xi, 0.5, f"n={row['n']}", ha="center", va="center", fontsize=7)
+            ax.set_xticks(x, [r["bin"] for r in rows], fontsize=7)
+            ax.set_ylim(0, 1.0)
+            ax.set_title(f"pass (green) / fail (red) rate by {key}", fontsize=9)
         fig.tight_layout()
         out.append(("Pass rate by scene parameter", _png_data_uri(fig)))
     return out
@@ -212,7 +216,9 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
         parts.append("</div>")
     if report.breakdown:
         parts.append("<h2>Breakdown by scene parameter</h2>")
-        for key in sorted(report.breakdown, key=lambda k: -spread(report.breakdown[k])):
+        for key in sorted(
+            report.breakdown, key=lambda k: importance(report.breakdown[k]), reverse=True
+        ):
             parts.append(
                 f"<h3>{e(key)}</h3><table><tr><th>bin</th><th>n</th><th>pass rate</th>"
                 "<th>count exact</th><th>median |area err|</th><th>failures</th></tr>"

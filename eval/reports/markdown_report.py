@@ -7,7 +7,7 @@ from pathlib import Path
 
 from arenabench.fileio import atomic_write_text
 
-from ..breakdown import spread
+from ..breakdown import importance
 from ..records import Report
 from .summary_rows import fmt, summary_rows
 
@@ -57,7 +57,9 @@ def markdown(report: Report, *, max_failures: int = 30) -> str:
             "Parameters sorted by how much the pass rate varies across their bins.",
             "",
         ]
-        for key in sorted(report.breakdown, key=lambda k: -spread(report.breakdown[k])):
+        for key in sorted(
+            report.breakdown, key=lambda k: importance(report.breakdown[k]), reverse=True
+        ):
             lines += [
                 f"### {key}",
                 "",

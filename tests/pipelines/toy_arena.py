@@ -1,9 +1,7 @@
 """Tiny OpenCV-drawn arenas with exact ground truth, and a simple detector for them.
 
-Drawn fronto-parallel: markers of 60 px (rotated 180 degrees, ids 80/85/90/95 of
-DICT_4X4_100) whose inner corners sit at (100, 100), (600, 100), (600, 600), (100, 600), so
-the rectified 1000 x 1000 frame has exactly 2 frame px per image px (4 px^2 per image px^2).
-Boxes are axis-aligned dark rectangles; their GT area is exact (w * h * 4).
+Drawn with ``tests/drawing.py`` (fronto-parallel, competition marker layout, exact analytic
+truth); boxes are dark and rotated, and the floor brightness varies (``light.gain``).
 
 Run as a script it is a competition-style pipeline: ``toy_arena.py --image PATH`` writes
 ``obstacles.txt`` into the working directory (exit 3 when markers are not found).
@@ -20,10 +18,6 @@ import cv2
 import numpy as np
 
 IDS = {"nw": 80, "ne": 85, "se": 90, "sw": 95}
-MARKER = 60
-INNER = {"nw": (100, 100), "ne": (600, 100), "se": (600, 600), "sw": (100, 600)}
-SIZE = 700
-SCALE = 1000 / 500
 
 
 def _dictionary():
@@ -33,70 +27,64 @@ def _dictionary():
 def draw_toy_arena(
     rng: np.random.Generator, *, n_boxes: int, gain: float
 ) -> tuple[np.ndarray, dict]:
-    """Draw one arena; returns (BGR image, GT dict in the arenabench.gt/1 layout)."""
-    floor = round(200 * gain)
-    image = np.full((SIZE, SIZE, 3), floor, dtype=np.uint8)
-    markers = []
-    for corner, (ix, iy) in INNER.items():
-        x0 = ix - MARKER if corner in ("nw", "sw") else ix
-        y0 = iy - MARKER if corner in ("nw", "ne") else iy
-        tile = cv2.aruco.generateImageMarker(_dictionary(), IDS[corner], MARKER)
-        tile = np.rot90(tile, 2)
-        image[y0 : y0 + MARKER, x0 : x0 + MARKER] = tile[:, :, None]
-        # cv2.aruco corner order of a 180-degree-rotated marker: BR, BL, TL, TR
-        x1, y1 = x0 + MARKER, y0 + MARKER
-        corners = [[x1, y1], [x0, y1], [x0, y0], [x1, y0]]
-        markers.append(
-            {
-                "dictionary": "DICT_4X4_100",
-                "id": IDS[corner],
-                "corners_px": corners,
-                "in_view": True,
-            }
-        )
-    boxes: list[tuple[int, int, int, int]] = []
+    """Draw one arena with tests/drawing.py; returns (BGR image, GT dict in the
+    arenabench.gt/1 layout). ``gain`` scales the floor brightness."""
+    tests_dir = str(Path(__file__).resolve().parents[1])
+    if tests_dir not in sys.path:
+        sys.path.insert(0, tests_dir)
+    from drawing import Box, draw_arena
+
+    boxes: list[Box] = []
     tries = 0
     while len(boxes) < n_boxes and tries < 1000:
         tries += 1
-        w, h = (int(v) for v in rng.integers(40, 110, size=2))
-        x = int(rng.integers(115, 585 - w))
-        y = int(rng.integers(115, 585 - h))
+        w, h = (float(v) for v in rng.uniform(120, 260, size=2))
+        cx, cy = (
+            float(v)
+            for v in rng.uniform(80 + max(w, h) / 2 * 1.42, 920 - max(w, h) / 2 * 1.42, size=2)
+        )
+        r = max(w, h) / 2 * 1.42 + 25
         if any(
-            x < bx + bw + 12 and bx < x + w + 12 and y < by + bh + 12 and by < y + h + 12
-            for bx, by, bw, bh in boxes
+            abs(cx - b.cx) < r + max(b.w, b.h) / 2 * 1.42
+            and abs(cy - b.cy) < r + max(b.w, b.h) / 2 * 1.42
+            for b in boxes
         ):
             continue
-        boxes.append((x, y, w, h))
-    obstacles = []
-    for x, y, w, h in boxes:
         shade = int(rng.integers(20, 70))
-        image[y : y + h, x : x + w] = (shade, shade, shade)
-        poly = [[x, y], [x + w, y], [x + w, y + h], [x, y + h]]
-        frame = [[(px - 100) * SCALE, (py - 100) * SCALE] for px, py in poly]
-        area = float(w * h * SCALE * SCALE)
+        angle = float(rng.uniform(0, 90))
+        boxes.append(Box(cx, cy, w, h, angle_deg=angle, color=(shade, shade, shade)))
+    image, truth = draw_arena(
+        obstacles=boxes, floor=round(248 * gain), background=round(225 * gain)
+    )
+    inverse = np.linalg.inv(truth.homography)
+    obstacles = []
+    for poly in truth.polygons_frame:
+        pts = np.hstack([poly, np.ones((len(poly), 1))]) @ inverse.T
+        image_poly = (pts[:, :2] / pts[:, 2:3]).tolist()
+        area = float(abs(cv2.contourArea(poly.astype(np.float32))))
         obstacles.append(
             {
                 "shape": "box",
-                "image_polygon_px": poly,
-                "footprint_frame_px": frame,
-                "visible_frame_px": frame,
+                "image_polygon_px": image_poly,
+                "footprint_frame_px": poly.tolist(),
+                "visible_frame_px": poly.tolist(),
                 "footprint_area_px": area,
                 "visible_area_px": area,
                 "in_view": True,
             }
         )
-    total = float(sum(o["footprint_area_px"] for o in obstacles))
-    H = [[SCALE, 0.0, -100 * SCALE], [0.0, SCALE, -100 * SCALE], [0.0, 0.0, 1.0]]
     gt = {
         "schema": "arenabench.gt/1",
-        "image_size": [SIZE, SIZE],
+        "image_size": [image.shape[1], image.shape[0]],
         "preset": "toy",
-        "count": len(obstacles),
-        "components": len(obstacles),
-        "area": {"visible_px": total, "footprint_px": total},
-        "frame": {"size": [1000, 1000], "corners": "inner"},
-        "homography": H,
-        "markers": markers,
+        "count": truth.count,
+        "components": truth.count,
+        "area": {"visible_px": truth.area_px, "footprint_px": truth.area_px},
+        "frame": truth.frame.to_dict(),
+        "homography": truth.homography.tolist(),
+        "markers": [
+            {"dictionary": "DICT_4X4_100", "id": i, "in_view": True} for i in truth.marker_ids
+        ],
         "obstacles": obstacles,
         "params": {"obstacles.count": float(n_boxes), "light.gain": float(gain)},
     }
