@@ -62,7 +62,9 @@ def _textured_quad(pyrender, corners_xy: np.ndarray, z: float, image: np.ndarray
         magFilter=_GL_LINEAR, minFilter=_GL_LINEAR_MIPMAP_LINEAR,
         wrapS=_GL_CLAMP_TO_EDGE, wrapT=_GL_CLAMP_TO_EDGE,
     )
-    texture = pyrender.Texture(source=image, source_channels="RGB", sampler=sampler)
+    # RGBA keeps every row 4-byte aligned (GL's default unpack alignment) whatever the width.
+    rgba = np.concatenate([image, np.full((*image.shape[:2], 1), 255, np.uint8)], axis=2)
+    texture = pyrender.Texture(source=rgba, source_channels="RGBA", sampler=sampler)
     f = float(min(factor, 1.0))
     material = pyrender.MetallicRoughnessMaterial(
         baseColorTexture=texture, baseColorFactor=np.array([f, f, f, 1.0], np.float32),

@@ -1,0 +1,117 @@
+"""Real off-screen renders: outputs, image sizes, marker orientation, dictionaries, caching."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from arenabench.generator import camera as cam
+from arenabench.generator.presets import parse_overrides
+from arenabench.generator.render import Renderer
+from arenabench.generator.sample import make_sample
+from arenabench.generator.sampler import sample_scene
+
+
+@pytest.fixture(scope="module")
+def renderer():
+    with Renderer() as r:
+        yield r
+
+
+def _detect(bgr, dictionary="DICT_4X4_100"):
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    det = cv2.aruco.ArucoDetector(
+        cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)), params)
+    corners, ids, _ = det.detectMarkers(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
+    if ids is None:
+        return {}
+    return {int(i): np.asarray(c).reshape(4, 2) for i, c in zip(ids.ravel(), corners, strict=False)}
+
+
+def test_render_outputs_and_eyrc_look(renderer):
+    s = make_sample("eyrc", seed=0, index=0, renderer=renderer, depth=True, masks=True)
+    out = s.render
+    assert out.rgb.shape == (1000, 1000, 3) and out.rgb.dtype == np.uint8
+    assert out.depth.shape == (1000, 1000) and out.depth.dtype == np.float32
+    assert out.instance_mask.shape == (1000, 1000)
+    assert set(np.unique(out.instance_mask)) == set(range(len(s.gt["obstacles"]) + 1))
+    # background grey in the corner of the image, near-white floor at the frame centre
+    bg = s.gt["scene"]["background_rgb"]
+    assert np.abs(out.rgb[2, 2].astype(int) - bg).max() <= 2
+    centre = cv2.perspectiveTransform(np.array([[[500.0, 500.0]]]),
+                                      np.linalg.inv(s.gt["homography"])).ravel()
+    u, v = np.round(centre).astype(int)
+    if out.instance_mask[v, u] == 0:
+        assert out.rgb[v, u].min() >= 235
+    # depth at the principal point: distance along the axis to whatever is hit
+    K = np.array(s.gt["camera"]["K"])
+    cx, cy = round(K[0, 2]), round(K[1, 2])
+    pose = np.array(s.gt["camera"]["world_from_camera"])
+    floor_depth = pose[2, 3] / -pose[2, 2]
+    assert 0 < out.depth[cy, cx] <= floor_depth + 1e-3
+
+
+@pytest.mark.parametrize(("w", "h"), [(640, 480), (1920, 1080), (1000, 1000)])
+def test_other_image_sizes_keep_gt_corners_exact(renderer, w, h):
+    s = make_sample("eyrc", seed=4, index=1, renderer=renderer,
+                    overrides=parse_overrides([f"camera.width={w}", f"camera.height={h}"]))
+    assert s.rgb.shape == (h, w, 3)
+    assert s.gt["image_size"] == [w, h]
+    found = _detect(s.bgr)
+    assert sorted(found) == [80, 85, 90, 95]
+    for m in s.gt["markers"]:
+        err = np.linalg.norm(found[m["id"]] - np.array(m["corners_px"]), axis=1)
+        assert err.max() <= 1.0, (w, h, m["id"], err)
+
+
+@pytest.mark.parametrize(("rotation", "inner"), [(180, True), (0, False)])
+def test_marker_orientation_decides_which_corner_is_zero(renderer, rotation, inner):
+    s = make_sample("eyrc", seed=2, index=0, renderer=renderer,
+                    overrides=parse_overrides([f"markers.rotation_deg={rotation}"]))
+    found = _detect(s.bgr)
+    nw = found[80]
+    centre = nw.mean(axis=0)
+    # corner 0 is the bottom-right (inner, towards the arena) when rotated 180 degrees,
+    # the top-left (outer) when upright; the camera is near-nadir and north-up.
+    c0 = nw[0] - centre
+    assert (c0[0] > 0 and c0[1] > 0) if inner else (c0[0] < 0 and c0[1] < 0)
+    gt_nw = np.array(s.gt["markers"][0]["corners_px"])
+    assert np.linalg.norm(nw - gt_nw, axis=1).max() <= 1.0
+
+
+def test_other_dictionary_and_ids_and_full_yaw(renderer):
+    overrides = parse_overrides(["markers.dictionary=DICT_5X5_250", "markers.ids=1,7,42,200",
+                                 "camera.yaw_deg=135", "camera.altitude_m=11"])
+    s = make_sample("eyrc", seed=9, index=0, renderer=renderer, overrides=overrides)
+    found = _detect(s.bgr, "DICT_5X5_250")
+    assert sorted(found) == [1, 7, 42, 200]
+    for m in s.gt["markers"]:
+        assert m["dictionary"] == "DICT_5X5_250"
+        assert np.linalg.norm(found[m["id"]] - np.array(m["corners_px"]), axis=1).max() <= 1.0
+
+
+def test_renders_are_deterministic_across_cache_states(renderer):
+    scene = sample_scene("eyrc", seed=8, index=5).scene
+    first = renderer.render(scene, masks=True)
+    other = sample_scene("eyrc-upright", seed=1, index=1).scene
+    renderer.render(other)
+    second = renderer.render(scene, masks=True)
+    assert first.rgb.tobytes() == second.rgb.tobytes()
+    assert first.instance_mask.tobytes() == second.instance_mask.tobytes()
+
+
+def test_box_vertices_land_where_the_camera_model_says(renderer):
+    """A single tall box seen obliquely: its rendered silhouette matches the projected hull."""
+    overrides = parse_overrides(["obstacles.count=1", "camera.tilt_deg=25",
+                                 "obstacles.height_m=1.5", "camera.yaw_deg=60",
+                                 "camera.altitude_m=11"])
+    s = make_sample("eyrc", seed=1, index=0, renderer=renderer, masks=True,
+                    overrides=overrides)
+    poly = np.array(s.gt["obstacles"][0]["image_polygon_px"], dtype=np.float64)
+    K = np.array(s.gt["camera"]["K"])
+    pose = np.array(s.gt["camera"]["world_from_camera"])
+    assert cam.project(np.array([[0.0, 0.0, 0.0]]), K, pose).shape == (1, 2)
+    mask = (s.render.instance_mask == 1).astype(np.uint8)
+    area_poly = cv2.contourArea(poly.astype(np.float32))
+    assert mask.sum() == pytest.approx(area_poly, rel=0.01)
