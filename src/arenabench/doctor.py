@@ -1,0 +1,279 @@
+"""``arenabench doctor``: is this machine ready to detect (OpenCV) and to render (pyrender)?
+
+Checks Python, NumPy, OpenCV with a working ArUco module, pyrender, the OpenGL platform
+:mod:`arenabench.glplatform` will choose (EGL or OSMesa) and whether an off-screen context
+can actually be created and used. The context is created in a subprocess with a timeout, so a
+driver that crashes or hangs cannot take the caller down. Each failed check carries the exact
+command that fixes it. Exit status 0 when all is well, 1 otherwise (2 for bad options).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib.metadata
+import importlib.util
+import json
+import os
+import subprocess
+import sys
+from dataclasses import dataclass, field
+from typing import Any
+
+from arenabench import glplatform
+
+PROG = "arenabench doctor"
+OPENCV_FIX = (
+    "pip uninstall -y opencv-python opencv-python-headless opencv-contrib-python && "
+    "pip install 'opencv-contrib-python-headless>=4.8'"
+)
+
+# Runs in a child process: choose the platform, import pyrender, render one small scene.
+_CONTEXT_PROBE = r"""
+import json, sys
+from arenabench import glplatform
+platform = glplatform.configure()
+import numpy as np
+import pyrender, trimesh
+from OpenGL import GL
+mesh = pyrender.Mesh.from_trimesh(trimesh.creation.box(extents=(1, 1, 1)), smooth=False)
+scene = pyrender.Scene(bg_color=[0, 0, 0, 1], ambient_light=[1.0, 1.0, 1.0])
+scene.add(mesh)
+pose = np.eye(4); pose[2, 3] = 3.0
+scene.add(pyrender.PerspectiveCamera(yfov=1.0), pose=pose)
+r = pyrender.OffscreenRenderer(64, 48)
+color, depth = r.render(scene)
+info = {
+    "platform": platform,
+    "renderer": GL.glGetString(GL.GL_RENDERER).decode("utf-8", "replace"),
+    "version": GL.glGetString(GL.GL_VERSION).decode("utf-8", "replace"),
+    "shape": list(color.shape),
+    "hit_pixels": int((depth > 0).sum()),
+}
+r.delete()
+print("ARENABENCH_PROBE " + json.dumps(info))
+"""
+
+
+@dataclass(frozen=True)
+class Check:
+    """One line of the report.
+
+    Parameters
+    ----------
+    name : str
+        What was checked.
+    ok : bool
+        Whether it passed.
+    detail : str
+        Version or what went wrong.
+    fix : str
+        The command that fixes it (empty when ok).
+    """
+
+    name: str
+    ok: bool
+    detail: str
+    fix: str = ""
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe form."""
+        return {"name": self.name, "ok": self.ok, "detail": self.detail, "fix": self.fix}
+
+
+@dataclass(frozen=True)
+class DoctorReport:
+    """All checks, in order."""
+
+    checks: list[Check] = field(default_factory=list)
+
+    @property
+    def ok(self) -> bool:
+        """True when every check passed."""
+        return all(c.ok for c in self.checks)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-safe form: ``{"ok": bool, "checks": [...]}``."""
+        return {"ok": self.ok, "checks": [c.to_dict() for c in self.checks]}
+
+    def to_text(self) -> str:
+        """Human-readable report, one line per check plus a fix line per failure."""
+        width = max((len(c.name) for c in self.checks), default=0)
+        lines = []
+        for c in self.checks:
+            lines.append(f"{'ok  ' if c.ok else 'FAIL'}  {c.name:<{width}}  {c.detail}")
+            if not c.ok and c.fix:
+                lines.append(f"      {'':<{width}}  fix: {c.fix}")
+        lines.append("all checks passed" if self.ok else "some checks failed")
+        return "\n".join(lines)
+
+
+def _version(dist: str) -> str | None:
+    try:
+        return importlib.metadata.version(dist)
+    except importlib.metadata.PackageNotFoundError:
+        return None
+
+
+def check_python() -> Check:
+    """Python >= 3.10."""
+    v = sys.version_info
+    ok = v >= (3, 10)
+    return Check("python", ok, f"{v.major}.{v.minor}.{v.micro} ({sys.executable})",
+                 "" if ok else "install Python 3.10 or newer")
+
+
+def check_numpy() -> Check:
+    """NumPy importable."""
+    try:
+        import numpy as np
+    except ImportError as exc:
+        return Check("numpy", False, f"not importable: {exc}", "pip install numpy")
+    return Check("numpy", True, np.__version__)
+
+
+def check_opencv() -> list[Check]:
+    """OpenCV importable, with the ArucoDetector API, and able to find a marker it drew."""
+    try:
+        import cv2
+    except ImportError as exc:
+        return [Check("opencv", False, f"not importable: {exc}", OPENCV_FIX)]
+    checks = [Check("opencv", True, cv2.__version__)]
+    aruco = getattr(cv2, "aruco", None)
+    if aruco is None or not hasattr(aruco, "ArucoDetector"):
+        checks.append(Check("opencv aruco", False,
+                            "cv2.aruco.ArucoDetector missing (OpenCV < 4.7 or no contrib)",
+                            OPENCV_FIX))
+        return checks
+    try:
+        import numpy as np
+
+        d = aruco.getPredefinedDictionary(aruco.DICT_4X4_100)
+        img = np.full((120, 120), 255, dtype=np.uint8)
+        img[30:90, 30:90] = aruco.generateImageMarker(d, 80, 60)
+        _, ids, _ = aruco.ArucoDetector(d).detectMarkers(img)
+        found = [] if ids is None else [int(i) for i in np.asarray(ids).ravel()]
+    except Exception as exc:  # a broken build must be reported, not raised
+        return [*checks, Check("opencv aruco", False, f"detection failed: {exc}", OPENCV_FIX)]
+    multi = hasattr(aruco.ArucoDetector, "detectMarkersMultiDict")
+    ok = found == [80]
+    detail = ("detects markers" if ok else f"drew marker 80, detected {found}") + (
+        "; multi-dictionary detection available" if multi
+        else "; no detectMarkersMultiDict (OpenCV < 4.11): one pass per dictionary"
+    )
+    checks.append(Check("opencv aruco", ok, detail, "" if ok else OPENCV_FIX))
+    return checks
+
+
+def check_pyrender() -> Check:
+    """pyrender installed (not imported here: importing it would fix the GL platform)."""
+    if importlib.util.find_spec("pyrender") is None:
+        return Check("pyrender", False, "not installed", "pip install 'pyrender>=0.1.45'")
+    return Check("pyrender", True, _version("pyrender") or "installed")
+
+
+def check_gl_platform() -> tuple[Check, str | None]:
+    """Which OpenGL platform :func:`arenabench.glplatform.configure` will use."""
+    try:
+        platform = glplatform.choose_platform()
+    except glplatform.GLPlatformError as exc:
+        return Check("opengl platform", False, str(exc), glplatform.install_hint()), None
+    libs = glplatform.find_gl_libraries()
+    source = "PYOPENGL_PLATFORM" if os.environ.get("PYOPENGL_PLATFORM") else "auto"
+    if platform == "osmesa" and libs.osmesa is None:
+        return Check("opengl platform", False, f"osmesa ({source}) but libOSMesa is missing",
+                     _context_fix("osmesa")), platform
+    if platform == "egl" and not libs.egl_usable:
+        return Check("opengl platform", False,
+                     f"egl ({source}) but libEGL or an EGL vendor library is missing",
+                     glplatform.install_hint()), platform
+    found = ", ".join(f"{k}={v}" for k, v in (("egl", libs.egl), ("egl_vendor", libs.egl_vendor),
+                                                ("osmesa", libs.osmesa)) if v)
+    return Check("opengl platform", True, f"{platform} ({source}; {found or 'no libraries'})"), (
+        platform
+    )
+
+
+def _context_fix(platform: str | None) -> str:
+    if platform == "osmesa":
+        return (f"apt-get install -y {' '.join(glplatform.OSMESA_PACKAGES)} && "
+                f"pip install {glplatform.OSMESA_PYOPENGL}")
+    return (f"{glplatform.install_hint()}  (or try OSMesa: PYOPENGL_PLATFORM=osmesa after "
+            f"apt-get install -y {' '.join(glplatform.OSMESA_PACKAGES)} && "
+            f"pip install {glplatform.OSMESA_PYOPENGL})")
+
+
+def check_offscreen_context(platform: str | None, *, timeout: float = 60.0) -> Check:
+    """Create an off-screen context and render one scene, in a subprocess with a timeout."""
+    name = "offscreen context"
+    if platform is None:
+        return Check(name, False, "skipped: no OpenGL platform", _context_fix(None))
+    env = dict(os.environ)
+    env["PYOPENGL_PLATFORM"] = platform
+    try:
+        proc = subprocess.run(
+            [sys.executable, "-c", _CONTEXT_PROBE],
+            capture_output=True, text=True, timeout=timeout, env=env,
+        )
+    except subprocess.TimeoutExpired:
+        return Check(name, False, f"{platform}: no answer within {timeout:g} s (driver hang?)",
+                     _context_fix(platform))
+    for line in proc.stdout.splitlines():
+        if line.startswith("ARENABENCH_PROBE "):
+            info = json.loads(line.split(" ", 1)[1])
+            ok = info.get("hit_pixels", 0) > 0
+            detail = f"{platform}: {info['renderer']} (OpenGL {info['version']})"
+            if not ok:
+                detail += "; rendered an empty image"
+            return Check(name, ok, detail, "" if ok else _context_fix(platform))
+    err = [ln for ln in (proc.stderr or "").strip().splitlines() if ln.strip()]
+    last = err[-1].strip() if err else f"exit status {proc.returncode}"
+    return Check(name, False, f"{platform}: {last[:300]}", _context_fix(platform))
+
+
+def run_checks(*, context: bool = True, timeout: float = 60.0) -> DoctorReport:
+    """Run every check.
+
+    Parameters
+    ----------
+    context : bool
+        Also create an off-screen OpenGL context (in a subprocess).
+    timeout : float
+        Seconds the context subprocess may take.
+    """
+    if timeout <= 0:
+        raise ValueError(f"timeout must be > 0, got {timeout!r}")
+    checks = [check_python(), check_numpy(), *check_opencv(), check_pyrender()]
+    platform_check, platform = check_gl_platform()
+    checks.append(platform_check)
+    if context:
+        if checks[-2].ok:
+            checks.append(check_offscreen_context(platform, timeout=timeout))
+        else:
+            checks.append(Check("offscreen context", False, "skipped: pyrender missing",
+                                "pip install 'pyrender>=0.1.45'"))
+    return DoctorReport(checks)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``arenabench doctor``; 0 when all checks pass, 1 otherwise, 2 on bad options."""
+    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    parser.add_argument("--json", action="store_true", help="print the report as JSON")
+    parser.add_argument("--timeout", type=float, default=60.0,
+                        help="seconds allowed for creating the OpenGL context (default 60)")
+    parser.add_argument("--no-context", action="store_true",
+                        help="skip creating an off-screen OpenGL context")
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    try:
+        report = run_checks(context=not args.no_context, timeout=args.timeout)
+    except ValueError as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    print(json.dumps(report.to_dict(), indent=2) if args.json else report.to_text())
+    return 0 if report.ok else 1
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

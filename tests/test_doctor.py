@@ -1,0 +1,67 @@
+"""`arenabench doctor`: real checks (real OpenCV, a real off-screen context in a subprocess)."""
+
+import json
+import subprocess
+import sys
+
+import pytest
+
+from arenabench import doctor, glplatform
+
+
+def _gl_available():
+    try:
+        glplatform.choose_platform()
+    except glplatform.GLPlatformError:
+        return False
+    return True
+
+
+def test_checks_without_context_pass_here():
+    report = doctor.run_checks(context=False)
+    names = [c.name for c in report.checks]
+    assert names[:5] == ["python", "numpy", "opencv", "opencv aruco", "pyrender"]
+    by_name = {c.name: c for c in report.checks}
+    assert by_name["opencv aruco"].ok, by_name["opencv aruco"].detail
+    assert all(c.fix == "" for c in report.checks if c.ok)
+    assert all(c.fix for c in report.checks if not c.ok)
+
+
+@pytest.mark.skipif(not _gl_available(), reason="no EGL/OSMesa on this machine")
+def test_full_doctor_creates_a_context_and_exits_0(capsys):
+    assert doctor.main(["--json"]) == 0
+    data = json.loads(capsys.readouterr().out)
+    assert data["ok"] is True
+    ctx = next(c for c in data["checks"] if c["name"] == "offscreen context")
+    assert ctx["ok"] and ctx["detail"].split(":")[0] in ("egl", "osmesa")
+
+
+def test_broken_platform_fails_with_fix_and_exit_1(monkeypatch, capsys):
+    # A platform name PyOpenGL does not know: the subprocess fails, the caller survives.
+    monkeypatch.setenv("PYOPENGL_PLATFORM", "nosuchplatform")
+    assert doctor.main([]) == 1
+    out = capsys.readouterr().out
+    assert "FAIL  offscreen context" in out
+    assert "fix: " in out
+
+
+def test_context_probe_timeout_is_reported():
+    check = doctor.check_offscreen_context("egl", timeout=0.01)
+    assert not check.ok and "no answer within" in check.detail and check.fix
+
+
+def test_text_report_and_bad_option():
+    report = doctor.DoctorReport([doctor.Check("a", True, "1.0"),
+                                  doctor.Check("b", False, "missing", "pip install b")])
+    text = report.to_text()
+    assert "FAIL  b  missing" in text and "fix: pip install b" in text
+    assert not report.ok
+    assert doctor.main(["--timeout", "0"]) == 2
+
+
+def test_command_line_json_no_context():
+    proc = subprocess.run([sys.executable, "-m", "arenabench", "doctor", "--json",
+                           "--no-context"], capture_output=True, text=True, timeout=120)
+    data = json.loads(proc.stdout)
+    assert proc.returncode == (0 if data["ok"] else 1)
+    assert {c["name"] for c in data["checks"]} >= {"python", "opencv", "opengl platform"}

@@ -1,0 +1,90 @@
+"""arenabench.imageio: conversions to BGR uint8 and one-line errors for bad files."""
+
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from arenabench.imageio import ImageLoadError, decode_image, load_image
+
+EXAMPLE = Path(__file__).parent / "data" / "task1c_image.jpg"
+
+
+def test_loads_the_example_as_bgr_uint8():
+    img = load_image(EXAMPLE)
+    assert img.shape == (1000, 1000, 3) and img.dtype == np.uint8
+    np.testing.assert_array_equal(img, cv2.imread(str(EXAMPLE)))
+
+
+def test_grayscale_png_becomes_bgr(tmp_path):
+    gray = np.arange(256, dtype=np.uint8).reshape(16, 16)
+    cv2.imwrite(str(tmp_path / "g.png"), gray)
+    img = load_image(tmp_path / "g.png")
+    assert img.shape == (16, 16, 3)
+    np.testing.assert_array_equal(img[:, :, 1], gray)
+
+
+def test_rgba_png_drops_alpha(tmp_path):
+    bgra = np.zeros((20, 20, 4), np.uint8)
+    bgra[..., 0], bgra[..., 1], bgra[..., 2], bgra[..., 3] = 10, 20, 30, 0
+    cv2.imwrite(str(tmp_path / "a.png"), bgra)
+    img = load_image(tmp_path / "a.png")
+    assert img.shape == (20, 20, 3)
+    assert img[0, 0].tolist() == [10, 20, 30]
+
+
+def test_16bit_png_is_scaled_to_8bit(tmp_path):
+    img16 = np.full((10, 12, 3), 65535, np.uint16)
+    img16[0, 0] = (0, 257 * 100, 257 * 200)
+    cv2.imwrite(str(tmp_path / "d.png"), img16)
+    img = load_image(tmp_path / "d.png")
+    assert img.dtype == np.uint8 and img.shape == (10, 12, 3)
+    assert img[0, 0].tolist() == [0, 100, 200] and img[5, 5].tolist() == [255, 255, 255]
+
+
+def test_16bit_single_channel(tmp_path):
+    cv2.imwrite(str(tmp_path / "g16.png"), np.full((8, 8), 257 * 42, np.uint16))
+    img = load_image(tmp_path / "g16.png")
+    assert img.shape == (8, 8, 3) and int(img[0, 0, 0]) == 42
+
+
+def _write(path, data):
+    path.write_bytes(data)
+    return path
+
+
+def _truncated(tmp_path, name, fraction):
+    data = EXAMPLE.read_bytes() if name.endswith(".jpg") else cv2.imencode(
+        ".png", cv2.imread(str(EXAMPLE)))[1].tobytes()
+    path = tmp_path / name
+    path.write_bytes(data[: int(len(data) * fraction)])
+    return path
+
+
+@pytest.mark.parametrize(
+    "make, fragment",
+    [
+        (lambda d: d / "missing.png", "no such file"),
+        (lambda d: d, "is a directory"),
+        (lambda d: _write(d / "empty.png", b""), "empty file"),
+        (lambda d: _write(d / "t.png", b"not an image\n"), "not a decodable image"),
+        (lambda d: _truncated(d, "cut.jpg", 0.6), "truncated JPEG"),
+        (lambda d: _truncated(d, "cut.png", 0.6), "truncated PNG"),
+        (lambda d: _truncated(d, "cut2.png", 0.999), "truncated PNG"),
+    ],
+)
+def test_bad_files_raise_one_line_naming_the_file(tmp_path, make, fragment):
+    path = make(tmp_path)
+    with pytest.raises(ImageLoadError, match=fragment) as info:
+        load_image(path)
+    msg = str(info.value)
+    assert "\n" not in msg and str(path) in msg
+    assert isinstance(info.value, ValueError)
+
+
+def test_decode_image_from_bytes():
+    img = decode_image(EXAMPLE.read_bytes(), name="example")
+    assert img.shape == (1000, 1000, 3)
+    with pytest.raises(ImageLoadError, match=r"^blob: "):
+        decode_image(b"\x89PNG\r\n\x1a\nrubbish", name="blob")
