@@ -194,34 +194,31 @@ def detect(image: np.ndarray, config: DetectConfig | None = None) -> Detection:
         clock.lap("segment")
     else:
         bgr = cv2.cvtColor(img, cv2.COLOR_GRAY2BGR) if is_gray else img
-        warped = cv2.warpPerspective(bgr, h_frame, (size, size))
-        invalid = None
-        h_inv = np.linalg.inv(h_frame)
-        back = geometry.apply_homography(h_inv, config.frame.corners_px())
-        ih, iw = bgr.shape[:2]
-        if not (np.all(back >= -0.5) and np.all(back[:, 0] <= iw - 0.5)
-                and np.all(back[:, 1] <= ih - 0.5)):
-            ones = np.full((ih, iw), 255, dtype=np.uint8)
-            valid = cv2.warpPerspective(ones, h_frame, (size, size), flags=cv2.INTER_NEAREST)
-            invalid = cv2.bitwise_not(valid)
-        clock.lap("warp")
         quads = [geometry.apply_homography(h_frame, c) for c in search.corners]
         keep = segmentation.exclusion_mask(
             size,
             marker_quads_frame=quads,
             marker_margin_px=float(config.marker_margin_px),
             border_margin_px=config.border_margin_px,
-            invalid=invalid,
         )
-        seg = segmentation.reference_mask(
-            warped,
+        floor = segmentation.estimate_floor(bgr, h_frame, size, keep)
+        if floor is None:
+            return _not_found(
+                config, search, s_inv, image_size, clock, "the arena lies outside the image"
+            )
+        dist = segmentation.floor_distance(bgr, floor)
+        clock.lap("segment")
+        # Frame pixels outside the image get distance 0, i.e. floor: never obstacles.
+        dist_frame = cv2.warpPerspective(dist, h_frame, (size, size), borderValue=0)
+        clock.lap("warp")
+        mask, threshold = segmentation.threshold_distance(
+            dist_frame,
             keep,
             obstacle_threshold=config.obstacle_threshold,
             min_contrast=config.min_contrast,
             open_px=config.open_px,
         )
-        mask = seg.mask
-        details.update({"floor_bgr": list(seg.floor_bgr), "obstacle_threshold": seg.threshold})
+        details.update({"floor_bgr": list(floor), "obstacle_threshold": threshold})
         clock.lap("segment")
 
     # 8. contours, count, area
