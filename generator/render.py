@@ -77,6 +77,55 @@ def _textured_quad(pyrender, corners_xy: np.ndarray, z: float, image: np.ndarray
     return pyrender.Mesh([prim])
 
 
+def _fast_renderer_class(pyrender):
+    """A ``pyrender.Renderer`` subclass with a leaner off-screen path (pyrender 0.1.45 internals).
+
+    - ``antialias=False`` draws straight into the single-sample framebuffer (no 4x MSAA and no
+      resolve blit: about 2x faster on llvmpipe, edges stay crisp);
+    - the depth buffer is read back (and linearised) only when asked for.
+    """
+    from OpenGL import GL
+
+    flags_cls = pyrender.RenderFlags
+
+    class _LeanRenderer(pyrender.renderer.Renderer):
+        antialias = False
+        want_depth = False
+
+        def _configure_forward_pass_viewport(self, flags):
+            super()._configure_forward_pass_viewport(flags)
+            if flags & flags_cls.OFFSCREEN and not self.antialias:
+                GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+
+        def _read_main_framebuffer(self, scene, flags):
+            w, h = self._main_fb_dims
+            if self.antialias:
+                GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+                GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+                GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_COLOR_BUFFER_BIT,
+                                     GL.GL_LINEAR)
+                if self.want_depth:
+                    GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_DEPTH_BUFFER_BIT,
+                                         GL.GL_NEAREST)
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
+            GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+            depth = None
+            if self.want_depth:
+                raw = GL.glReadPixels(0, 0, w, h, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
+                d = np.frombuffer(raw, dtype=np.float32).reshape(h, w)[::-1]
+                cam_ = scene.main_camera_node.camera
+                n, f = cam_.znear, cam_.zfar
+                hit = d < 1.0
+                ndc = 2.0 * d - 1.0
+                depth = np.where(hit, 2.0 * n * f / (f + n - ndc * (f - n)), 0.0)
+                depth = depth.astype(np.float32)
+            raw = GL.glReadPixels(0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
+            color = np.frombuffer(raw, dtype=np.uint8).reshape(h, w, 3)[::-1]
+            return color, depth
+
+    return _LeanRenderer
+
+
 def box_mesh_arrays(obstacle: Obstacle, scene: Scene) -> tuple[np.ndarray, ...]:
     """Positions (20, 3), per-vertex RGBA colours (20, 4) and triangles (10, 3) of a box.
 
@@ -104,17 +153,25 @@ def box_mesh_arrays(obstacle: Obstacle, scene: Scene) -> tuple[np.ndarray, ...]:
 class Renderer:
     """Reusable off-screen renderer (one per process; not thread-safe).
 
+    Parameters
+    ----------
+    antialias : bool, keyword-only
+        4x MSAA on colour renders (smoother box edges, about 2x slower on llvmpipe). Off by
+        default: marker and line edges are smooth anyway (mipmapped textures).
+
     Examples
     --------
     >>> with Renderer() as r:                       # doctest: +SKIP
     ...     out = r.render(scene, masks=True)
     """
 
-    def __init__(self) -> None:
+    def __init__(self, *, antialias: bool = False) -> None:
         glplatform.configure()
         import pyrender
 
         self._pr = pyrender
+        self.antialias = bool(antialias)
+        self._lean_cls = _fast_renderer_class(pyrender)
         self._renderer = None
         self._size: tuple[int, int] | None = None
         self._scene = pyrender.Scene(bg_color=[1.0, 1.0, 1.0, 1.0], ambient_light=[1, 1, 1])
@@ -140,6 +197,8 @@ class Renderer:
         self._ensure_renderer(*(self._size or (64, 64)))
         from OpenGL import GL
 
+        self._renderer._platform.make_current()
+
         def text(name: int) -> str:
             value = GL.glGetString(name)
             return value.decode("ascii", "replace") if value else ""
@@ -150,6 +209,9 @@ class Renderer:
     def _ensure_renderer(self, width: int, height: int) -> None:
         if self._renderer is None:
             self._renderer = self._pr.OffscreenRenderer(width, height)
+            # swap in the lean renderer before it allocates anything on the GPU
+            self._renderer._renderer = self._lean_cls(width, height)
+            self._renderer._renderer.antialias = self.antialias
         elif self._size != (width, height):
             self._renderer.viewport_width = width
             self._renderer.viewport_height = height
@@ -225,10 +287,12 @@ class Renderer:
         self._update_static(scene)
         self._update_dynamic(scene)
         flags = pr.RenderFlags.FLAT | pr.RenderFlags.SKIP_CULL_FACES
+        self._renderer._renderer.want_depth = depth
         color, z = self._renderer.render(self._scene, flags=flags)
+        self._renderer._renderer.want_depth = False
         out = RenderOutput(rgb=np.ascontiguousarray(color[:, :, :3]))
         if depth:
-            out.depth = z.astype(np.float32)
+            out.depth = z
         if masks:
             if len(self._obstacle_nodes) > 255:
                 raise ValueError("instance masks support at most 255 obstacles")
