@@ -187,10 +187,30 @@ class Renderer:
         self.close()
 
     def close(self) -> None:
-        """Release the GL context."""
-        if self._renderer is not None:
-            self._renderer.delete()
-            self._renderer = None
+        """Release this renderer's GL objects and context.
+
+        pyrender's EGL clean-up calls ``eglTerminate`` on the display, which every context of
+        the process shares: other renderers would break. Here only this context is destroyed.
+        """
+        off, self._renderer = self._renderer, None
+        if off is None:
+            return
+        platform = off._platform
+        if type(platform).__name__ != "EGLPlatform":
+            off.delete()
+            return
+        from OpenGL import EGL
+
+        platform.make_current()
+        off._renderer.delete()
+        EGL.eglMakeCurrent(platform._egl_display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE,
+                           EGL.EGL_NO_CONTEXT)
+        if platform._egl_context is not None:
+            EGL.eglDestroyContext(platform._egl_display, platform._egl_context)
+            platform._egl_context = None
+        platform._egl_display = None  # so that the platform's __del__ skips eglTerminate
+        off._renderer = None
+        off._platform = None
 
     def gl_info(self) -> dict[str, str]:
         """OpenGL renderer and version strings (e.g. Mesa llvmpipe or the NVIDIA driver)."""

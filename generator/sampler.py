@@ -15,6 +15,7 @@ from typing import Any
 
 import numpy as np
 from arenabench.generator import camera as cam
+from arenabench.generator.groundtruth import rounded
 from arenabench.generator.layout import box_footprint, marker_corners_world
 from arenabench.generator.presets import Value, resolve
 from arenabench.generator.scene import (
@@ -208,4 +209,7 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
     g = drawn["background.gray"]
     scene = Scene(arena=arena, markers=markers, obstacles=obstacles, camera=camera,
                   lighting=lighting, background_rgb=(g, g, g))
-    return SampledScene(scene=scene, params=drawn, seed=int(seed), index=int(index))
+    # Canonical form: the scene rendered is exactly the one written to the GT file (floats
+    # rounded to DECIMALS), so Scene.from_dict(gt["scene"]) re-renders the same image.
+    scene = Scene.from_dict(rounded(scene.to_dict()))
+    return SampledScene(scene=scene, params=rounded(drawn), seed=int(seed), index=int(index))
