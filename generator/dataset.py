@@ -268,6 +268,8 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
         "count": int(args.count), "complete": complete,
         "params": {k: format_value(v) for k, v in sorted(params.items())},
         "versions": _versions(gl) if complete else {},
+        "render": {"mode": "flat, Lambertian shading baked", "antialias": False,
+                   "image_format": "png", "png_compression": PNG_COMPRESSION},
         "files": {"images": "images/", "gt": "gt/", "manifest": "manifest.jsonl",
                   "coco": "coco.json"},
     }

@@ -89,7 +89,7 @@ PARAMETERS: dict[str, ParamDef] = {
 _EYRC: dict[str, Value] = {
     "arena.side_m": 8.0,
     "arena.margin_m": 0.45,
-    "arena.floor_rgb": (253, 253, 253),
+    "arena.floor_rgb": (250, 250, 250),
     "arena.texture": "plain",
     "arena.border_width_m": 0.015,
     "arena.border_rgb": (20, 20, 20),

@@ -138,3 +138,19 @@ def test_scene_json_round_trip():
 def test_scene_parts_validate_their_values(factory, needle):
     with pytest.raises(ValueError, match=needle):
         factory()
+
+
+def test_presets_cli_lists_and_shows_parseable_parameters(capsys):
+    from arenabench.generator import presets_cli
+
+    assert presets_cli.main([]) == 0
+    listing = capsys.readouterr().out
+    assert all(name in listing for name in PRESETS)
+    assert presets_cli.main(["--show", "eyrc"]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert len(lines) == len(PARAMETERS)
+    assert dict(parse_override(line) for line in lines) == resolve("eyrc")
+    assert presets_cli.main(["--params"]) == 0
+    assert "camera.tilt_deg" in capsys.readouterr().out
+    assert presets_cli.main(["--show", "nosuch"]) == 2
+    assert "nosuch" in capsys.readouterr().err

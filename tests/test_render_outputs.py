@@ -153,3 +153,22 @@ def test_closing_one_renderer_leaves_the_others_working(renderer):
     other.close()
     other.close()  # idempotent
     assert renderer.render(scene).rgb.tobytes() == before.tobytes()
+
+
+def test_textured_floor_grid_and_degrade_hook(renderer):
+    overrides = parse_overrides(["arena.texture=speckle", "arena.grid_step_m=1",
+                                 "arena.floor_rgb=235,230,220"])
+
+    def noise(rgb, rng):
+        return np.clip(rgb + rng.normal(0, 3, rgb.shape), 0, 255).astype(np.uint8)
+
+    clean = make_sample("eyrc", seed=5, index=0, renderer=renderer, overrides=overrides)
+    noisy = make_sample("eyrc", seed=5, index=0, renderer=renderer, overrides=overrides,
+                        degrade=noise)
+    again = make_sample("eyrc", seed=5, index=0, renderer=renderer, overrides=overrides,
+                        degrade=noise)
+    assert noisy.rgb.tobytes() == again.rgb.tobytes() != clean.rgb.tobytes()
+    assert noisy.gt == clean.gt
+    found = _detect(clean.bgr)
+    for m in clean.gt["markers"]:
+        assert np.linalg.norm(found[m["id"]] - np.array(m["corners_px"]), axis=1).max() <= 1.0
