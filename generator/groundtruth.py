@@ -29,6 +29,8 @@ from arenabench.frame import CORNER_ORDER, FrameSpec
 
 #: Decimal places kept in ground-truth JSON (stable, byte-identical files).
 DECIMALS = 6
+#: Significant digits kept for matrices (homography, K, pose).
+SIGNIFICANT_DIGITS = 12
 #: A marker is in view when its corners lie this many px inside the image border.
 IN_VIEW_MARGIN_PX = 2.0
 
@@ -49,6 +51,15 @@ def rounded(obj: Any, decimals: int = DECIMALS) -> Any:
         value = round(float(obj), decimals)
         return 0.0 if value == 0 else value
     return obj
+
+
+def significant(a: np.ndarray, digits: int = SIGNIFICANT_DIGITS) -> list:
+    """Nested lists of ``a``'s values rounded to ``digits`` significant digits."""
+    def one(v: float) -> float:
+        v = float(f"{float(v):.{digits}g}")
+        return 0.0 if v == 0 else v
+
+    return [significant(row, digits) for row in a] if np.ndim(a) > 1 else [one(v) for v in a]
 
 
 def _apply(h: np.ndarray, pts: np.ndarray) -> np.ndarray:
@@ -174,16 +185,18 @@ def compute_ground_truth(scene: Scene, *, frame: FrameSpec | None = None) -> dic
             "corners_px": px, "in_view": inside(px, IN_VIEW_MARGIN_PX),
         })
 
-    gt = {
+    gt = rounded({
         "image_size": [w, h],
         "scene": scene.to_dict(),
         "count": count,
         "components": _components(vis_union),
         "area": {"visible_px": vis_union.area, "footprint_px": fp_union.area},
         "frame": frame.to_dict(),
-        "homography": homography,
-        "camera": {"K": K, "dist": dist, "world_from_camera": pose},
         "markers": markers,
         "obstacles": obstacles,
-    }
-    return rounded(gt)
+    })
+    # Matrices keep significant digits: the homography's last row is ~1e-4 .. 1e-7.
+    gt["homography"] = significant(homography)
+    gt["camera"] = {"K": significant(K), "dist": [0.0] * 5,
+                    "world_from_camera": significant(pose)}
+    return gt
