@@ -6,12 +6,10 @@ measured pass rate is printed (run with ``-s`` to see it) and kept in the assert
 
 from __future__ import annotations
 
-import pytest
-
 from arenabench.generator.render import Renderer
 from arenabench.generator.sample import make_sample
 
-pipeline = pytest.importorskip("arenabench.pipeline")
+from arenabench.pipeline import DetectConfig, detect
 
 N_SCENES = 200
 SEED = 2024
@@ -19,12 +17,12 @@ TOLERANCE = 0.05
 
 
 def test_reference_pipeline_passes_on_95_percent_of_eyrc_scenes():
-    config = pipeline.DetectConfig()
+    config = DetectConfig()
     passed, failures = 0, []
     with Renderer() as renderer:
         for i in range(N_SCENES):
             s = make_sample("eyrc", seed=SEED, index=i, renderer=renderer)
-            det = pipeline.detect(s.bgr, config)
+            det = detect(s.bgr, config)
             gt_count, gt_area = s.gt["count"], s.gt["area"]["visible_px"]
             err = (det.total_area - gt_area) / gt_area if det.status == "ok" else None
             ok = det.status == "ok" and det.count == gt_count and abs(err) <= TOLERANCE
