@@ -154,3 +154,12 @@ def test_presets_cli_lists_and_shows_parseable_parameters(capsys):
     assert "camera.tilt_deg" in capsys.readouterr().out
     assert presets_cli.main(["--show", "nosuch"]) == 2
     assert "nosuch" in capsys.readouterr().err
+
+
+def test_package_exports_the_in_memory_api():
+    import arenabench.generator as gen
+
+    for name in gen.__all__:
+        assert getattr(gen, name) is not None, name
+    with pytest.raises(AttributeError):
+        gen.nothing_here  # noqa: B018
