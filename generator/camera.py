@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
 from arenabench.generator.scene import CameraSpec
 
 #: OpenCV camera axes (x right, y down, z forward) of a nadir camera with heading 0.

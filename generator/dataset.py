@@ -25,9 +25,6 @@ from typing import Any
 
 import cv2
 import numpy as np
-from arenabench.generator.groundtruth import rounded
-from arenabench.generator.presets import Value, format_value, get_preset, resolve
-from arenabench.generator.sample import GENERATOR_VERSION, make_sample, scene_id
 from shapely.geometry import Polygon, box
 
 from arenabench import __version__
@@ -39,6 +36,9 @@ from arenabench.fileio import (
     sha256_bytes,
     sha256_file,
 )
+from arenabench.generator.groundtruth import rounded
+from arenabench.generator.presets import Value, format_value, get_preset, resolve
+from arenabench.generator.sample import GENERATOR_VERSION, make_sample, scene_id
 
 #: dataset.json schema id.
 DATASET_SCHEMA = "arenabench.dataset/1"

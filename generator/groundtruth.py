@@ -14,6 +14,9 @@ from typing import Any
 import cv2
 import numpy as np
 import shapely
+from shapely.geometry import MultiPoint, Polygon, box
+
+from arenabench.frame import CORNER_ORDER, FrameSpec
 from arenabench.generator import camera as cam
 from arenabench.generator.layout import (
     MARKER_Z,
@@ -23,9 +26,6 @@ from arenabench.generator.layout import (
     world_to_frame,
 )
 from arenabench.generator.scene import Scene
-from shapely.geometry import MultiPoint, Polygon, box
-
-from arenabench.frame import CORNER_ORDER, FrameSpec
 
 #: Decimal places kept in ground-truth JSON (stable, byte-identical files).
 DECIMALS = 6

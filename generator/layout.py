@@ -11,9 +11,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from arenabench.generator.scene import ArenaSpec, MarkerSpec, Obstacle
 
 from arenabench.frame import CORNER_ORDER, FrameSpec
+from arenabench.generator.scene import ArenaSpec, MarkerSpec, Obstacle
 
 #: Height (m) of the marker sheets above the floor: keeps them off the floor's depth values.
 MARKER_Z = 0.0005

@@ -12,6 +12,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from arenabench import glplatform
+from arenabench.frame import CORNER_ORDER
 from arenabench.generator import camera as cam
 from arenabench.generator.layout import (
     MARKER_Z,
@@ -22,9 +25,6 @@ from arenabench.generator.layout import (
 from arenabench.generator.scene import Obstacle, Scene
 from arenabench.generator.shading import floor_factor, shade_factors
 from arenabench.generator.textures import floor_texture, marker_texture
-
-from arenabench import glplatform
-from arenabench.frame import CORNER_ORDER
 
 # pyrender's Mesh.bounds still uses np.infty, removed in NumPy 2 (mmatl/pyrender#288).
 if not hasattr(np, "infty"):

@@ -13,12 +13,12 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+
+from arenabench.frame import FrameSpec
 from arenabench.generator.groundtruth import compute_ground_truth, rounded
 from arenabench.generator.presets import Value
 from arenabench.generator.render import Renderer, RenderOutput
 from arenabench.generator.sampler import sample_scene
-
-from arenabench.frame import FrameSpec
 
 #: Bumped whenever the same (preset, seed, index) would give different images or GT.
 GENERATOR_VERSION = "1"

@@ -14,6 +14,8 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from shapely.geometry import Polygon, box
+
 from arenabench.generator import camera as cam
 from arenabench.generator.groundtruth import rounded
 from arenabench.generator.layout import box_footprint, marker_corners_world
@@ -27,7 +29,6 @@ from arenabench.generator.scene import (
     Obstacle,
     Scene,
 )
-from shapely.geometry import Polygon, box
 
 #: Scene-level scalar parameters drawn (in this order) for every scene.
 SCALAR_KEYS: tuple[str, ...] = (

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+
 from arenabench.generator.scene import LightingSpec
 
 #: Outward normals of a box's five visible faces: top, +x, -x, +y, -y (in the box frame).

@@ -10,6 +10,7 @@ import functools
 
 import cv2
 import numpy as np
+
 from arenabench.generator.layout import floor_extent
 from arenabench.generator.scene import ArenaSpec
 

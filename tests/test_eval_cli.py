@@ -10,10 +10,10 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
-from arenabench.eval.reports import write_reports
-from arenabench.eval.runner import evaluate
 
 from arenabench.cli import main as arenabench_main
+from arenabench.eval.reports import write_reports
+from arenabench.eval.runner import evaluate
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 sys.path.insert(0, str(PIPES))

@@ -9,6 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+
 from arenabench.eval.cli import main as eval_main
 from arenabench.eval.pipelines import CallablePipeline, CommandPipeline
 from arenabench.eval.records import Prediction

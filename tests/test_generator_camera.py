@@ -5,6 +5,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+
 from arenabench.generator import camera as cam
 from arenabench.generator.groundtruth import image_to_frame_homography
 from arenabench.generator.layout import reference_corners_world

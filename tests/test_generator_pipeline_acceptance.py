@@ -8,7 +8,6 @@ from __future__ import annotations
 
 from arenabench.generator.render import Renderer
 from arenabench.generator.sample import make_sample
-
 from arenabench.pipeline import DetectConfig, detect
 
 N_SCENES = 200

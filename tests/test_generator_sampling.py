@@ -6,6 +6,8 @@ import json
 
 import numpy as np
 import pytest
+from shapely.geometry import Polygon
+
 from arenabench.generator.layout import box_footprint, reference_corners_world
 from arenabench.generator.presets import (
     PARAMETERS,
@@ -17,7 +19,6 @@ from arenabench.generator.presets import (
 )
 from arenabench.generator.sampler import SamplingError, sample_scene
 from arenabench.generator.scene import CameraSpec, Obstacle, Scene
-from shapely.geometry import Polygon
 
 
 def test_every_preset_declares_every_parameter():

@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+
 from arenabench.eval.metrics import score_image, summarize, wilson_interval
 from arenabench.eval.records import CATEGORIES, Prediction, Truth
 

@@ -7,6 +7,7 @@ import json
 import cv2
 import numpy as np
 import pytest
+
 from arenabench.generator import camera as cam
 from arenabench.generator.groundtruth import compute_ground_truth
 from arenabench.generator.presets import parse_overrides

@@ -11,6 +11,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+
 from arenabench.eval.reports import write_reports
 from arenabench.eval.runner import evaluate
 
