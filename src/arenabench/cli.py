@@ -17,6 +17,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "generate": ("arenabench.generator.cli", "render a dataset of scenes with exact ground truth"),
     "presets": ("arenabench.generator.presets_cli", "list the scene presets"),
     "eval": ("arenabench.eval.cli", "score a pipeline on a dataset (reports, JUnit, exit codes)"),
+    "bench": ("arenabench.eval.bench_cli", "measure generation and scoring throughput here"),
+    "sweep": ("arenabench.eval.sweep_cli", "vary scene parameters, score, find breakdown points"),
     "demo": ("arenabench.eval.demo", "generate a small eyrc set, score the reference pipeline"),
 }
 

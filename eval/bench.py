@@ -1,0 +1,487 @@
+"""``arenabench bench``: throughput of generation and scoring on this machine, in one run.
+
+Seven measurements (see :func:`run_bench`), each on the same ``eyrc`` scenes at the camera's
+size (1000 x 1000):
+
+1. ``generate_disk_ips``: :func:`arenabench.generator.dataset.generate_dataset` end to end
+   (spawned workers, PNG + GT JSON, manifest and COCO file), as ``arenabench generate`` runs;
+2. ``generate_memory_ips``: render + GT in memory (:func:`make_sample`), no files;
+3. ``naive_ips``: the naive baseline, to disk: a new pyrender renderer and scene per image,
+   pyrender's default (lit, 4x MSAA) shading under a directional light, GT, PNG at OpenCV's
+   default settings;
+4. ``encode_floor_ips``: PNG encode + write of already-rendered images, as the writer does;
+5. ``pipeline_ips``: the reference pipeline over the image files of (1), decode included,
+   through :func:`arenabench.eval.runner.evaluate`;
+6. ``sweep_ips``: a streaming sweep in memory: render, degrade, detect, score;
+7. ``worker_peak_rss_mb`` / ``worker_rss_growth_mb``: peak resident memory of a rendering
+   worker and its growth over ``rss_renders`` consecutive renders.
+
+Items 2, 3, 4 and 6 run on ``workers`` spawned processes that are started and warmed up
+(one renderer each) before the clock starts; items 1 and 5 include their own start-up, as
+their commands do. Figures are throughputs of the whole pool (images or scenes per second).
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import platform
+import shutil
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+#: bench.json schema id.
+BENCH_SCHEMA = "arenabench.bench/1"
+
+#: (key, comparison, value, what): the issue's targets for a 2-core machine without a GPU.
+TARGETS: tuple[tuple[str, str, float, str], ...] = (
+    ("generate_disk_ips", ">=", 40.0, "images/s"),
+    ("disk_vs_naive", ">=", 3.0, "x"),
+    ("pipeline_ips", ">=", 100.0, "images/s"),
+    ("sweep_ips", ">=", 40.0, "scenes/s"),
+    ("worker_peak_rss_mb", "<=", 400.0, "MB"),
+    ("worker_rss_growth_mb", "<", 20.0, "MB"),
+)
+
+#: Keys every bench.json holds (figures are positive numbers).
+FIGURE_KEYS: tuple[str, ...] = (
+    "generate_disk_ips", "generate_memory_ips", "naive_ips", "encode_floor_ips",
+    "pipeline_ips", "sweep_ips", "worker_peak_rss_mb", "worker_rss_growth_mb",
+    "disk_vs_naive", "disk_vs_floor",
+)  # fmt: skip
+
+
+@dataclass(frozen=True, kw_only=True)
+class BenchConfig:
+    """What :func:`run_bench` measures and how much.
+
+    Parameters
+    ----------
+    count : int
+        Scenes of items 1, 2, 5 (and the images item 4 encodes, at most 200 per worker).
+    sweep_count : int
+        Scenes of the streaming sweep (item 6).
+    naive_count : int
+        Scenes of the naive baseline (item 3; slow, so fewer).
+    rss_renders : int
+        Consecutive renders of the memory measurement (item 7).
+    workers : int or None
+        Processes; default: the usable cores.
+    preset : str
+        Scene preset.
+    seed : int
+        Run seed.
+    """
+
+    count: int = 500
+    sweep_count: int = 400
+    naive_count: int = 60
+    rss_renders: int = 2000
+    workers: int | None = None
+    preset: str = "eyrc"
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        for name in ("count", "sweep_count", "naive_count", "rss_renders"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, int) or value < 1:
+                raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+        if self.workers is not None and (
+            isinstance(self.workers, bool) or not isinstance(self.workers, int)
+            or self.workers < 1
+        ):
+            raise ValueError(f"workers must be an integer >= 1 or None, got {self.workers!r}")
+
+    @classmethod
+    def quick(cls, *, workers: int | None = None) -> BenchConfig:
+        """A tiny configuration (seconds): every figure, none of them meaningful."""
+        return cls(count=6, sweep_count=6, naive_count=2, rss_renders=20, workers=workers)
+
+
+@dataclass
+class BenchResult:
+    """Figures of one run (``figures``), per-item details and the machine's description."""
+
+    figures: dict[str, float]
+    details: dict[str, Any] = field(default_factory=dict)
+    machine: dict[str, Any] = field(default_factory=dict)
+    config: dict[str, Any] = field(default_factory=dict)
+    seconds: float = 0.0
+
+    def to_json(self) -> dict[str, Any]:
+        """The content of ``bench.json`` (figures at the top level)."""
+        return {
+            "schema": BENCH_SCHEMA,
+            **{k: float(v) for k, v in self.figures.items()},
+            "cores": self.machine.get("cores"),
+            "versions": self.machine.get("versions", {}),
+            "machine": self.machine,
+            "targets": [
+                {"key": k, "op": op, "value": v, "unit": unit,
+                 "met": target_met(self.figures.get(k), op, v)}
+                for k, op, v, unit in TARGETS
+            ],
+            "details": self.details,
+            "config": self.config,
+            "seconds": self.seconds,
+        }
+
+
+def target_met(value: float | None, op: str, target: float) -> bool | None:
+    """Whether ``value op target`` holds (None when there is no value)."""
+    if value is None:
+        return None
+    return {">=": value >= target, "<=": value <= target, "<": value < target}[op]
+
+
+def usable_cores() -> int:
+    """Cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # pragma: no cover - not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+# ----------------------------------------------------------------------------- workers
+
+_STATE: dict[str, Any] = {}
+
+
+def _init_worker(lp_threads: int) -> None:
+    if "LP_NUM_THREADS" not in os.environ:
+        os.environ["LP_NUM_THREADS"] = str(lp_threads)
+
+
+def _renderer():
+    r = _STATE.get("renderer")
+    if r is None:
+        from arenabench.generator.render import Renderer
+
+        r = _STATE["renderer"] = Renderer()
+    return r
+
+
+def _warm(task: tuple[str, int, int]) -> int:
+    """Create this worker's renderer and render one scene (not timed)."""
+    from arenabench.generator.sample import make_sample
+
+    make_sample(task[0], seed=task[1], index=task[2], renderer=_renderer())
+    return os.getpid()
+
+
+def _memory_one(task: tuple[str, int, int]) -> float:
+    from arenabench.generator.sample import make_sample
+
+    sample = make_sample(task[0], seed=task[1], index=task[2], renderer=_renderer())
+    return float(sample.gt["area"]["visible_px"])
+
+
+def bench_degrade(rgb: np.ndarray, rng: np.random.Generator) -> np.ndarray:
+    """The sweep's stand-in degradation: a light blur and Gaussian sensor noise (sigma 2-4)."""
+    import cv2
+
+    out = cv2.GaussianBlur(rgb, (3, 3), 0.8)
+    sigma = float(rng.uniform(2.0, 4.0))
+    noise = rng.standard_normal(out.shape, dtype=np.float32) * sigma
+    return np.clip(out.astype(np.float32) + noise, 0, 255).astype(np.uint8)
+
+
+def _sweep_one(task: tuple[str, int, int]) -> bool:
+    from arenabench.eval.dataset import Sample as EvalSample
+    from arenabench.eval.metrics import score_image
+    from arenabench.eval.pipelines import prediction_from_result
+    from arenabench.generator.sample import make_sample
+    from arenabench.pipeline import detect
+
+    sample = make_sample(task[0], seed=task[1], index=task[2], renderer=_renderer(),
+                         degrade=bench_degrade)
+    t0 = time.perf_counter()
+    det = detect(sample.bgr)
+    pred = prediction_from_result(det, latency_ms=(time.perf_counter() - t0) * 1e3)
+    truth = EvalSample(id=sample.id, image_path=Path(), gt_path=Path(), gt=sample.gt).truth()
+    return bool(score_image(truth, pred).passed)
+
+
+def _floor_chunk(task: tuple[str, int, list[int], str]) -> tuple[int, float]:
+    """Render the scenes (not timed), then time their PNG encode + atomic write."""
+    from arenabench.fileio import atomic_write_bytes
+    from arenabench.generator.dataset import _encode_png
+    from arenabench.generator.sample import make_sample
+
+    preset, seed, indices, out = task
+    images = [make_sample(preset, seed=seed, index=i, renderer=_renderer()).rgb
+              for i in indices]
+    t0 = time.perf_counter()
+    for i, rgb in zip(indices, images, strict=True):
+        atomic_write_bytes(Path(out) / f"{i:06d}.png", _encode_png(rgb))
+    return len(indices), time.perf_counter() - t0
+
+
+def _naive_one(task: tuple[str, int, int, str]) -> int:
+    """The naive baseline: a new renderer and scene per image, pyrender's lit default."""
+    import cv2
+
+    from arenabench import glplatform
+
+    glplatform.configure()
+    import pyrender
+
+    from arenabench.frame import CORNER_ORDER
+    from arenabench.generator import camera as cam
+    from arenabench.generator.groundtruth import compute_ground_truth
+    from arenabench.generator.layout import MARKER_Z, floor_extent, marker_corners_world
+    from arenabench.generator.render import _textured_quad, box_mesh_arrays
+    from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.textures import floor_texture, marker_texture
+
+    preset, seed, index, out = task
+    scene = sample_scene(preset, seed=seed, index=index).scene
+    pr_scene = pyrender.Scene(bg_color=[*(np.asarray(scene.background_rgb) / 255.0), 1.0],
+                              ambient_light=[0.3, 0.3, 0.3])
+    e = floor_extent(scene.arena)
+    floor = np.array([[-e, e], [e, e], [e, -e], [-e, -e]])
+    pr_scene.add(_textured_quad(pyrender, floor, 0.0, floor_texture(scene.arena), 1.0))
+    mk = scene.markers
+    for corner, marker_id in zip(CORNER_ORDER, mk.ids, strict=True):
+        image, pad = marker_texture(mk.dictionary, marker_id, mk.side_m, mk.quiet_zone_m)
+        sheet = marker_corners_world(scene.arena, mk, corner, pad_m=pad)
+        pr_scene.add(_textured_quad(pyrender, sheet, MARKER_Z, image, 1.0))
+    for ob in scene.obstacles:
+        pos, _, tris = box_mesh_arrays(ob, scene)
+        material = pyrender.MetallicRoughnessMaterial(
+            baseColorFactor=[*(np.asarray(ob.color_rgb) / 255.0), 1.0],
+            metallicFactor=0.0, roughnessFactor=1.0)
+        pr_scene.add(pyrender.Mesh([pyrender.Primitive(positions=pos, indices=tris, mode=4,
+                                                       material=material)]))
+    K = cam.intrinsics(scene.camera)
+    pose = cam.world_from_camera(scene.camera)
+    fx, fy, cx, cy = cam.gl_intrinsics(K)
+    pr_scene.add(pyrender.IntrinsicsCamera(fx, fy, cx, cy, znear=0.05, zfar=1000.0),
+                 pose=cam.gl_pose(pose))
+    light_pose = np.eye(4)
+    pr_scene.add(pyrender.DirectionalLight(color=np.ones(3), intensity=3.0), pose=light_pose)
+    renderer = pyrender.OffscreenRenderer(scene.camera.width, scene.camera.height)
+    try:
+        color, _ = renderer.render(pr_scene)
+    finally:
+        renderer.delete()
+    gt = compute_ground_truth(scene)
+    from arenabench.fileio import atomic_write_text, dumps_json
+
+    cv2.imwrite(str(Path(out) / f"{index:06d}.png"), np.ascontiguousarray(color[:, :, ::-1]))
+    atomic_write_text(Path(out) / f"{index:06d}.json", dumps_json(gt))
+    return index
+
+
+def _import_pyrender(_: int) -> int:
+    from arenabench import glplatform
+
+    glplatform.configure()
+    import pyrender  # noqa: F401
+
+    from arenabench.generator import render  # noqa: F401
+
+    return os.getpid()
+
+
+def _vm_status() -> dict[str, float]:
+    """VmRSS and VmHWM of this process in MB (from /proc/self/status)."""
+    out: dict[str, float] = {}
+    try:
+        text = Path("/proc/self/status").read_text()
+    except OSError:  # pragma: no cover - not Linux
+        import resource
+
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+        return {"VmRSS": peak, "VmHWM": peak}
+    for line in text.splitlines():
+        key, _, rest = line.partition(":")
+        if key in ("VmRSS", "VmHWM"):
+            out[key] = float(rest.split()[0]) / 1024.0
+    return out
+
+
+def _rss_run(task: tuple[str, int, int]) -> dict[str, float]:
+    """Render ``n`` consecutive scenes in this worker; RSS after warm-up, after, and peak."""
+    from arenabench.generator.sampler import sample_scene
+
+    preset, seed, n = task
+    renderer = _renderer()
+    warm = min(20, max(1, n // 10))
+    for i in range(warm):
+        renderer.render(sample_scene(preset, seed=seed, index=i).scene)
+    before = _vm_status()
+    t0 = time.perf_counter()
+    for i in range(n):
+        renderer.render(sample_scene(preset, seed=seed, index=warm + i).scene)
+    seconds = time.perf_counter() - t0
+    after = _vm_status()
+    return {"rss_after_warmup_mb": before["VmRSS"], "rss_after_mb": after["VmRSS"],
+            "peak_rss_mb": after["VmHWM"], "renders": float(n), "seconds": seconds}
+
+
+# ----------------------------------------------------------------------------- driver
+
+def _pool(workers: int):
+    ctx = multiprocessing.get_context("spawn")
+    lp = max(1, usable_cores() // workers)
+    return ctx.Pool(workers, initializer=_init_worker, initargs=(lp,))
+
+
+def _timed_map(pool, func: Callable, tasks: list, workers: int) -> float:
+    t0 = time.perf_counter()
+    pool.map(func, tasks, chunksize=max(1, len(tasks) // (8 * workers)))
+    return time.perf_counter() - t0
+
+
+def _warm_pool(pool, workers: int, cfg: BenchConfig) -> None:
+    # one task per worker at a time: each worker builds its renderer before timing starts
+    pool.map(_warm, [(cfg.preset, cfg.seed, i) for i in range(2 * workers)], chunksize=1)
+
+
+def _machine(gl: dict[str, str]) -> dict[str, Any]:
+    import cv2
+    import pyrender
+
+    from arenabench import __version__
+
+    return {
+        "cores": usable_cores(),
+        "cpu_count": os.cpu_count(),
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "versions": {
+            "arenabench": __version__, "python": sys.version.split()[0],
+            "numpy": np.__version__, "opencv": cv2.__version__,
+            "pyrender": getattr(pyrender, "__version__", "unknown"), **gl,
+        },
+    }
+
+
+def run_bench(
+    config: BenchConfig | None = None,
+    *,
+    workdir: str | os.PathLike[str] | None = None,
+    on_item: Callable[[str, float], None] | None = None,
+) -> BenchResult:
+    """Run the seven measurements (see the module docstring).
+
+    Parameters
+    ----------
+    config : BenchConfig, optional
+        Sizes and workers (default ``BenchConfig()``: about 2 minutes on 2 cores).
+    workdir : path-like, keyword-only
+        Scratch folder for the generated files (a temporary one, removed, by default).
+    on_item : callable, keyword-only
+        Called with ``(item key, seconds)`` after each measurement (progress output).
+
+    Returns
+    -------
+    BenchResult
+    """
+    cfg = config or BenchConfig()
+    workers = cfg.workers or usable_cores()
+    notify = on_item or (lambda key, sec: None)
+    start = time.perf_counter()
+    scratch = Path(tempfile.mkdtemp(prefix="arenabench-bench-", dir=workdir))
+    figures: dict[str, float] = {}
+    details: dict[str, Any] = {"workers": workers}
+    try:
+        from arenabench.generator.dataset import generate_dataset
+
+        # 1. generation to disk, as `arenabench generate --workers N` runs it
+        t0 = time.perf_counter()
+        result = generate_dataset(scratch / "dataset", preset=cfg.preset, count=cfg.count,
+                                  seed=cfg.seed, workers=workers, progress=False)
+        sec = time.perf_counter() - t0
+        figures["generate_disk_ips"] = cfg.count / sec
+        details["generate_disk"] = {"images": cfg.count, "seconds": sec,
+                                    "median_ms_per_image": result.timings_ms}
+        notify("generate_disk_ips", sec)
+
+        tasks = [(cfg.preset, cfg.seed, i) for i in range(cfg.count)]
+        with _pool(workers) as pool:
+            _warm_pool(pool, workers, cfg)
+            # 2. generation in memory
+            sec = _timed_map(pool, _memory_one, tasks, workers)
+            figures["generate_memory_ips"] = cfg.count / sec
+            details["generate_memory"] = {"images": cfg.count, "seconds": sec}
+            notify("generate_memory_ips", sec)
+
+            # 4. the floor: encode + write of rendered images
+            floor_dir = scratch / "floor"
+            floor_dir.mkdir()
+            per = min(200, max(1, cfg.count // workers))
+            chunks = [(cfg.preset, cfg.seed, list(range(w * per, (w + 1) * per)), str(floor_dir))
+                      for w in range(workers)]
+            done = pool.map(_floor_chunk, chunks, chunksize=1)
+            figures["encode_floor_ips"] = float(sum(n / s for n, s in done))
+            details["encode_floor"] = {"images": sum(n for n, _ in done),
+                                       "seconds_per_worker": [s for _, s in done]}
+            notify("encode_floor_ips", max(s for _, s in done))
+
+            # 6. streaming sweep: render, degrade, detect, score
+            sweep_tasks = [(cfg.preset, cfg.seed + 1, i) for i in range(cfg.sweep_count)]
+            t0 = time.perf_counter()
+            passed = pool.map(_sweep_one, sweep_tasks,
+                              chunksize=max(1, len(sweep_tasks) // (8 * workers)))
+            sec = time.perf_counter() - t0
+            figures["sweep_ips"] = cfg.sweep_count / sec
+            details["sweep"] = {"scenes": cfg.sweep_count, "seconds": sec,
+                                "pass_rate": float(np.mean(passed)),
+                                "loop": "make_sample(degrade) + detect + score_image, "
+                                        "process pool (eval.sweep not used)"}
+            notify("sweep_ips", sec)
+            gl_info = pool.apply(_gl_info)
+
+        # 3. the naive baseline (own processes: pyrender's clean-up ends their EGL display)
+        naive_dir = scratch / "naive"
+        naive_dir.mkdir()
+        with _pool(workers) as pool:
+            pool.map(_import_pyrender, range(workers), chunksize=1)  # start, import
+            naive_tasks = [(cfg.preset, cfg.seed, i, str(naive_dir))
+                           for i in range(cfg.naive_count)]
+            sec = _timed_map(pool, _naive_one, naive_tasks, workers)
+        figures["naive_ips"] = cfg.naive_count / sec
+        details["naive"] = {"images": cfg.naive_count, "seconds": sec}
+        notify("naive_ips", sec)
+
+        # 5. the reference pipeline from the image files of (1)
+        from arenabench.eval.runner import evaluate
+
+        t0 = time.perf_counter()
+        report = evaluate("reference", scratch / "dataset", workers=workers,
+                          executor="process")
+        sec = time.perf_counter() - t0
+        figures["pipeline_ips"] = cfg.count / sec
+        details["pipeline"] = {"images": cfg.count, "seconds": sec,
+                               "pass_rate": report.summary.pass_rate,
+                               "executor": "process"}
+        notify("pipeline_ips", sec)
+
+        # 7. memory of one rendering worker over rss_renders consecutive renders
+        with _pool(1) as pool:
+            rss = pool.apply(_rss_run, ((cfg.preset, cfg.seed, cfg.rss_renders),))
+        figures["worker_peak_rss_mb"] = rss["peak_rss_mb"]
+        figures["worker_rss_growth_mb"] = max(0.0, rss["rss_after_mb"]
+                                              - rss["rss_after_warmup_mb"])
+        details["rss"] = rss
+        notify("worker_rss_growth_mb", rss["seconds"])
+    finally:
+        shutil.rmtree(scratch, ignore_errors=True)
+    figures["disk_vs_naive"] = figures["generate_disk_ips"] / figures["naive_ips"]
+    figures["disk_vs_floor"] = figures["generate_disk_ips"] / figures["encode_floor_ips"]
+    return BenchResult(figures=figures, details=details, machine=_machine(gl_info),
+                       config=asdict(cfg) | {"workers": workers},
+                       seconds=time.perf_counter() - start)
+
+
+def _gl_info() -> dict[str, str]:
+    return _renderer().gl_info()

@@ -1,0 +1,116 @@
+"""``arenabench bench``: run :func:`arenabench.eval.bench.run_bench`, print a table and write
+``bench.json``."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from arenabench.eval.bench import TARGETS, BenchConfig, BenchResult, target_met
+
+#: (key, label, unit) rows of the table, in the issue's order.
+ROWS: tuple[tuple[str, str, str], ...] = (
+    ("generate_disk_ips", "1 generation to disk (PNG + GT)", "images/s"),
+    ("generate_memory_ips", "2 generation in memory (render + GT)", "images/s"),
+    ("naive_ips", "3 naive baseline (renderer per image, lit)", "images/s"),
+    ("encode_floor_ips", "4 floor: PNG encode + write", "images/s"),
+    ("pipeline_ips", "5 reference pipeline from files", "images/s"),
+    ("sweep_ips", "6 streaming sweep (render..score)", "scenes/s"),
+    ("worker_peak_rss_mb", "7 peak RSS per worker", "MB"),
+    ("worker_rss_growth_mb", "7 RSS growth over the renders", "MB"),
+    ("disk_vs_naive", "(1)/(3)", "x"),
+    ("disk_vs_floor", "(1)/(4)", "x"),
+)
+
+
+def format_table(result: BenchResult) -> str:
+    """The plain-text table: figure, unit, target and PASS/MISS (targets of a 2-core machine)."""
+    targets = {k: (op, v) for k, op, v, _ in TARGETS}
+    header = ("measurement", "value", "unit", "target", "")
+    lines = [header]
+    for key, label, unit in ROWS:
+        value = result.figures.get(key)
+        shown = "-" if value is None else f"{value:,.1f}" if value >= 10 else f"{value:.2f}"
+        if key in targets:
+            op, t = targets[key]
+            met = target_met(value, op, t)
+            lines.append((label, shown, unit, f"{op} {t:g}", "PASS" if met else "MISS"))
+        else:
+            lines.append((label, shown, unit, "", ""))
+    widths = [max(len(row[i]) for row in lines) for i in range(5)]
+    out = []
+    for n, row in enumerate(lines):
+        cells = [row[0].ljust(widths[0]), row[1].rjust(widths[1]), row[2].ljust(widths[2]),
+                 row[3].ljust(widths[3]), row[4]]
+        out.append("  ".join(cells).rstrip())
+        if n == 0:
+            out.append("-" * len(out[0]))
+    m = result.machine
+    v = m.get("versions", {})
+    out.append("")
+    out.append(f"{m.get('cores')} cores, {result.details.get('workers')} workers; "
+               f"{v.get('gl_renderer', '?')}; python {v.get('python')}, "
+               f"opencv {v.get('opencv')}, numpy {v.get('numpy')}, "
+               f"pyrender {v.get('pyrender')}; {result.seconds:.0f} s in all")
+    out.append("Targets are the issue's, for a 2-core machine without a GPU.")
+    return "\n".join(out)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The ``arenabench bench`` argument parser."""
+    p = argparse.ArgumentParser(
+        prog="arenabench bench",
+        description="Measure generation and scoring throughput on this machine (about two "
+        "minutes on 2 cores): prints a table and writes OUT/bench.json.",
+    )
+    d = BenchConfig()
+    p.add_argument("--out", type=Path, default=Path("."), help="folder of bench.json (default .)")
+    p.add_argument("--count", type=int, default=d.count,
+                   help=f"scenes generated / scored (default {d.count})")
+    p.add_argument("--sweep-count", type=int, default=d.sweep_count,
+                   help=f"scenes of the streaming sweep (default {d.sweep_count})")
+    p.add_argument("--naive-count", type=int, default=d.naive_count,
+                   help=f"scenes of the naive baseline (default {d.naive_count})")
+    p.add_argument("--workers", type=int, default=None, help="processes (default: the cores)")
+    p.add_argument("--rss-renders", type=int, default=d.rss_renders,
+                   help=f"consecutive renders of the memory check (default {d.rss_renders})")
+    p.add_argument("--quick", action="store_true",
+                   help="tiny counts (seconds; checks that everything runs, figures meaningless)")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``arenabench bench``; returns 0, or 2 on a usage error."""
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:
+        return int(exc.code or 0)
+    from arenabench.eval.bench import run_bench
+    from arenabench.fileio import atomic_write_json
+
+    try:
+        if args.quick:
+            cfg = BenchConfig.quick(workers=args.workers)
+        else:
+            cfg = BenchConfig(count=args.count, sweep_count=args.sweep_count,
+                              naive_count=args.naive_count, rss_renders=args.rss_renders,
+                              workers=args.workers)
+    except ValueError as exc:
+        print(f"arenabench bench: error: {exc}", file=sys.stderr)
+        return 2
+
+    def progress(key: str, seconds: float) -> None:
+        print(f"  {key}: {seconds:.1f} s", file=sys.stderr, flush=True)
+
+    result = run_bench(cfg, on_item=progress)
+    args.out.mkdir(parents=True, exist_ok=True)
+    path = args.out / "bench.json"
+    atomic_write_json(path, result.to_json())
+    print(format_table(result))
+    print(f"\nwrote {path}")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

@@ -1,0 +1,94 @@
+"""``arenabench bench --quick`` through the real command (a subprocess): every figure is there.
+
+Timings are not asserted (speed belongs to the benchmark itself); the test keeps the
+benchmark from rotting: every measurement runs, on real renders, real files and the real
+pipeline, and bench.json holds every key the issue names.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from arenabench.eval.bench import FIGURE_KEYS, BenchConfig, bench_degrade
+from arenabench.eval.bench_cli import main
+
+ISSUE_KEYS = (
+    "generate_disk_ips", "generate_memory_ips", "naive_ips", "encode_floor_ips",
+    "pipeline_ips", "sweep_ips", "worker_peak_rss_mb", "worker_rss_growth_mb",
+)  # fmt: skip
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory) -> tuple[subprocess.CompletedProcess, dict]:
+    out = tmp_path_factory.mktemp("bench")
+    proc = subprocess.run(
+        [sys.executable, "-m", "arenabench", "bench", "--quick", "--out", str(out)],
+        capture_output=True, text=True, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return proc, json.loads((out / "bench.json").read_text())
+
+
+def test_bench_json_holds_every_figure(quick_run):
+    _, data = quick_run
+    for key in (*ISSUE_KEYS, *FIGURE_KEYS):
+        assert key in data, key
+        assert isinstance(data[key], float) and math.isfinite(data[key]), key
+        if key == "worker_rss_growth_mb":
+            assert data[key] >= 0.0
+        else:
+            assert data[key] > 0.0, key
+    assert data["cores"] >= 1
+    for name in ("python", "numpy", "opencv", "pyrender", "gl_renderer"):
+        assert data["versions"][name], name
+    assert data["disk_vs_naive"] == pytest.approx(data["generate_disk_ips"] / data["naive_ips"])
+    assert data["disk_vs_floor"] == pytest.approx(
+        data["generate_disk_ips"] / data["encode_floor_ips"])
+    assert data["details"]["rss"]["renders"] == BenchConfig.quick().rss_renders
+    assert {t["key"] for t in data["targets"]} >= {"generate_disk_ips", "pipeline_ips",
+                                                    "sweep_ips", "worker_peak_rss_mb"}
+    # the pipeline ran on the generated files and mostly passed (real outcome, not timing)
+    assert data["details"]["pipeline"]["pass_rate"] >= 0.5
+    assert data["details"]["sweep"]["pass_rate"] >= 0.5
+
+
+def test_bench_prints_every_row(quick_run):
+    proc, _ = quick_run
+    for label in ("generation to disk", "generation in memory", "naive baseline", "floor",
+                  "reference pipeline", "streaming sweep", "peak RSS", "RSS growth",
+                  "(1)/(3)", "(1)/(4)", "llvmpipe" if "llvmpipe" in proc.stdout else "cores"):
+        assert label in proc.stdout, label
+    assert "PASS" in proc.stdout or "MISS" in proc.stdout
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--count", "0"], "count must be an integer >= 1"),
+    (["--workers", "0"], "workers must be an integer >= 1"),
+    (["--rss-renders", "-3"], "rss_renders must be an integer >= 1"),
+])
+def test_usage_errors_exit_2(argv, fragment, capsys, tmp_path):
+    assert main([*argv, "--out", str(tmp_path)]) == 2
+    assert fragment in capsys.readouterr().err
+    assert not (tmp_path / "bench.json").exists()
+
+
+def test_bench_degrade_is_seeded_and_light():
+    rgb = np.full((64, 64, 3), 120, np.uint8)
+    a = bench_degrade(rgb, np.random.default_rng(3))
+    b = bench_degrade(rgb, np.random.default_rng(3))
+    assert a.dtype == np.uint8 and a.shape == rgb.shape
+    assert np.array_equal(a, b)
+    assert 1.0 < float(np.std(a.astype(float))) < 6.0
+
+
+def test_config_rejects_bad_values():
+    with pytest.raises(ValueError, match="naive_count"):
+        BenchConfig(naive_count=0)
+    with pytest.raises(ValueError, match="workers"):
+        BenchConfig(workers=True)
