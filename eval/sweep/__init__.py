@@ -1,0 +1,48 @@
+"""Robustness sweeps: vary preset parameters over a grid (or at random), render and score every
+point in memory with one or more pipelines, find each parameter's breakdown point.
+
+::
+
+    from arenabench.eval.sweep import PipelineSpec, SweepSpec, parse_vary, run_sweep, write_sweep
+
+    spec = SweepSpec(preset="eyrc", axes=(parse_vary("camera.tilt_deg=0:40:20"),),
+                     pipelines=(PipelineSpec("pipeline", "reference"),), per_point=20)
+    result = run_sweep(spec, workers=2)          # or scheduler="tcp://host:8786"
+    write_sweep(result, "out/sweep")             # sweep.json/.csv, results.jsonl, plots, html
+"""
+
+from __future__ import annotations
+
+import importlib
+from typing import Any
+
+_EXPORTS: dict[str, str] = {
+    "Axis": "grid",
+    "parse_vary": "grid",
+    "parse_varies": "grid",
+    "grid_points": "grid",
+    "random_points": "grid",
+    "PipelineSpec": "records",
+    "SweepSpec": "records",
+    "SweepTask": "records",
+    "SweepResult": "records",
+    "PointSummary": "records",
+    "SWEEP_SCHEMA": "records",
+    "run_sweep": "runner",
+    "execute": "runner",
+    "sweep_points": "runner",
+    "sweep_tasks": "runner",
+    "run_task": "task",
+    "axis_curve": "breakdown",
+    "breakdown_value": "breakdown",
+    "write_sweep": "outputs",
+}
+
+__all__ = sorted(_EXPORTS)
+
+
+def __getattr__(name: str) -> Any:
+    if name in _EXPORTS:
+        module = importlib.import_module(f"{__name__}.{_EXPORTS[name]}")
+        return getattr(module, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -1,0 +1,121 @@
+"""Sweep output files, all written atomically into ``DIR``::
+
+    sweep.json      settings, per point x pipeline harness summaries, breakdown points
+                    (schema arenabench.sweep/1)
+    sweep.csv       one row per point x pipeline: parameters and summary metrics
+    results.jsonl   one line per image x pipeline (the harness's per-image record plus
+                    pipeline, point, scene, index)
+    plots/*.png     pass rate and area error per parameter; heat maps for two parameters
+    sweep.html      the page tying them together (plots inline)
+    images/, gt/    kept images and their GT (--keep-images / --keep-failures only)
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import json
+import os
+from pathlib import Path
+from typing import Any
+
+from arenabench.fileio import atomic_write_bytes, atomic_write_text, dumps_json
+from arenabench.generator.presets import format_value
+
+from ..records import CATEGORIES
+from .html import sweep_page
+from .plots import sweep_figures
+from .records import SweepResult
+from .task import image_name
+
+FILES: dict[str, str] = {
+    "json": "sweep.json",
+    "csv": "sweep.csv",
+    "jsonl": "results.jsonl",
+    "html": "sweep.html",
+}
+
+
+def _cell(value: Any) -> Any:
+    return "" if value is None else value
+
+
+def sweep_csv(result: SweepResult) -> str:
+    """``sweep.csv`` text: one row per point and pipeline."""
+    keys = [a.key for a in result.spec.axes]
+    stats = ("median", "p95", "max")
+    header = ["point", *keys, "pipeline", "n", "n_passed", "skipped", "pass_rate",
+              "pass_rate_ci95_lo", "pass_rate_ci95_hi", "count_exact_rate", "count_mae",
+              *(f"area_rel_err_{s}" for s in stats), "marker_id_accuracy",
+              *(f"failures_{c}" for c in CATEGORIES), "latency_ms_median", "latency_ms_p95"]
+    buf = io.StringIO()
+    writer = csv.writer(buf, lineterminator="\n")
+    writer.writerow(header)
+    for ps in result.summaries:
+        s = ps.summary
+        row = [ps.index, *(format_value(ps.params[k]) for k in keys), ps.pipeline, s.n,
+               s.n_passed, ps.skipped, s.pass_rate, *s.pass_rate_ci95, s.count_exact_rate,
+               s.count_mae, *(s.area_rel_err.get(k) for k in stats), s.marker_id_accuracy,
+               *(s.failures.get(c, 0) for c in CATEGORIES),
+               *(s.latency_ms.get(k) for k in ("median", "p95"))]
+        writer.writerow([_cell(v) for v in row])
+    return buf.getvalue()
+
+
+def results_jsonl(result: SweepResult) -> str:
+    """``results.jsonl`` text (sorted by point, scene, pipeline order)."""
+    return "".join(json.dumps(row, sort_keys=True, allow_nan=False) + "\n" for row in result.images)
+
+
+class KeptImageWriter:
+    """Writes the images (PNG) and GT of kept samples as their results arrive.
+
+    Use as ``run_sweep(..., on_output=KeptImageWriter(out_dir))``; does nothing for samples
+    whose result carries no image.
+    """
+
+    def __init__(self, out_dir: str | os.PathLike[str]) -> None:
+        self.out = Path(out_dir)
+        self.written = 0
+
+    def __call__(self, output: dict[str, Any]) -> None:
+        """Write one task's kept image and GT, if any."""
+        if output.get("png") is None:
+            return
+        name = image_name(output["point"], output["scene"])
+        atomic_write_bytes(self.out / "images" / f"{name}.png", output["png"])
+        atomic_write_text(self.out / "gt" / f"{name}.json", dumps_json(output["gt"]))
+        self.written += 1
+
+
+def write_sweep(
+    result: SweepResult, out_dir: str | os.PathLike[str], *, plots: bool = True
+) -> dict[str, Path]:
+    """Write ``sweep.json``, ``sweep.csv``, ``results.jsonl``, ``plots/*.png`` and
+    ``sweep.html`` into ``out_dir`` (created).
+
+    Parameters
+    ----------
+    result : SweepResult
+    out_dir : path-like
+    plots : bool, keyword-only
+        Also draw the plots and the HTML page.
+
+    Returns
+    -------
+    dict
+        ``{"json", "csv", "jsonl", "html", "plot:<file>"...: path}``.
+    """
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    written = {
+        "json": atomic_write_text(out / FILES["json"], dumps_json(result.to_dict())),
+        "csv": atomic_write_text(out / FILES["csv"], sweep_csv(result)),
+        "jsonl": atomic_write_text(out / FILES["jsonl"], results_jsonl(result)),
+    }
+    if plots:
+        figures = sweep_figures(result)
+        for name, _, png in figures:
+            written[f"plot:{name}"] = atomic_write_bytes(out / "plots" / name, png)
+        written["html"] = atomic_write_text(out / FILES["html"], sweep_page(result, figures))
+    return written

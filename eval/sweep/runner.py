@@ -1,0 +1,224 @@
+"""Run a sweep: points -> tasks -> workers (inline, local process pool or Dask) -> summaries.
+
+Seeds (common random numbers): scene ``i`` of every point is scene ``i`` of the sweep seed,
+``make_sample(preset, seed=seed, index=i, overrides=set | point)``. The generator draws every
+scalar parameter with one uniform draw whether or not it is overridden, so two points show the
+same base scenes (same boxes, camera, light, degradation noise) with only the varied
+parameters changed: curves are smooth and differences between points are not sampling noise.
+``independent_scenes=True`` gives point ``p`` the indices ``p * per_point + i`` instead.
+Random points come from ``default_rng(SeedSequence([seed, 2]))``.
+
+Results never depend on the executor or the number of workers: every task is a pure
+function of its description, and results are sorted by (point, scene) before aggregation.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import time
+from collections.abc import Callable, Iterator
+from concurrent.futures import ProcessPoolExecutor, as_completed
+from typing import Any
+
+import numpy as np
+
+from arenabench.generator.presets import resolve
+
+from ..metrics import summarize
+from ..records import ImageResult
+from ..runner import default_workers
+from .breakdown import axis_curve, breakdown_value
+from .grid import grid_points, random_points
+from .records import PointSummary, SweepResult, SweepSpec, SweepTask
+
+
+def sweep_points(spec: SweepSpec) -> list[dict[str, Any]]:
+    """The sweep's points: the grid, or ``spec.random`` random points."""
+    if spec.random is None:
+        return grid_points(spec.axes)
+    rng = np.random.default_rng(np.random.SeedSequence([int(spec.seed), 2]))
+    return random_points(spec.axes, n=spec.random, rng=rng)
+
+
+def sweep_tasks(spec: SweepSpec, points: list[dict[str, Any]]) -> list[SweepTask]:
+    """One task per (point, scene), point-major.
+
+    Raises
+    ------
+    ValueError
+        When a point's parameters do not resolve against the preset (checked for every
+        point, before anything runs).
+    """
+    tasks = []
+    for p, params in enumerate(points):
+        overrides = {**spec.overrides, **params}
+        resolve(spec.preset, overrides)
+        for i in range(spec.per_point):
+            index = p * spec.per_point + i if spec.independent_scenes else i
+            tasks.append(SweepTask(
+                point=p, scene=i, index=index, preset=spec.preset, seed=int(spec.seed),
+                overrides=overrides, pipelines=spec.pipelines, tolerance=spec.tolerance,
+                area_reference=spec.area_reference, keep=spec.keep,
+            ))
+    return tasks
+
+
+def _inline(tasks: list[SweepTask]) -> Iterator[dict[str, Any]]:
+    from .task import run_task
+
+    for task in tasks:
+        yield run_task(task)
+
+
+def _local_pool(tasks: list[SweepTask], workers: int) -> Iterator[dict[str, Any]]:
+    from .task import init_worker, run_task
+
+    cores = default_workers()
+    lp = max(1, cores // workers)
+    ctx = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=init_worker,
+                             initargs=(lp,)) as pool:
+        futures = [pool.submit(run_task, t) for t in tasks]
+        try:
+            for fut in as_completed(futures):
+                yield fut.result()
+        finally:
+            for fut in futures:
+                fut.cancel()
+
+
+def _dask(tasks: list[SweepTask], scheduler: Any) -> Iterator[dict[str, Any]]:
+    from distributed import Client
+    from distributed import as_completed as dask_completed
+
+    from .task import run_task
+
+    client = scheduler if isinstance(scheduler, Client) else Client(str(scheduler))
+    try:
+        futures = client.map(run_task, tasks, pure=False)
+        try:
+            for fut in dask_completed(futures):
+                yield fut.result()
+        finally:
+            client.cancel(futures)
+    finally:
+        if client is not scheduler:
+            client.close()
+
+
+def execute(
+    tasks: list[SweepTask],
+    *,
+    workers: int | None = None,
+    scheduler: Any = None,
+) -> Iterator[dict[str, Any]]:
+    """Run tasks, yielding each task's result dict as it completes (any order).
+
+    Parameters
+    ----------
+    tasks : list of SweepTask
+    workers : int, optional, keyword-only
+        Local processes (default: the machine's cores; 1 runs in this process).
+    scheduler : str or distributed.Client, optional, keyword-only
+        ``tcp://HOST:PORT`` of a Dask scheduler (or a connected client): the tasks run on
+        that cluster instead.
+    """
+    if workers is not None and (int(workers) != workers or workers < 1):
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    if scheduler is not None:
+        return _dask(tasks, scheduler)
+    n = min(workers or default_workers(), max(1, len(tasks)))
+    return _inline(tasks) if n == 1 else _local_pool(tasks, n)
+
+
+def aggregate(
+    spec: SweepSpec, points: list[dict[str, Any]], outputs: list[dict[str, Any]]
+) -> tuple[tuple[PointSummary, ...], tuple[dict[str, Any], ...], dict[str, dict[str, Any]]]:
+    """Summaries per point and pipeline, sorted per-image rows and breakdown points."""
+    outputs = sorted(outputs, key=lambda o: (o["point"], o["scene"]))
+    order = {p.name: k for k, p in enumerate(spec.pipelines)}
+    rows = tuple(sorted((r for o in outputs for r in o["results"]),
+                        key=lambda r: (r["point"], r["scene"], order[r["pipeline"]])))
+    skipped = [0] * len(points)
+    for o in outputs:
+        if o["error"] is not None:
+            skipped[o["point"]] += 1
+    by_pipe: dict[str, dict[int, list[ImageResult]]] = {p.name: {} for p in spec.pipelines}
+    for r in rows:
+        by_pipe[r["pipeline"]].setdefault(r["point"], []).append(ImageResult.from_dict(r))
+    summaries = []
+    for p, params in enumerate(points):
+        for pipe in spec.pipelines:
+            rs = by_pipe[pipe.name].get(p, [])
+            summaries.append(PointSummary(
+                index=p, params=params, pipeline=pipe.name, skipped=skipped[p],
+                summary=summarize([r.score for r in rs], [r.prediction for r in rs]),
+            ))
+    breakdown: dict[str, dict[str, Any]] = {}
+    for pipe in spec.pipelines:
+        breakdown[pipe.name] = {
+            axis.key: breakdown_value(
+                axis_curve(axis, axes=spec.axes, points=points, results=by_pipe[pipe.name],
+                           random=spec.random is not None, mode=spec.breakdown_mode),
+                threshold=spec.threshold,
+            )
+            for axis in spec.axes
+        }
+    return tuple(summaries), rows, breakdown
+
+
+def run_sweep(
+    spec: SweepSpec,
+    *,
+    workers: int | None = None,
+    scheduler: Any = None,
+    progress: bool = False,
+    on_output: Callable[[dict[str, Any]], None] | None = None,
+) -> SweepResult:
+    """Run a whole sweep in memory and aggregate it.
+
+    Parameters
+    ----------
+    spec : SweepSpec
+    workers : int, optional, keyword-only
+        Local processes (default: cores; 1 = in this process).
+    scheduler : str or distributed.Client, optional, keyword-only
+        Run on an existing Dask cluster instead.
+    progress : bool, keyword-only
+        tqdm bar over samples on stderr.
+    on_output : callable, optional, keyword-only
+        Called with each task's raw result as it arrives (e.g. to write kept images).
+
+    Returns
+    -------
+    SweepResult
+    """
+    from tqdm import tqdm
+
+    start = time.perf_counter()
+    points = sweep_points(spec)
+    tasks = sweep_tasks(spec, points)
+    outputs: list[dict[str, Any]] = []
+    timings: dict[str, list[float]] = {}
+    with tqdm(total=len(tasks), desc="sweep", unit="img", disable=not progress) as bar:
+        for out in execute(tasks, workers=workers, scheduler=scheduler):
+            if on_output is not None:
+                on_output(out)
+            for k, v in out.get("timings_ms", {}).items():
+                timings.setdefault(k, []).append(v)
+            outputs.append({k: v for k, v in out.items() if k not in ("png", "gt")})
+            bar.update(1)
+    summaries, rows, breakdown = aggregate(spec, points, outputs)
+    seconds = time.perf_counter() - start
+    run = {
+        "executor": "dask" if scheduler is not None else (
+            "inline" if min(workers or default_workers(), len(tasks)) <= 1 else "process"),
+        "workers": workers or (None if scheduler is not None else default_workers()),
+        "samples": len(tasks),
+        "skipped": sum(1 for o in outputs if o["error"] is not None),
+        "seconds": round(seconds, 3),
+        "samples_per_s": round(len(tasks) / seconds, 3) if seconds > 0 else None,
+        "median_ms": {k: round(float(np.median(v)), 3) for k, v in sorted(timings.items())},
+    }
+    return SweepResult(spec=spec, points=tuple(points), summaries=summaries, images=rows,
+                       breakdown=breakdown, run=run)

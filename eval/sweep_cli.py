@@ -1,0 +1,182 @@
+"""``arenabench sweep``: vary preset parameters, render and score every point in memory, find
+each parameter's breakdown point.
+
+Exit status: 0 done; 2 usage error (bad --vary, unknown parameter, bad options, no cluster).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
+
+EPILOG = """\
+examples:
+  arenabench sweep --preset eyrc --vary camera.tilt_deg=0:40:5 --per-point 50 \\
+      --pipeline reference --out out/tilt
+  arenabench sweep --vary camera.tilt_deg=0:40:10 --vary lighting.intensity=0.4,0.2,0 \\
+      --pipeline seed --pipeline reference --cmd "python3 map.py --image {image}" --out out/grid
+  arenabench sweep --vary camera.tilt_deg=0:40 --vary camera.altitude_m=8:14 --random 200 \\
+      --per-point 5 --pipeline reference --out out/random
+  arenabench sweep ... --scheduler tcp://10.0.0.5:8786      # run on a Dask cluster
+
+--vary KEY=SPEC overrides preset parameter KEY (any name of 'arenabench presets --params'):
+  a:b:step  a, a+step, ... up to b (step may be negative: jpeg.quality=95:15:-20)
+  a:b       5 evenly spaced values in a grid; the continuous range with --random
+  v1,v2,..  these values, in this order (words for text parameters; ';' separates colours)
+The first value is the easy end: a parameter's breakdown point is the furthest value, scanning
+from it, whose pass-rate lower 95 % Wilson bound is >= --threshold (marginal over the other
+parameters unless --breakdown-mode axis). Scene i is the same base scene at every point
+(common random numbers) unless --independent-scenes.
+
+Several --vary make a grid (first varies slowest); --random N draws N points instead.
+Pipelines (--pipeline and --cmd, repeatable) run on the same images. Nothing is written to
+disk per image unless --keep-images or --keep-failures (--cmd pipelines read a temporary file).
+
+outputs in --out: sweep.json (schema arenabench.sweep/1), sweep.csv, results.jsonl,
+plots/*.png, sweep.html.
+"""
+
+
+class _PipelineAction(argparse.Action):
+    """Collects --pipeline and --cmd in the order given."""
+
+    def __call__(self, parser, namespace, values, option_string=None):
+        items = list(getattr(namespace, self.dest) or [])
+        items.append(("cmd" if option_string == "--cmd" else "pipeline", values))
+        setattr(namespace, self.dest, items)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``arenabench sweep``."""
+    from arenabench.generator.presets import preset_names
+
+    p = argparse.ArgumentParser(
+        prog="arenabench sweep",
+        description="Robustness sweep: vary preset parameters over a grid (or at random), "
+                    "render and score every point in memory, report breakdown points.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("--preset", default="eyrc",
+                   help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
+    p.add_argument("--vary", action="append", default=[], metavar="KEY=SPEC",
+                   help="parameter to vary (repeatable; see below)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="fixed override at every point, as for 'arenabench generate'")
+    p.add_argument("--random", type=int, default=None, metavar="N",
+                   help="draw N random points from the ranges instead of the grid")
+    p.add_argument("--per-point", type=int, default=50, help="scenes per point (default 50)")
+    p.add_argument("--seed", type=int, default=0, help="sweep seed (default 0)")
+    p.add_argument("--independent-scenes", action="store_true",
+                   help="different scenes at every point (default: the same base scenes)")
+    p.add_argument("--pipeline", dest="pipes", action=_PipelineAction, metavar="NAME",
+                   help=f"built-in ({', '.join(BUILTIN_PIPELINES)}) or 'pkg.module:function' "
+                        "(repeatable)")
+    p.add_argument("--cmd", dest="pipes", action=_PipelineAction, metavar="TEMPLATE",
+                   help="external command, e.g. 'python3 map.py --image {image}' (repeatable)")
+    p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
+                   help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line")
+    p.add_argument("--timeout", type=float, default=60.0, help="seconds per image for --cmd")
+    p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
+    p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible")
+    p.add_argument("--threshold", type=float, default=0.9,
+                   help="breakdown threshold on the pass rate's lower 95 %% bound (default 0.9)")
+    p.add_argument("--breakdown-mode", choices=("marginal", "axis"), default="marginal",
+                   help="pool the other parameters (marginal, default) or hold them at their "
+                        "first value (axis; grid only)")
+    keep = p.add_mutually_exclusive_group()
+    keep.add_argument("--keep-images", action="store_true",
+                      help="write every rendered image and its GT to OUT/images, OUT/gt")
+    keep.add_argument("--keep-failures", action="store_true",
+                      help="write only images some pipeline failed on")
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--workers", type=int, default=None,
+                   help="local processes (default: cores; 1 = in this process)")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                   help="run on an existing Dask distributed cluster")
+    p.add_argument("--no-plots", action="store_true", help="skip plots and sweep.html")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    return p
+
+
+def _error(message: str) -> int:
+    print(f"arenabench sweep: error: {message}", file=sys.stderr)
+    return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``arenabench sweep``; returns the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help (0) or usage error (2)
+        return int(exc.code or 0)
+    from arenabench.generator.presets import get_preset, parse_overrides
+    from arenabench.generator.sampler import SamplingError
+
+    from .sweep.grid import parse_varies
+    from .sweep.outputs import KeptImageWriter, write_sweep
+    from .sweep.records import PipelineSpec, SweepSpec
+    from .sweep.runner import run_sweep
+
+    if not args.vary:
+        return _error("give at least one --vary KEY=SPEC")
+    if not args.pipes:
+        return _error("give --pipeline NAME|pkg.module:function and/or --cmd TEMPLATE")
+    if args.workers is not None and args.workers < 1:
+        return _error(f"--workers must be >= 1, got {args.workers}")
+    if args.scheduler is not None and args.workers is not None:
+        return _error("--workers and --scheduler exclude each other (the cluster's workers "
+                      "do the work)")
+    try:
+        get_preset(args.preset)
+        axes = parse_varies(args.vary)
+        overrides = parse_overrides(args.overrides)
+        clash = sorted(set(overrides) & {a.key for a in axes})
+        if clash:
+            raise ValueError(f"--set {clash[0]}: also given with --vary")
+        pipelines = tuple(
+            PipelineSpec(kind, value, timeout_s=args.timeout, output=args.output)
+            for kind, value in args.pipes
+        )
+        if any(p.kind == "pipeline" and ":" in p.value for p in pipelines):
+            for p in pipelines:
+                if p.kind == "pipeline":
+                    p.build()  # import errors now, as one line, not in every worker
+        spec = SweepSpec(
+            preset=args.preset, axes=axes, pipelines=pipelines, per_point=args.per_point,
+            seed=args.seed, random=args.random, overrides=overrides,
+            tolerance=args.tolerance, area_reference=args.area_reference,
+            threshold=args.threshold, breakdown_mode=args.breakdown_mode,
+            keep="all" if args.keep_images else "failures" if args.keep_failures else "none",
+            independent_scenes=args.independent_scenes,
+        )
+    except ValueError as exc:
+        return _error(str(exc))
+    writer = KeptImageWriter(args.out)
+    try:
+        result = run_sweep(spec, workers=args.workers, scheduler=args.scheduler,
+                           progress=not args.no_progress, on_output=writer)
+    except (ValueError, SamplingError) as exc:
+        return _error(str(exc))
+    except OSError as exc:  # e.g. the scheduler cannot be reached
+        return _error(f"{type(exc).__name__}: {exc}")
+    written = write_sweep(result, args.out, plots=not args.no_plots)
+    run = result.run
+    print(f"sweep: {len(result.points)} points x {spec.per_point} scenes x "
+          f"{len(pipelines)} pipeline(s) in {run['seconds']:.1f} s "
+          f"({run['samples_per_s']} samples/s, {run['skipped']} skipped)")
+    for name, bps in result.breakdown.items():
+        text = ", ".join(f"{k}={'none' if v is None else v}" for k, v in bps.items())
+        print(f"  breakdown {name}: {text}")
+    print(f"  wrote {written['json'].parent}/ (sweep.json, sweep.csv, results.jsonl"
+          f"{', plots/, sweep.html' if not args.no_plots else ''}"
+          f"{f', {writer.written} images' if writer.written else ''})")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
