@@ -16,6 +16,7 @@ ROWS: tuple[tuple[str, str, str], ...] = (
     ("naive_ips", "3 naive baseline (renderer per image, lit)", "images/s"),
     ("encode_floor_ips", "4 floor: PNG encode + write", "images/s"),
     ("pipeline_ips", "5 reference pipeline from files", "images/s"),
+    ("pipeline_eval_ips", "5b the same via the eval runner (start-up in)", "images/s"),
     ("sweep_ips", "6 streaming sweep (render..score)", "scenes/s"),
     ("worker_peak_rss_mb", "7 peak RSS per worker", "MB"),
     ("worker_rss_growth_mb", "7 RSS growth over the renders", "MB"),
