@@ -140,3 +140,24 @@ def test_no_pipeline_is_a_usage_error(tmp_path, capsys):
     rc = sweep_main(["--vary", "camera.tilt_deg=0,5", "--out", str(tmp_path / "x")])
     assert rc == 2
     assert "give --pipeline" in capsys.readouterr().err
+
+
+def test_random_sweep_two_parameters_heat_map_and_kept_failures(tmp_path):
+    out = tmp_path / "random"
+    argv = ["--vary", "camera.tilt_deg=0:30", "--vary", "lighting.intensity=0.45:0.05",
+            "--random", "5", "--per-point", "1", "--seed", "3", "--pipeline", "seed",
+            "--keep-failures", "--out", str(out), "--workers", "1", "--no-progress"]
+    assert sweep_main(argv) == 0
+    doc = json.loads((out / "sweep.json").read_text())
+    assert doc["mode"] == "random" and doc["n_points"] == 5
+    params = [p["params"] for p in doc["points"]]
+    assert all(0 <= p["camera.tilt_deg"] <= 30 for p in params)
+    assert all(0.05 <= p["lighting.intensity"] <= 0.45 for p in params)
+    assert len({p["camera.tilt_deg"] for p in params}) == 5
+    heat = list((out / "plots").glob("heatmap_camera.tilt_deg_lighting.intensity_*seed.png"))
+    assert len(heat) == 1
+    rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
+    failed = {f"p{r['point']:04d}_s{r['scene']:06d}" for r in rows if not r["pass"]}
+    kept = {p.stem for p in (out / "images").glob("*.png")} if (out / "images").exists() else set()
+    assert kept == failed
+    assert all((r["image"] != "") == (not r["pass"]) for r in rows)
