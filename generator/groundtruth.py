@@ -18,6 +18,8 @@ from shapely.geometry import MultiPoint, Polygon, box
 
 from arenabench.frame import CORNER_ORDER, FrameSpec
 from arenabench.generator import camera as cam
+from arenabench.generator.degrade import densify, distort_points
+from arenabench.generator.distractors import occluded_fractions
 from arenabench.generator.layout import (
     MARKER_Z,
     box_footprint,
@@ -133,7 +135,8 @@ def compute_ground_truth(scene: Scene, *, frame: FrameSpec | None = None) -> dic
     K = cam.intrinsics(scene.camera)
     pose = cam.world_from_camera(scene.camera)
     rvec, tvec = cam.rvec_tvec(pose)
-    dist = np.zeros(5)
+    dist = np.asarray(scene.camera.dist, dtype=np.float64)
+    image_box = box(-0.5, -0.5, scene.camera.width - 0.5, scene.camera.height - 0.5)
     w, h = scene.camera.width, scene.camera.height
     w2f = world_to_frame(scene.arena, scene.markers, frame)
     homography = image_to_frame_homography(scene, frame)
@@ -158,6 +161,11 @@ def compute_ground_truth(scene: Scene, *, frame: FrameSpec | None = None) -> dic
         img_pts, _ = cv2.projectPoints(box_vertices(ob), rvec, tvec, K, dist)
         img_pts = img_pts.reshape(-1, 2)
         hull = MultiPoint(img_pts).convex_hull
+        if np.any(dist):
+            # A distorted hull has curved edges: densify the pinhole hull, then distort it.
+            pin, _ = cv2.projectPoints(box_vertices(ob), rvec, tvec, K, np.zeros(5))
+            ring = np.asarray(MultiPoint(pin.reshape(-1, 2)).convex_hull.exterior.coords)[:-1]
+            hull = Polygon(distort_points(densify(ring, step_px=4.0), K, dist))
         obstacles.append({
             "shape": "box",
             "center_m": list(ob.center_m),
@@ -175,14 +183,21 @@ def compute_ground_truth(scene: Scene, *, frame: FrameSpec | None = None) -> dic
     fp_union = shapely.union_all(footprints) if footprints else Polygon()
 
     markers = []
-    for corner, marker_id in zip(CORNER_ORDER, scene.markers.ids, strict=True):
+    occluded = occluded_fractions(scene.arena, scene.markers, scene.patches)
+    for corner, marker_id, occ in zip(CORNER_ORDER, scene.markers.ids, occluded, strict=True):
         xy = marker_corners_world(scene.arena, scene.markers, corner)
         pts = np.column_stack([xy, np.full(4, MARKER_Z)])
         px, _ = cv2.projectPoints(pts, rvec, tvec, K, dist)
         px = px.reshape(4, 2)
+        quad = Polygon(px)
+        in_view = inside(px, IN_VIEW_MARGIN_PX)
         markers.append({
             "dictionary": scene.markers.dictionary, "id": int(marker_id), "corner": corner,
-            "corners_px": px, "in_view": inside(px, IN_VIEW_MARGIN_PX),
+            "corners_px": px, "in_view": in_view,
+            "in_view_fraction": (quad.intersection(image_box).area / quad.area
+                                 if quad.is_valid and quad.area > 0 else 0.0),
+            "occluded_fraction": occ,
+            "visible": bool(in_view and occ == 0.0),
         })
 
     gt = rounded({
@@ -197,6 +212,9 @@ def compute_ground_truth(scene: Scene, *, frame: FrameSpec | None = None) -> dic
     })
     # Matrices keep significant digits: the homography's last row is ~1e-4 .. 1e-7.
     gt["homography"] = significant(homography)
-    gt["camera"] = {"K": significant(K), "dist": [0.0] * 5,
+    gt["camera"] = {"K": significant(K), "dist": significant(dist),
                     "world_from_camera": significant(pose)}
+    # The homography maps the undistorted (pinhole) image to the frame: undistort image points
+    # with K and dist first (cv2.undistortPoints(..., P=K)), then apply it.
+    gt["homography_domain"] = "undistorted"
     return gt

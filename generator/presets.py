@@ -84,6 +84,57 @@ PARAMETERS: dict[str, ParamDef] = {
     "lighting.azimuth_deg": ParamDef("float", "directional light azimuth, CCW from east (deg)",
                                      -360, 360),
     "background.gray": ParamDef("int", "grey level around the arena", 0, 255),
+    **{
+        # Degradations and scene-side variations (issue 5): every one neutral by default.
+        "camera.k1": ParamDef("float", "lens radial distortion k1 (0 = pinhole; < 0 barrel)",
+                              -1, 1),
+        "camera.k2": ParamDef("float", "lens radial distortion k2", -1, 1),
+        "camera.p1": ParamDef("float", "lens tangential distortion p1", -0.1, 0.1),
+        "camera.p2": ParamDef("float", "lens tangential distortion p2", -0.1, 0.1),
+        "camera.k3": ParamDef("float", "lens radial distortion k3", -1, 1),
+        "degrade.vignetting": ParamDef("float", "corner darkening 0..1 (0 = none)", 0, 1),
+        "degrade.exposure_ev": ParamDef("float", "exposure change in stops (0 = none)", -6, 6),
+        "degrade.motion_blur_px": ParamDef("float", "motion blur length in px (0 = none)", 0,
+                                           200),
+        "degrade.motion_angle_deg": ParamDef("float", "motion blur direction, CCW from +x (deg)",
+                                             -360, 360),
+        "degrade.defocus_px": ParamDef("float", "defocus (disc) blur radius in px (0 = none)", 0,
+                                       100),
+        "degrade.noise_sigma": ParamDef("float", "Gaussian noise std in grey levels (0 = none)",
+                                        0, 128),
+        "degrade.poisson_photons": ParamDef("float", "shot noise: photons at full scale "
+                                            "(0 = none; fewer = noisier)", 0, 1e7),
+        "degrade.gamma": ParamDef("float", "display gamma, out = in^(1/gamma) (1 = none)", 0.1,
+                                  10),
+        "degrade.jpeg_quality": ParamDef("int", "JPEG round trip at this quality (0 = none)", 0,
+                                         100),
+        "lighting.shadow_strength": ParamDef("float", "box shadows from the directional light, "
+                                             "0..1 (0 = none)", 0, 1),
+        "lighting.spot_strength": ParamDef("float", "uneven light: darkening away from a spot, "
+                                           "0..1 (0 = even)", 0, 1),
+        "lighting.spot_x_m": ParamDef("float", "spot light centre x (m)", -1000, 1000),
+        "lighting.spot_y_m": ParamDef("float", "spot light centre y (m)", -1000, 1000),
+        "lighting.spot_radius_m": ParamDef("float", "spot light radius (m)", 0.01, 1000),
+        "distractors.tapes": ParamDef("int", "tape lines on the floor (not obstacles)", 0, 50),
+        "distractors.papers": ParamDef("int", "papers on the floor (not obstacles)", 0, 50),
+        "markers.occlusion": ParamDef("float", "fraction of one marker hidden by a flat "
+                                      "occluder (0 = none)", 0, 1),
+        "markers.occluded": ParamDef("int", "which marker is occluded: 0 NW, 1 NE, 2 SE, 3 SW",
+                                     0, 3),
+    },
+}
+
+#: Neutral values of the degradation / variation parameters (issue 5): a preset or mapping
+#: that lacks them gets these, which change nothing in the image.
+NEUTRAL: dict[str, Value] = {
+    "camera.k1": 0.0, "camera.k2": 0.0, "camera.p1": 0.0, "camera.p2": 0.0, "camera.k3": 0.0,
+    "degrade.vignetting": 0.0, "degrade.exposure_ev": 0.0, "degrade.motion_blur_px": 0.0,
+    "degrade.motion_angle_deg": 0.0, "degrade.defocus_px": 0.0, "degrade.noise_sigma": 0.0,
+    "degrade.poisson_photons": 0.0, "degrade.gamma": 1.0, "degrade.jpeg_quality": 0,
+    "lighting.shadow_strength": 0.0, "lighting.spot_strength": 0.0, "lighting.spot_x_m": 0.0,
+    "lighting.spot_y_m": 0.0, "lighting.spot_radius_m": 3.0,
+    "distractors.tapes": 0, "distractors.papers": 0,
+    "markers.occlusion": 0.0, "markers.occluded": 0,
 }
 
 _EYRC: dict[str, Value] = {
@@ -127,6 +178,7 @@ _EYRC: dict[str, Value] = {
     "lighting.elevation_deg": (60.0, 70.0),
     "lighting.azimuth_deg": (0.0, 360.0),
     "background.gray": (218, 232),
+    **NEUTRAL,
 }
 
 #: Named presets: name -> (description, parameters).
@@ -270,6 +322,7 @@ def resolve(preset: str | dict[str, Value], overrides: dict[str, Value] | None =
             ) -> dict[str, Value]:
     """Preset parameters with ``overrides`` applied, every value validated."""
     params = get_preset(preset) if isinstance(preset, str) else dict(preset)
+    params = {**NEUTRAL, **params}
     for key, value in (overrides or {}).items():
         params[key] = value
     missing = sorted(set(PARAMETERS) - set(params))

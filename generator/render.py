@@ -9,19 +9,23 @@ on Mesa llvmpipe. Instance masks come from ``RenderFlags.SEG`` (exact, no MSAA),
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
+import cv2
 import numpy as np
 
 from arenabench import glplatform
 from arenabench.frame import CORNER_ORDER
 from arenabench.generator import camera as cam
+from arenabench.generator.degrade import distort_image, has_distortion, lens_canvas
+from arenabench.generator.distractors import patch_mesh_arrays
 from arenabench.generator.layout import (
     MARKER_Z,
     box_footprint,
     floor_extent,
     marker_corners_world,
 )
+from arenabench.generator.lights import apply_spot_light, shadow_mesh_arrays
 from arenabench.generator.scene import Obstacle, Scene
 from arenabench.generator.shading import floor_factor, shade_factors
 from arenabench.generator.textures import floor_texture, marker_texture
@@ -178,6 +182,7 @@ class Renderer:
         self._static_key = None
         self._static_nodes: list = []
         self._obstacle_nodes: list = []
+        self._overlay_nodes: list = []
         self._camera_node = None
 
     def __enter__(self) -> Renderer:
@@ -274,6 +279,20 @@ class Renderer:
             pos, rgba, tris = box_mesh_arrays(ob, scene)
             prim = pr.Primitive(positions=pos, color_0=rgba, indices=tris, mode=4)
             self._obstacle_nodes.append(self._scene.add(pr.Mesh([prim])))
+        for node in self._overlay_nodes:
+            self._scene.remove_node(node)
+        self._overlay_nodes = []
+        patches = patch_mesh_arrays(scene.patches, floor_factor(scene.lighting))
+        if patches is not None:
+            prim = pr.Primitive(positions=patches[0], color_0=patches[1], indices=patches[2],
+                                mode=4)
+            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim])))
+        shadow = shadow_mesh_arrays(scene)
+        if shadow is not None:
+            material = pr.MetallicRoughnessMaterial(alphaMode="BLEND", doubleSided=True)
+            prim = pr.Primitive(positions=shadow[0], color_0=shadow[1], indices=shadow[2],
+                                mode=4, material=material)
+            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim])))
         if self._camera_node is not None:
             self._scene.remove_node(self._camera_node)
         K = cam.intrinsics(scene.camera)
@@ -289,6 +308,10 @@ class Renderer:
     def render(self, scene: Scene, *, depth: bool = False, masks: bool = False) -> RenderOutput:
         """Render ``scene``.
 
+        A camera with lens distortion is rendered as a larger pinhole canvas and resampled
+        (:func:`arenabench.generator.degrade.lens_canvas`); depth and masks follow the same
+        map (nearest neighbour).
+
         Parameters
         ----------
         scene : Scene
@@ -302,6 +325,24 @@ class Renderer:
         -------
         RenderOutput
         """
+        if has_distortion(scene.camera.dist):
+            camera = scene.camera
+            canvas = lens_canvas(cam.intrinsics(camera), camera.dist, camera.width,
+                                 camera.height)
+            pinhole = replace(scene, camera=replace(
+                camera, K=tuple(map(tuple, canvas.K)), width=canvas.width,
+                height=canvas.height, dist=(0.0,) * 5))
+            out = self._render_pinhole(pinhole, depth=depth, masks=masks)
+            out.rgb = distort_image(out.rgb, canvas)
+            if out.depth is not None:
+                out.depth = distort_image(out.depth, canvas, interpolation=cv2.INTER_NEAREST)
+            if out.instance_mask is not None:
+                out.instance_mask = distort_image(out.instance_mask, canvas,
+                                                  interpolation=cv2.INTER_NEAREST)
+            return out
+        return self._render_pinhole(scene, depth=depth, masks=masks)
+
+    def _render_pinhole(self, scene: Scene, *, depth: bool, masks: bool) -> RenderOutput:
         pr = self._pr
         self._ensure_renderer(scene.camera.width, scene.camera.height)
         self._update_static(scene)
@@ -310,7 +351,7 @@ class Renderer:
         self._renderer._renderer.want_depth = depth
         color, z = self._renderer.render(self._scene, flags=flags)
         self._renderer._renderer.want_depth = False
-        out = RenderOutput(rgb=np.ascontiguousarray(color[:, :, :3]))
+        out = RenderOutput(rgb=apply_spot_light(np.ascontiguousarray(color[:, :, :3]), scene))
         if depth:
             out.depth = z
         if masks:

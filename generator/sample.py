@@ -15,13 +15,16 @@ from typing import Any
 import numpy as np
 
 from arenabench.frame import FrameSpec
+from arenabench.generator.degrade import Degradations, apply_degradations
 from arenabench.generator.groundtruth import compute_ground_truth, rounded
 from arenabench.generator.presets import Value
 from arenabench.generator.render import Renderer, RenderOutput
 from arenabench.generator.sampler import sample_scene
 
 #: Bumped whenever the same (preset, seed, index) would give different images or GT.
-GENERATOR_VERSION = "1"
+#: 2: degradation / scene-variation parameters (issue 5) recorded in the GT's params and
+#: scene, per-marker occlusion fields, "homography_domain"; images unchanged.
+GENERATOR_VERSION = "2"
 #: GT file schema id.
 GT_SCHEMA = "arenabench.gt/1"
 
@@ -92,7 +95,9 @@ def make_sample(
     frame : FrameSpec, keyword-only
         Rectified frame (default 1000 px, inner corners).
     degrade : callable, keyword-only
-        Post-render hook ``(rgb, rng) -> rgb``.
+        Post-render hook ``(rgb, rng) -> rgb``, run after the preset's own ``degrade.*``
+        degradations (:func:`arenabench.generator.degrade.apply_degradations`), with the
+        same random generator.
     image_ext : str, keyword-only
         Extension of the image path recorded in the GT.
 
@@ -110,8 +115,12 @@ def make_sample(
     finally:
         if own:
             renderer.close()
-    if degrade is not None:
-        out.rgb = np.ascontiguousarray(degrade(out.rgb, degrade_rng(seed, index)))
+    degradations = Degradations.from_params(sampled.params)
+    if degrade is not None or not degradations.is_neutral:
+        rng = degrade_rng(seed, index)
+        out.rgb = apply_degradations(out.rgb, degradations, rng)
+        if degrade is not None:
+            out.rgb = np.ascontiguousarray(degrade(out.rgb, rng))
     t2 = time.perf_counter()
     sid = scene_id(index)
     gt = {

@@ -17,6 +17,8 @@ import numpy as np
 from shapely.geometry import Polygon, box
 
 from arenabench.generator import camera as cam
+from arenabench.generator.degrade import LENS_PARAMS, PARAM_NAMES, distort_points
+from arenabench.generator.distractors import occluder_patch, sample_patches
 from arenabench.generator.groundtruth import rounded
 from arenabench.generator.layout import box_footprint, marker_corners_world
 from arenabench.generator.presets import Value, resolve
@@ -47,6 +49,23 @@ SCALAR_KEYS: tuple[str, ...] = (
     "background.gray",
 )
 _CAMERA_KEYS = tuple(k for k in SCALAR_KEYS if k.startswith("camera."))
+#: Degradation and scene-variation parameters (issue 5), drawn in this order from their own
+#: generator (:func:`variation_rng`) so that presets without them draw exactly as before.
+VARIATION_KEYS: tuple[str, ...] = (
+    *LENS_PARAMS,
+    *PARAM_NAMES.values(),
+    "lighting.shadow_strength",
+    "lighting.spot_strength",
+    "lighting.spot_x_m",
+    "lighting.spot_y_m",
+    "lighting.spot_radius_m",
+    "distractors.tapes",
+    "distractors.papers",
+    "markers.occlusion",
+    "markers.occluded",
+)
+_INT_VARIATION_KEYS = ("degrade.jpeg_quality", "distractors.tapes", "distractors.papers",
+                       "markers.occluded")
 _BOX_KEYS = ("obstacles.length_m", "obstacles.width_m", "obstacles.height_m",
              "obstacles.yaw_deg", "obstacles.gray")
 
@@ -72,6 +91,13 @@ def scene_rng(seed: int, index: int) -> np.random.Generator:
     return np.random.default_rng(np.random.SeedSequence([int(seed), int(index)]))
 
 
+def variation_rng(seed: int, index: int) -> np.random.Generator:
+    """Generator of scene ``index``'s degradation and variation draws (independent stream)."""
+    if seed < 0 or index < 0:
+        raise ValueError(f"seed and index must be >= 0, got seed={seed!r} index={index!r}")
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index), 2]))
+
+
 def draw(rng: np.random.Generator, value: Value, *, integer: bool = False) -> Any:
     """Draw one value: a ``(lo, hi)`` range is uniform (integers inclusive), else fixed.
 
@@ -92,12 +118,13 @@ def _camera(p: dict[str, Any], drawn: dict[str, Any]) -> CameraSpec:
         altitude_m=drawn["camera.altitude_m"], tilt_deg=drawn["camera.tilt_deg"],
         yaw_deg=drawn["camera.yaw_deg"], roll_deg=drawn["camera.roll_deg"],
         target_m=(drawn["camera.target_x_m"], drawn["camera.target_y_m"]),
+        dist=tuple(drawn.get(k, 0.0) for k in LENS_PARAMS),
     )
 
 
 def markers_in_view(arena: ArenaSpec, markers: MarkerSpec, camera: CameraSpec,
                     *, margin_px: float = 2.0) -> bool:
-    """Whether all four markers (quiet zone included) project inside the image."""
+    """Whether all four markers (quiet zone included) project inside the (distorted) image."""
     K = cam.intrinsics(camera)
     pose = cam.world_from_camera(camera)
     for corner in ("nw", "ne", "se", "sw"):
@@ -105,7 +132,7 @@ def markers_in_view(arena: ArenaSpec, markers: MarkerSpec, camera: CameraSpec,
         pts = np.column_stack([xy, np.zeros(4)])
         if np.any((pts - pose[:3, 3]) @ pose[:3, 2] <= 0):
             return False
-        px = cam.project(pts, K, pose)
+        px = distort_points(cam.project(pts, K, pose), K, camera.dist)
         if (px.min() < margin_px - 0.5 or px[:, 0].max() > camera.width - 0.5 - margin_px
                 or px[:, 1].max() > camera.height - 0.5 - margin_px):
             return False
@@ -174,6 +201,9 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
     rng = scene_rng(seed, index)
     drawn = {k: draw(rng, p[k], integer=k in ("obstacles.count", "background.gray"))
              for k in SCALAR_KEYS}
+    vrng = variation_rng(seed, index)
+    varied = {k: draw(vrng, p[k], integer=k in _INT_VARIATION_KEYS) for k in VARIATION_KEYS}
+    drawn.update(varied)
     arena = ArenaSpec(
         side_m=p["arena.side_m"], margin_m=p["arena.margin_m"], floor_rgb=p["arena.floor_rgb"],
         texture=p["arena.texture"], texture_seed=0, border_width_m=p["arena.border_width_m"],
@@ -206,10 +236,20 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
     lighting = LightingSpec(
         ambient=drawn["lighting.ambient"],
         directional=(DirectionalLight(direction=direction, intensity=drawn["lighting.intensity"]),),
+        shadow_strength=drawn["lighting.shadow_strength"],
+        spot_strength=drawn["lighting.spot_strength"],
+        spot_xy_m=(drawn["lighting.spot_x_m"], drawn["lighting.spot_y_m"]),
+        spot_radius_m=drawn["lighting.spot_radius_m"],
     )
+    patches = sample_patches(vrng, tapes=drawn["distractors.tapes"],
+                             papers=drawn["distractors.papers"], arena=arena, markers=markers)
+    occluder = occluder_patch(arena, markers, marker=drawn["markers.occluded"],
+                              fraction=drawn["markers.occlusion"])
+    if occluder is not None:
+        patches = (*patches, occluder)
     g = drawn["background.gray"]
     scene = Scene(arena=arena, markers=markers, obstacles=obstacles, camera=camera,
-                  lighting=lighting, background_rgb=(g, g, g))
+                  lighting=lighting, background_rgb=(g, g, g), patches=patches)
     # Canonical form: the scene rendered is exactly the one written to the GT file (floats
     # rounded to DECIMALS), so Scene.from_dict(gt["scene"]) re-renders the same image.
     scene = Scene.from_dict(rounded(scene.to_dict()))

@@ -166,6 +166,7 @@ class CameraSpec:
     the camera is ``altitude_m`` above the floor, tilted ``tilt_deg`` from the nadir, with
     heading ``yaw_deg`` (counter-clockwise seen from above; at 0 the image's top points north
     and the camera tilts towards north) and ``roll_deg`` about the optical axis.
+    Lens distortion: ``dist`` = OpenCV's (k1, k2, p1, p2, k3), all zero for a pinhole image.
     """
 
     width: int = 1000
@@ -179,8 +180,13 @@ class CameraSpec:
     target_m: tuple[float, float] = (0.0, 0.0)
     eye_m: tuple[float, float, float] | None = None
     look_at_m: tuple[float, float, float] | None = None
+    dist: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
+        dist = tuple(float(c) for c in self.dist)
+        if len(dist) != 5:
+            raise ValueError(f"camera.dist must be (k1, k2, p1, p2, k3), got {self.dist!r}")
+        object.__setattr__(self, "dist", dist)
         for name in ("width", "height"):
             value = getattr(self, name)
             if int(value) != value or value < 16:
@@ -222,16 +228,32 @@ class DirectionalLight:
 
 @dataclass(frozen=True)
 class LightingSpec:
-    """Ambient term plus up to four directional lights (Lambertian, baked into colours)."""
+    """Ambient term plus up to four directional lights (Lambertian, baked into colours).
+
+    ``shadow_strength`` (0..1) darkens the floor where the first directional light is blocked
+    by a box (1 = only the ambient term is left there; 0 = no shadows). A spot light makes the
+    floor uneven: brightness gain ``1 - spot_strength * (1 - exp(-d^2 / (2 spot_radius_m^2)))``
+    at distance ``d`` from ``spot_xy_m`` (0 = even light).
+    """
 
     ambient: float = 0.7
     directional: tuple[DirectionalLight, ...] = field(
         default_factory=lambda: (DirectionalLight(),)
     )
+    shadow_strength: float = 0.0
+    spot_strength: float = 0.0
+    spot_xy_m: tuple[float, float] = (0.0, 0.0)
+    spot_radius_m: float = 3.0
 
     def __post_init__(self) -> None:
         if self.ambient < 0:
             raise ValueError(f"lighting.ambient must be >= 0, got {self.ambient!r}")
+        for name in ("shadow_strength", "spot_strength"):
+            if not 0.0 <= float(getattr(self, name)) <= 1.0:
+                raise ValueError(f"lighting.{name} must be in [0, 1], got "
+                                 f"{getattr(self, name)!r}")
+        _positive(self.spot_radius_m, "lighting.spot_radius_m")
+        object.__setattr__(self, "spot_xy_m", tuple(float(c) for c in self.spot_xy_m))
         lights = tuple(
             d if isinstance(d, DirectionalLight) else DirectionalLight(**d)
             for d in self.directional
@@ -242,8 +264,46 @@ class LightingSpec:
 
 
 @dataclass(frozen=True)
+class FloorPatch:
+    """A flat rectangle lying on the floor: not an obstacle (never counted, no area).
+
+    Parameters
+    ----------
+    kind : {"tape", "paper", "occluder"}
+        Tape lines and papers lie on the floor under the markers; an occluder lies over them
+        (it hides part of a marker).
+    center_m : tuple of float
+        Centre (x, y) in metres.
+    yaw_deg : float
+        Rotation about z, counter-clockwise from above; the length runs along x at 0.
+    length_m, width_m : float
+        Size.
+    color_rgb : tuple of int
+        Colour (unlit albedo; the floor's lighting applies).
+    """
+
+    kind: str
+    center_m: tuple[float, float]
+    yaw_deg: float
+    length_m: float
+    width_m: float
+    color_rgb: Rgb = (40, 40, 40)
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("tape", "paper", "occluder"):
+            raise ValueError(f"patch.kind must be tape, paper or occluder, got {self.kind!r}")
+        object.__setattr__(self, "center_m", tuple(float(c) for c in self.center_m))
+        for name in ("length_m", "width_m"):
+            _positive(getattr(self, name), f"patch.{name}")
+        object.__setattr__(self, "color_rgb", _rgb(self.color_rgb, "patch.color_rgb"))
+
+
+@dataclass(frozen=True)
 class Scene:
-    """Everything needed to render one image and compute its ground truth."""
+    """Everything needed to render one image and compute its ground truth.
+
+    ``patches`` are flat distractors (tape, paper) and marker occluders: drawn, never counted.
+    """
 
     arena: ArenaSpec
     markers: MarkerSpec
@@ -251,9 +311,13 @@ class Scene:
     camera: CameraSpec
     lighting: LightingSpec = field(default_factory=LightingSpec)
     background_rgb: Rgb = (225, 225, 225)
+    patches: tuple[FloorPatch, ...] = ()
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "obstacles", tuple(self.obstacles))
+        object.__setattr__(self, "patches", tuple(
+            p if isinstance(p, FloorPatch) else FloorPatch(**_tuplify(p)) for p in self.patches
+        ))
         object.__setattr__(self, "background_rgb", _rgb(self.background_rgb, "background_rgb"))
 
     def to_dict(self) -> dict[str, Any]:
@@ -273,7 +337,7 @@ class Scene:
             cam = dict(data["camera"])
             if cam.get("K") is not None:
                 cam["K"] = tuple(tuple(r) for r in cam["K"])
-            lighting = dict(data.get("lighting", {}))
+            lighting = _tuplify(dict(data.get("lighting", {})))
             if "directional" in lighting:
                 lighting["directional"] = tuple(
                     DirectionalLight(**d) for d in lighting["directional"]
@@ -285,6 +349,7 @@ class Scene:
                 camera=CameraSpec(**_tuplify(cam)),
                 lighting=LightingSpec(**lighting),
                 background_rgb=tuple(data.get("background_rgb", (225, 225, 225))),
+                patches=tuple(FloorPatch(**_tuplify(p)) for p in data.get("patches", ())),
             )
         except (KeyError, TypeError) as exc:
             raise ValueError(f"invalid scene description: {exc}") from exc

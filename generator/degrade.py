@@ -1,0 +1,357 @@
+"""Image degradations applied to a rendered image, each a preset parameter with a neutral default.
+
+Two parts:
+
+- **Lens distortion** (geometric, OpenCV's model: k1, k2, p1, p2, k3). The renderer draws a
+  pinhole image on a canvas large enough to cover every distorted pixel's source (see
+  :func:`lens_canvas`) and :func:`distort_image` resamples it; the ground truth distorts its
+  image-space points with the same model (:func:`distort_points`, i.e. ``cv2.projectPoints``
+  with the distortion coefficients). The image -> frame homography stays defined on the
+  undistorted image.
+- **Photometric degradations** (:class:`Degradations`, :func:`apply_degradations`), in the order
+  a camera applies them: vignetting, exposure, motion / defocus blur, Gaussian and Poisson
+  noise, gamma, JPEG. Each one at its neutral value is skipped entirely, so an all-neutral
+  :class:`Degradations` returns the input array unchanged (byte-identical).
+
+All randomness (noise) comes from the generator passed in
+(:func:`arenabench.generator.sample.degrade_rng`).
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass, fields
+from typing import Any
+
+import cv2
+import numpy as np
+
+#: Preset parameter name of each :class:`Degradations` field.
+PARAM_NAMES: dict[str, str] = {
+    "vignetting": "degrade.vignetting",
+    "exposure_ev": "degrade.exposure_ev",
+    "motion_blur_px": "degrade.motion_blur_px",
+    "motion_angle_deg": "degrade.motion_angle_deg",
+    "defocus_px": "degrade.defocus_px",
+    "noise_sigma": "degrade.noise_sigma",
+    "poisson_photons": "degrade.poisson_photons",
+    "gamma": "degrade.gamma",
+    "jpeg_quality": "degrade.jpeg_quality",
+}
+
+#: Preset parameter names of the lens distortion coefficients, in OpenCV's order.
+LENS_PARAMS: tuple[str, ...] = ("camera.k1", "camera.k2", "camera.p1", "camera.p2", "camera.k3")
+
+#: Largest canvas (relative to the image side) rendered to cover a distorted image's sources.
+MAX_CANVAS_SCALE = 3.0
+#: Step (px) of the grid on which the inverse distortion map is solved (bilinear in between).
+MAP_GRID_PX = 8
+
+
+@dataclass(frozen=True)
+class Degradations:
+    """Photometric degradations of one image (all neutral by default).
+
+    Parameters
+    ----------
+    vignetting : float
+        Corner darkening, 0..1: gain ``1 - vignetting * (r / r_corner)^2`` (0 = none).
+    exposure_ev : float
+        Exposure change in stops: intensities times ``2 ** exposure_ev`` (0 = none).
+    motion_blur_px : float
+        Length of a linear motion-blur kernel in px (0 = none).
+    motion_angle_deg : float
+        Direction of the motion blur, counter-clockwise from the image x axis.
+    defocus_px : float
+        Radius of a disc (defocus) blur kernel in px (0 = none).
+    noise_sigma : float
+        Standard deviation of additive Gaussian noise in grey levels (0 = none).
+    poisson_photons : float
+        Photons collected at full scale (255) for shot noise; fewer = noisier (0 = none).
+    gamma : float
+        Display gamma: ``out = 255 (in / 255) ** (1 / gamma)``; > 1 brightens mid-tones
+        (1 = none).
+    jpeg_quality : int
+        JPEG encode + decode at this quality, 1..100 (0 = none).
+    """
+
+    vignetting: float = 0.0
+    exposure_ev: float = 0.0
+    motion_blur_px: float = 0.0
+    motion_angle_deg: float = 0.0
+    defocus_px: float = 0.0
+    noise_sigma: float = 0.0
+    poisson_photons: float = 0.0
+    gamma: float = 1.0
+    jpeg_quality: int = 0
+
+    def __post_init__(self) -> None:
+        for f in fields(self):
+            value = getattr(self, f.name)
+            if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
+                raise ValueError(f"{PARAM_NAMES[f.name]} must be a number, got {value!r}")
+            if not math.isfinite(float(value)):
+                raise ValueError(f"{PARAM_NAMES[f.name]} must be finite, got {value!r}")
+        checks = {
+            "vignetting": 0.0 <= self.vignetting <= 1.0,
+            "motion_blur_px": self.motion_blur_px >= 0,
+            "defocus_px": self.defocus_px >= 0,
+            "noise_sigma": self.noise_sigma >= 0,
+            "poisson_photons": self.poisson_photons >= 0,
+            "gamma": self.gamma > 0,
+            "jpeg_quality": 0 <= self.jpeg_quality <= 100
+            and int(self.jpeg_quality) == self.jpeg_quality,
+        }
+        for name, ok in checks.items():
+            if not ok:
+                raise ValueError(f"{PARAM_NAMES[name]}: invalid value {getattr(self, name)!r}")
+        object.__setattr__(self, "jpeg_quality", int(self.jpeg_quality))
+
+    @classmethod
+    def from_params(cls, params: dict[str, Any]) -> Degradations:
+        """Build from a mapping of preset parameter names (``degrade.*``); missing = neutral."""
+        kwargs = {f: params[p] for f, p in PARAM_NAMES.items() if p in params}
+        return cls(**kwargs)
+
+    @property
+    def is_neutral(self) -> bool:
+        """True when :func:`apply_degradations` would return its input unchanged."""
+        return self == Degradations(motion_angle_deg=self.motion_angle_deg)
+
+
+def _motion_kernel(length: float, angle_deg: float) -> np.ndarray:
+    """Normalised line kernel of ``length`` px (anti-aliased ends) at ``angle_deg``."""
+    size = math.ceil(length) | 1
+    size = max(size, 3)
+    k = np.zeros((size * 4, size * 4), np.float32)  # drawn 4x supersampled
+    c = (size * 4 - 1) / 2.0
+    a = math.radians(angle_deg)
+    dx, dy = math.cos(a) * length * 2.0, -math.sin(a) * length * 2.0
+    p0 = (round((c - dx) * 16), round((c - dy) * 16))
+    p1 = (round((c + dx) * 16), round((c + dy) * 16))
+    cv2.line(k, p0, p1, 1.0, thickness=4, lineType=cv2.LINE_AA, shift=4)
+    k = cv2.resize(k, (size, size), interpolation=cv2.INTER_AREA)
+    return k / k.sum()
+
+
+def _disc_kernel(radius: float) -> np.ndarray:
+    """Normalised disc kernel of ``radius`` px (anti-aliased edge, 4x supersampled)."""
+    size = 2 * math.ceil(radius) + 1
+    n = size * 4
+    yy, xx = np.mgrid[0:n, 0:n]
+    c = (n - 1) / 2.0
+    k = ((xx - c) ** 2 + (yy - c) ** 2 <= (radius * 4) ** 2).astype(np.float32)
+    k = cv2.resize(k, (size, size), interpolation=cv2.INTER_AREA)
+    if k.sum() == 0:
+        k[size // 2, size // 2] = 1.0
+    return k / k.sum()
+
+
+@functools.lru_cache(maxsize=8)
+def _vignette_gain(width: int, height: int, strength: float) -> np.ndarray:
+    xs = (np.arange(width, dtype=np.float32) - (width - 1) / 2.0) / ((width - 1) / 2.0 or 1.0)
+    ys = (np.arange(height, dtype=np.float32) - (height - 1) / 2.0) / ((height - 1) / 2.0 or 1.0)
+    r2 = (xs[None, :] ** 2 + ys[:, None] ** 2) / 2.0  # 1 at the image corners
+    gain = (1.0 - strength * r2).astype(np.float32)
+    gain.setflags(write=False)
+    return gain
+
+
+def apply_degradations(rgb: np.ndarray, params: Degradations,
+                       rng: np.random.Generator) -> np.ndarray:
+    """Apply photometric degradations to an image.
+
+    Parameters
+    ----------
+    rgb : numpy.ndarray
+        (H, W, 3) uint8 image.
+    params : Degradations
+        What to apply; neutral fields are skipped.
+    rng : numpy.random.Generator
+        Source of the noise (only drawn from when noise is on).
+
+    Returns
+    -------
+    numpy.ndarray
+        (H, W, 3) uint8; the input object itself when ``params`` is neutral.
+
+    Raises
+    ------
+    ValueError
+        When ``rgb`` is not an (H, W, 3) uint8 array.
+    """
+    if rgb.dtype != np.uint8 or rgb.ndim != 3 or rgb.shape[2] != 3:
+        raise ValueError(f"rgb must be (H, W, 3) uint8, got {rgb.dtype} {rgb.shape}")
+    if params.is_neutral:
+        return rgb
+    h, w = rgb.shape[:2]
+    out = rgb
+    linear = (params.vignetting > 0 or params.exposure_ev != 0 or params.motion_blur_px > 0
+              or params.defocus_px > 0 or params.noise_sigma > 0 or params.poisson_photons > 0)
+    if linear:
+        img = rgb.astype(np.float32)
+        if params.vignetting > 0:
+            img *= _vignette_gain(w, h, float(params.vignetting))[:, :, None]
+        if params.exposure_ev != 0:
+            img *= np.float32(2.0 ** params.exposure_ev)
+        if params.exposure_ev > 0 or params.vignetting > 0:
+            np.clip(img, 0.0, 255.0, out=img)  # the sensor saturates before the optics blur
+        if params.motion_blur_px > 0:
+            kernel = _motion_kernel(float(params.motion_blur_px), float(params.motion_angle_deg))
+            img = cv2.filter2D(img, -1, kernel, borderType=cv2.BORDER_REFLECT)
+        if params.defocus_px > 0:
+            img = cv2.filter2D(img, -1, _disc_kernel(float(params.defocus_px)),
+                               borderType=cv2.BORDER_REFLECT)
+        if params.poisson_photons > 0:
+            scale = np.float32(params.poisson_photons / 255.0)
+            lam = np.clip(img, 0.0, None) * scale
+            img = (rng.poisson(lam).astype(np.float32) / scale).astype(np.float32)
+        if params.noise_sigma > 0:
+            img += rng.normal(0.0, float(params.noise_sigma), size=img.shape).astype(np.float32)
+        out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+    if params.gamma != 1.0:
+        lut = np.clip(np.rint(255.0 * (np.arange(256) / 255.0) ** (1.0 / params.gamma)), 0, 255)
+        out = cv2.LUT(out, lut.astype(np.uint8))
+    if params.jpeg_quality > 0:
+        ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(out[:, :, ::-1]),
+                               [cv2.IMWRITE_JPEG_QUALITY, int(params.jpeg_quality)])
+        if not ok:  # pragma: no cover - OpenCV always encodes a valid uint8 image
+            raise ValueError("degrade.jpeg_quality: JPEG encoding failed")
+        out = cv2.imdecode(buf, cv2.IMREAD_COLOR)[:, :, ::-1]
+    return np.ascontiguousarray(out)
+
+
+# --------------------------------------------------------------------------- lens distortion
+
+
+def has_distortion(dist: Any) -> bool:
+    """Whether the coefficients ``(k1, k2, p1, p2, k3)`` describe any distortion."""
+    return dist is not None and any(float(c) != 0.0 for c in dist)
+
+
+def distort_points(points_px: np.ndarray, K: np.ndarray, dist: Any) -> np.ndarray:
+    """Map undistorted (pinhole) image points to distorted image points (OpenCV's model).
+
+    Parameters
+    ----------
+    points_px : numpy.ndarray
+        (N, 2) pinhole image px.
+    K : numpy.ndarray
+        3x3 intrinsics.
+    dist : sequence of float
+        ``(k1, k2, p1, p2, k3)``.
+
+    Returns
+    -------
+    numpy.ndarray
+        (N, 2) distorted px (a copy of the input when ``dist`` is all zero).
+    """
+    pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 2)
+    if not has_distortion(dist) or len(pts) == 0:
+        return pts.copy()
+    K = np.asarray(K, dtype=np.float64)
+    xn = (pts[:, 0] - K[0, 2] - K[0, 1] * (pts[:, 1] - K[1, 2]) / K[1, 1]) / K[0, 0]
+    yn = (pts[:, 1] - K[1, 2]) / K[1, 1]
+    rays = np.column_stack([xn, yn, np.ones(len(pts))])
+    out, _ = cv2.projectPoints(rays, np.zeros(3), np.zeros(3), K,
+                               np.asarray(dist, dtype=np.float64))
+    return out.reshape(-1, 2)
+
+
+def undistort_points(points_px: np.ndarray, K: np.ndarray, dist: Any) -> np.ndarray:
+    """Inverse of :func:`distort_points` (iterative, to about 1e-9 px), shape (N, 2)."""
+    pts = np.asarray(points_px, dtype=np.float64).reshape(-1, 1, 2)
+    if not has_distortion(dist) or len(pts) == 0:
+        return pts.reshape(-1, 2).copy()
+    K = np.asarray(K, dtype=np.float64)
+    criteria = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 50, 1e-12)
+    out = cv2.undistortPoints(pts, K, np.asarray(dist, dtype=np.float64), None, K,
+                              criteria=criteria)
+    return out.reshape(-1, 2)
+
+
+def densify(polygon_px: np.ndarray, *, step_px: float = 4.0) -> np.ndarray:
+    """Insert points along a closed polygon's edges every ``step_px`` (vertices kept), (M, 2)."""
+    poly = np.asarray(polygon_px, dtype=np.float64).reshape(-1, 2)
+    if len(poly) < 2:
+        return poly.copy()
+    out = []
+    for a, b in zip(poly, np.roll(poly, -1, axis=0), strict=True):
+        n = max(1, math.ceil(np.linalg.norm(b - a) / step_px))
+        t = np.arange(n)[:, None] / n
+        out.append(a + (b - a) * t)
+    return np.concatenate(out)
+
+
+@dataclass(frozen=True)
+class LensCanvas:
+    """How to render and resample a distorted image.
+
+    Attributes
+    ----------
+    K : numpy.ndarray
+        Intrinsics of the (larger) pinhole canvas to render.
+    width, height : int
+        Canvas size in px.
+    map_x, map_y : numpy.ndarray
+        (H, W) float32: for each distorted output pixel, where to sample the canvas.
+    """
+
+    K: np.ndarray
+    width: int
+    height: int
+    map_x: np.ndarray
+    map_y: np.ndarray
+
+
+def lens_canvas(K: np.ndarray, dist: Any, width: int, height: int) -> LensCanvas:
+    """The pinhole canvas covering every source of a distorted ``width`` x ``height`` image.
+
+    The inverse map (distorted px -> pinhole px) is solved exactly on a grid every
+    :data:`MAP_GRID_PX` px and interpolated bilinearly in between (a smooth map: well under
+    0.01 px off). The canvas grows to hold the sources, up to :data:`MAX_CANVAS_SCALE` times the
+    image side; samples beyond it repeat the canvas border.
+    """
+    key = (tuple(np.asarray(K, dtype=np.float64).ravel().tolist()),
+           tuple(float(c) for c in dist), int(width), int(height))
+    return _lens_canvas(key)
+
+
+@functools.lru_cache(maxsize=4)
+def _lens_canvas(key: tuple) -> LensCanvas:
+    k_flat, dist, width, height = key
+    K = np.array(k_flat, dtype=np.float64).reshape(3, 3)
+    s = MAP_GRID_PX
+    gx = np.arange(0, width - 1 + s, s, dtype=np.float64)
+    gy = np.arange(0, height - 1 + s, s, dtype=np.float64)
+    grid = np.stack(np.meshgrid(gx, gy), axis=-1).reshape(-1, 2)
+    src = undistort_points(grid, K, dist).reshape(len(gy), len(gx), 2).astype(np.float32)
+    xs = (np.arange(width, dtype=np.float32) / s)[None, :].repeat(height, 0)
+    ys = (np.arange(height, dtype=np.float32) / s)[:, None].repeat(width, 1)
+    map_x = cv2.remap(src[:, :, 0], xs, ys, cv2.INTER_LINEAR)
+    map_y = cv2.remap(src[:, :, 1], xs, ys, cv2.INTER_LINEAR)
+    lo_x = max(math.floor(float(map_x.min())) - 2, -int((MAX_CANVAS_SCALE - 1) / 2 * width))
+    lo_y = max(math.floor(float(map_y.min())) - 2, -int((MAX_CANVAS_SCALE - 1) / 2 * height))
+    hi_x = min(math.ceil(float(map_x.max())) + 2,
+               width - 1 + int((MAX_CANVAS_SCALE - 1) / 2 * width))
+    hi_y = min(math.ceil(float(map_y.max())) + 2,
+               height - 1 + int((MAX_CANVAS_SCALE - 1) / 2 * height))
+    ox, oy = min(lo_x, 0), min(lo_y, 0)
+    cw = max(hi_x, width - 1) - ox + 1
+    ch = max(hi_y, height - 1) - oy + 1
+    k_canvas = K.copy()
+    k_canvas[0, 2] -= ox
+    k_canvas[1, 2] -= oy
+    map_x -= np.float32(ox)
+    map_y -= np.float32(oy)
+    for a in (k_canvas, map_x, map_y):
+        a.setflags(write=False)
+    return LensCanvas(K=k_canvas, width=int(cw), height=int(ch), map_x=map_x, map_y=map_y)
+
+
+def distort_image(canvas_img: np.ndarray, canvas: LensCanvas, *,
+                  interpolation: int = cv2.INTER_LINEAR) -> np.ndarray:
+    """Resample a pinhole canvas render into the distorted image (``cv2.remap``)."""
+    return cv2.remap(canvas_img, canvas.map_x, canvas.map_y, interpolation,
+                     borderMode=cv2.BORDER_REPLICATE)
