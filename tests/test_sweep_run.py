@@ -161,3 +161,13 @@ def test_random_sweep_two_parameters_heat_map_and_kept_failures(tmp_path):
     kept = {p.stem for p in (out / "images").glob("*.png")} if (out / "images").exists() else set()
     assert kept == failed
     assert all((r["image"] != "") == (not r["pass"]) for r in rows)
+
+
+def test_load_sweep_round_trips_the_files(cli_run, tmp_path):
+    from arenabench.eval.sweep.outputs import load_sweep, write_sweep
+
+    result = load_sweep(cli_run)
+    assert len(result.images) == 3 * PER_POINT * 2
+    write_sweep(result, tmp_path / "again", plots=False)
+    for name in ("sweep.json", "sweep.csv", "results.jsonl"):
+        assert (tmp_path / "again" / name).read_bytes() == (cli_run / name).read_bytes(), name

@@ -36,6 +36,7 @@ _EXPORTS: dict[str, str] = {
     "axis_curve": "breakdown",
     "breakdown_value": "breakdown",
     "write_sweep": "outputs",
+    "load_sweep": "outputs",
 }
 
 __all__ = sorted(_EXPORTS)

@@ -119,3 +119,45 @@ def write_sweep(
             written[f"plot:{name}"] = atomic_write_bytes(out / "plots" / name, png)
         written["html"] = atomic_write_text(out / FILES["html"], sweep_page(result, figures))
     return written
+
+
+def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
+    """Read a sweep back from ``sweep.json`` and ``results.jsonl`` (e.g. to re-plot it).
+
+    Raises
+    ------
+    ValueError
+        When ``sweep.json`` is not of schema ``arenabench.sweep/1``.
+    """
+    from arenabench.generator.presets import parse_overrides
+
+    from .grid import parse_vary
+    from .records import SWEEP_SCHEMA, PipelineSpec, PointSummary, SweepSpec
+
+    out = Path(out_dir)
+    doc = json.loads((out / FILES["json"]).read_text(encoding="utf-8"))
+    if doc.get("schema") != SWEEP_SCHEMA:
+        raise ValueError(f"{out / FILES['json']}: schema must be {SWEEP_SCHEMA!r}, "
+                         f"got {doc.get('schema')!r}")
+    spec = SweepSpec(
+        preset=doc["preset"],
+        axes=tuple(parse_vary(f"{a['key']}={a['spec']}") for a in doc["vary"]),
+        pipelines=tuple(
+            PipelineSpec("cmd" if p["kind"] == "cmd" else "pipeline", p["name"],
+                         timeout_s=p.get("timeout_s", 60.0), output=p.get("output", "obstacles"))
+            for p in doc["pipelines"]
+        ),
+        per_point=doc["per_point"], seed=doc["seed"], random=doc.get("random"),
+        overrides=parse_overrides([f"{k}={v}" for k, v in doc.get("set", {}).items()]),
+        tolerance=doc["tolerance"], area_reference=doc["area_reference"],
+        threshold=doc["threshold"], breakdown_mode=doc["breakdown_mode"], keep=doc["keep"],
+        independent_scenes=doc.get("scenes") == "independent",
+    )
+    summaries = tuple(PointSummary.from_dict(p) for p in doc["points"])
+    points: dict[int, dict[str, Any]] = {s.index: s.params for s in summaries}
+    lines = (out / FILES["jsonl"]).read_text(encoding="utf-8").splitlines()
+    return SweepResult(
+        spec=spec, points=tuple(points[i] for i in range(doc["n_points"])),
+        summaries=summaries, images=tuple(json.loads(line) for line in lines if line.strip()),
+        breakdown=doc["breakdown"], run=doc.get("run", {}),
+    )

@@ -110,16 +110,16 @@ def area_error_figure(axis: Axis, by_pipeline: dict[str, list[CurvePoint]], *,
         for stat, style in (("median", "o-"), ("p95", "s--")):
             vals = [c.summary.area_rel_err.get(stat) for c in curve]
             have = np.array([v is not None for v in vals])
-            y = np.array([v if v is not None else np.nan for v in vals], dtype=float)
+            y = np.array([max(v, 1e-4) if v is not None else np.nan for v in vals])
             if have.any():
                 ax.plot(x[have], y[have], style, color=color, label=f"{name[:30]} {stat}")
     ax.axhline(tolerance, color="#b00020", linestyle="--", linewidth=1,
                label=f"tolerance {tolerance:g}")
     if ticks is not None:
         ax.set_xticks(np.arange(len(ticks)), ticks)
-    ax.set_yscale("symlog", linthresh=0.01)
+    ax.set_yscale("log")
     ax.set_xlabel(axis.key)
-    ax.set_ylabel("|area relative error|")
+    ax.set_ylabel("|area relative error| (log; floor 1e-4)")
     ax.set_title(f"Area error vs {axis.key}", fontsize=10)
     ax.legend(fontsize=7)
     return fig
