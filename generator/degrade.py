@@ -69,6 +69,8 @@ class Degradations:
         Standard deviation of additive Gaussian noise in grey levels (0 = none).
     poisson_photons : float
         Photons collected at full scale (255) for shot noise; fewer = noisier (0 = none).
+        Exact Poisson below :data:`POISSON_EXACT_BELOW` photons, a Gaussian with the same mean
+        and variance above.
     gamma : float
         Display gamma: ``out = 255 (in / 255) ** (1 / gamma)``; > 1 brightens mid-tones
         (1 = none).
@@ -158,6 +160,24 @@ def _vignette_gain(width: int, height: int, strength: float) -> np.ndarray:
     return gain
 
 
+#: Below this many photons a pixel's shot noise is drawn from the exact Poisson law; above it
+#: from a Gaussian with the Poisson mean and variance (indistinguishable there, ~10x faster).
+POISSON_EXACT_BELOW = 30.0
+
+
+def _shot_noise(img: np.ndarray, photons: float, rng: np.random.Generator) -> np.ndarray:
+    """Shot noise on a float32 image in grey levels, ``photons`` collected at 255."""
+    scale = np.float32(photons / 255.0)
+    lam = np.clip(img, 0.0, None) * scale
+    counts = rng.standard_normal(size=lam.shape, dtype=np.float32)
+    counts *= np.sqrt(lam)
+    counts += lam
+    small = lam < POISSON_EXACT_BELOW
+    if small.any():
+        counts[small] = rng.poisson(lam[small]).astype(np.float32)
+    return counts / scale
+
+
 def apply_degradations(rgb: np.ndarray, params: Degradations,
                        rng: np.random.Generator) -> np.ndarray:
     """Apply photometric degradations to an image.
@@ -204,11 +224,11 @@ def apply_degradations(rgb: np.ndarray, params: Degradations,
             img = cv2.filter2D(img, -1, _disc_kernel(float(params.defocus_px)),
                                borderType=cv2.BORDER_REFLECT)
         if params.poisson_photons > 0:
-            scale = np.float32(params.poisson_photons / 255.0)
-            lam = np.clip(img, 0.0, None) * scale
-            img = (rng.poisson(lam).astype(np.float32) / scale).astype(np.float32)
+            img = _shot_noise(img, float(params.poisson_photons), rng)
         if params.noise_sigma > 0:
-            img += rng.normal(0.0, float(params.noise_sigma), size=img.shape).astype(np.float32)
+            noise = rng.standard_normal(size=img.shape, dtype=np.float32)
+            noise *= np.float32(params.noise_sigma)
+            img += noise
         out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
     if params.gamma != 1.0:
         lut = np.clip(np.rint(255.0 * (np.arange(256) / 255.0) ** (1.0 / params.gamma)), 0, 255)
@@ -326,7 +346,13 @@ def _lens_canvas(key: tuple) -> LensCanvas:
     gx = np.arange(0, width - 1 + s, s, dtype=np.float64)
     gy = np.arange(0, height - 1 + s, s, dtype=np.float64)
     grid = np.stack(np.meshgrid(gx, gy), axis=-1).reshape(-1, 2)
-    src = undistort_points(grid, K, dist).reshape(len(gy), len(gx), 2).astype(np.float32)
+    src = undistort_points(grid, K, dist)
+    if np.abs(distort_points(src, K, dist) - grid).max() > 0.01:
+        raise ValueError(
+            f"camera.k1..k3, camera.p1, camera.p2: lens distortion {list(dist)} folds over "
+            "inside the image (no one-to-one map); use smaller coefficients"
+        )
+    src = src.reshape(len(gy), len(gx), 2).astype(np.float32)
     xs = (np.arange(width, dtype=np.float32) / s)[None, :].repeat(height, 0)
     ys = (np.arange(height, dtype=np.float32) / s)[:, None].repeat(width, 1)
     map_x = cv2.remap(src[:, :, 0], xs, ys, cv2.INTER_LINEAR)

@@ -93,6 +93,13 @@ def test_poisson_noise_follows_the_photon_count():
     assert abs(float(out.mean()) - 128) < 0.5
     brighter = apply_degradations(flat, Degradations(poisson_photons=1e5), _rng())
     assert float((brighter.astype(np.float64) - flat).std()) < 1.0
+    # Few photons: exact Poisson counts (multiples of 255 / photons grey levels).
+    dark = apply_degradations(flat, Degradations(poisson_photons=20.0), _rng())
+    lam = 128 * 20.0 / 255.0
+    std = float((dark.astype(np.float64) - flat).std())
+    assert abs(std - np.sqrt(lam) * 255.0 / 20.0) < 0.05 * np.sqrt(lam) * 255.0 / 20.0
+    assert abs(float(dark.mean()) - 128) < 1.0
+    assert len(np.unique(dark)) < 30  # quantised by the photon count
 
 
 def test_noise_is_deterministic_per_generator(clean):
@@ -223,6 +230,11 @@ def test_lens_canvas_map_sends_each_output_pixel_to_its_pinhole_source(dist):
     back = distort_points(src + offset, K, dist)
     assert np.abs(back - px).max() < 0.02
     assert canvas.width >= 1000 and canvas.height >= 1000
+
+
+def test_lens_distortion_that_folds_over_is_refused():
+    with pytest.raises(ValueError, match="folds over"):
+        lens_canvas(K, (-1.0, 0.0, 0.0, 0.0, 0.0), 1000, 1000)
 
 
 def test_densify_keeps_vertices_and_bounds_the_step():
