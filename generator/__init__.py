@@ -34,6 +34,9 @@ _EXPORTS = {
     "make_sample": "arenabench.generator.sample",
     "Sample": "arenabench.generator.sample",
     "generate_dataset": "arenabench.generator.dataset",
+    "FloorPatch": "arenabench.generator.scene",
+    "Degradations": "arenabench.generator.degrade",
+    "apply_degradations": "arenabench.generator.degrade",
 }
 
 __all__ = sorted(_EXPORTS)

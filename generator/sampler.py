@@ -5,6 +5,9 @@ Every random draw of scene ``index`` in a run with seed ``seed`` comes from one 
 number of workers or on which scenes came before. Scalar parameters are drawn first in a
 fixed order, one uniform draw each whether or not the parameter is a range, so overriding one
 parameter leaves the others' values unchanged; obstacle placement and camera redraws follow.
+The degradation and scene-variation parameters (:data:`VARIATION_KEYS`: lens, ``degrade.*``,
+shadows, spot light, distractors, occlusion) come from a second generator,
+:func:`variation_rng`, so adding them left every earlier scene's draws as they were.
 """
 
 from __future__ import annotations
