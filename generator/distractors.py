@@ -15,7 +15,7 @@ import shapely
 from shapely.geometry import Polygon, box
 
 from arenabench.frame import CORNER_ORDER
-from arenabench.generator.layout import marker_square
+from arenabench.generator.layout import box_footprint, marker_square
 from arenabench.generator.scene import ArenaSpec, FloorPatch, MarkerSpec
 
 #: Heights (m) of the patches: tapes/papers under the markers (MARKER_Z = 0.0005), occluders
@@ -35,11 +35,7 @@ OCCLUDER_OVERHANG_M = 0.05
 
 def patch_corners(patch: FloorPatch) -> np.ndarray:
     """World (x, y) of a patch's corners, counter-clockwise from above, shape (4, 2)."""
-    a = math.radians(patch.yaw_deg)
-    ux = np.array([math.cos(a), math.sin(a)]) * patch.length_m / 2.0
-    uy = np.array([-math.sin(a), math.cos(a)]) * patch.width_m / 2.0
-    c = np.asarray(patch.center_m, dtype=np.float64)
-    return np.array([c - ux - uy, c + ux - uy, c + ux + uy, c - ux + uy])
+    return box_footprint(patch)
 
 
 def sample_patches(rng: np.random.Generator, *, tapes: int, papers: int, arena: ArenaSpec,

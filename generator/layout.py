@@ -13,7 +13,7 @@ import math
 import numpy as np
 
 from arenabench.frame import CORNER_ORDER, FrameSpec
-from arenabench.generator.scene import ArenaSpec, MarkerSpec, Obstacle
+from arenabench.generator.scene import ArenaSpec, FloorPatch, MarkerSpec, Obstacle
 
 #: Height (m) of the marker sheets above the floor: keeps them off the floor's depth values.
 MARKER_Z = 0.0005
@@ -90,8 +90,8 @@ def floor_extent(arena: ArenaSpec) -> float:
     return arena.side_m / 2.0 + arena.margin_m
 
 
-def box_footprint(obstacle: Obstacle) -> np.ndarray:
-    """World (x, y) of a box's footprint corners, counter-clockwise from above, shape (4, 2)."""
+def box_footprint(obstacle: Obstacle | FloorPatch) -> np.ndarray:
+    """World (x, y) of a box's (or flat patch's) footprint corners, CCW from above, (4, 2)."""
     a = math.radians(obstacle.yaw_deg)
     ux = np.array([math.cos(a), math.sin(a)]) * obstacle.length_m / 2.0
     uy = np.array([-math.sin(a), math.cos(a)]) * obstacle.width_m / 2.0
