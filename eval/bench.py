@@ -13,13 +13,14 @@ size (1000 x 1000):
 5. ``pipeline_ips``: the reference pipeline over the image files of (1), decode and scoring
    included; ``pipeline_eval_ips``: the same through :func:`arenabench.eval.runner.evaluate`
    (as ``arenabench eval`` runs it: its process pool's start-up included);
-6. ``sweep_ips``: a streaming sweep in memory: render, degrade, detect, score;
+6. ``sweep_ips``: a streaming sweep in memory (render, degrade, detect, score) through
+   :func:`arenabench.eval.sweep.run_sweep`, varying ``SWEEP_AXIS``, its start-up included;
 7. ``worker_peak_rss_mb`` / ``worker_rss_growth_mb``: peak resident memory of a rendering
    worker and its growth over ``rss_renders`` consecutive renders.
 
-Items 2, 4, 5 and 6 run on ``workers`` spawned processes that are started and warmed up
+Items 2, 4 and 5 run on ``workers`` spawned processes that are started and warmed up
 (one renderer each) before the clock starts; item 3 on started processes (modules imported)
-that build a renderer per image; items 1 and 5b include their own start-up, as their
+that build a renderer per image; items 1, 5b and 6 include their own start-up, as their
 commands do; item 7 runs in a process of its own. Figures are throughputs of the whole pool
 (images or scenes per second).
 """
@@ -53,6 +54,9 @@ TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("worker_peak_rss_mb", "<=", 400.0, "MB"),
     ("worker_rss_growth_mb", "<", 20.0, "MB"),
 )
+
+#: The streaming sweep's varied parameter (item 6): Gaussian sensor noise, off to strong.
+SWEEP_AXIS = "degrade.noise_sigma=0:6:2"
 
 #: Keys every bench.json holds (figures are positive numbers).
 FIGURE_KEYS: tuple[str, ...] = (
@@ -185,50 +189,6 @@ def _memory_one(task: tuple[str, int, int]) -> float:
 
     sample = make_sample(task[0], seed=task[1], index=task[2], renderer=_renderer())
     return float(sample.gt["area"]["visible_px"])
-
-
-_NORMAL_QUANTILES: np.ndarray | None = None
-
-
-def bench_degrade(rgb: np.ndarray, rng: np.random.Generator) -> np.ndarray:
-    """The sweep's stand-in degradation: a light blur and Gaussian sensor noise (sigma 2-4).
-
-    The noise is drawn as uniform bytes mapped through the 256 mid-quantiles of the standard
-    normal (a 256-level Gaussian, tails cut at 2.9 sigma): about 5x faster than
-    ``rng.standard_normal`` for a 1000 x 1000 x 3 image, from the same seeded generator.
-    """
-    import cv2
-
-    global _NORMAL_QUANTILES
-    if _NORMAL_QUANTILES is None:
-        from statistics import NormalDist
-
-        nd = NormalDist()
-        _NORMAL_QUANTILES = np.array([nd.inv_cdf((k + 0.5) / 256) for k in range(256)],
-                                     np.float32).reshape(1, 256)
-    out = cv2.GaussianBlur(rgb, (3, 3), 0.8)
-    sigma = float(rng.uniform(2.0, 4.0))
-    codes = rng.integers(0, 256, size=rgb.shape, dtype=np.uint8)
-    noise = cv2.LUT(codes, _NORMAL_QUANTILES * np.float32(sigma))
-    return cv2.add(out, noise, dtype=cv2.CV_8U)
-
-
-def _sweep_one(task: tuple[str, int, int]) -> bool:
-    import cv2
-
-    from arenabench.eval.dataset import Sample as EvalSample
-    from arenabench.eval.metrics import score_image
-    from arenabench.eval.pipelines import prediction_from_result
-    from arenabench.generator.sample import make_sample
-    from arenabench.pipeline import detect
-
-    sample = make_sample(task[0], seed=task[1], index=task[2], renderer=_renderer(),
-                         degrade=bench_degrade)
-    t0 = time.perf_counter()
-    det = detect(cv2.cvtColor(sample.rgb, cv2.COLOR_RGB2BGR))
-    pred = prediction_from_result(det, latency_ms=(time.perf_counter() - t0) * 1e3)
-    truth = EvalSample(id=sample.id, image_path=Path(), gt_path=Path(), gt=sample.gt).truth()
-    return bool(score_image(truth, pred).passed)
 
 
 def _pipeline_one(task: tuple[str, str]) -> bool:
@@ -479,18 +439,6 @@ def run_bench(
                                    "how": "load_image + detect + score_image, warm workers"}
             notify("pipeline_ips", sec)
 
-            # 6. streaming sweep: render, degrade, detect, score
-            sweep_tasks = [(cfg.preset, cfg.seed + 1, i) for i in range(cfg.sweep_count)]
-            t0 = time.perf_counter()
-            passed = pool.map(_sweep_one, sweep_tasks,
-                              chunksize=max(1, len(sweep_tasks) // (8 * workers)))
-            sec = time.perf_counter() - t0
-            figures["sweep_ips"] = cfg.sweep_count / sec
-            details["sweep"] = {"scenes": cfg.sweep_count, "seconds": sec,
-                                "pass_rate": float(np.mean(passed)),
-                                "loop": "make_sample(degrade) + detect + score_image, "
-                                        "process pool (eval.sweep not used)"}
-            notify("sweep_ips", sec)
             gl_info = pool.apply(_gl_info)
 
         # 3. the naive baseline (own processes: pyrender's clean-up ends their EGL display)
@@ -517,6 +465,26 @@ def run_bench(
             "images": cfg.count, "seconds": sec,
             "pass_rate": report.summary.pass_rate, "executor": "process"}
         notify("pipeline_eval_runner", sec)
+
+        # 6. streaming sweep through the sweep runner (render, degrade, detect, score)
+        from arenabench.eval.sweep import PipelineSpec, SweepSpec, parse_vary, run_sweep
+
+        axis = parse_vary(SWEEP_AXIS)
+        per_point = max(1, -(-cfg.sweep_count // len(axis.values)))
+        spec = SweepSpec(preset=cfg.preset, axes=(axis,), per_point=per_point, seed=cfg.seed + 1,
+                         pipelines=(PipelineSpec("pipeline", "reference"),))
+        t0 = time.perf_counter()
+        sweep = run_sweep(spec, workers=workers)
+        sec = time.perf_counter() - t0
+        scenes = per_point * len(axis.values)
+        figures["sweep_ips"] = scenes / sec
+        details["sweep"] = {
+            "scenes": scenes, "seconds": sec, "vary": SWEEP_AXIS,
+            "how": "arenabench.eval.sweep.run_sweep, its process pool's start-up included",
+            "pass_rate": {str(p.params): p.summary.pass_rate for p in sweep.summaries},
+            "median_ms": sweep.run.get("median_ms", {}),
+        }
+        notify("sweep_ips", sec)
 
         # 7. memory of one rendering worker over rss_renders consecutive renders
         with _pool(1) as pool:

@@ -12,10 +12,9 @@ import math
 import subprocess
 import sys
 
-import numpy as np
 import pytest
 
-from arenabench.eval.bench import FIGURE_KEYS, BenchConfig, bench_degrade
+from arenabench.eval.bench import FIGURE_KEYS, BenchConfig
 from arenabench.eval.bench_cli import main
 
 ISSUE_KEYS = (
@@ -55,7 +54,8 @@ def test_bench_json_holds_every_figure(quick_run):
                                                     "sweep_ips", "worker_peak_rss_mb"}
     # the pipeline ran on the generated files and mostly passed (real outcome, not timing)
     assert data["details"]["pipeline"]["pass_rate"] >= 0.5
-    assert data["details"]["sweep"]["pass_rate"] >= 0.5
+    rates = data["details"]["sweep"]["pass_rate"]
+    assert len(rates) == 4 and sum(rates.values()) / len(rates) >= 0.5
 
 
 def test_bench_prints_every_row(quick_run):
@@ -76,15 +76,6 @@ def test_usage_errors_exit_2(argv, fragment, capsys, tmp_path):
     assert main([*argv, "--out", str(tmp_path)]) == 2
     assert fragment in capsys.readouterr().err
     assert not (tmp_path / "bench.json").exists()
-
-
-def test_bench_degrade_is_seeded_and_light():
-    rgb = np.full((64, 64, 3), 120, np.uint8)
-    a = bench_degrade(rgb, np.random.default_rng(3))
-    b = bench_degrade(rgb, np.random.default_rng(3))
-    assert a.dtype == np.uint8 and a.shape == rgb.shape
-    assert np.array_equal(a, b)
-    assert 1.0 < float(np.std(a.astype(float))) < 6.0
 
 
 def test_config_rejects_bad_values():
