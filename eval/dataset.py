@@ -53,7 +53,10 @@ class Sample:
             count=int(self.gt["count"]),
             area=float(self.gt["area"][AREA_REFERENCES[area_reference]]),
             marker_ids=tuple(
-                int(m["id"]) for m in self.gt.get("markers", []) if m.get("in_view", True)
+                int(m["id"])
+                for m in self.gt.get("markers", [])
+                # "visible" (in view and not occluded) when the GT has it, else "in_view"
+                if m.get("visible", m.get("in_view", True))
             ),
         )
 
