@@ -185,29 +185,35 @@ def _warm(task: tuple[str, int, int]) -> int:
 
 
 def _memory_one(task: tuple[str, int, int]) -> float:
+    """Render one scene and compute its GT; returns the CPU seconds it took (all threads)."""
     from arenabench.generator.sample import make_sample
 
-    sample = make_sample(task[0], seed=task[1], index=task[2], renderer=_renderer())
-    return float(sample.gt["area"]["visible_px"])
+    c0 = time.process_time()
+    make_sample(task[0], seed=task[1], index=task[2], renderer=_renderer())
+    return time.process_time() - c0
 
 
-def _pipeline_one(task: tuple[str, str]) -> bool:
-    """Load one image file (decode included), run the reference pipeline, score it."""
+def _pipeline_one(task: tuple[str, str]) -> tuple[bool, float]:
+    """Load one image file (decode included), run the reference pipeline, score it.
+
+    Returns whether it passed and the CPU seconds it took.
+    """
     from arenabench.eval.dataset import Sample as EvalSample
     from arenabench.eval.metrics import score_image
     from arenabench.eval.pipelines import prediction_from_result
     from arenabench.imageio import load_image
     from arenabench.pipeline import detect
 
+    c0 = time.process_time()
     t0 = time.perf_counter()
     det = detect(load_image(task[0]))
     pred = prediction_from_result(det, latency_ms=(time.perf_counter() - t0) * 1e3)
     gt = json.loads(Path(task[1]).read_text())
     truth = EvalSample(id=gt["id"], image_path=Path(), gt_path=Path(), gt=gt).truth()
-    return bool(score_image(truth, pred).passed)
+    return bool(score_image(truth, pred).passed), time.process_time() - c0
 
 
-def _floor_chunk(task: tuple[str, int, list[int], str]) -> tuple[int, float]:
+def _floor_chunk(task: tuple[str, int, list[int], str]) -> tuple[int, float, float]:
     """Render the scenes (not timed), then time their PNG encode + atomic write."""
     from arenabench.fileio import atomic_write_bytes
     from arenabench.generator.dataset import _encode_png
@@ -216,10 +222,10 @@ def _floor_chunk(task: tuple[str, int, list[int], str]) -> tuple[int, float]:
     preset, seed, indices, out = task
     images = [make_sample(preset, seed=seed, index=i, renderer=_renderer()).rgb
               for i in indices]
-    t0 = time.perf_counter()
+    c0, t0 = time.process_time(), time.perf_counter()
     for i, rgb in zip(indices, images, strict=True):
         atomic_write_bytes(Path(out) / f"{i:06d}.png", _encode_png(rgb))
-    return len(indices), time.perf_counter() - t0
+    return len(indices), time.perf_counter() - t0, time.process_time() - c0
 
 
 def _naive_one(task: tuple[str, int, int, str]) -> int:
@@ -333,10 +339,21 @@ def _pool(workers: int):
     return ctx.Pool(workers, initializer=_init_worker, initargs=(lp,))
 
 
-def _timed_map(pool, func: Callable, tasks: list, workers: int) -> float:
+def _timed_map(pool, func: Callable, tasks: list, workers: int) -> tuple[float, list]:
     t0 = time.perf_counter()
-    pool.map(func, tasks, chunksize=max(1, len(tasks) // (8 * workers)))
-    return time.perf_counter() - t0
+    out = pool.map(func, tasks, chunksize=max(1, len(tasks) // (8 * workers)))
+    return time.perf_counter() - t0, out
+
+
+def _cpu_seconds() -> float:
+    """CPU seconds (user + system) of this process and of its finished, waited-for children."""
+    import resource
+
+    total = 0.0
+    for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN):
+        r = resource.getrusage(who)
+        total += r.ru_utime + r.ru_stime
+    return total
 
 
 def _warm_pool(pool, workers: int, cfg: BenchConfig) -> None:
@@ -390,17 +407,18 @@ def run_bench(
     start = time.perf_counter()
     scratch = Path(tempfile.mkdtemp(prefix="arenabench-bench-", dir=workdir))
     figures: dict[str, float] = {}
-    details: dict[str, Any] = {"workers": workers}
+    details: dict[str, Any] = {"workers": workers, "load_avg_start": _load_avg()}
     try:
         from arenabench.generator.dataset import generate_dataset
 
         # 1. generation to disk, as `arenabench generate --workers N` runs it
-        t0 = time.perf_counter()
+        c0, t0 = _cpu_seconds(), time.perf_counter()
         result = generate_dataset(scratch / "dataset", preset=cfg.preset, count=cfg.count,
                                   seed=cfg.seed, workers=workers, progress=False)
         sec = time.perf_counter() - t0
         figures["generate_disk_ips"] = cfg.count / sec
         details["generate_disk"] = {"images": cfg.count, "seconds": sec,
+                                    "cpu_ms_per_image": _per(_cpu_seconds() - c0, cfg.count),
                                     "median_ms_per_image": result.timings_ms}
         notify("generate_disk_ips", sec)
 
@@ -408,9 +426,10 @@ def run_bench(
         with _pool(workers) as pool:
             _warm_pool(pool, workers, cfg)
             # 2. generation in memory
-            sec = _timed_map(pool, _memory_one, tasks, workers)
+            sec, cpu = _timed_map(pool, _memory_one, tasks, workers)
             figures["generate_memory_ips"] = cfg.count / sec
-            details["generate_memory"] = {"images": cfg.count, "seconds": sec}
+            details["generate_memory"] = {"images": cfg.count, "seconds": sec,
+                                          "cpu_ms_per_image": _per(sum(cpu), cfg.count)}
             notify("generate_memory_ips", sec)
 
             # 4. the floor: encode + write of rendered images
@@ -420,22 +439,26 @@ def run_bench(
             chunks = [(cfg.preset, cfg.seed, list(range(w * per, (w + 1) * per)), str(floor_dir))
                       for w in range(workers)]
             done = pool.map(_floor_chunk, chunks, chunksize=1)
-            figures["encode_floor_ips"] = float(sum(n / s for n, s in done))
-            details["encode_floor"] = {"images": sum(n for n, _ in done),
-                                       "seconds_per_worker": [s for _, s in done]}
-            notify("encode_floor_ips", max(s for _, s in done))
+            n_floor = sum(d[0] for d in done)
+            figures["encode_floor_ips"] = float(sum(n / s for n, s, _ in done))
+            details["encode_floor"] = {"images": n_floor,
+                                       "seconds_per_worker": [d[1] for d in done],
+                                       "cpu_ms_per_image": _per(sum(d[2] for d in done),
+                                                                n_floor)}
+            notify("encode_floor_ips", max(d[1] for d in done))
 
             # 5. the reference pipeline from the image files of (1), decode included
             data = scratch / "dataset"
             files = [(str(data / "images" / f"{i:06d}.png"), str(data / "gt" / f"{i:06d}.json"))
                      for i in range(cfg.count)]
             t0 = time.perf_counter()
-            passed = pool.map(_pipeline_one, files,
-                              chunksize=max(1, len(files) // (8 * workers)))
+            outs = pool.map(_pipeline_one, files,
+                            chunksize=max(1, len(files) // (8 * workers)))
             sec = time.perf_counter() - t0
             figures["pipeline_ips"] = cfg.count / sec
             details["pipeline"] = {"images": cfg.count, "seconds": sec,
-                                   "pass_rate": float(np.mean(passed)),
+                                   "cpu_ms_per_image": _per(sum(c for _, c in outs), cfg.count),
+                                   "pass_rate": float(np.mean([p for p, _ in outs])),
                                    "how": "load_image + detect + score_image, warm workers"}
             notify("pipeline_ips", sec)
 
@@ -444,25 +467,31 @@ def run_bench(
         # 3. the naive baseline (own processes: pyrender's clean-up ends their EGL display)
         naive_dir = scratch / "naive"
         naive_dir.mkdir()
+        c0 = _cpu_seconds()
         with _pool(workers) as pool:
             pool.map(_import_pyrender, range(workers), chunksize=1)  # start, import
             naive_tasks = [(cfg.preset, cfg.seed, i, str(naive_dir))
                            for i in range(cfg.naive_count)]
-            sec = _timed_map(pool, _naive_one, naive_tasks, workers)
+            sec, _ = _timed_map(pool, _naive_one, naive_tasks, workers)
+            pool.close()
+            pool.join()
         figures["naive_ips"] = cfg.naive_count / sec
-        details["naive"] = {"images": cfg.naive_count, "seconds": sec}
+        details["naive"] = {"images": cfg.naive_count, "seconds": sec,
+                            "cpu_ms_per_image_with_startup":
+                                _per(_cpu_seconds() - c0, cfg.naive_count)}
         notify("naive_ips", sec)
 
         # 5b. the same through `arenabench eval`'s runner, its start-up included
         from arenabench.eval.runner import evaluate
 
-        t0 = time.perf_counter()
+        c0, t0 = _cpu_seconds(), time.perf_counter()
         report = evaluate("reference", scratch / "dataset", workers=workers,
                           executor="process")
         sec = time.perf_counter() - t0
         figures["pipeline_eval_ips"] = cfg.count / sec
         details["pipeline"]["eval_runner"] = {
             "images": cfg.count, "seconds": sec,
+            "cpu_ms_per_image": _per(_cpu_seconds() - c0, cfg.count),
             "pass_rate": report.summary.pass_rate, "executor": "process"}
         notify("pipeline_eval_runner", sec)
 
@@ -473,13 +502,14 @@ def run_bench(
         per_point = max(1, -(-cfg.sweep_count // len(axis.values)))
         spec = SweepSpec(preset=cfg.preset, axes=(axis,), per_point=per_point, seed=cfg.seed + 1,
                          pipelines=(PipelineSpec("pipeline", "reference"),))
-        t0 = time.perf_counter()
+        c0, t0 = _cpu_seconds(), time.perf_counter()
         sweep = run_sweep(spec, workers=workers)
         sec = time.perf_counter() - t0
         scenes = per_point * len(axis.values)
         figures["sweep_ips"] = scenes / sec
         details["sweep"] = {
             "scenes": scenes, "seconds": sec, "vary": SWEEP_AXIS,
+            "cpu_ms_per_scene": _per(_cpu_seconds() - c0, scenes),
             "how": "arenabench.eval.sweep.run_sweep, its process pool's start-up included",
             "pass_rate": {str(p.params): p.summary.pass_rate for p in sweep.summaries},
             "median_ms": sweep.run.get("median_ms", {}),
@@ -496,11 +526,23 @@ def run_bench(
         notify("worker_rss_growth_mb", rss["seconds"])
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
+    details["load_avg_end"] = _load_avg()
     figures["disk_vs_naive"] = figures["generate_disk_ips"] / figures["naive_ips"]
     figures["disk_vs_floor"] = figures["generate_disk_ips"] / figures["encode_floor_ips"]
     return BenchResult(figures=figures, details=details, machine=_machine(gl_info),
                        config=asdict(cfg) | {"workers": workers},
                        seconds=time.perf_counter() - start)
+
+
+def _per(seconds: float, n: int) -> float:
+    return 1000.0 * seconds / max(1, n)
+
+
+def _load_avg() -> list[float]:
+    try:
+        return [round(v, 2) for v in os.getloadavg()]
+    except OSError:  # pragma: no cover - not available
+        return []
 
 
 def _gl_info() -> dict[str, str]:

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+import textwrap
 from pathlib import Path
 
 from arenabench.eval.bench import TARGETS, BenchConfig, BenchResult, target_met
@@ -25,10 +26,29 @@ ROWS: tuple[tuple[str, str, str], ...] = (
 )
 
 
+#: figure key -> path of its CPU milliseconds per image in ``details``.
+CPU_MS: dict[str, tuple[str, ...]] = {
+    "generate_disk_ips": ("generate_disk", "cpu_ms_per_image"),
+    "generate_memory_ips": ("generate_memory", "cpu_ms_per_image"),
+    "naive_ips": ("naive", "cpu_ms_per_image_with_startup"),
+    "encode_floor_ips": ("encode_floor", "cpu_ms_per_image"),
+    "pipeline_ips": ("pipeline", "cpu_ms_per_image"),
+    "pipeline_eval_ips": ("pipeline", "eval_runner", "cpu_ms_per_image"),
+    "sweep_ips": ("sweep", "cpu_ms_per_scene"),
+}
+
+
+def _cpu_ms(details: dict, key: str) -> str:
+    node: object = details
+    for part in CPU_MS.get(key, ()):
+        node = node.get(part) if isinstance(node, dict) else None
+    return f"{node:.1f}" if isinstance(node, (int, float)) and key in CPU_MS else ""
+
+
 def format_table(result: BenchResult) -> str:
     """The plain-text table: figure, unit, target and PASS/MISS (targets of a 2-core machine)."""
     targets = {k: (op, v) for k, op, v, _ in TARGETS}
-    header = ("measurement", "value", "unit", "target", "")
+    header = ("measurement", "value", "unit", "CPU ms/img", "target", "")
     lines = [header]
     for key, label, unit in ROWS:
         value = result.figures.get(key)
@@ -36,14 +56,16 @@ def format_table(result: BenchResult) -> str:
         if key in targets:
             op, t = targets[key]
             met = target_met(value, op, t)
-            lines.append((label, shown, unit, f"{op} {t:g}", "PASS" if met else "MISS"))
+            met_text = "PASS" if met else "MISS"
         else:
-            lines.append((label, shown, unit, "", ""))
-    widths = [max(len(row[i]) for row in lines) for i in range(5)]
+            op, t, met_text = "", None, ""
+        target = f"{op} {t:g}" if t is not None else ""
+        lines.append((label, shown, unit, _cpu_ms(result.details, key), target, met_text))
+    widths = [max(len(row[i]) for row in lines) for i in range(6)]
     out = []
     for n, row in enumerate(lines):
         cells = [row[0].ljust(widths[0]), row[1].rjust(widths[1]), row[2].ljust(widths[2]),
-                 row[3].ljust(widths[3]), row[4]]
+                 row[3].rjust(widths[3]), row[4].ljust(widths[4]), row[5]]
         out.append("  ".join(cells).rstrip())
         if n == 0:
             out.append("-" * len(out[0]))
@@ -54,8 +76,15 @@ def format_table(result: BenchResult) -> str:
                f"{v.get('gl_renderer', '?')}; python {v.get('python')}, "
                f"opencv {v.get('opencv')}, numpy {v.get('numpy')}, "
                f"pyrender {v.get('pyrender')}; {result.seconds:.0f} s in all")
-    out.append("Targets are the issue's, for a 2-core machine without a GPU.")
-    return "\n".join(out)
+    out.append("Targets are the issue's, for a 2-core machine without a GPU. CPU ms/img: CPU "
+               "time (all processes and threads) per image.")
+    load = result.details.get("load_avg_start") or []
+    cores = m.get("cores") or 1
+    if load and load[0] > 0.5 * cores:
+        out.append(f"Note: load average {load[0]:.1f} on {cores} cores when the run started: "
+                   "other processes shared the CPUs, so the rates above are lower than on an "
+                   "idle machine (CPU ms/img is less affected).")
+    return "\n".join(textwrap.fill(line, 100) if len(line) > 100 else line for line in out)
 
 
 def build_parser() -> argparse.ArgumentParser:
