@@ -88,9 +88,9 @@ class BenchConfig:
         Run seed.
     """
 
-    count: int = 500
-    sweep_count: int = 400
-    naive_count: int = 60
+    count: int = 400
+    sweep_count: int = 300
+    naive_count: int = 40
     rss_renders: int = 2000
     workers: int | None = None
     preset: str = "eyrc"
