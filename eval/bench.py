@@ -273,7 +273,8 @@ def _naive_one(task: tuple[str, int, int, str]) -> int:
     pr_scene.add(pyrender.DirectionalLight(color=np.ones(3), intensity=3.0), pose=light_pose)
     renderer = pyrender.OffscreenRenderer(scene.camera.width, scene.camera.height)
     try:
-        color, _ = renderer.render(pr_scene)
+        # lit (default) shading; both sides drawn, as the generator's quads need
+        color, _ = renderer.render(pr_scene, flags=pyrender.RenderFlags.SKIP_CULL_FACES)
     finally:
         renderer.delete()
     gt = compute_ground_truth(scene)
