@@ -165,11 +165,25 @@ def _vignette_gain(width: int, height: int, strength: float) -> np.ndarray:
 POISSON_EXACT_BELOW = 30.0
 
 
+def standard_normal(shape: tuple[int, ...], rng: np.random.Generator) -> np.ndarray:
+    """Float32 N(0, 1) samples of ``shape``, seeded from ``rng``.
+
+    OpenCV's ziggurat sampler (``cv2.randn``) is about 4x faster than NumPy's for an image's
+    worth of samples. Its state is OpenCV's per-thread default RNG, which is re-seeded from
+    ``rng`` on every call, so the result depends only on ``rng`` (the same across processes,
+    threads and OpenCV thread counts).
+    """
+    out = np.empty(shape, dtype=np.float32)
+    cv2.setRNGSeed(int(rng.integers(0, 2**31 - 1)))
+    cv2.randn(out.reshape(-1, shape[-1] if len(shape) > 1 else 1), 0.0, 1.0)
+    return out
+
+
 def _shot_noise(img: np.ndarray, photons: float, rng: np.random.Generator) -> np.ndarray:
     """Shot noise on a float32 image in grey levels, ``photons`` collected at 255."""
     scale = np.float32(photons / 255.0)
     lam = np.clip(img, 0.0, None) * scale
-    counts = rng.standard_normal(size=lam.shape, dtype=np.float32)
+    counts = standard_normal(lam.shape, rng)
     counts *= np.sqrt(lam)
     counts += lam
     small = lam < POISSON_EXACT_BELOW
@@ -226,7 +240,7 @@ def apply_degradations(rgb: np.ndarray, params: Degradations,
         if params.poisson_photons > 0:
             img = _shot_noise(img, float(params.poisson_photons), rng)
         if params.noise_sigma > 0:
-            noise = rng.standard_normal(size=img.shape, dtype=np.float32)
+            noise = standard_normal(img.shape, rng)
             noise *= np.float32(params.noise_sigma)
             img += noise
         out = np.clip(np.rint(img), 0, 255).astype(np.uint8)

@@ -16,6 +16,7 @@ from arenabench.generator.degrade import (
     densify,
     distort_points,
     lens_canvas,
+    standard_normal,
     undistort_points,
 )
 from arenabench.generator.presets import NEUTRAL, PARAMETERS, parse_overrides, resolve
@@ -244,3 +245,22 @@ def test_densify_keeps_vertices_and_bounds_the_step():
         assert np.any(np.all(d == v, axis=1))
     gaps = np.linalg.norm(np.diff(np.vstack([d, d[:1]]), axis=0), axis=1)
     assert gaps.max() <= 3.0 + 1e-9
+
+
+def test_standard_normal_is_seeded_by_the_generator_only():
+    threads = cv2.getNumThreads()
+    try:
+        cv2.setNumThreads(1)
+        a = standard_normal((200, 300, 3), np.random.default_rng(5))
+        cv2.setRNGSeed(123)  # someone else touching OpenCV's RNG must not matter
+        cv2.setNumThreads(4)
+        b = standard_normal((200, 300, 3), np.random.default_rng(5))
+    finally:
+        cv2.setNumThreads(threads)
+    np.testing.assert_array_equal(a, b)
+    c = standard_normal((200, 300, 3), np.random.default_rng(6))
+    assert not np.array_equal(a, c)
+    assert a.dtype == np.float32 and a.shape == (200, 300, 3)
+    assert abs(float(a.mean())) < 0.02
+    for channel in range(3):
+        assert abs(float(a[..., channel].std()) - 1.0) < 0.02
