@@ -231,6 +231,23 @@ def _check_bounds(key: str, value: float, spec: ParamDef, raw: Any) -> None:
         )
 
 
+#: Short names accepted wherever a parameter is named (``--set``, ``--vary``); results and GT
+#: always use the canonical name on the right.
+ALIASES: dict[str, str] = {
+    "noise.sigma": "degrade.noise_sigma",
+    "noise.poisson_photons": "degrade.poisson_photons",
+    "blur.motion_px": "degrade.motion_blur_px",
+    "blur.defocus_px": "degrade.defocus_px",
+    "jpeg.quality": "degrade.jpeg_quality",
+    "exposure.ev": "degrade.exposure_ev",
+}
+
+
+def canonical_key(key: str) -> str:
+    """The canonical parameter name for ``key`` (itself, or what an alias stands for)."""
+    return ALIASES.get(key, key)
+
+
 def validate_value(key: str, value: Value) -> Value:
     """Check and normalise a parameter value (fixed or range) for ``key``.
 
@@ -300,6 +317,7 @@ def parse_override(text: str) -> tuple[str, Value]:
     if "=" not in text:
         raise ValueError(f"--set: expected key=value, got {text!r}")
     key, raw = (s.strip() for s in text.split("=", 1))
+    key = canonical_key(key)
     if key not in PARAMETERS:
         validate_value(key, raw)
     spec = PARAMETERS[key]

@@ -23,7 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from arenabench.generator.presets import PARAMETERS, format_value, validate_value
+from arenabench.generator.presets import (
+    PARAMETERS,
+    canonical_key,
+    format_value,
+    validate_value,
+)
 
 #: Values a two-part ``a:b`` range gives in a grid sweep.
 DEFAULT_RANGE_STEPS = 5
@@ -127,6 +132,7 @@ def parse_vary(text: str) -> Axis:
     if "=" not in text:
         raise ValueError(f"--vary: expected KEY=SPEC, got {text!r}")
     key, spec = (s.strip() for s in text.split("=", 1))
+    key = canonical_key(key)
     if key not in PARAMETERS:
         try:
             validate_value(key, spec)
