@@ -243,7 +243,8 @@ def apply_degradations(rgb: np.ndarray, params: Degradations,
             noise = standard_normal(img.shape, rng)
             noise *= np.float32(params.noise_sigma)
             img += noise
-        out = np.clip(np.rint(img), 0, 255).astype(np.uint8)
+        # round half to even and saturate, as np.clip(np.rint(img), 0, 255) would, in one pass
+        out = cv2.add(img, 0.0, dtype=cv2.CV_8U)
     if params.gamma != 1.0:
         lut = np.clip(np.rint(255.0 * (np.arange(256) / 255.0) ** (1.0 / params.gamma)), 0, 255)
         out = cv2.LUT(out, lut.astype(np.uint8))
