@@ -127,7 +127,7 @@ def _encode_png(rgb: np.ndarray) -> bytes:
     params = [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION]
     if hasattr(cv2, "IMWRITE_PNG_FILTER"):  # OpenCV >= 4.11: no row filter, 2-3x faster
         params += [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE]
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[:, :, ::-1]), params)
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), params)
     if not ok:  # pragma: no cover - OpenCV failure
         raise RuntimeError("PNG encoding failed")
     return buf.tobytes()

@@ -249,11 +249,11 @@ def apply_degradations(rgb: np.ndarray, params: Degradations,
         lut = np.clip(np.rint(255.0 * (np.arange(256) / 255.0) ** (1.0 / params.gamma)), 0, 255)
         out = cv2.LUT(out, lut.astype(np.uint8))
     if params.jpeg_quality > 0:
-        ok, buf = cv2.imencode(".jpg", np.ascontiguousarray(out[:, :, ::-1]),
+        ok, buf = cv2.imencode(".jpg", cv2.cvtColor(out, cv2.COLOR_RGB2BGR),
                                [cv2.IMWRITE_JPEG_QUALITY, int(params.jpeg_quality)])
         if not ok:  # pragma: no cover - OpenCV always encodes a valid uint8 image
             raise ValueError("degrade.jpeg_quality: JPEG encoding failed")
-        out = cv2.imdecode(buf, cv2.IMREAD_COLOR)[:, :, ::-1]
+        out = cv2.cvtColor(cv2.imdecode(buf, cv2.IMREAD_COLOR), cv2.COLOR_BGR2RGB)
     return np.ascontiguousarray(out)
 
 
