@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 
 from arenabench.generator.presets import preset_names
@@ -24,7 +25,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a preset parameter, e.g. camera.tilt_deg=10:30 or "
                         "obstacles.count=3 (repeatable; see 'arenabench presets --params')")
-    p.add_argument("--workers", type=int, default=1, help="rendering processes (default 1)")
+    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
+                   help="rendering processes (default: the machine's cores); the output does "
+                        "not depend on it")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
 
