@@ -181,6 +181,27 @@ _EYRC: dict[str, Value] = {
     **NEUTRAL,
 }
 
+#: eyrc under what a real drone adds (issue 7): every draw stays in a range a flight camera
+#: plausibly sees; the reference pipeline's pass rate on it is a figure, not a tuning target.
+_EYRC_HARD: dict[str, Value] = {
+    **_EYRC,
+    "camera.tilt_deg": (0.0, 15.0),
+    "camera.altitude_m": (8.3, 10.5),
+    "camera.yaw_deg": (-15.0, 15.0),
+    "camera.roll_deg": (-2.0, 2.0),
+    "lighting.ambient": (0.45, 0.7),
+    "lighting.intensity": (0.3, 0.6),
+    "lighting.elevation_deg": (40.0, 80.0),
+    "lighting.shadow_strength": (0.0, 0.4),
+    "degrade.noise_sigma": (0.0, 6.0),
+    "degrade.motion_blur_px": (0.0, 2.0),
+    "degrade.motion_angle_deg": (0.0, 180.0),
+    "degrade.defocus_px": (0.0, 1.0),
+    "degrade.exposure_ev": (-0.5, 0.3),
+    "degrade.vignetting": (0.0, 0.3),
+    "degrade.jpeg_quality": (60, 95),
+}
+
 #: Named presets: name -> (description, parameters).
 PRESETS: dict[str, tuple[str, dict[str, Value]]] = {
     "eyrc": ("looks like the e-Yantra Task 1C example: near-nadir camera, 1-5 grey boxes, "
@@ -191,6 +212,8 @@ PRESETS: dict[str, tuple[str, dict[str, Value]]] = {
                      {**_EYRC, "camera.tilt_deg": (10.0, 30.0), "camera.yaw_deg": (-180.0, 180.0),
                       "camera.altitude_m": (9.5, 11.0), "camera.target_x_m": (-0.3, 0.3),
                       "camera.target_y_m": (-0.3, 0.3)}),
+    "eyrc-hard": ("eyrc as a real drone sees it: more tilt and altitude spread, varied light "
+                  "and shadows, sensor noise, blur, exposure, vignetting, JPEG", _EYRC_HARD),
 }
 
 

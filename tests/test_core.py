@@ -72,3 +72,12 @@ def test_cli_unknown_command_is_usage_error(capsys):
     assert "unknown command 'frobnicate'" in capsys.readouterr().err
     assert cli_main(["--help"]) == 0
     assert "detect" in capsys.readouterr().out
+
+
+def test_atomic_write_gives_ordinary_permissions(tmp_path):
+    import os
+
+    target = atomic_write_json(tmp_path / "p.json", {})
+    mask = os.umask(0o022)
+    os.umask(mask)
+    assert target.stat().st_mode & 0o777 == 0o666 & ~mask

@@ -1,0 +1,153 @@
+"""``arenabench contact-sheet``: a grid of a preset's scenes, to see what a preset looks like.
+
+Each tile is one scene rendered exactly as ``arenabench generate`` would render it (same seed,
+same index), captioned with its id and ground-truth count and visible area.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+
+from arenabench.fileio import atomic_write_bytes
+
+
+def tile_images(
+    images: list[np.ndarray], captions: list[str], *, columns: int = 4, tile: int = 320
+) -> np.ndarray:
+    """Tile BGR images into a captioned grid.
+
+    Parameters
+    ----------
+    images : list of numpy.ndarray
+        BGR uint8 images of any size (each is resized to fit a ``tile`` x ``tile`` square,
+        keeping its aspect).
+    captions : list of str
+        One caption per image, drawn under it.
+    columns : int, keyword-only
+        Tiles per row.
+    tile : int, keyword-only
+        Side of a tile's image area in px.
+
+    Returns
+    -------
+    numpy.ndarray
+        The sheet, BGR uint8.
+
+    Raises
+    ------
+    ValueError
+        When the lists differ in length, are empty, or ``columns``/``tile`` are not positive.
+    """
+    if not images or len(images) != len(captions):
+        raise ValueError(
+            f"images and captions must be non-empty and of equal length, got {len(images)} "
+            f"and {len(captions)}"
+        )
+    if columns < 1 or tile < 16:
+        raise ValueError(f"columns must be >= 1 and tile >= 16, got {columns} and {tile}")
+    pad, text_h = 6, 22
+    rows = -(-len(images) // columns)
+    cell_w, cell_h = tile + 2 * pad, tile + text_h + 2 * pad
+    sheet = np.full((rows * cell_h, columns * cell_w, 3), 255, np.uint8)
+    for k, (img, caption) in enumerate(zip(images, captions, strict=True)):
+        h, w = img.shape[:2]
+        scale = tile / max(h, w)
+        small = cv2.resize(img, (max(1, round(w * scale)), max(1, round(h * scale))),
+                           interpolation=cv2.INTER_AREA)
+        r, c = divmod(k, columns)
+        y0, x0 = r * cell_h + pad, c * cell_w + pad
+        sheet[y0:y0 + small.shape[0], x0:x0 + small.shape[1]] = small
+        cv2.putText(sheet, caption, (x0, y0 + tile + text_h - 6), cv2.FONT_HERSHEY_SIMPLEX,
+                    0.45, (40, 40, 40), 1, cv2.LINE_AA)
+    return sheet
+
+
+def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
+                 overrides: dict | None = None, columns: int = 4, tile: int = 320) -> np.ndarray:
+    """Render scenes ``0..count-1`` of ``preset`` with ``seed`` and tile them.
+
+    Parameters
+    ----------
+    preset : str
+        Preset name.
+    count, seed : int, keyword-only
+        Scenes to render and the run seed (scene i is scene i of ``arenabench generate``).
+    overrides : dict, keyword-only
+        Parsed ``--set`` values.
+    columns, tile : int, keyword-only
+        Layout, see :func:`tile_images`.
+
+    Returns
+    -------
+    numpy.ndarray
+        The sheet, BGR uint8.
+    """
+    if count < 1:
+        raise ValueError(f"count must be >= 1, got {count}")
+    from arenabench import glplatform
+
+    glplatform.configure()
+    from arenabench.generator.render import Renderer
+    from arenabench.generator.sample import make_sample
+
+    images, captions = [], []
+    with Renderer() as renderer:
+        for index in range(count):
+            s = make_sample(preset, seed=seed, index=index, overrides=overrides,
+                            renderer=renderer)
+            images.append(s.bgr)
+            captions.append(
+                f"{s.id}  count {s.gt['count']}  area {s.gt['area']['visible_px']:.0f}"
+            )
+    return tile_images(images, captions, columns=columns, tile=tile)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``arenabench contact-sheet``; returns 0, or 2 on a usage error."""
+    p = argparse.ArgumentParser(
+        prog="arenabench contact-sheet",
+        description="Render the first COUNT scenes of a preset and tile them into one image.",
+    )
+    p.add_argument("--preset", default="eyrc", help="scene preset (default eyrc)")
+    p.add_argument("--count", type=int, default=16, help="scenes (default 16)")
+    p.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                   help="override a preset parameter (repeatable)")
+    p.add_argument("--columns", type=int, default=4, help="tiles per row (default 4)")
+    p.add_argument("--tile", type=int, default=320, help="tile side in px (default 320)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="output image (.jpg or .png; default contact-PRESET.jpg)")
+    args = p.parse_args(argv)
+    from arenabench.generator.presets import get_preset, parse_overrides
+    from arenabench.generator.sampler import SamplingError
+
+    out = args.out or Path(f"contact-{args.preset}.jpg")
+    if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
+        print(f"arenabench contact-sheet: error: --out must end in .jpg or .png, got {out}",
+              file=sys.stderr)
+        return 2
+    try:
+        get_preset(args.preset)
+        sheet = render_sheet(args.preset, count=args.count, seed=args.seed,
+                             overrides=parse_overrides(args.overrides), columns=args.columns,
+                             tile=args.tile)
+    except (SamplingError, ValueError) as exc:
+        print(f"arenabench contact-sheet: error: {exc}", file=sys.stderr)
+        return 2
+    params = [cv2.IMWRITE_JPEG_QUALITY, 85] if out.suffix.lower() != ".png" else []
+    ok, buf = cv2.imencode(out.suffix.lower(), sheet, params)
+    if not ok:  # pragma: no cover - OpenCV failure
+        print("arenabench contact-sheet: error: image encoding failed", file=sys.stderr)
+        return 2
+    atomic_write_bytes(out, buf.tobytes())
+    print(f"contact sheet of {args.count} {args.preset} scenes (seed {args.seed}): {out}")
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())
