@@ -16,6 +16,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "doctor": ("arenabench.doctor", "check Python, OpenCV/aruco, pyrender and off-screen OpenGL"),
     "generate": ("arenabench.generator.cli", "render a dataset of scenes with exact ground truth"),
     "presets": ("arenabench.generator.presets_cli", "list the scene presets"),
+    "fit": ("arenabench.generator.fit_cli", "fit a scene file to a real arena image"),
+    "render": ("arenabench.generator.render_cli", "render one scene file with its ground truth"),
     "contact-sheet": ("arenabench.generator.contact_sheet", "tile a preset's scenes in one image"),
     "eval": ("arenabench.eval.cli", "score a pipeline on a dataset (reports, JUnit, exit codes)"),
     "bench": ("arenabench.eval.bench_cli", "measure generation and scoring throughput here"),

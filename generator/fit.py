@@ -1,0 +1,469 @@
+"""Fit a scene description to a real overhead image of the arena.
+
+Steps: (1) detect the four corner markers; (2) choose the field of view by a 1-D search
+minimising the solvePnP reprojection error of the 16 marker corners against the arena
+geometry (square pixels, centred principal point), and turn the pose into a look-at camera;
+(3) segment the boxes and fit each one's footprint and height so that its projected
+silhouette matches the image; (4) read the floor, background and box grey levels and set the
+lighting so that the baked shades give the observed top and side faces; (5) optionally refine
+a few scalars (floor margin, border width) by maximising SSIM against the image.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import cv2
+import numpy as np
+
+from arenabench.frame import CORNER_ORDER
+from arenabench.generator import camera as cam
+from arenabench.generator.layout import MARKER_Z, box_vertices, marker_corners_world
+from arenabench.generator.scene import (
+    ArenaSpec,
+    CameraSpec,
+    DirectionalLight,
+    LightingSpec,
+    MarkerSpec,
+    Obstacle,
+    Scene,
+)
+from arenabench.generator.similarity import mean_abs_diff, ssim
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """Options of :func:`fit_scene`.
+
+    Parameters
+    ----------
+    arena, markers : ArenaSpec, MarkerSpec
+        Known arena geometry (the eyrc arena by default: 8 m, markers 0.48 m, rotated 180).
+    fov_range_deg : tuple of float
+        Range of the field-of-view search.
+    refine_rounds : int
+        Rounds of coordinate-wise SSIM refinement of a few scalars (0 = none).
+    min_box_px : int
+        Smallest dark blob (px) taken as a box.
+    """
+
+    arena: ArenaSpec = field(default_factory=lambda: ArenaSpec(logo_text="eyantra"))
+    markers: MarkerSpec = field(default_factory=MarkerSpec)
+    fov_range_deg: tuple[float, float] = (20.0, 100.0)
+    refine_rounds: int = 1
+    min_box_px: int = 400
+
+    def __post_init__(self) -> None:
+        lo, hi = (float(v) for v in self.fov_range_deg)
+        if not 1.0 <= lo < hi <= 170.0:
+            raise ValueError(
+                f"fov_range_deg must be 1 <= lo < hi <= 170, got {self.fov_range_deg!r}"
+            )
+        if self.refine_rounds < 0:
+            raise ValueError(f"refine_rounds must be >= 0, got {self.refine_rounds!r}")
+        if self.min_box_px < 1:
+            raise ValueError(f"min_box_px must be >= 1, got {self.min_box_px!r}")
+
+
+@dataclass(frozen=True)
+class FitResult:
+    """A fitted scene and how well it matches the image.
+
+    Attributes
+    ----------
+    scene : Scene
+        The fitted scene.
+    fov_deg : float
+        Chosen vertical field of view.
+    reprojection_px : float
+        RMS reprojection error of the 16 marker corners under the fitted camera.
+    ssim, mad : float
+        Grayscale SSIM and mean absolute difference (grey levels) of its render vs the image.
+    """
+
+    scene: Scene
+    fov_deg: float
+    reprojection_px: float
+    ssim: float
+    mad: float
+
+
+def detect_marker_corners(bgr: np.ndarray, markers: MarkerSpec) -> dict[str, np.ndarray]:
+    """Image corners (4, 2) of each arena corner's marker, cv2.aruco order, keyed nw..sw.
+
+    Raises
+    ------
+    ValueError
+        When one of ``markers.ids`` is not found.
+    """
+    gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY) if bgr.ndim == 3 else bgr
+    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, markers.dictionary))
+    params = cv2.aruco.DetectorParameters()
+    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    corners, ids, _ = cv2.aruco.ArucoDetector(dictionary, params).detectMarkers(gray)
+    found = {} if ids is None else {
+        int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), corners, strict=True)
+    }
+    out = {}
+    for name, mid in zip(CORNER_ORDER, markers.ids, strict=True):
+        if mid not in found:
+            raise ValueError(f"image: marker id {mid} ({name}) not found")
+        out[name] = found[mid].astype(np.float64)
+    return out
+
+
+def _world_points(arena: ArenaSpec, markers: MarkerSpec) -> np.ndarray:
+    pts = [marker_corners_world(arena, markers, c) for c in CORNER_ORDER]
+    xy = np.vstack(pts)
+    return np.column_stack([xy, np.full(len(xy), MARKER_Z)])
+
+
+def _intrinsics(fov_deg: float, width: int, height: int) -> np.ndarray:
+    return cam.intrinsics(CameraSpec(width=width, height=height, fov_deg=fov_deg))
+
+
+def _pnp(world: np.ndarray, image: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, float]:
+    """world_from_camera pose and RMS reprojection error (px)."""
+    ok, rvec, tvec = cv2.solvePnP(world, image, K, None, flags=cv2.SOLVEPNP_ITERATIVE)
+    if not ok:
+        return np.eye(4), math.inf
+    rvec, tvec = cv2.solvePnPRefineLM(world, image, K, None, rvec, tvec)
+    proj, _ = cv2.projectPoints(world, rvec, tvec, K, None)
+    err = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - image) ** 2, axis=1))))
+    r_cw, _ = cv2.Rodrigues(rvec)
+    pose = np.eye(4)
+    pose[:3, :3] = r_cw.T
+    pose[:3, 3] = (-r_cw.T @ tvec).ravel()
+    return pose, err
+
+
+def camera_from_pose(
+    pose: np.ndarray, *, fov_deg: float, width: int, height: int
+) -> CameraSpec:
+    """A look-at :class:`CameraSpec` reproducing an OpenCV ``world_from_camera`` pose.
+
+    Intrinsics: square pixels, centred principal point, vertical field of view ``fov_deg``.
+    The look-at point is where the optical axis meets the floor.
+    """
+    eye = pose[:3, 3]
+    axis = pose[:3, 2]
+    look_at = eye + axis * (eye[2] / max(-axis[2], 1e-9))
+    base = CameraSpec(width=width, height=height, fov_deg=round(float(fov_deg), 6),
+                      eye_m=tuple(round(float(c), 6) for c in eye),
+                      look_at_m=tuple(round(float(c), 6) for c in look_at))
+    r0 = cam.world_from_camera(base)[:3, :3]
+    m = r0.T @ pose[:3, :3]
+    roll = math.degrees(math.atan2(m[1, 0], m[0, 0]))
+    return replace(base, roll_deg=round(roll, 6))
+
+
+def fit_camera(
+    corners: dict[str, np.ndarray], *, arena: ArenaSpec, markers: MarkerSpec,
+    width: int, height: int, fov_range_deg: tuple[float, float] = (20.0, 100.0),
+) -> tuple[CameraSpec, float, float]:
+    """Fit intrinsics (fov) and pose to the 16 marker corners.
+
+    Returns
+    -------
+    (CameraSpec, fov_deg, rms reprojection error px)
+    """
+    world = _world_points(arena, markers)
+    image = np.vstack([corners[c] for c in CORNER_ORDER])
+
+    def err(fov: float) -> float:
+        return _pnp(world, image, _intrinsics(fov, width, height))[1]
+
+    lo, hi = fov_range_deg
+    grid = np.linspace(lo, hi, 41)
+    errs = [err(f) for f in grid]
+    i = int(np.argmin(errs))
+    a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
+    gr = (math.sqrt(5) - 1) / 2
+    for _ in range(40):  # golden-section search
+        c, d = b - gr * (b - a), a + gr * (b - a)
+        if err(c) < err(d):
+            b = d
+        else:
+            a = c
+    fov = round(float((a + b) / 2), 6)
+    pose, _ = _pnp(world, image, _intrinsics(fov, width, height))
+    camera = camera_from_pose(pose, fov_deg=fov, width=width, height=height)
+    proj = cam.project(world, cam.intrinsics(camera), cam.world_from_camera(camera))
+    e = float(np.sqrt(np.mean(np.sum((proj - image) ** 2, axis=1))))
+    return camera, fov, e
+
+
+def fit_arena_camera(
+    corners: dict[str, np.ndarray], *, arena: ArenaSpec, markers: MarkerSpec,
+    width: int, height: int, fov_range_deg: tuple[float, float] = (20.0, 100.0),
+) -> tuple[MarkerSpec, CameraSpec, float, float]:
+    """Fit the marker side (for the given arena side), the fov and the pose to the markers.
+
+    The marker side is searched within 0.5x..1.5x ``markers.side_m``: real arenas print
+    markers at a size the description may not state exactly.
+
+    Returns
+    -------
+    (MarkerSpec, CameraSpec, fov_deg, rms reprojection error px)
+    """
+
+    def run(side: float) -> tuple[CameraSpec, float, float]:
+        m = replace(markers, side_m=side)
+        return fit_camera(corners, arena=arena, markers=m, width=width, height=height,
+                          fov_range_deg=fov_range_deg)
+
+    sides = np.linspace(0.5, 1.5, 21) * markers.side_m
+    errs = [run(s)[2] for s in sides]
+    i = int(np.argmin(errs))
+    a, b = sides[max(i - 1, 0)], sides[min(i + 1, len(sides) - 1)]
+    gr = (math.sqrt(5) - 1) / 2
+    for _ in range(14):
+        c, d = b - gr * (b - a), a + gr * (b - a)
+        if run(c)[2] < run(d)[2]:
+            b = d
+        else:
+            a = c
+    side = round(float((a + b) / 2), 4)
+    camera, fov, err = run(side)
+    return replace(markers, side_m=side), camera, fov, err
+
+
+def _plane_to_image(K: np.ndarray, pose: np.ndarray, z: float) -> np.ndarray:
+    """Homography from (x, y, 1) on the plane at height ``z`` to image px."""
+    r_cw = pose[:3, :3].T
+    t_cw = -r_cw @ pose[:3, 3]
+    return K @ np.column_stack([r_cw[:, 0], r_cw[:, 1], r_cw[:, 2] * z + t_cw])
+
+
+def _box_silhouette(ob: Obstacle, K: np.ndarray, pose: np.ndarray, shape) -> np.ndarray:
+    px = cam.project(box_vertices(ob), K, pose)
+    hull = cv2.convexHull(np.round(px * 16).astype(np.int32))
+    mask = np.zeros(shape, np.uint8)
+    cv2.fillPoly(mask, [hull], 1, lineType=cv2.LINE_8, shift=4)
+    return mask.astype(bool)
+
+
+def _side_faces(gray, ob: Obstacle, K, pose, side_mask) -> tuple:
+    """(world normal, median grey) of each visible side face covering >= 30 side px."""
+    v = box_vertices(ob)
+    eye = pose[:3, 3]
+    out = []
+    for i in range(4):
+        j = (i + 1) % 4
+        quad = v[[i, j, j + 4, i + 4]]
+        edge = v[j, :2] - v[i, :2]
+        normal = np.array([edge[1], -edge[0], 0.0]) / np.linalg.norm(edge)
+        if normal @ (eye - quad.mean(axis=0)) <= 0:
+            continue
+        px = cam.project(quad, K, pose)
+        m = np.zeros(gray.shape, np.uint8)
+        cv2.fillPoly(m, [np.round(px).astype(np.int32)], 1)
+        m = cv2.erode(m, np.ones((3, 3), np.uint8)).astype(bool) & side_mask
+        if m.sum() >= 30:
+            out.append((tuple(float(c) for c in normal), float(np.median(gray[m]))))
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class BoxObservation:
+    """A box seen in the image: its fitted obstacle and observed top/side grey levels."""
+
+    obstacle: Obstacle
+    top_gray: float
+    side_faces: tuple[tuple[tuple[float, float, float], float], ...]
+    iou: float
+
+
+def _dark_blobs(gray: np.ndarray, exclude: np.ndarray, min_px: int, floor: float) -> list:
+    dark = ((gray < floor - 40) & ~exclude).astype(np.uint8)
+    dark = cv2.morphologyEx(dark, cv2.MORPH_OPEN, np.ones((5, 5), np.uint8))
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(dark, connectivity=8)
+    return [labels == i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= min_px]
+
+
+def fit_boxes(
+    gray: np.ndarray, camera: CameraSpec, arena: ArenaSpec, markers: MarkerSpec, *,
+    floor_gray: float, min_box_px: int = 400,
+) -> list[BoxObservation]:
+    """Segment the boxes and fit each one's footprint, yaw and height.
+
+    The top face (the blob's commonest grey level) is back-projected to the plane at each
+    candidate height; its minimum-area rectangle gives the footprint, and the height whose
+    projected box silhouette best overlaps the blob (IoU) wins.
+    """
+    K = cam.intrinsics(camera)
+    pose = cam.world_from_camera(camera)
+    exclude = np.zeros(gray.shape, bool)
+    for c in CORNER_ORDER:
+        quad = marker_corners_world(arena, markers, c, pad_m=markers.quiet_zone_m + 0.05)
+        px = cam.project(np.column_stack([quad, np.zeros(4)]), K, pose)
+        m = np.zeros(gray.shape, np.uint8)
+        cv2.fillPoly(m, [np.round(px).astype(np.int32)], 1)
+        exclude |= m.astype(bool)
+    out = []
+    g8 = np.clip(np.rint(gray), 0, 255).astype(np.uint8)
+    for blob in _dark_blobs(gray, exclude, min_box_px, floor_gray):
+        hist = np.bincount(g8[blob], minlength=256)
+        mode = int(np.argmax(hist))
+        top = blob & (np.abs(gray - mode) <= 6)
+        top = cv2.morphologyEx(top.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
+        ys, xs = np.nonzero(top)
+        pts = np.column_stack([xs, ys]).astype(np.float64)
+        hull = cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2).astype(np.float64)
+        best = None
+        for h in np.arange(0.05, 2.0, 0.01):
+            hinv = np.linalg.inv(_plane_to_image(K, pose, float(h)))
+            w = cv2.perspectiveTransform(hull.reshape(-1, 1, 2), hinv).reshape(-1, 2)
+            (cx, cy), (lw, ww), ang = cv2.minAreaRect(w.astype(np.float32))
+            if lw < ww:
+                lw, ww, ang = ww, lw, ang + 90.0
+            ang = (ang + 90.0) % 180.0 - 90.0
+            ob = Obstacle(center_m=(cx, cy), yaw_deg=ang, length_m=max(lw, 1e-3),
+                          width_m=max(ww, 1e-3), height_m=float(h), color_rgb=(mode,) * 3)
+            sil = _box_silhouette(ob, K, pose, gray.shape)
+            iou = float((sil & blob).sum() / max((sil | blob).sum(), 1))
+            if best is None or iou > best[0]:
+                best = (iou, ob)
+        iou, ob = best
+        ob = replace(ob, center_m=tuple(round(v, 4) for v in ob.center_m),
+                     yaw_deg=round(ob.yaw_deg, 3), length_m=round(ob.length_m, 4),
+                     width_m=round(ob.width_m, 4), height_m=round(ob.height_m, 3))
+        sides = _side_faces(gray, ob, K, pose, blob & ~top.astype(bool))
+        out.append(BoxObservation(ob, float(np.median(gray[top.astype(bool)])), sides, iou))
+    return out
+
+
+def fit_lighting(boxes: list[BoxObservation]) -> LightingSpec:
+    """Ambient + one directional light whose baked shades give the observed face ratios.
+
+    The top face's factor is 1 (so albedos equal the observed top greys and the floor grey);
+    each visible side face's factor should be its grey over its box's top grey. Grid search
+    over the light's azimuth and elevation, ambient solved in closed form.
+    """
+    obs = [(np.array(n), g / max(b.top_gray, 1.0)) for b in boxes for n, g in b.side_faces]
+    if not obs:
+        return LightingSpec(ambient=1.0, directional=())
+    normals = np.array([n for n, _ in obs])
+    ratios = np.array([r for _, r in obs])
+    best = None
+    for el in np.radians(np.arange(5.0, 90.0, 1.0)):
+        for az in np.radians(np.arange(0.0, 360.0, 2.0)):
+            to_light = np.array([math.cos(el) * math.cos(az), math.cos(el) * math.sin(az),
+                                 math.sin(el)])
+            lam = np.clip(normals @ to_light, 0.0, None)
+            # factor = amb + I lam with amb + I sin(el) = 1  ->  factor = 1 + I (lam - sin(el))
+            x = lam - math.sin(el)
+            inten = (x @ (ratios - 1.0)) / max(x @ x, 1e-12)
+            inten = float(np.clip(inten, 0.0, 1.0 / math.sin(el)))
+            res = float(np.sum((1.0 + inten * x - ratios) ** 2))
+            if best is None or res < best[0]:
+                best = (res, to_light, inten, el)
+    _, to_light, inten, el = best
+    ambient = 1.0 - inten * math.sin(el)
+    light = DirectionalLight(direction=tuple(round(float(-c), 5) for c in to_light),
+                             intensity=round(inten, 5))
+    return LightingSpec(ambient=round(ambient, 5), directional=(light,))
+
+
+def _floor_mask(scene: Scene, shape: tuple[int, int], half: float) -> np.ndarray:
+    K = cam.intrinsics(scene.camera)
+    pose = cam.world_from_camera(scene.camera)
+    h = _plane_to_image(K, pose, 0.0)
+    sq = np.array([[-half, -half], [half, -half], [half, half], [-half, half]], np.float64)
+    px = cv2.perspectiveTransform(sq.reshape(-1, 1, 2), h).reshape(-1, 2)
+    m = np.zeros(shape, np.uint8)
+    cv2.fillPoly(m, [np.round(px * 16).astype(np.int32)], 1, shift=4)
+    return m.astype(bool)
+
+
+def _mode(values: np.ndarray) -> int:
+    v = np.clip(np.rint(values), 0, 255).astype(np.int64)
+    return int(np.argmax(np.bincount(v, minlength=256)))
+
+
+def render_bgr(scene: Scene, renderer) -> np.ndarray:
+    """Render ``scene`` with ``renderer`` and return it in OpenCV's BGR order."""
+    return cv2.cvtColor(renderer.render(scene).rgb, cv2.COLOR_RGB2BGR)
+
+
+def score(scene: Scene, image_bgr: np.ndarray, renderer) -> tuple[float, float]:
+    """(SSIM, mean absolute difference) of ``scene``'s render vs the image, in grayscale."""
+    bgr = render_bgr(scene, renderer)
+    return ssim(bgr, image_bgr), mean_abs_diff(bgr, image_bgr)
+
+
+def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
+              renderer=None) -> FitResult:
+    """Fit a scene to an overhead image of the arena.
+
+    Parameters
+    ----------
+    image_bgr : numpy.ndarray
+        (H, W, 3) uint8 BGR image.
+    options : FitOptions, keyword-only
+        Arena geometry and search options.
+    renderer : Renderer, keyword-only
+        Reused renderer (one is created when omitted).
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    ValueError
+        When the image is not an (H, W, 3) uint8 array or a marker is missing.
+    """
+    options = options or FitOptions()
+    img = np.asarray(image_bgr)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise ValueError(f"image_bgr must be (H, W, 3) uint8, got {img.shape} {img.dtype}")
+    height, width = img.shape[:2]
+    gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float64)
+    corners = detect_marker_corners(img, options.markers)
+    markers, camera, fov, err = fit_arena_camera(
+        corners, arena=options.arena, markers=options.markers, width=width, height=height,
+        fov_range_deg=options.fov_range_deg,
+    )
+    arena = options.arena
+    probe = Scene(arena=arena, markers=markers, obstacles=(), camera=camera)
+    inner = _floor_mask(probe, gray.shape, arena.side_m / 2 - markers.side_m - 0.1)
+    floor_gray = _mode(gray[inner])
+    boxes = fit_boxes(gray, camera, arena, markers, floor_gray=floor_gray,
+                      min_box_px=options.min_box_px)
+    lighting = fit_lighting(boxes)
+    obstacles = tuple(
+        replace(b.obstacle, color_rgb=(round(b.top_gray),) * 3) for b in boxes
+    )
+    outside = ~_floor_mask(probe, gray.shape, arena.side_m / 2 + arena.margin_m + 0.3)
+    background = _mode(gray[outside]) if outside.any() else floor_gray
+    scene = Scene(
+        arena=replace(arena, floor_rgb=(floor_gray,) * 3), markers=markers,
+        obstacles=obstacles, camera=camera, lighting=lighting,
+        background_rgb=(background,) * 3,
+    )
+    own = renderer is None
+    if own:
+        from arenabench.generator.render import Renderer
+
+        renderer = Renderer()
+    try:
+        best = score(scene, img, renderer)
+        for _ in range(options.refine_rounds):
+            for field_name, steps in (("margin_m", (-0.1, -0.05, -0.025, 0.025, 0.05, 0.1)),
+                                      ("border_width_m", (-0.005, 0.005))):
+                base = getattr(scene.arena, field_name)
+                for step in steps:
+                    value = round(base + step, 4)
+                    if value <= 0:
+                        continue
+                    cand = replace(scene, arena=replace(scene.arena, **{field_name: value}))
+                    s = score(cand, img, renderer)
+                    if s[0] > best[0]:
+                        best, scene = s, cand
+    finally:
+        if own:
+            renderer.close()
+    return FitResult(scene=scene, fov_deg=round(fov, 4), reprojection_px=err,
+                     ssim=best[0], mad=best[1])
