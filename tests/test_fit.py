@@ -1,0 +1,129 @@
+"""The fitted scene of the competition example: render vs the real image, and the CLIs."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import cv2
+import numpy as np
+import pytest
+
+from arenabench.generator.render_cli import load_scene
+from arenabench.generator.similarity import mean_abs_diff, ssim
+from arenabench.pipeline import detect
+
+ROOT = Path(__file__).resolve().parent.parent
+IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
+SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
+
+#: Acceptance thresholds of issue 7.
+MIN_SSIM = 0.95
+MAX_MAD = 6.0
+MAX_AREA_REL = 0.01
+
+
+def _cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "arenabench", *args],
+                          capture_output=True, text=True, timeout=300)
+
+
+@pytest.fixture(scope="module")
+def real() -> np.ndarray:
+    return cv2.imread(str(IMAGE), cv2.IMREAD_COLOR)
+
+
+@pytest.fixture(scope="module")
+def real_detection(real):
+    return detect(real)
+
+
+def _assert_matches(render: np.ndarray, real: np.ndarray, real_detection) -> None:
+    assert render.shape == real.shape == (1000, 1000, 3)
+    s, mad = ssim(render, real), mean_abs_diff(render, real)
+    assert s >= MIN_SSIM, f"SSIM {s:.4f}"
+    assert mad <= MAX_MAD, f"MAD {mad:.3f}"
+    det = detect(render)
+    assert det.count == real_detection.count == 2
+    rel = abs(det.area - real_detection.area) / real_detection.area
+    assert rel <= MAX_AREA_REL, f"area {det.area} vs {real_detection.area} ({rel:.2%})"
+
+
+def test_similarity_basics():
+    rng = np.random.default_rng(0)
+    a = rng.integers(0, 256, (64, 64, 3), dtype=np.uint8)
+    assert ssim(a, a) == pytest.approx(1.0)
+    assert mean_abs_diff(a, a) == 0.0
+    b = cv2.add(a, np.full_like(a, 10))
+    assert 0 < mean_abs_diff(a, b) <= 10
+    assert ssim(a, 255 - a) < 0.2
+    with pytest.raises(ValueError, match="same shape"):
+        ssim(a, a[:32])
+
+
+def test_shipped_scene_render_matches_real_image(tmp_path, real, real_detection):
+    proc = _cli("render", str(SCENE), "--out", str(tmp_path))
+    assert proc.returncode == 0, proc.stderr
+    render = cv2.imread(str(tmp_path / "images" / "000000.png"), cv2.IMREAD_COLOR)
+    _assert_matches(render, real, real_detection)
+    gt = json.loads((tmp_path / "gt" / "000000.json").read_text())
+    assert gt["schema"] == "arenabench.gt/1"
+    assert gt["image"] == "images/000000.png"
+    assert gt["count"] == 2
+    assert gt["area"]["visible_px"] == pytest.approx(real_detection.area, rel=0.02)
+
+
+def test_fit_cli_end_to_end(tmp_path, real, real_detection):
+    out = tmp_path / "scene.json"
+    proc = _cli("fit", str(IMAGE), "--out", str(out), "--report")
+    assert proc.returncode == 0, proc.stderr
+    report = json.loads(proc.stdout)
+    assert report["obstacles"] == 2
+    assert report["reprojection_px"] < 1.5
+    assert report["ssim"] >= MIN_SSIM and report["mad"] <= MAX_MAD
+    scene = load_scene(out)
+    assert len(scene.obstacles) == 2
+    from arenabench.generator.fit import render_bgr
+    from arenabench.generator.render import Renderer
+
+    with Renderer() as renderer:
+        render = render_bgr(scene, renderer)
+    _assert_matches(render, real, real_detection)
+
+
+@pytest.mark.parametrize(
+    ("content", "message"),
+    [
+        (None, "cannot read"),
+        ("{not json", "not valid JSON"),
+        ("[1, 2]", "JSON object"),
+        ("UNKNOWN_TOP", "unknown field"),
+        ("UNKNOWN_NESTED", "invalid scene"),
+    ],
+)
+def test_render_cli_bad_input(tmp_path, content, message):
+    path = tmp_path / "scene.json"
+    if content in ("UNKNOWN_TOP", "UNKNOWN_NESTED"):
+        data = json.loads(SCENE.read_text())
+        if content == "UNKNOWN_TOP":
+            data["colour"] = 1
+        else:
+            data["camera"]["zoom"] = 2
+        content = json.dumps(data)
+    if content is not None:
+        path.write_text(content)
+    proc = _cli("render", str(path), "--out", str(tmp_path / "out"))
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("arenabench render: error:")
+    assert message in lines[0]
+    assert not (tmp_path / "out" / "images" / "000000.png").exists()
+
+
+def test_fit_cli_missing_image(tmp_path):
+    proc = _cli("fit", str(tmp_path / "nope.jpg"), "--out", str(tmp_path / "s.json"))
+    assert proc.returncode == 2
+    assert proc.stderr.strip().startswith("arenabench fit: error:")
+    assert not (tmp_path / "s.json").exists()
