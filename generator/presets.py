@@ -42,7 +42,8 @@ PARAMETERS: dict[str, ParamDef] = {
     "arena.side_m": ParamDef("float", "side of the border-line square (m)", 0.5, 1000),
     "arena.margin_m": ParamDef("float", "floor beyond the border line (m)", 0, 100),
     "arena.floor_rgb": ParamDef("rgb", "floor albedo R,G,B"),
-    "arena.texture": ParamDef("str", "floor texture", choices=("plain", "speckle")),
+    "arena.texture": ParamDef("str", "floor texture", choices=("plain", "speckle", "concrete")),
+    "arena.texture_seed": ParamDef("int", "seed of the procedural floor texture", 0, 1_000_000),
     "arena.border_width_m": ParamDef("float", "border line width (m), 0 = none", 0, 1),
     "arena.border_rgb": ParamDef("rgb", "border line colour R,G,B"),
     "arena.grid_step_m": ParamDef("float", "floor grid spacing (m), 0 = none", 0, 100),
@@ -61,6 +62,8 @@ PARAMETERS: dict[str, ParamDef] = {
     "obstacles.height_m": ParamDef("float", "box height (m), per box", 0.001, 100),
     "obstacles.yaw_deg": ParamDef("float", "box yaw (deg), per box", -360, 360),
     "obstacles.gray": ParamDef("int", "box albedo grey level, per box", 0, 255),
+    "obstacles.palette": ParamDef("str", "box colours: grey boxes, or warehouse pallets and "
+                                  "coloured crates", choices=("gray", "warehouse")),
     "obstacles.min_gap_m": ParamDef("float", "minimum gap between footprints (m)", 0, 100),
     "obstacles.edge_margin_m": ParamDef("float", "minimum distance to the frame edge (m)", 0,
                                         100),
@@ -142,6 +145,7 @@ _EYRC: dict[str, Value] = {
     "arena.margin_m": 0.45,
     "arena.floor_rgb": (250, 250, 250),
     "arena.texture": "plain",
+    "arena.texture_seed": 0,
     "arena.border_width_m": 0.015,
     "arena.border_rgb": (20, 20, 20),
     "arena.grid_step_m": 0.0,
@@ -159,6 +163,7 @@ _EYRC: dict[str, Value] = {
     "obstacles.height_m": (0.2, 0.8),
     "obstacles.yaw_deg": (-6.0, 6.0),
     "obstacles.gray": (100, 140),
+    "obstacles.palette": "gray",
     "obstacles.min_gap_m": 0.3,
     "obstacles.edge_margin_m": 0.3,
     "obstacles.max_tries": 500,
@@ -202,6 +207,35 @@ _EYRC_HARD: dict[str, Value] = {
     "degrade.jpeg_quality": (60, 95),
 }
 
+#: A marked arena on a real warehouse floor: concrete with stains and painted lane lines,
+#: wooden pallets and coloured crates, tape and paper clutter, a drone-like camera.
+_WAREHOUSE: dict[str, Value] = {
+    **_EYRC,
+    "arena.floor_rgb": (168, 166, 160),
+    "arena.texture": "concrete",
+    "arena.texture_seed": (0, 7),
+    "arena.margin_m": 1.2,
+    "arena.border_rgb": (30, 30, 30),
+    "arena.border_width_m": 0.03,
+    "arena.logo_text": "",
+    "background.gray": (120, 150),
+    "obstacles.palette": "warehouse",
+    "obstacles.count": (1, 6),
+    "obstacles.height_m": (0.3, 0.9),
+    "obstacles.yaw_deg": (-30.0, 30.0),
+    "camera.altitude_m": (9.5, 11.0),
+    "camera.tilt_deg": (0.0, 12.0),
+    "camera.yaw_deg": (-20.0, 20.0),
+    "lighting.ambient": (0.5, 0.7),
+    "lighting.intensity": (0.3, 0.5),
+    "lighting.elevation_deg": (45.0, 85.0),
+    "lighting.shadow_strength": (0.0, 0.3),
+    "distractors.tapes": (0, 2),
+    "distractors.papers": (0, 3),
+    "degrade.noise_sigma": (0.0, 4.0),
+    "degrade.jpeg_quality": (70, 95),
+}
+
 #: Named presets: name -> (description, parameters).
 PRESETS: dict[str, tuple[str, dict[str, Value]]] = {
     "eyrc": ("looks like the e-Yantra Task 1C example: near-nadir camera, 1-5 grey boxes, "
@@ -214,6 +248,8 @@ PRESETS: dict[str, tuple[str, dict[str, Value]]] = {
                       "camera.target_y_m": (-0.3, 0.3)}),
     "eyrc-hard": ("eyrc as a real drone sees it: more tilt and altitude spread, varied light "
                   "and shadows, sensor noise, blur, exposure, vignetting, JPEG", _EYRC_HARD),
+    "warehouse": ("an arena marked on a warehouse floor: concrete with stains and painted lanes, "
+                  "wooden pallets and coloured crates, tape and paper clutter", _WAREHOUSE),
 }
 
 

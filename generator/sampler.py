@@ -142,6 +142,27 @@ def markers_in_view(arena: ArenaSpec, markers: MarkerSpec, camera: CameraSpec,
     return True
 
 
+#: Crate colours of the warehouse palette (RGB): blue, red, green, yellow, grey plastic.
+_CRATE_RGB = ((45, 85, 160), (165, 45, 40), (55, 120, 65), (205, 170, 45), (90, 95, 100))
+#: Wooden pallet colour (RGB).
+_PALLET_RGB = (160, 120, 75)
+
+
+def _warehouse_load(rng: np.random.Generator, length: float, width: float,
+                    height: float) -> tuple[float, float, float, tuple[int, int, int]]:
+    """A warehouse obstacle: a low wooden pallet (40 %) or a coloured crate of the drawn size."""
+    if rng.random() < 0.4:
+        size = (float(rng.uniform(1.0, 1.25)), float(rng.uniform(0.8, 1.0)),
+                float(rng.uniform(0.12, 0.2)))
+        base = _PALLET_RGB
+    else:
+        size = (length, width, height)
+        base = _CRATE_RGB[int(rng.integers(len(_CRATE_RGB)))]
+    jitter = rng.integers(-12, 13, size=3)
+    color = tuple(int(np.clip(c + j, 0, 255)) for c, j in zip(base, jitter, strict=True))
+    return size[0], size[1], size[2], color
+
+
 def _place_obstacles(rng: np.random.Generator, p: dict[str, Any], count: int,
                      arena: ArenaSpec, markers: MarkerSpec) -> tuple[Obstacle, ...]:
     inner = arena.side_m / 2.0 - markers.side_m - p["obstacles.edge_margin_m"]
@@ -158,10 +179,13 @@ def _place_obstacles(rng: np.random.Generator, p: dict[str, Any], count: int,
         length, width, height, yaw, gray = (
             draw(rng, p[k], integer=(k == "obstacles.gray")) for k in _BOX_KEYS
         )
+        color = (gray, gray, gray)
+        if p["obstacles.palette"] == "warehouse":  # extra draws only here: eyrc is unchanged
+            length, width, height, color = _warehouse_load(rng, length, width, height)
         for _ in range(p["obstacles.max_tries"]):
             centre = (float(rng.uniform(-inner, inner)), float(rng.uniform(-inner, inner)))
             ob = Obstacle(center_m=centre, yaw_deg=yaw, length_m=length, width_m=width,
-                          height_m=height, color_rgb=(gray, gray, gray))
+                          height_m=height, color_rgb=color)
             shape = Polygon(box_footprint(ob))
             if region.contains(shape) and all(shape.distance(s) >= gap for s in shapes):
                 placed.append(ob)
@@ -207,9 +231,13 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
     vrng = variation_rng(seed, index)
     varied = {k: draw(vrng, p[k], integer=k in _INT_VARIATION_KEYS) for k in VARIATION_KEYS}
     drawn.update(varied)
+    # the floor texture's seed has a stream of its own, so adding it moved no other draw
+    texture_rng = np.random.default_rng(np.random.SeedSequence([int(seed), int(index), 3]))
+    drawn["arena.texture_seed"] = draw(texture_rng, p["arena.texture_seed"], integer=True)
     arena = ArenaSpec(
         side_m=p["arena.side_m"], margin_m=p["arena.margin_m"], floor_rgb=p["arena.floor_rgb"],
-        texture=p["arena.texture"], texture_seed=0, border_width_m=p["arena.border_width_m"],
+        texture=p["arena.texture"], texture_seed=drawn["arena.texture_seed"],
+        border_width_m=p["arena.border_width_m"],
         border_rgb=p["arena.border_rgb"], grid_step_m=p["arena.grid_step_m"],
         grid_rgb=p["arena.grid_rgb"], logo_text=p["arena.logo_text"],
         logo_rgb=p["arena.logo_rgb"],

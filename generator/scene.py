@@ -13,6 +13,10 @@ from typing import Any
 Rgb = tuple[int, int, int]
 
 
+#: Procedural floor textures.
+FLOOR_TEXTURES = ("plain", "speckle", "concrete")
+
+
 def _rgb(value: Any, name: str) -> Rgb:
     try:
         r, g, b = (round(float(c)) for c in value)
@@ -42,8 +46,9 @@ class ArenaSpec:
         Width of floor beyond the border line on every side.
     floor_rgb : tuple of int
         Floor albedo (0..255).
-    texture : {"plain", "speckle"}
-        Plain colour or a faint procedural speckle (seeded by ``texture_seed``).
+    texture : {"plain", "speckle", "concrete"}
+        Plain colour, a faint procedural speckle, or warehouse concrete (mottling, stains and
+        painted lane lines in the margin), seeded by ``texture_seed``.
     texture_seed : int
         Seed of the procedural texture.
     border_width_m : float
@@ -76,8 +81,10 @@ class ArenaSpec:
         _positive(self.side_m, "arena.side_m")
         if self.margin_m < 0:
             raise ValueError(f"arena.margin_m must be >= 0, got {self.margin_m!r}")
-        if self.texture not in ("plain", "speckle"):
-            raise ValueError(f"arena.texture must be 'plain' or 'speckle', got {self.texture!r}")
+        if self.texture not in FLOOR_TEXTURES:
+            raise ValueError(
+                f"arena.texture must be one of {', '.join(FLOOR_TEXTURES)}, got {self.texture!r}"
+            )
         if self.border_width_m < 0:
             raise ValueError(f"arena.border_width_m must be >= 0, got {self.border_width_m!r}")
         if self.grid_step_m < 0:

@@ -77,6 +77,8 @@ def _floor_texture(arena: ArenaSpec, texels: int) -> np.ndarray:
         noise = rng.normal(0.0, 2.0, size=(texels // 4, texels // 4)).astype(np.float32)
         noise = cv2.resize(noise, (texels, texels), interpolation=cv2.INTER_LINEAR)
         img = np.clip(img.astype(np.float32) + noise[:, :, None], 0, 255).astype(np.uint8)
+    if arena.texture == "concrete":
+        img = _concrete(img, arena, x, y, scale)
     if arena.grid_step_m > 0:
         half = max(0.5 / scale, 0.005)
         on_x = np.abs((x + half) % arena.grid_step_m - half) < half
@@ -92,6 +94,35 @@ def _floor_texture(arena: ArenaSpec, texels: int) -> np.ndarray:
         _draw_logo(img, arena, scale)
     img.setflags(write=False)
     return img
+
+
+def _concrete(img: np.ndarray, arena: ArenaSpec, x: np.ndarray, y: np.ndarray,
+              scale: float) -> np.ndarray:
+    """Warehouse concrete: large and fine mottling, a few faint stains, and yellow lane lines
+    painted across the margin (outside the arena, so they never touch the ground truth)."""
+    texels = img.shape[0]
+    rng = np.random.default_rng(np.random.SeedSequence([int(arena.texture_seed), 7]))
+    coarse = rng.normal(0.0, 6.0, size=(16, 16)).astype(np.float32)
+    medium = rng.normal(0.0, 3.0, size=(128, 128)).astype(np.float32)
+    fine = rng.normal(0.0, 2.0, size=(texels // 2, texels // 2)).astype(np.float32)
+    shade = sum(cv2.resize(n, (texels, texels), interpolation=cv2.INTER_CUBIC)
+                for n in (coarse, medium, fine))
+    stains = np.zeros((texels, texels), np.float32)
+    for _ in range(int(rng.integers(2, 6))):
+        centre = (int(rng.integers(0, texels)), int(rng.integers(0, texels)))
+        axes = (int(rng.integers(texels // 60, texels // 18)),
+                int(rng.integers(texels // 80, texels // 25)))
+        cv2.ellipse(stains, centre, axes, float(rng.uniform(0, 180)), 0, 360,
+                    float(rng.uniform(8.0, 16.0)), -1)
+    stains = cv2.GaussianBlur(stains, (0, 0), texels / 300)
+    out = img.astype(np.float32) + (shade - stains)[:, :, None]
+    if arena.margin_m > 0:  # lane lines centred in the margin on the east and west sides
+        half_w = 0.25 * arena.margin_m
+        lane = np.abs(np.abs(x) - (arena.side_m / 2.0 + arena.margin_m / 2.0)) < half_w / 2.0
+        lane = np.broadcast_to(lane, (texels, texels))
+        paint = np.array((205.0, 165.0, 30.0), np.float32) + shade[:, :, None] * 0.5
+        out = np.where(lane[:, :, None], paint, out)
+    return np.clip(out, 0, 255).astype(np.uint8)
 
 
 def _draw_logo(img: np.ndarray, arena: ArenaSpec, scale: float) -> None:
