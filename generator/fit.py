@@ -237,11 +237,53 @@ def _plane_to_image(K: np.ndarray, pose: np.ndarray, z: float) -> np.ndarray:
 
 
 def _box_silhouette(ob: Obstacle, K: np.ndarray, pose: np.ndarray, shape) -> np.ndarray:
+    """Pixels at least half covered by the box's projection (4 x 4 supersampling)."""
     px = cam.project(box_vertices(ob), K, pose)
-    hull = cv2.convexHull(np.round(px * 16).astype(np.int32))
-    mask = np.zeros(shape, np.uint8)
+    ss = 4
+    hull = cv2.convexHull(np.round((px * ss + (ss - 1) / 2.0) * 16).astype(np.int32))
+    mask = np.zeros((shape[0] * ss, shape[1] * ss), np.uint8)
     cv2.fillPoly(mask, [hull], 1, lineType=cv2.LINE_8, shift=4)
-    return mask.astype(bool)
+    cover = mask.reshape(shape[0], ss, shape[1], ss).sum(axis=(1, 3))
+    return cover >= (ss * ss) / 2
+
+
+def _crop(mask: np.ndarray, K: np.ndarray, pad: int = 40) -> tuple[np.ndarray, np.ndarray]:
+    """The mask's bounding box grown by ``pad`` px, and K for that crop."""
+    ys, xs = np.nonzero(mask)
+    y0, y1 = max(ys.min() - pad, 0), min(ys.max() + pad + 1, mask.shape[0])
+    x0, x1 = max(xs.min() - pad, 0), min(xs.max() + pad + 1, mask.shape[1])
+    shift = np.eye(3)
+    shift[0, 2], shift[1, 2] = -x0, -y0
+    return mask[y0:y1, x0:x1], shift @ K
+
+
+def _refine_box(ob: Obstacle, target: np.ndarray, K, pose) -> tuple[float, Obstacle]:
+    """Coordinate search of centre, size and height maximising the silhouette IoU."""
+    crop, k_crop = _crop(target, K)
+
+    def iou(o: Obstacle) -> float:
+        sil = _box_silhouette(o, k_crop, pose, crop.shape)
+        return float((sil & crop).sum() / max((sil | crop).sum(), 1))
+
+    def moved(o: Obstacle, name: str, d: float) -> Obstacle:
+        if name in ("cx", "cy"):
+            c = list(o.center_m)
+            c[0 if name == "cx" else 1] += d
+            return replace(o, center_m=tuple(c))
+        return replace(o, **{name: max(getattr(o, name) + d, 1e-3)})
+
+    best = iou(ob)
+    for step in (0.01, 0.005, 0.0025):
+        improved = True
+        while improved:
+            improved = False
+            for name in ("cx", "cy", "length_m", "width_m", "height_m"):
+                for d in (-step, step):
+                    cand = moved(ob, name, d)
+                    v = iou(cand)
+                    if v > best + 1e-9:
+                        best, ob, improved = v, cand, True
+    return best, ob
 
 
 def _side_faces(gray, ob: Obstacle, K, pose, side_mask) -> tuple:
@@ -311,6 +353,7 @@ def fit_boxes(
         ys, xs = np.nonzero(top)
         pts = np.column_stack([xs, ys]).astype(np.float64)
         hull = cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2).astype(np.float64)
+        crop, k_crop = _crop(blob, K)
         best = None
         for h in np.arange(0.05, 2.0, 0.01):
             hinv = np.linalg.inv(_plane_to_image(K, pose, float(h)))
@@ -321,11 +364,14 @@ def fit_boxes(
             ang = (ang + 90.0) % 180.0 - 90.0
             ob = Obstacle(center_m=(cx, cy), yaw_deg=ang, length_m=max(lw, 1e-3),
                           width_m=max(ww, 1e-3), height_m=float(h), color_rgb=(mode,) * 3)
-            sil = _box_silhouette(ob, K, pose, gray.shape)
-            iou = float((sil & blob).sum() / max((sil | blob).sum(), 1))
+            sil = _box_silhouette(ob, k_crop, pose, crop.shape)
+            iou = float((sil & crop).sum() / max((sil | crop).sum(), 1))
             if best is None or iou > best[0]:
                 best = (iou, ob)
         iou, ob = best
+        # Refine against the blob: every pixel visibly darker than the floor counts, as in
+        # detection pipelines, so a render's hard edges give the same thresholded area.
+        iou, ob = _refine_box(ob, blob, K, pose)
         ob = replace(ob, center_m=tuple(round(v, 4) for v in ob.center_m),
                      yaw_deg=round(ob.yaw_deg, 3), length_m=round(ob.length_m, 4),
                      width_m=round(ob.width_m, 4), height_m=round(ob.height_m, 3))
