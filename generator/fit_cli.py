@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -29,22 +28,17 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench fit``; returns 0 on success, 2 on bad input."""
     args = build_parser().parse_args(argv)
-    import cv2
-
     from arenabench.fileio import atomic_write_json, dumps_json
     from arenabench.generator.fit import FitOptions, fit_scene
     from arenabench.generator.scene import ArenaSpec
+    from arenabench.imageio import ImageLoadError, load_image
 
     try:
-        if not Path(args.image).is_file():
-            raise ValueError(f"image {args.image!r} not found")
-        image = cv2.imread(args.image, cv2.IMREAD_COLOR)
-        if image is None:
-            raise ValueError(f"image {args.image!r} cannot be decoded")
+        image = load_image(args.image)
         options = FitOptions(arena=ArenaSpec(side_m=args.arena_side, logo_text="eyantra"),
                              refine_rounds=args.refine_rounds)
         result = fit_scene(image, options=options)
-    except ValueError as exc:
+    except (ImageLoadError, ValueError) as exc:
         print(f"arenabench fit: error: {exc}", file=sys.stderr)
         return 2
     atomic_write_json(args.out, result.scene.to_dict())

@@ -127,3 +127,51 @@ def test_fit_cli_missing_image(tmp_path):
     assert proc.returncode == 2
     assert proc.stderr.strip().startswith("arenabench fit: error:")
     assert not (tmp_path / "s.json").exists()
+
+
+def test_fit_recovers_a_known_scene():
+    """Round trip on a render with a different camera and boxes: the fit finds them again."""
+    from dataclasses import replace
+
+    from arenabench.generator.fit import fit_scene, render_bgr
+    from arenabench.generator.render import Renderer
+    from arenabench.generator.scene import Obstacle
+
+    base = load_scene(SCENE)
+    truth = replace(
+        base,
+        camera=replace(base.camera, fov_deg=60.0, eye_m=(0.3, -0.4, 8.6),
+                       look_at_m=(0.1, 0.2, 0.0), roll_deg=3.0),
+        obstacles=(
+            Obstacle(center_m=(-1.5, -1.0), yaw_deg=20.0, length_m=1.2, width_m=0.6,
+                     height_m=0.4, color_rgb=(130, 130, 130)),
+            Obstacle(center_m=(1.8, 1.9), yaw_deg=-5.0, length_m=0.9, width_m=0.8,
+                     height_m=0.7, color_rgb=(110, 110, 110)),
+        ),
+    )
+    with Renderer() as renderer:
+        result = fit_scene(render_bgr(truth, renderer), renderer=renderer)
+    assert result.reprojection_px < 0.5
+    assert result.ssim >= 0.98
+    assert result.fov_deg == pytest.approx(60.0, abs=1.0)
+    assert result.scene.camera.roll_deg == pytest.approx(3.0, abs=0.1)
+    assert result.scene.markers.side_m == pytest.approx(base.markers.side_m, abs=0.01)
+    assert len(result.scene.obstacles) == 2
+    for want in truth.obstacles:
+        got = min(result.scene.obstacles,
+                  key=lambda o, w=want: np.hypot(*np.subtract(o.center_m, w.center_m)))
+        assert np.allclose(got.center_m, want.center_m, atol=0.01)
+        assert got.yaw_deg == pytest.approx(want.yaw_deg, abs=0.5)
+        assert got.length_m == pytest.approx(want.length_m, abs=0.01)
+        assert got.width_m == pytest.approx(want.width_m, abs=0.01)
+        assert got.height_m == pytest.approx(want.height_m, abs=0.03)
+        assert got.color_rgb == want.color_rgb
+
+
+def test_fit_cli_image_without_markers(tmp_path):
+    blank = tmp_path / "blank.png"
+    cv2.imwrite(str(blank), np.full((200, 200, 3), 240, np.uint8))
+    proc = _cli("fit", str(blank), "--out", str(tmp_path / "s.json"))
+    assert proc.returncode == 2
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "marker id 80" in lines[0]
