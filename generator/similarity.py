@@ -21,6 +21,13 @@ def to_gray(image: np.ndarray) -> np.ndarray:
     return img.astype(np.float64)
 
 
+def _gray_pair(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    x, y = to_gray(a), to_gray(b)
+    if x.shape != y.shape:
+        raise ValueError(f"images must have the same shape, got {x.shape} and {y.shape}")
+    return x, y
+
+
 def ssim_map(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """Per-pixel SSIM of two grayscale images of the same shape (Gaussian window, sigma 1.5).
 
@@ -29,9 +36,7 @@ def ssim_map(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     ValueError
         When the shapes differ.
     """
-    x, y = to_gray(a), to_gray(b)
-    if x.shape != y.shape:
-        raise ValueError(f"images must have the same shape, got {x.shape} and {y.shape}")
+    x, y = _gray_pair(a, b)
 
     def blur(img: np.ndarray) -> np.ndarray:
         return cv2.GaussianBlur(img, (_WINDOW, _WINDOW), _SIGMA, borderType=cv2.BORDER_REFLECT)
@@ -58,7 +63,5 @@ def mean_abs_diff(a: np.ndarray, b: np.ndarray) -> float:
     ValueError
         When the shapes differ.
     """
-    x, y = to_gray(a), to_gray(b)
-    if x.shape != y.shape:
-        raise ValueError(f"images must have the same shape, got {x.shape} and {y.shape}")
+    x, y = _gray_pair(a, b)
     return float(np.abs(x - y).mean())
