@@ -179,8 +179,12 @@ class Renderer:
         self._renderer = None
         self._size: tuple[int, int] | None = None
         self._scene = pyrender.Scene(bg_color=[1.0, 1.0, 1.0, 1.0], ambient_light=[1, 1, 1])
-        self._static_key = None
-        self._static_nodes: list = []
+        # floor node keyed by the arena; marker nodes by (arena, markers): a scene that changes
+        # only the markers (e.g. a drawn markers.side_m) keeps the big floor texture uploaded
+        self._floor_key = None
+        self._floor_nodes: list = []
+        self._markers_key = None
+        self._marker_nodes: list = []
         self._obstacle_nodes: list = []
         self._overlay_nodes: list = []
         self._camera_node = None
@@ -245,28 +249,32 @@ class Renderer:
     def _update_static(self, scene: Scene) -> None:
         """Floor and marker nodes, rebuilt only when the arena or markers change."""
         f = np.float32(min(floor_factor(scene.lighting), 1.0))
-        key = (scene.arena, scene.markers)
-        if key != self._static_key:
-            for node in self._static_nodes:
+        pr = self._pr
+        if scene.arena != self._floor_key:
+            for node in self._floor_nodes:
                 self._scene.remove_node(node)
-            self._static_nodes = []
-            pr = self._pr
             e = floor_extent(scene.arena)
             floor = np.array([[-e, e], [e, e], [e, -e], [-e, -e]])
-            self._static_nodes.append(
+            self._floor_nodes = [
                 self._scene.add(_textured_quad(pr, floor, 0.0, floor_texture(scene.arena), f))
-            )
+            ]
+            self._floor_key = scene.arena
+        key = (scene.arena, scene.markers)
+        if key != self._markers_key:
+            for node in self._marker_nodes:
+                self._scene.remove_node(node)
+            self._marker_nodes = []
             mk = scene.markers
             for corner, marker_id in zip(CORNER_ORDER, mk.ids, strict=True):
                 image, pad = marker_texture(mk.dictionary, marker_id, mk.side_m,
                                             mk.quiet_zone_m)
                 sheet = marker_corners_world(scene.arena, mk, corner, pad_m=pad)
-                self._static_nodes.append(
+                self._marker_nodes.append(
                     self._scene.add(_textured_quad(pr, sheet, MARKER_Z, image, f))
                 )
-            self._static_key = key
+            self._markers_key = key
         # The lighting changes per scene: only the (uniform) colour factor is updated.
-        for node in self._static_nodes:
+        for node in (*self._floor_nodes, *self._marker_nodes):
             for prim in node.mesh.primitives:
                 prim.material.baseColorFactor = np.array([f, f, f, 1.0], np.float32)
 

@@ -26,7 +26,9 @@ from arenabench.generator.sampler import sample_scene
 #: 2: degradation / scene-variation parameters (issue 5) recorded in the GT's params and
 #: scene, per-marker occlusion fields, "homography_domain"; images unchanged.
 #: 3: textures sampled bilinearly in the nearest mip level (mean change 0.1 grey level, ~20 %
-#: faster renders); Gaussian noise drawn with OpenCV's sampler.
+#: faster renders); Gaussian noise drawn with OpenCV's sampler; eyrc re-tuned so that the
+#: fitted competition example lies inside it (marker side, fov, altitude, light); any other
+#: range-valued parameter drawn from its own stream; warehouse preset.
 GENERATOR_VERSION = "3"
 #: GT file schema id.
 GT_SCHEMA = "arenabench.gt/1"

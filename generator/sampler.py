@@ -24,7 +24,7 @@ from arenabench.generator.degrade import LENS_PARAMS, PARAM_NAMES, distort_point
 from arenabench.generator.distractors import occluder_patch, sample_patches
 from arenabench.generator.groundtruth import rounded
 from arenabench.generator.layout import box_footprint, marker_corners_world
-from arenabench.generator.presets import Value, resolve
+from arenabench.generator.presets import PARAMETERS, Value, resolve
 from arenabench.generator.scene import (
     ArenaSpec,
     CameraSpec,
@@ -231,12 +231,21 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
     vrng = variation_rng(seed, index)
     varied = {k: draw(vrng, p[k], integer=k in _INT_VARIATION_KEYS) for k in VARIATION_KEYS}
     drawn.update(varied)
-    # the floor texture's seed has a stream of its own, so adding it moved no other draw
-    texture_rng = np.random.default_rng(np.random.SeedSequence([int(seed), int(index), 3]))
-    drawn["arena.texture_seed"] = draw(texture_rng, p["arena.texture_seed"], integer=True)
+    # Any other parameter given as a range (arena.side_m, markers.side_m, arena.texture_seed,
+    # ...) is drawn from a stream of its own, in sorted key order, so that allowing ranges there
+    # moved no draw of the streams above.
+    erng = np.random.default_rng(np.random.SeedSequence([int(seed), int(index), 3]))
+    extra = {
+        key: draw(erng, p[key], integer=PARAMETERS[key].kind == "int")
+        for key in sorted(p)
+        if key not in drawn and key not in _BOX_KEYS and isinstance(p[key], tuple)
+        and PARAMETERS[key].kind in ("float", "int")
+    }
+    drawn.update(extra)
+    p = {**p, **extra}
     arena = ArenaSpec(
         side_m=p["arena.side_m"], margin_m=p["arena.margin_m"], floor_rgb=p["arena.floor_rgb"],
-        texture=p["arena.texture"], texture_seed=drawn["arena.texture_seed"],
+        texture=p["arena.texture"], texture_seed=p["arena.texture_seed"],
         border_width_m=p["arena.border_width_m"],
         border_rgb=p["arena.border_rgb"], grid_step_m=p["arena.grid_step_m"],
         grid_rgb=p["arena.grid_rgb"], logo_text=p["arena.logo_text"],

@@ -224,7 +224,8 @@ def test_partly_occluded_marker_is_recorded(renderer, marker, fraction):
     s = _sample(renderer, [f"markers.occlusion={fraction}", f"markers.occluded={marker}"])
     for i, m in enumerate(s.gt["markers"]):
         want = fraction if i == marker else 0.0
-        assert m["occluded_fraction"] == pytest.approx(want, abs=1e-6)
+        # scene coordinates are stored to 1e-6 m, so the fraction is exact to about 1e-5
+        assert m["occluded_fraction"] == pytest.approx(want, abs=1e-4)
         assert m["in_view"] and m["visible"] == (i != marker)
     assert _geometry(s.gt) == _geometry(_sample(renderer, []).gt)
     _assert_gt_matches_aruco(s)  # the occluded marker is not found, the others are
