@@ -10,8 +10,7 @@ cheap)::
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from arenabench.lazy import lazy_exports
 
 _EXPORTS: dict[str, str] = {
     "score": "runner",
@@ -39,9 +38,4 @@ _EXPORTS: dict[str, str] = {
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name: str) -> Any:
-    if name in _EXPORTS:
-        module = importlib.import_module(f"{__name__}.{_EXPORTS[name]}")
-        return getattr(module, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_exports(__name__, _EXPORTS)

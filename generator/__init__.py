@@ -13,36 +13,31 @@ Files: :func:`generate_dataset` (``arenabench generate``).
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from arenabench.lazy import lazy_exports
 
 _EXPORTS = {
-    "Scene": "arenabench.generator.scene",
-    "ArenaSpec": "arenabench.generator.scene",
-    "MarkerSpec": "arenabench.generator.scene",
-    "Obstacle": "arenabench.generator.scene",
-    "CameraSpec": "arenabench.generator.scene",
-    "LightingSpec": "arenabench.generator.scene",
-    "DirectionalLight": "arenabench.generator.scene",
-    "sample_scene": "arenabench.generator.sampler",
-    "SamplingError": "arenabench.generator.sampler",
-    "parse_overrides": "arenabench.generator.presets",
-    "PRESETS": "arenabench.generator.presets",
-    "Renderer": "arenabench.generator.render",
-    "RenderOutput": "arenabench.generator.render",
-    "compute_ground_truth": "arenabench.generator.groundtruth",
-    "make_sample": "arenabench.generator.sample",
-    "Sample": "arenabench.generator.sample",
-    "generate_dataset": "arenabench.generator.dataset",
-    "FloorPatch": "arenabench.generator.scene",
-    "Degradations": "arenabench.generator.degrade",
-    "apply_degradations": "arenabench.generator.degrade",
+    "Scene": "scene",
+    "ArenaSpec": "scene",
+    "MarkerSpec": "scene",
+    "Obstacle": "scene",
+    "CameraSpec": "scene",
+    "LightingSpec": "scene",
+    "DirectionalLight": "scene",
+    "sample_scene": "sampler",
+    "SamplingError": "sampler",
+    "parse_overrides": "presets",
+    "PRESETS": "presets",
+    "Renderer": "render",
+    "RenderOutput": "render",
+    "compute_ground_truth": "groundtruth",
+    "make_sample": "sample",
+    "Sample": "sample",
+    "generate_dataset": "dataset",
+    "FloorPatch": "scene",
+    "Degradations": "degrade",
+    "apply_degradations": "degrade",
 }
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name: str) -> Any:
-    if name in _EXPORTS:
-        return getattr(importlib.import_module(_EXPORTS[name]), name)
-    raise AttributeError(f"module 'arenabench.generator' has no attribute {name!r}")
+__getattr__ = lazy_exports(__name__, _EXPORTS)

@@ -13,8 +13,7 @@ point in memory with one or more pipelines, find each parameter's breakdown poin
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from arenabench.lazy import lazy_exports
 
 _EXPORTS: dict[str, str] = {
     "Axis": "grid",
@@ -41,9 +40,4 @@ _EXPORTS: dict[str, str] = {
 
 __all__ = sorted(_EXPORTS)
 
-
-def __getattr__(name: str) -> Any:
-    if name in _EXPORTS:
-        module = importlib.import_module(f"{__name__}.{_EXPORTS[name]}")
-        return getattr(module, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__ = lazy_exports(__name__, _EXPORTS)
