@@ -10,6 +10,7 @@ on Mesa llvmpipe. Instance masks come from ``RenderFlags.SEG`` (exact, no MSAA),
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Any
 
 import cv2
 import numpy as np
@@ -58,17 +59,21 @@ class RenderOutput:
     instance_mask: np.ndarray | None = None
 
 
-def _textured_quad(pyrender, corners_xy: np.ndarray, z: float, image: np.ndarray, factor: float):
-    """A quad through ``corners_xy`` (texture TL, TR, BR, BL) textured with ``image``."""
-    positions = np.column_stack([corners_xy, np.full(4, z)]).astype(np.float32)
-    uv = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], dtype=np.float32)
+def _texture(pyrender, image: np.ndarray):
+    """A pyrender texture of an RGB ``image``."""
     sampler = pyrender.Sampler(
         magFilter=_GL_LINEAR, minFilter=_GL_LINEAR_MIPMAP_NEAREST,
         wrapS=_GL_CLAMP_TO_EDGE, wrapT=_GL_CLAMP_TO_EDGE,
     )
     # RGBA keeps every row 4-byte aligned (GL's default unpack alignment) whatever the width.
     rgba = np.concatenate([image, np.full((*image.shape[:2], 1), 255, np.uint8)], axis=2)
-    texture = pyrender.Texture(source=rgba, source_channels="RGBA", sampler=sampler)
+    return pyrender.Texture(source=rgba, source_channels="RGBA", sampler=sampler)
+
+
+def _textured_quad(pyrender, corners_xy: np.ndarray, z: float, texture, factor: float):
+    """A quad through ``corners_xy`` (texture TL, TR, BR, BL) showing ``texture``."""
+    positions = np.column_stack([corners_xy, np.full(4, z)]).astype(np.float32)
+    uv = np.array([[0, 1], [1, 1], [1, 0], [0, 0]], dtype=np.float32)
     f = float(min(factor, 1.0))
     material = pyrender.MetallicRoughnessMaterial(
         baseColorTexture=texture, baseColorFactor=np.array([f, f, f, 1.0], np.float32),
@@ -185,6 +190,10 @@ class Renderer:
         self._floor_nodes: list = []
         self._markers_key = None
         self._marker_nodes: list = []
+        # pyrender textures by the identity of their (cached, read-only) image: pyrender keeps
+        # a texture in the GL context while any mesh uses it, so reusing the object between
+        # scenes avoids re-uploading it
+        self._textures: dict[int, tuple[np.ndarray, Any]] = {}
         self._obstacle_nodes: list = []
         self._overlay_nodes: list = []
         self._camera_node = None
@@ -246,6 +255,15 @@ class Renderer:
             self._renderer.viewport_height = height
         self._size = (width, height)
 
+    def _cached_texture(self, image: np.ndarray):
+        hit = self._textures.get(id(image))
+        if hit is None or hit[0] is not image:
+            if len(self._textures) >= 64:
+                self._textures.clear()
+            hit = (image, _texture(self._pr, image))
+            self._textures[id(image)] = hit
+        return hit[1]
+
     def _update_static(self, scene: Scene) -> None:
         """Floor and marker nodes, rebuilt only when the arena or markers change."""
         f = np.float32(min(floor_factor(scene.lighting), 1.0))
@@ -256,7 +274,8 @@ class Renderer:
             e = floor_extent(scene.arena)
             floor = np.array([[-e, e], [e, e], [e, -e], [-e, -e]])
             self._floor_nodes = [
-                self._scene.add(_textured_quad(pr, floor, 0.0, floor_texture(scene.arena), f))
+                self._scene.add(_textured_quad(
+                    pr, floor, 0.0, self._cached_texture(floor_texture(scene.arena)), f))
             ]
             self._floor_key = scene.arena
         key = (scene.arena, scene.markers)
@@ -270,7 +289,8 @@ class Renderer:
                                             mk.quiet_zone_m)
                 sheet = marker_corners_world(scene.arena, mk, corner, pad_m=pad)
                 self._marker_nodes.append(
-                    self._scene.add(_textured_quad(pr, sheet, MARKER_Z, image, f))
+                    self._scene.add(
+                        _textured_quad(pr, sheet, MARKER_Z, self._cached_texture(image), f))
                 )
             self._markers_key = key
         # The lighting changes per scene: only the (uniform) colour factor is updated.

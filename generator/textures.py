@@ -34,7 +34,6 @@ def aruco_dictionary(name: str):
     return cv2.aruco.getPredefinedDictionary(code)
 
 
-@functools.lru_cache(maxsize=64)
 def marker_texture(dictionary: str, marker_id: int, side_m: float, quiet_zone_m: float):
     """A marker sheet: the marker image with a white quiet zone.
 
@@ -50,12 +49,20 @@ def marker_texture(dictionary: str, marker_id: int, side_m: float, quiet_zone_m:
     if not 0 <= marker_id < d.bytesList.shape[0]:
         raise ValueError(f"markers.ids: id {marker_id} is not in {dictionary}")
     side_px = (d.markerSize + 2) * MODULE_TEXELS
-    img = cv2.aruco.generateImageMarker(d, int(marker_id), side_px, borderBits=1)
     pad_px = round(quiet_zone_m / side_m * side_px)
+    # the sheet depends on the marker size only through the whole-texel padding, so scenes
+    # with other marker sizes share one cached array (and the renderer one GL texture)
+    return _marker_sheet(dictionary, int(marker_id), side_px, pad_px), pad_px * side_m / side_px
+
+
+@functools.lru_cache(maxsize=256)
+def _marker_sheet(dictionary: str, marker_id: int, side_px: int, pad_px: int) -> np.ndarray:
+    d = aruco_dictionary(dictionary)
+    img = cv2.aruco.generateImageMarker(d, marker_id, side_px, borderBits=1)
     img = cv2.copyMakeBorder(img, pad_px, pad_px, pad_px, pad_px, cv2.BORDER_CONSTANT, value=255)
     rgb = np.ascontiguousarray(np.repeat(img[:, :, None], 3, axis=2))
     rgb.setflags(write=False)
-    return rgb, pad_px * side_m / side_px
+    return rgb
 
 
 def floor_texture(arena: ArenaSpec, *, texels: int = FLOOR_TEXELS) -> np.ndarray:
