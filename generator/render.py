@@ -59,6 +59,11 @@ class RenderOutput:
     instance_mask: np.ndarray | None = None
 
 
+#: Texture TL, TR, BR, BL corners of a unit sheet, placed by its node's pose (v points from
+#: BL to TL so that the pose keeps the winding: pyrender culls back faces).
+_UNIT_QUAD = np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]])
+
+
 def _texture(pyrender, image: np.ndarray):
     """A pyrender texture of an RGB ``image``."""
     sampler = pyrender.Sampler(
@@ -278,21 +283,27 @@ class Renderer:
                     pr, floor, 0.0, self._cached_texture(floor_texture(scene.arena)), f))
             ]
             self._floor_key = scene.arena
-        key = (scene.arena, scene.markers)
+        # Marker sheets: one unit quad per marker, kept while the sheet images stay the same;
+        # a scene only moves and scales them (node pose), so drawn marker sizes cost nothing.
+        mk = scene.markers
+        sheets = [marker_texture(mk.dictionary, marker_id, mk.side_m, mk.quiet_zone_m)
+                  for marker_id in mk.ids]
+        key = tuple(id(image) for image, _ in sheets)
         if key != self._markers_key:
             for node in self._marker_nodes:
                 self._scene.remove_node(node)
-            self._marker_nodes = []
-            mk = scene.markers
-            for corner, marker_id in zip(CORNER_ORDER, mk.ids, strict=True):
-                image, pad = marker_texture(mk.dictionary, marker_id, mk.side_m,
-                                            mk.quiet_zone_m)
-                sheet = marker_corners_world(scene.arena, mk, corner, pad_m=pad)
-                self._marker_nodes.append(
-                    self._scene.add(
-                        _textured_quad(pr, sheet, MARKER_Z, self._cached_texture(image), f))
-                )
+            self._marker_nodes = [
+                self._scene.add(_textured_quad(pr, _UNIT_QUAD, 0.0,
+                                               self._cached_texture(image), f))
+                for image, _ in sheets
+            ]
             self._markers_key = key
+        for node, corner, (_, pad) in zip(self._marker_nodes, CORNER_ORDER, sheets, strict=True):
+            tl, tr, _, bl = marker_corners_world(scene.arena, mk, corner, pad_m=pad)
+            pose = np.eye(4)
+            pose[:2, 0], pose[:2, 1] = tr - tl, tl - bl  # unit u -> TL->TR, unit v -> BL->TL
+            pose[:2, 3], pose[2, 3] = bl, MARKER_Z
+            self._scene.set_pose(node, pose)
         # The lighting changes per scene: only the (uniform) colour factor is updated.
         for node in (*self._floor_nodes, *self._marker_nodes):
             for prim in node.mesh.primitives:
