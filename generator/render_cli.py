@@ -49,21 +49,9 @@ def load_scene(path: str | Path) -> Scene:
 
 def scene_gt_record(scene: Scene, *, sid: str = "000000", source: str = "scene") -> dict[str, Any]:
     """The GT record of a scene rendered on its own (same schema as dataset GT files)."""
-    from arenabench.generator.groundtruth import compute_ground_truth
-    from arenabench.generator.sample import GENERATOR_VERSION, GT_SCHEMA
+    from arenabench.generator.sample import gt_record
 
-    return {
-        "schema": GT_SCHEMA,
-        "id": sid,
-        "image": f"images/{sid}.png",
-        "preset": source,
-        "seed": 0,
-        "index": 0,
-        "generator_version": GENERATOR_VERSION,
-        "params": {},
-        "overrides": {},
-        **compute_ground_truth(scene),
-    }
+    return gt_record(scene, sid=sid, preset=source)
 
 
 def render_scene_files(scene: Scene, out: str | Path, *, source: str = "scene") -> Path:

@@ -128,21 +128,51 @@ def make_sample(
             out.rgb = np.ascontiguousarray(degrade(out.rgb, rng))
     t2 = time.perf_counter()
     sid = scene_id(index)
-    gt = {
-        "schema": GT_SCHEMA,
-        "id": sid,
-        "image": f"images/{sid}.{image_ext}",
-        "preset": preset_name or (preset if isinstance(preset, str) else "custom"),
-        "seed": int(seed),
-        "index": int(index),
-        "generator_version": GENERATOR_VERSION,
-        "params": rounded(sampled.params),
-        "overrides": {k: _jsonable(v) for k, v in sorted((overrides or {}).items())},
-        **compute_ground_truth(sampled.scene, frame=frame),
-    }
+    gt = gt_record(
+        sampled.scene, sid=sid, preset=preset_name or (preset if isinstance(preset, str)
+                                                      else "custom"),
+        seed=seed, index=index, params=rounded(sampled.params), overrides=overrides,
+        frame=frame, image_ext=image_ext,
+    )
     t3 = time.perf_counter()
     timings = {"sample": (t1 - t0) * 1e3, "render": (t2 - t1) * 1e3, "gt": (t3 - t2) * 1e3}
     return Sample(id=sid, gt=gt, render=out, timings_ms=timings)
+
+
+def gt_record(scene: Any, *, sid: str, preset: str, seed: int = 0, index: int = 0,
+              params: dict[str, Any] | None = None, overrides: dict[str, Value] | None = None,
+              frame: FrameSpec | None = None, image_ext: str = "png") -> dict[str, Any]:
+    """The GT file content (schema ``arenabench.gt/1``) of a scene rendered as image ``sid``.
+
+    Parameters
+    ----------
+    scene : Scene
+        The rendered scene.
+    sid : str, keyword-only
+        Image id (``"000042"``).
+    preset : str, keyword-only
+        Preset name (or the scene file's name) recorded in the GT.
+    seed, index : int, keyword-only
+        Run seed and scene index (0 for a scene rendered on its own).
+    params, overrides : dict, keyword-only
+        Sampled parameter values and the ``--set`` overrides.
+    frame : FrameSpec, keyword-only
+        Rectified frame (default 1000 px, inner corners).
+    image_ext : str, keyword-only
+        Extension of the image path recorded in the GT.
+    """
+    return {
+        "schema": GT_SCHEMA,
+        "id": sid,
+        "image": f"images/{sid}.{image_ext}",
+        "preset": preset,
+        "seed": int(seed),
+        "index": int(index),
+        "generator_version": GENERATOR_VERSION,
+        "params": dict(params or {}),
+        "overrides": {k: _jsonable(v) for k, v in sorted((overrides or {}).items())},
+        **compute_ground_truth(scene, frame=frame),
+    }
 
 
 def _jsonable(value: Any) -> Any:
