@@ -28,6 +28,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
                    help="rendering processes (default: the machine's cores); the output does "
                         "not depend on it")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                   help="render on this Dask cluster instead (files are written here, the same "
+                        "bytes as a local run; see docs/scale-out.md)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     return p
 
@@ -43,10 +46,14 @@ def main(argv: list[str] | None = None) -> int:
         overrides = parse_overrides(args.overrides)
         result = generate_dataset(
             args.out, preset=args.preset, count=args.count, seed=args.seed,
-            overrides=overrides, workers=args.workers, progress=not args.no_progress,
+            overrides=overrides, workers=args.workers, scheduler=args.scheduler,
+            progress=not args.no_progress,
         )
     except (DatasetError, SamplingError, ValueError) as exc:
         print(f"arenabench generate: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # e.g. the scheduler cannot be reached
+        print(f"arenabench generate: error: {type(exc).__name__}: {exc}", file=sys.stderr)
         return 2
     print(result.summary(), file=sys.stderr)
     return 0

@@ -9,7 +9,9 @@ with the run's arguments, so a re-run can tell an interrupted run of the same ar
 (resumed: scenes whose image and GT exist are skipped) from a different one (refused); the
 manifest and ``coco.json`` are written last, in id order, and ``dataset.json`` is rewritten
 with ``"complete": true``. Output is byte-identical for the same arguments whatever the
-number of workers (one spawned process per worker, one renderer each).
+number of workers (one spawned process per worker, one renderer each). On a Dask cluster
+(``scheduler=``) the workers render and encode, and this process writes the files they send
+back, so the output folder needs no shared file system.
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ import json
 import multiprocessing
 import os
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -133,21 +136,54 @@ def _encode_png(rgb: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def _render_one(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
-    args_dict, out, index = task[1], Path(task[4]), task[3]
-    renderer = _WORKER["renderer"]
+def _render_bytes(
+    task: tuple[str, dict[str, Any], int, int, str], renderer: Any
+) -> dict[str, Any]:
+    """Render one scene and encode it: ``{"id", "png_bytes", "gt_text", timings...}``."""
+    args_dict, index = task[1], task[3]
     sample = make_sample(args_dict["preset"], seed=task[2], index=index,
                          overrides=_parse_stored(args_dict["overrides"]), renderer=renderer)
     t1 = time.perf_counter()
     png = _encode_png(sample.rgb)
     t2 = time.perf_counter()
-    atomic_write_bytes(out / "images" / f"{sample.id}.png", png)
-    atomic_write_text(out / "gt" / f"{sample.id}.json", dumps_json(sample.gt))
+    return {**sample.timings_ms, "id": sample.id, "png_bytes": png,
+            "gt_text": dumps_json(sample.gt), "encode": (t2 - t1) * 1000}
+
+
+def _write_rendered(out: Path, res: dict[str, Any]) -> dict[str, Any]:
+    """Write a rendered scene's files; returns its record without the bytes."""
+    t2 = time.perf_counter()
+    atomic_write_bytes(out / "images" / f"{res['id']}.png", res["png_bytes"])
+    atomic_write_text(out / "gt" / f"{res['id']}.json", res["gt_text"])
     t3 = time.perf_counter()
+    return {**{k: v for k, v in res.items() if k not in ("png_bytes", "gt_text")},
+            "write": (t3 - t2) * 1000}
+
+
+def _render_one(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
+    renderer = _WORKER["renderer"]
+    res = _write_rendered(Path(task[4]), _render_bytes(task, renderer))
     if "gl" not in _WORKER:
         _WORKER["gl"] = renderer.gl_info()
-    return {"id": sample.id, **sample.timings_ms, "encode": (t2 - t1) * 1000,
-            "write": (t3 - t2) * 1000, "gl": _WORKER["gl"]}
+    return {**res, "gl": _WORKER["gl"]}
+
+
+_CLUSTER_LOCAL = threading.local()
+
+
+def _render_on_cluster(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
+    """A Dask worker's unit: render and encode, return the bytes (the client writes them).
+
+    The renderer is created on first use, one per worker thread (an OpenGL context is current
+    in one thread only), and reused.
+    """
+    renderer = getattr(_CLUSTER_LOCAL, "renderer", None)
+    if renderer is None:
+        from arenabench.generator.render import Renderer
+
+        renderer = _CLUSTER_LOCAL.renderer = Renderer()
+        _CLUSTER_LOCAL.gl = renderer.gl_info()
+    return {**_render_bytes(task, renderer), "gl": _CLUSTER_LOCAL.gl}
 
 
 def _parse_stored(overrides: dict[str, str]) -> dict[str, Value]:
@@ -286,6 +322,7 @@ def generate_dataset(
     seed: int,
     overrides: dict[str, Value] | None = None,
     workers: int = 1,
+    scheduler: Any = None,
     progress: bool = True,
 ) -> DatasetResult:
     """Render ``count`` scenes of ``preset`` into ``out`` (resuming an interrupted run).
@@ -302,6 +339,11 @@ def generate_dataset(
         Parsed ``--set`` values.
     workers : int, keyword-only
         Rendering processes (1 = this process).
+    scheduler : str or distributed.Client, optional, keyword-only
+        ``tcp://HOST:PORT`` of a Dask scheduler (or a connected client): the cluster's
+        workers render and send back the encoded files, which are written here (workers need
+        no access to ``out``); ``workers`` is then ignored. The files are the same bytes as a
+        local run's.
     progress : bool, keyword-only
         Show a tqdm progress bar on stderr.
 
@@ -336,7 +378,13 @@ def generate_dataset(
     results: list[dict[str, Any]] = []
     bar = _progress(len(tasks), progress)
     try:
-        if workers == 1 or len(tasks) <= 1:
+        if scheduler is not None and tasks:
+            from arenabench.cluster import cluster_map
+
+            for _, res in cluster_map(_render_on_cluster, tasks, scheduler):
+                results.append(_write_rendered(root, res))
+                bar.update(1)
+        elif workers == 1 or len(tasks) <= 1:
             _init_worker(None)
             for task in tasks:
                 results.append(_render_one(task))

@@ -88,22 +88,12 @@ def _local_pool(tasks: list[SweepTask], workers: int) -> Iterator[dict[str, Any]
 
 
 def _dask(tasks: list[SweepTask], scheduler: Any) -> Iterator[dict[str, Any]]:
-    from distributed import Client
-    from distributed import as_completed as dask_completed
+    from arenabench.cluster import cluster_map
 
     from .task import run_task
 
-    client = scheduler if isinstance(scheduler, Client) else Client(str(scheduler))
-    try:
-        futures = client.map(run_task, tasks, pure=False)
-        try:
-            for fut in dask_completed(futures):
-                yield fut.result()
-        finally:
-            client.cancel(futures)
-    finally:
-        if client is not scheduler:
-            client.close()
+    for _, out in cluster_map(run_task, tasks, scheduler):
+        yield out
 
 
 def execute(
