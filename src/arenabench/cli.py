@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "eval": ("arenabench.eval.cli", "score a pipeline on a dataset (reports, JUnit, exit codes)"),
     "bench": ("arenabench.eval.bench_cli", "measure generation and scoring throughput here"),
     "sweep": ("arenabench.eval.sweep_cli", "vary scene parameters, score, find breakdown points"),
+    "grade": ("arenabench.eval.grade_cli", "grade many teams' submissions, rank them (resumable)"),
     "demo": ("arenabench.eval.demo", "generate a small eyrc set, score the reference pipeline"),
 }
 

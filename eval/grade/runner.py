@@ -1,0 +1,446 @@
+"""Grade many teams' submissions on one dataset: run, score, report, rank; resumable.
+
+Every (team, image) pair is one unit: the team's command run once on one image, exactly as
+``arenabench eval --cmd`` runs it. Units go to a local thread pool (the work happens in
+subprocesses) or to a Dask cluster (:func:`arenabench.cluster.cluster_map`); a team's
+reports are written as soon as its last unit is back, followed by a small state file. A
+later run skips a team whose state file says it was graded on the same dataset (SHA-256 of
+``manifest.jsonl``), the same submission bytes (:func:`submission_hash`) and the same
+grading options, so an interrupted grade resumes where it stopped and a finished one does
+not run again. Out folder layout::
+
+    OUT/leaderboard.json  leaderboard.csv  leaderboard.html
+    OUT/teams/TEAM/report.json  results.csv  report.md  report.html  junit.xml
+    OUT/teams/TEAM/grade-state.json          (written last, atomically)
+
+A submission's crash, hang, garbage or trickery only ever fails its own images; an error of
+the grader itself on one team (say, a report that cannot be written) is reported and the
+other teams go on.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import sys
+from collections.abc import Callable, Iterator, Sequence
+from concurrent.futures import ThreadPoolExecutor, as_completed
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from arenabench import __version__
+from arenabench.fileio import atomic_write_json, dumps_json, sha256_bytes, sha256_file
+
+from ..dataset import AREA_REFERENCES, Dataset, load_dataset
+from ..metrics import DEFAULT_TOLERANCE
+from ..pipelines import OUTPUT_MODES, CommandPipeline
+from ..records import Prediction, Summary
+from ..reports import FORMATS, write_reports
+from ..run_limits import RunSettings
+from ..runner import _result, build_report, default_workers
+from .leaderboard import LeaderboardRow, leaderboard_dict, rank_rows
+from .submissions import SubmissionsError, Team, find_teams, submission_hash
+
+#: The competition's command; ``{submission}`` is the team folder's absolute path.
+DEFAULT_COMMAND = "python3 {submission}/map.py --image {image}"
+STATE_FILE = "grade-state.json"
+STATE_SCHEMA = "arenabench.grade-state/1"
+TEAMS_DIR = "teams"
+LEADERBOARD_FILES: tuple[str, ...] = ("leaderboard.json", "leaderboard.csv", "leaderboard.html")
+#: Variables every team's command gets on top of ``RunSettings.env``: Python must not write
+#: ``__pycache__`` into a submission (submissions are read-only inputs).
+TEAM_ENV: dict[str, str] = {"PYTHONDONTWRITEBYTECODE": "1"}
+
+
+@dataclass(frozen=True)
+class GradeOptions:
+    """How every team is run and scored; a change means every team is graded again.
+
+    Parameters
+    ----------
+    command : str
+        Command template: ``{submission}`` (the team folder's absolute path), ``{image}``,
+        ``{python}``; relative paths are resolved from the team folder.
+    output : {"obstacles", "json"}
+        How the command answers (as ``arenabench eval --output``).
+    tolerance : float
+        Largest passing ``|area_rel_err|``.
+    area_reference : str
+        GT area compared with (a key of ``AREA_REFERENCES``).
+    settings : RunSettings
+        Limits and sandbox of every run.
+    formats : tuple of str
+        Report files written per team (keys of ``FORMATS``); not part of the fingerprint,
+        but a team whose files are missing is graded again.
+    """
+
+    command: str = DEFAULT_COMMAND
+    output: str = "obstacles"
+    tolerance: float = DEFAULT_TOLERANCE
+    area_reference: str = "visible"
+    settings: RunSettings = field(default_factory=RunSettings)
+    formats: tuple[str, ...] = tuple(FORMATS)
+
+    def __post_init__(self) -> None:
+        if self.output not in OUTPUT_MODES:
+            raise ValueError(f"output must be one of {OUTPUT_MODES}, got {self.output!r}")
+        if not self.tolerance >= 0:
+            raise ValueError(f"tolerance must be >= 0, got {self.tolerance!r}")
+        if self.area_reference not in AREA_REFERENCES:
+            raise ValueError(f"area_reference must be one of {sorted(AREA_REFERENCES)}, "
+                             f"got {self.area_reference!r}")
+        bad = [f for f in self.formats if f not in FORMATS]
+        if bad or not self.formats:
+            raise ValueError(f"formats must be a non-empty subset of {sorted(FORMATS)}, "
+                             f"got {list(self.formats)!r}")
+        try:
+            argv = shlex.split(self.command)
+        except ValueError as exc:
+            raise ValueError(f"command cannot be split into arguments: {exc}") from None
+        if not argv:
+            raise ValueError(f"command must not be empty, got {self.command!r}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """What is fingerprinted and written into ``leaderboard.json["options"]``."""
+        return {
+            "command": self.command,
+            "output": self.output,
+            "tolerance": self.tolerance,
+            "area_reference": self.area_reference,
+            "run": json.loads(json.dumps(asdict(self.settings), sort_keys=True)),
+            "arenabench": __version__,
+        }
+
+    def fingerprint(self) -> str:
+        """SHA-256 of :meth:`to_dict` in canonical JSON."""
+        return sha256_bytes(dumps_json(self.to_dict()).encode())
+
+
+@dataclass(frozen=True)
+class GradeUnit:
+    """One team's command on one image (what a worker runs)."""
+
+    team: str
+    submission: str
+    image: str
+    command: str
+    output: str
+    settings: RunSettings
+
+
+@dataclass
+class GradeResult:
+    """What :func:`grade` did.
+
+    Attributes
+    ----------
+    rows : list of LeaderboardRow
+        Ranked, best first.
+    graded, skipped : list of str
+        Teams run now / found already graded.
+    errors : dict
+        Team -> why the grader could not finish it (such teams are not ranked).
+    files : dict
+        Leaderboard file name -> path.
+    """
+
+    rows: list[LeaderboardRow]
+    graded: list[str]
+    skipped: list[str]
+    errors: dict[str, str]
+    files: dict[str, Path]
+
+
+def team_command(template: str, submission: str | os.PathLike[str]) -> str:
+    """``template`` with ``{submission}`` replaced by the folder's absolute path, argument by
+    argument (paths with spaces or quotes stay one argument)."""
+    path = str(Path(submission).absolute())
+    return shlex.join(arg.replace("{submission}", path) for arg in shlex.split(template))
+
+
+def _team_pipeline(
+    command: str, *, settings: RunSettings, output: str, team: str, base_dir: str
+) -> CommandPipeline:
+    """The team's :class:`CommandPipeline`: the only place that knows its signature.
+
+    With the sandboxed runner (``CommandPipeline(..., settings=RunSettings)``) the settings
+    go through whole; with the older one (``timeout_s=``, ``env=``) the timeout and the
+    environment do, and the other limits are not enforced.
+    """
+    settings = replace(settings, env={**settings.env, **TEAM_ENV})
+    if "settings" in CommandPipeline.__dataclass_fields__:
+        return CommandPipeline(  # type: ignore[call-arg]
+            command, settings=settings, output=output, name=team, base_dir=base_dir
+        )
+    return CommandPipeline(command, timeout_s=settings.limits.timeout_s, output=output,
+                           env=dict(settings.env), name=team, base_dir=base_dir)
+
+
+def run_unit(unit: GradeUnit) -> Prediction:
+    """Run one team's command on one image; never raises (a grader error is a ``crash``)."""
+    try:
+        pipe = _team_pipeline(unit.command, settings=unit.settings, output=unit.output,
+                              team=unit.team, base_dir=unit.submission)
+        return pipe.run(Path(unit.image))
+    except Exception as exc:
+        return Prediction(status="crash", message=f"grader: {type(exc).__name__}: {exc}"[:500])
+
+
+# ----------------------------------------------------------------------------- state
+
+
+def _read_state(team_dir: Path) -> dict[str, Any] | None:
+    try:
+        state = json.loads((team_dir / STATE_FILE).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    if not isinstance(state, dict) or state.get("schema") != STATE_SCHEMA:
+        return None
+    return state
+
+
+def _state_valid(state: dict[str, Any] | None, expect: dict[str, str], team_dir: Path,
+                 formats: Sequence[str]) -> bool:
+    if state is None or any(state.get(k) != v for k, v in expect.items()):
+        return False
+    if not all((team_dir / FORMATS[f]).is_file() for f in formats):
+        return False
+    try:
+        Summary.from_dict(state["summary"])
+    except (KeyError, TypeError, ValueError):
+        return False
+    return True
+
+
+def _report_link(team: str, formats: Sequence[str]) -> str:
+    name = FORMATS["html"] if "html" in formats else FORMATS[formats[0]]
+    return f"{TEAMS_DIR}/{team}/{name}"
+
+
+def _row(team: str, state: dict[str, Any]) -> LeaderboardRow:
+    return LeaderboardRow(team=team, summary=Summary.from_dict(state["summary"]),
+                          report=state["report"], submission_sha256=state["submission_sha256"])
+
+
+# ----------------------------------------------------------------------------- execution
+
+
+def _threads(units: list[GradeUnit], workers: int) -> Iterator[tuple[int, Prediction]]:
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="arenabench-grade")
+    futures = {pool.submit(run_unit, u): i for i, u in enumerate(units)}
+    try:
+        for fut in as_completed(futures):
+            yield futures[fut], fut.result()
+    finally:
+        pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _execute(units: list[GradeUnit], *, workers: int | None,
+             scheduler: Any) -> Iterator[tuple[int, Prediction]]:
+    if scheduler is not None:
+        from arenabench.cluster import cluster_map
+
+        return cluster_map(run_unit, units, scheduler)
+    n = min(workers or default_workers(), max(1, len(units)))
+    return _threads(units, n)
+
+
+def check_out_dir(out: Path, submissions: Path) -> None:
+    """Refuse an output folder inside the submissions, or one holding something else.
+
+    Raises
+    ------
+    ValueError
+        Naming ``--out`` and the problem.
+    """
+    out, submissions = out.resolve(), submissions.resolve()
+    if out == submissions or submissions in out.parents:
+        raise ValueError(f"--out {out}: must not be inside SUBMISSIONS {submissions} "
+                         "(submissions are read-only inputs)")
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {out}: exists and is not a folder")
+    if out.is_dir() and any(out.iterdir()) and not (out / TEAMS_DIR).is_dir():
+        raise ValueError(f"--out {out}: not empty and not the output of an earlier "
+                         "'arenabench grade' (no teams/ folder): use another folder")
+
+
+def grade(
+    dataset: str | os.PathLike[str] | Dataset,
+    submissions: str | os.PathLike[str],
+    out: str | os.PathLike[str],
+    *,
+    options: GradeOptions | None = None,
+    workers: int | None = None,
+    scheduler: Any = None,
+    progress: bool = False,
+    log: Callable[[str], None] | None = None,
+) -> GradeResult:
+    """Grade every team folder in ``submissions`` on ``dataset`` and write the leaderboard.
+
+    Parameters
+    ----------
+    dataset : path-like or Dataset
+        The (hidden) dataset.
+    submissions : path-like
+        One folder per team; the folder's name is the team's.
+    out : path-like
+        Output folder (see the module docstring for its layout).
+    options : GradeOptions, optional, keyword-only
+        Command, scoring and run settings (default: the competition's command).
+    workers : int, optional, keyword-only
+        Commands run at once here (default: the machine's cores).
+    scheduler : str or distributed.Client, optional, keyword-only
+        ``tcp://HOST:PORT`` of a Dask cluster to run the units on instead; the dataset and
+        the submissions must be at the same paths on every worker.
+    progress : bool, keyword-only
+        tqdm bar over units on stderr.
+    log : callable, optional, keyword-only
+        Receives one line per team (graded, skipped or failed).
+
+    Returns
+    -------
+    GradeResult
+
+    Raises
+    ------
+    DatasetError, SubmissionsError, ValueError
+        Before anything runs, for a bad dataset, submissions folder, output folder or option.
+    """
+    from tqdm import tqdm
+
+    opts = options or GradeOptions()
+    if workers is not None and (int(workers) != workers or workers < 1):
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    data = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
+    teams = find_teams(submissions)
+    root = Path(out).resolve()
+    check_out_dir(root, Path(submissions))
+    emit = log or (lambda line: None)
+    expect_common = {
+        "dataset_manifest_sha256": sha256_file(data.root / "manifest.jsonl"),
+        "options_sha256": opts.fingerprint(),
+    }
+    (root / TEAMS_DIR).mkdir(parents=True, exist_ok=True)
+
+    states: dict[str, dict[str, Any]] = {}
+    todo: list[tuple[Team, str]] = []
+    skipped: list[str] = []
+    for team in teams:
+        digest = submission_hash(team.path)
+        team_dir = root / TEAMS_DIR / team.name
+        state = _read_state(team_dir)
+        expect = {**expect_common, "team": team.name, "submission_sha256": digest}
+        if _state_valid(state, expect, team_dir, opts.formats):
+            assert state is not None
+            states[team.name] = state
+            skipped.append(team.name)
+            emit(f"{team.name}: skipped: already graded ({_passed(state)})")
+        else:
+            (team_dir / STATE_FILE).unlink(missing_ok=True)  # stale: never trusted again
+            todo.append((team, digest))
+
+    units: list[GradeUnit] = []
+    owner: list[int] = []
+    for k, (team, _) in enumerate(todo):
+        command = team_command(opts.command, team.path)
+        for sample in data.samples:
+            units.append(GradeUnit(team=team.name, submission=str(team.path),
+                                   image=str(sample.image_path), command=command,
+                                   output=opts.output, settings=opts.settings))
+            owner.append(k)
+
+    n_images = len(data.samples)
+    preds: list[list[Prediction | None]] = [[None] * n_images for _ in todo]
+    left = [n_images] * len(todo)
+    graded: list[str] = []
+    errors: dict[str, str] = {}
+    bar = tqdm(total=len(units), desc="grade", unit="run", disable=not progress)
+
+    def say(line: str) -> None:
+        if progress:
+            bar.write(line, file=sys.stdout)
+        else:
+            emit(line)
+
+    try:
+        for i, pred in _execute(units, workers=workers, scheduler=scheduler):
+            k = owner[i]
+            preds[k][i - k * n_images] = pred
+            left[k] -= 1
+            bar.update(1)
+            if left[k] == 0:
+                team, digest = todo[k]
+                try:
+                    states[team.name] = _finish_team(
+                        team, digest, [p for p in preds[k] if p is not None], data, root,
+                        opts, expect_common)
+                except Exception as exc:  # the grader's own failure on this team only
+                    errors[team.name] = f"{type(exc).__name__}: {exc}"
+                    say(f"{team.name}: error: {errors[team.name]}")
+                    continue
+                preds[k] = []  # free the outputs kept for the report
+                graded.append(team.name)
+                say(f"{team.name}: graded ({_passed(states[team.name])})")
+    finally:
+        bar.close()
+
+    rows = rank_rows(_row(t.name, states[t.name]) for t in teams if t.name in states)
+    files = write_leaderboard_files(root, rows, data=data, opts=opts,
+                                    manifest_sha256=expect_common["dataset_manifest_sha256"])
+    return GradeResult(rows=rows, graded=graded, skipped=skipped, errors=errors, files=files)
+
+
+def _passed(state: dict[str, Any]) -> str:
+    s = state["summary"]
+    return f"{s.get('n_passed', 0)}/{s.get('n', 0)} passed"
+
+
+def _finish_team(team: Team, digest: str, preds: list[Prediction], data: Dataset, root: Path,
+                 opts: GradeOptions, expect_common: dict[str, str]) -> dict[str, Any]:
+    results = [
+        _result(s, p, tolerance=opts.tolerance, area_reference=opts.area_reference)
+        for s, p in zip(data.samples, preds, strict=True)
+    ]
+    report = build_report(results, pipeline=team.name, dataset=str(data.root),
+                          area_reference=opts.area_reference, tolerance=opts.tolerance)
+    team_dir = root / TEAMS_DIR / team.name
+    write_reports(report, team_dir, formats=opts.formats, dataset=data)
+    state = {
+        "schema": STATE_SCHEMA,
+        "team": team.name,
+        **expect_common,
+        "submission_sha256": digest,
+        "options": opts.to_dict(),
+        "report": _report_link(team.name, opts.formats),
+        "summary": report.summary.to_dict(),
+    }
+    atomic_write_json(team_dir / STATE_FILE, state)  # last: marks the team as graded
+    return state
+
+
+def write_leaderboard_files(root: Path, rows: list[LeaderboardRow], *, data: Dataset,
+                            opts: GradeOptions, manifest_sha256: str) -> dict[str, Path]:
+    """Write ``leaderboard.json``, ``.csv`` and ``.html`` into ``root`` (atomically)."""
+    from ..reports.leaderboard_report import write_leaderboard
+
+    doc = leaderboard_dict(
+        rows,
+        dataset={"path": str(data.root), "manifest_sha256": manifest_sha256,
+                 "n": len(data.samples)},
+        options=opts.to_dict(),
+    )
+    return write_leaderboard(doc, root)
+
+
+__all__ = [
+    "DEFAULT_COMMAND",
+    "GradeOptions",
+    "GradeResult",
+    "GradeUnit",
+    "SubmissionsError",
+    "grade",
+    "run_unit",
+    "team_command",
+]

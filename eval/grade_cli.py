@@ -1,0 +1,145 @@
+"""``arenabench grade``: run every team's submission on a (hidden) dataset, write each team's
+report and a ranked leaderboard; re-running skips teams already graded.
+
+Exit status: 0 done; 1 the grader could not finish some team (the others are ranked);
+2 usage error (bad dataset, submissions folder, output folder or option; no cluster);
+130 interrupted (teams already finished stay graded: run again to resume).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from .pipelines import OUTPUT_MODES
+
+PROG = "arenabench grade"
+
+EPILOG = """\
+examples:
+  arenabench grade hidden/ submissions/ --out results/
+  arenabench grade hidden/ submissions/ --out results/ --timeout 30 --workers 8
+  arenabench grade hidden/ submissions/ --out results/ --cmd "python3 {submission}/run.py {image}"
+  arenabench grade hidden/ submissions/ --out results/ --scheduler tcp://10.0.0.5:8786
+
+SUBMISSIONS holds one folder per team; the folder's name is the team. Each team's command
+(default: python3 {submission}/map.py --image {image}) runs once per image as for
+'arenabench eval --cmd': {submission} is the team folder's absolute path, {image} the image,
+{python} the Python running arenabench; relative paths are resolved from the team folder.
+Submissions are only read.
+
+outputs in --out: teams/TEAM/ (report.json, results.csv, report.md, report.html, junit.xml,
+grade-state.json), leaderboard.json (schema arenabench.leaderboard/1), leaderboard.csv,
+leaderboard.html. Ranked by pass rate, then count exact rate, then median |area error|, then
+median latency, then team name.
+
+Resuming: a team graded before on the same dataset (manifest sha256), with the same submission
+files and the same options is skipped ("skipped: already graded"); so is everything after an
+interruption that had finished.
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``arenabench grade``."""
+    from .dataset import AREA_REFERENCES
+    from .grade.runner import DEFAULT_COMMAND
+    from .reports import FORMATS
+    from .run_limits import add_run_arguments
+
+    p = argparse.ArgumentParser(
+        prog=PROG,
+        description="Grade many teams' submissions on one dataset and rank them.",
+        epilog=EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    p.add_argument("dataset", help="dataset folder (holds manifest.jsonl and gt/)")
+    p.add_argument("submissions", help="folder with one sub-folder per team")
+    p.add_argument("--out", type=Path, required=True, help="output folder")
+    p.add_argument("--cmd", default=DEFAULT_COMMAND,
+                   help="command template per team and image (default: %(default)r)")
+    p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
+                   help="how the command answers: obstacles.txt in its cwd (default) or a "
+                        "JSON line")
+    p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
+    p.add_argument("--area-reference", choices=tuple(AREA_REFERENCES), default="visible")
+    p.add_argument("--formats", default=",".join(FORMATS),
+                   help="report files per team (default: %(default)s)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="commands run at once here (default: cores)")
+    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                   help="run on an existing Dask cluster (dataset and submissions at the same "
+                        "paths on every worker; see docs/scale-out.md)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_run_arguments(p)
+    return p
+
+
+#: GradeOptions parameter -> the option that sets it (for error messages).
+_OPTION_NAMES = {"command": "--cmd", "formats": "--formats", "tolerance": "--tolerance"}
+
+
+def _error(message: str) -> int:
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    return 2
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``arenabench grade``; returns the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help (0) or usage error (2)
+        return int(exc.code or 0)
+    if args.workers is not None and args.workers < 1:
+        return _error(f"--workers must be >= 1, got {args.workers}")
+    if args.scheduler is not None and args.workers is not None:
+        return _error("--workers and --scheduler exclude each other (the cluster's workers "
+                      "run the commands)")
+
+    from .dataset import DatasetError, load_dataset
+    from .grade.runner import GradeOptions, check_out_dir, grade
+    from .grade.submissions import SubmissionsError, find_teams
+    from .run_limits import run_settings_from_args
+
+    formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
+    try:
+        options = GradeOptions(command=args.cmd, output=args.output, tolerance=args.tolerance,
+                               area_reference=args.area_reference,
+                               settings=run_settings_from_args(args), formats=formats)
+        dataset = load_dataset(args.dataset)
+        teams = find_teams(args.submissions)
+        check_out_dir(args.out, Path(args.submissions))
+    except (DatasetError, SubmissionsError, ValueError) as exc:
+        msg = str(exc)
+        for param, option in _OPTION_NAMES.items():  # GradeOptions names its parameters
+            if msg.startswith(f"{param} "):
+                msg = f"{option}{msg[len(param):]}"
+        return _error(msg)
+    print(f"{PROG}: {len(teams)} teams x {len(dataset.samples)} images", file=sys.stderr)
+    try:
+        result = grade(dataset, args.submissions, args.out, options=options,
+                       workers=args.workers, scheduler=args.scheduler,
+                       progress=not args.no_progress, log=print)
+    except (DatasetError, SubmissionsError, ValueError) as exc:
+        return _error(str(exc))
+    except OSError as exc:  # e.g. the scheduler cannot be reached
+        return _error(f"{type(exc).__name__}: {exc}")
+    except KeyboardInterrupt:
+        print(f"{PROG}: interrupted: finished teams stay graded; run the same command again "
+              "to resume", file=sys.stderr)
+        return 130
+    failed = f", {len(result.errors)} failed" if result.errors else ""
+    print(f"{len(result.graded)} graded, {len(result.skipped)} skipped{failed}; "
+          f"leaderboard of {len(result.rows)} teams:")
+    for name, path in result.files.items():
+        print(f"  {name:<16} {path}")
+    if result.errors:
+        for team, why in result.errors.items():
+            print(f"{PROG}: could not grade {team}: {why}", file=sys.stderr)
+        return 1
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

@@ -1,0 +1,5 @@
+"""Takes far longer than any --timeout the tests give."""
+
+import time
+
+time.sleep(120)

@@ -1,0 +1,360 @@
+"""``arenabench grade`` end to end: six real submissions (tests/grade_teams) run as
+subprocesses on a small rendered eyrc set are ranked as expected; grading again skips them
+all; a Dask ``LocalCluster`` on loopback gives the same leaderboard (latency aside); changed
+submissions or options are graded again, an interrupted grade resumes; usage errors exit 2;
+the leaderboard page works in a real headless chromium."""
+
+import csv
+import json
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from arenabench.cli import main as arenabench_main
+from arenabench.eval.grade.leaderboard import (
+    LEADERBOARD_JSON_SCHEMA,
+    LEADERBOARD_SCHEMA,
+    LeaderboardRow,
+    rank_rows,
+)
+from arenabench.eval.grade.runner import STATE_FILE, GradeOptions, grade, team_command
+from arenabench.eval.grade.submissions import submission_hash
+from arenabench.eval.pipelines import CommandPipeline
+from arenabench.eval.records import Summary
+from arenabench.eval.run_limits import RunLimits, RunSettings
+
+TEAMS_SRC = Path(__file__).resolve().parent / "grade_teams"
+TEAMS = ("cheating", "correct", "crashing", "partly_right", "slow", "total_area")
+COUNT, SEED, TIMEOUT = 6, 3, "1.5"
+#: CommandPipeline runs each image in a private directory with the image under a neutral name
+#: (the sandboxed runner); until then a team can read the dataset's files next to its image.
+SANDBOXED = "settings" in CommandPipeline.__dataclass_fields__
+
+
+def _env() -> dict[str, str]:
+    """This environment with this Python's bin folder first, so 'python3' has arenabench."""
+    return {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"}
+
+
+def _grade_cli(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "arenabench", "grade", *args, "--no-progress"],
+                          capture_output=True, text=True, env=_env(), timeout=600)
+
+
+def _without_latency(doc):
+    """A leaderboard document without wall-clock fields (the only ones allowed to differ)."""
+    doc = json.loads(json.dumps(doc))
+    for t in doc["teams"]:
+        t.pop("latency_ms_median")
+    return doc
+
+
+@pytest.fixture(scope="module")
+def dataset(tmp_path_factory):
+    from arenabench.generator.dataset import generate_dataset
+
+    out = tmp_path_factory.mktemp("grade-data") / "hidden"
+    generate_dataset(out, preset="eyrc", count=COUNT, seed=SEED, workers=1, progress=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def submissions(tmp_path_factory):
+    root = tmp_path_factory.mktemp("grade-subs") / "submissions"
+    root.mkdir()
+    for team in TEAMS:
+        shutil.copytree(TEAMS_SRC / team, root / team)
+    return root
+
+
+@pytest.fixture(scope="module")
+def graded(dataset, submissions, tmp_path_factory):
+    out = tmp_path_factory.mktemp("grade-out") / "results"
+    proc = _grade_cli(str(dataset), str(submissions), "--out", str(out), "--timeout", TIMEOUT,
+                      "--workers", "2")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return out, proc
+
+
+def _gt_counts(dataset):
+    return [json.loads(p.read_text())["count"] for p in sorted((dataset / "gt").glob("*.json"))]
+
+
+def test_six_teams_are_ranked_as_expected(graded, dataset):
+    jsonschema = pytest.importorskip("jsonschema")
+    out, proc = graded
+    doc = json.loads((out / "leaderboard.json").read_text())
+    jsonschema.validate(doc, LEADERBOARD_JSON_SCHEMA)
+    assert doc["schema"] == LEADERBOARD_SCHEMA
+    assert doc["dataset"]["n"] == COUNT and len(doc["dataset"]["manifest_sha256"]) == 64
+    assert doc["options"]["command"] == "python3 {submission}/map.py --image {image}"
+    assert doc["options"]["run"]["limits"]["timeout_s"] == float(TIMEOUT)
+    teams = {t["team"]: t for t in doc["teams"]}
+    assert set(teams) == set(TEAMS)
+    assert [t["rank"] for t in doc["teams"]] == list(range(1, 7))
+
+    counts = _gt_counts(dataset)
+    n_odd = sum(c % 2 for c in counts)
+    n_one = sum(c == 1 for c in counts)
+    # the dataset is chosen so that the expected order needs no latency
+    assert COUNT > COUNT - n_one > COUNT - n_odd > 0
+    for team in ("correct", "total_area"):  # 'Total Area:' is read like 'Area:'
+        assert teams[team]["n_passed"] == COUNT, teams[team]
+    assert teams["partly_right"]["n_passed"] == COUNT - n_one
+    assert teams["partly_right"]["failures"]["wrong_count"] == n_one
+    assert teams["crashing"]["n_passed"] == COUNT - n_odd
+    assert teams["crashing"]["failures"]["crash"] == n_odd
+    assert teams["slow"]["n_passed"] == 0 and teams["slow"]["failures"]["timeout"] == COUNT
+    assert teams["slow"]["area_rel_err_median"] is None
+
+    order = [t["team"] for t in doc["teams"] if t["team"] != "cheating"]
+    top = sorted(("correct", "total_area"), key=lambda t: teams[t]["area_rel_err_median"])
+    assert order == [*top, "partly_right", "crashing", "slow"]
+
+    # every team has eval's report files, linked from the leaderboard
+    for name, t in teams.items():
+        team_dir = out / "teams" / name
+        for f in ("report.json", "results.csv", "report.md", "report.html", "junit.xml",
+                  STATE_FILE):
+            assert (team_dir / f).is_file(), (name, f)
+        assert t["report"] == f"teams/{name}/report.html"
+        rep = json.loads((team_dir / "report.json").read_text())
+        assert rep["pipeline"] == name and rep["summary"]["n_passed"] == t["n_passed"]
+    rows = list(csv.DictReader((out / "leaderboard.csv").read_text().splitlines()))
+    assert [r["team"] for r in rows] == [t["team"] for t in doc["teams"]]
+    assert rows[-1]["area_rel_err_median"] == "" and rows[-1]["failures.timeout"] == str(COUNT)
+    page = (out / "leaderboard.html").read_text()
+    assert all(f'href="teams/{name}/report.html"' in page for name in TEAMS)
+    assert proc.stdout.count(": graded (") == 6
+
+
+@pytest.mark.xfail(not SANDBOXED, strict=True,
+                   reason="the command runner does not yet hide the dataset from a team "
+                          "(private directory, neutral image name, bubblewrap)")
+def test_cheating_team_cannot_read_the_ground_truth(graded):
+    # What the final product must give: the cheat finds no GT, answers 0 obstacles on every
+    # image and ranks below every team that answered something right.
+    out, _ = graded
+    doc = json.loads((out / "leaderboard.json").read_text())
+    cheat = next(t for t in doc["teams"] if t["team"] == "cheating")
+    assert cheat["n_passed"] == 0
+    assert cheat["failures"]["wrong_count"] == COUNT
+    assert [t["team"] for t in doc["teams"]][-2:] == ["cheating", "slow"]
+
+
+def test_grading_again_skips_every_team(graded, dataset, submissions):
+    out, _ = graded
+    before = (out / "leaderboard.json").read_bytes()
+    stamps = {p: p.stat().st_mtime_ns for p in (out / "teams").rglob("*") if p.is_file()}
+    proc = _grade_cli(str(dataset), str(submissions), "--out", str(out), "--timeout", TIMEOUT,
+                      "--workers", "2")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout.count("skipped: already graded") == 6
+    assert "0 graded, 6 skipped" in proc.stdout
+    assert {p: p.stat().st_mtime_ns for p in stamps} == stamps  # nothing rewritten
+    assert (out / "leaderboard.json").read_bytes() == before
+    assert not list(submissions.rglob("__pycache__"))  # submissions are only read
+
+
+def test_dask_local_cluster_gives_the_same_leaderboard(graded, dataset, submissions, tmp_path,
+                                                       monkeypatch):
+    distributed = pytest.importorskip("distributed")
+    out, _ = graded
+    # the workers run 'python3' from PATH: this Python's
+    monkeypatch.setenv("PATH", _env()["PATH"])
+    settings = RunSettings(limits=RunLimits(timeout_s=float(TIMEOUT)))
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        result = grade(dataset, submissions, tmp_path / "dask",
+                       options=GradeOptions(settings=settings),
+                       scheduler=cluster.scheduler_address)
+    assert sorted(result.graded) == sorted(TEAMS) and not result.errors
+    local = json.loads((out / "leaderboard.json").read_text())
+    remote = json.loads((tmp_path / "dask" / "leaderboard.json").read_text())
+    assert _without_latency(remote) == _without_latency(local)
+    for team in TEAMS:  # per-image results too
+        a = json.loads((out / "teams" / team / "report.json").read_text())["images"]
+        b = json.loads((tmp_path / "dask" / "teams" / team / "report.json").read_text())["images"]
+        strip = ("latency_ms", "stdout_tail", "stderr_tail")
+        assert [{k: v for k, v in i.items() if k not in strip} for i in a] == \
+               [{k: v for k, v in i.items() if k not in strip} for i in b]
+
+
+# ----------------------------------------------------------------------------- fast teams
+
+FAST_TEAM = """\
+from pathlib import Path
+Path("obstacles.txt").write_text("Aruco ID: [80, 85, 90, 95]\\nObstacles: {count}\\nArea: 1.0\\n")
+"""
+
+
+def _fast_teams(root: Path, counts: dict[str, int]) -> Path:
+    for name, count in counts.items():
+        (root / name).mkdir(parents=True, exist_ok=True)
+        (root / name / "map.py").write_text(FAST_TEAM.format(count=count))
+    return root
+
+
+def _opts(**kw) -> GradeOptions:
+    return GradeOptions(command="{python} {submission}/map.py --image {image}",
+                        formats=("json",), **kw)
+
+
+def test_changed_submission_or_options_are_graded_again(dataset, tmp_path):
+    subs = _fast_teams(tmp_path / "subs", {"a": 1, "b": 2, "c": 3})
+    out = tmp_path / "out"
+    first = grade(dataset, subs, out, options=_opts(), workers=2)
+    assert sorted(first.graded) == ["a", "b", "c"] and first.skipped == []
+    (subs / "a" / "notes.txt").write_text("a new file")       # content changed: regrade
+    (subs / "b" / "__pycache__").mkdir()                       # Python's cache: not content
+    (subs / "b" / "__pycache__" / "x.pyc").write_bytes(b"\0")
+    os.utime(subs / "c" / "map.py", (0, 0))                    # times only: not content
+    second = grade(dataset, subs, out, options=_opts(), workers=2)
+    assert second.graded == ["a"] and sorted(second.skipped) == ["b", "c"]
+    third = grade(dataset, subs, out, options=_opts(tolerance=0.1), workers=2)
+    assert sorted(third.graded) == ["a", "b", "c"]             # other options: regrade all
+    # a team removed from SUBMISSIONS leaves the leaderboard
+    shutil.rmtree(subs / "c")
+    fourth = grade(dataset, subs, out, options=_opts(tolerance=0.1), workers=2)
+    assert {r.team for r in fourth.rows} == {"a", "b"}
+
+
+def test_interrupted_grade_keeps_finished_teams(dataset, tmp_path):
+    subs = _fast_teams(tmp_path / "subs", {"a": 1, "b": 2, "c": 3})
+    out = tmp_path / "out"
+
+    def interrupt(line: str) -> None:
+        if ": graded" in line:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        grade(dataset, subs, out, options=_opts(), workers=1, log=interrupt)
+    finished = [p.parent.name for p in (out / "teams").glob(f"*/{STATE_FILE}")]
+    assert len(finished) == 1
+    again = grade(dataset, subs, out, options=_opts(), workers=1)
+    assert again.skipped == finished and len(again.graded) == 2
+    assert len(again.rows) == 3
+
+
+def test_team_command_substitutes_the_team_folder(tmp_path):
+    team = tmp_path / "team with space"
+    cmd = team_command("python3 {submission}/map.py --image {image}", team)
+    assert cmd == f"python3 '{team}/map.py' --image '{{image}}'"
+    pipe = CommandPipeline(cmd, base_dir=str(team))
+    assert pipe.argv(Path("/d/x.png"))[1] == f"{team}/map.py"
+
+
+def test_submission_hash_is_names_and_contents(tmp_path):
+    a = _fast_teams(tmp_path / "a", {"t": 1}) / "t"
+    b = _fast_teams(tmp_path / "b", {"t": 1}) / "t"
+    assert submission_hash(a) == submission_hash(b)
+    (b / "sub").mkdir()
+    assert submission_hash(a) == submission_hash(b)            # empty folders do not count
+    (b / "sub" / "x").write_text("")
+    h_file = submission_hash(b)
+    assert h_file != submission_hash(a)
+    (b / "sub" / "x").rename(b / "sub" / "y")
+    assert submission_hash(b) not in (h_file, submission_hash(a))   # names count
+    (b / "sub" / "y").unlink()
+    (b / "link").symlink_to("/etc/passwd")                    # links: target text, not followed
+    h_link = submission_hash(b)
+    assert h_link != submission_hash(a)
+    os.mkfifo(b / "fifo")                                      # a FIFO must not block
+    assert submission_hash(b) != h_link
+
+
+def _row(team, n_passed, exact, area, latency):
+    summary = Summary(n=4, n_passed=n_passed, pass_rate=n_passed / 4, pass_rate_ci95=(0, 1),
+                      count_exact_rate=exact, count_mae=None, area_rel_err={"median": area},
+                      area_rel_err_signed={}, marker_id_accuracy=None, failures={},
+                      latency_ms={"median": latency})
+    return LeaderboardRow(team=team, summary=summary, report="", submission_sha256="0" * 64)
+
+
+def test_ranking_keys_and_deterministic_ties():
+    rows = [
+        _row("e", 3, 1.0, 0.01, 10.0),
+        _row("d", 3, 1.0, 0.01, 10.0),      # tie with e on everything: by name
+        _row("c", 3, 1.0, 0.01, 5.0),       # faster
+        _row("b", 3, 1.0, None, 1.0),       # never answered: after any area
+        _row("a", 3, 0.75, 0.0, 1.0),       # fewer exact counts
+        _row("z", 4, 0.0, 0.5, 99.0),       # more passes first
+    ]
+    ranked = rank_rows(rows)
+    assert [r.team for r in ranked] == ["z", "c", "d", "e", "b", "a"]
+    assert [r.rank for r in ranked] == [1, 2, 3, 4, 5, 6]
+
+
+@pytest.mark.parametrize(
+    ("extra", "needle"),
+    [
+        (["--workers", "0"], "--workers must be >= 1"),
+        (["--timeout", "0"], "--timeout must be > 0"),
+        (["--formats", "html,pdf"], "--formats must be"),
+        (["--cmd", "python3 'unclosed"], "--cmd cannot be split"),
+        (["--memory-limit", "lots"], "--memory-limit: not a size"),
+        (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "exclude each other"),
+    ],
+)
+def test_bad_options_exit_2_with_one_line(extra, needle, dataset, tmp_path, capsys):
+    subs = _fast_teams(tmp_path / "subs", {"a": 1})
+    out = tmp_path / "out"
+    rc = arenabench_main(["grade", str(dataset), str(subs), "--out", str(out), *extra])
+    err = capsys.readouterr().err.strip()
+    assert rc == 2 and needle in err and len(err.splitlines()) == 1, err
+    assert not out.exists()
+
+
+def test_bad_inputs_exit_2_naming_them(dataset, tmp_path, capsys):
+    subs = _fast_teams(tmp_path / "subs", {"a": 1})
+    (tmp_path / "empty").mkdir()
+    (tmp_path / "busy").mkdir()
+    (tmp_path / "busy" / "mine.txt").write_text("not a grade output")
+    cases = [
+        ([str(tmp_path / "nope"), str(subs), "--out", str(tmp_path / "o1")], "nope"),
+        ([str(dataset), str(tmp_path / "empty"), "--out", str(tmp_path / "o2")],
+         "no team folders"),
+        ([str(dataset), str(tmp_path / "none"), "--out", str(tmp_path / "o3")], "none"),
+        ([str(dataset), str(subs), "--out", str(subs / "a" / "out")], "inside SUBMISSIONS"),
+        ([str(dataset), str(subs), "--out", str(tmp_path / "busy")], "not empty"),
+    ]
+    for argv, needle in cases:
+        rc = arenabench_main(["grade", *argv])
+        err = capsys.readouterr().err.strip()
+        assert rc == 2 and needle in err and len(err.splitlines()) == 1, (argv, err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["busy", "empty", "subs"]
+    assert sorted(p.name for p in (subs / "a").iterdir()) == ["map.py"]
+
+
+def test_leaderboard_page_sorts_in_headless_chromium(graded, tmp_path):
+    from test_report_html import CHROMIUM_FLAGS, _find_chromium
+
+    chromium = _find_chromium()
+    if chromium is None:
+        pytest.skip("chromium is not installed (apt-get install -y chromium)")
+    out, _ = graded
+    page = out / "leaderboard.html"
+    text = page.read_text()
+    assert "http://" not in text and "https://" not in text and "<link" not in text
+
+    def order(fragment: str) -> list[str]:
+        proc = subprocess.run(
+            [chromium, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'profile'}",
+             "--dump-dom", page.resolve().as_uri() + fragment],
+            capture_output=True, text=True, timeout=120)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert "Uncaught" not in proc.stderr, proc.stderr[-2000:]
+        dom = proc.stdout
+        rows = dom[dom.index("<tbody>"):dom.index("</tbody>")]
+        return [name for _, name in sorted((rows.index(f">{t}</a>"), t) for t in TEAMS)]
+
+    doc = json.loads((out / "leaderboard.json").read_text())
+    assert order("") == [t["team"] for t in doc["teams"]]
+    assert order("#sort=team") == sorted(TEAMS)
+    assert order("#sort=-team") == sorted(TEAMS, reverse=True)
+    by_timeouts = order("#sort=-failures.timeout")
+    assert by_timeouts[0] == "slow"
