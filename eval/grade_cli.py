@@ -108,7 +108,7 @@ def main(argv: list[str] | None = None) -> int:
                                area_reference=args.area_reference,
                                settings=run_settings_from_args(args), formats=formats)
         dataset = load_dataset(args.dataset)
-        teams = find_teams(args.submissions)
+        find_teams(args.submissions)
         check_out_dir(args.out, Path(args.submissions))
     except (DatasetError, SubmissionsError, ValueError) as exc:
         msg = str(exc)
@@ -116,7 +116,6 @@ def main(argv: list[str] | None = None) -> int:
             if msg.startswith(f"{param} "):
                 msg = f"{option}{msg[len(param):]}"
         return _error(msg)
-    print(f"{PROG}: {len(teams)} teams x {len(dataset.samples)} images", file=sys.stderr)
     try:
         result = grade(dataset, args.submissions, args.out, options=options,
                        workers=args.workers, scheduler=args.scheduler,

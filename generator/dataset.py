@@ -369,6 +369,11 @@ def generate_dataset(
     skipped = args.count - len(todo)
     if meta is not None and meta.get("complete") and not todo:
         return DatasetResult(root, 0, skipped, time.perf_counter() - start)
+    client = None
+    if scheduler is not None and todo:  # reach the cluster before writing anything
+        from arenabench.cluster import connect
+
+        client = connect(scheduler)
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
     if meta is None:
@@ -378,10 +383,10 @@ def generate_dataset(
     results: list[dict[str, Any]] = []
     bar = _progress(len(tasks), progress)
     try:
-        if scheduler is not None and tasks:
+        if client is not None:
             from arenabench.cluster import cluster_map
 
-            for _, res in cluster_map(_render_on_cluster, tasks, scheduler):
+            for _, res in cluster_map(_render_on_cluster, tasks, client):
                 results.append(_write_rendered(root, res))
                 bar.update(1)
         elif workers == 1 or len(tasks) <= 1:
@@ -399,6 +404,8 @@ def generate_dataset(
                     bar.update(1)
     finally:
         bar.close()
+        if client is not None and client is not scheduler:
+            client.close()
     gl = results[0]["gl"] if results else (meta or {}).get("versions") or None
     if gl is None:
         _init_worker(None)

@@ -29,7 +29,9 @@ from arenabench.eval.run_limits import RunLimits, RunSettings
 
 TEAMS_SRC = Path(__file__).resolve().parent / "grade_teams"
 TEAMS = ("cheating", "correct", "crashing", "partly_right", "slow", "total_area")
-COUNT, SEED, TIMEOUT = 6, 3, "1.5"
+#: 4 images; the timeout only has to stop 'slow' (it sleeps 120 s) and must never stop the
+#: others on a loaded machine, where starting Python and OpenCV alone can take a second or two
+COUNT, TIMEOUT, WORKERS = 4, "5", "4"
 #: CommandPipeline runs each image in a private directory with the image under a neutral name
 #: (the sandboxed runner); until then a team can read the dataset's files next to its image.
 SANDBOXED = "settings" in CommandPipeline.__dataclass_fields__
@@ -53,12 +55,27 @@ def _without_latency(doc):
     return doc
 
 
+def _distinct_seed() -> int:
+    """The first seed whose scenes give every team a different number of passes: with n1
+    scenes of 1 obstacle and n_odd of an odd number, 'partly_right' passes COUNT - n1 and
+    'crashing' COUNT - n_odd, so the order needs no latency (drawn without rendering)."""
+    from arenabench.generator.sampler import sample_scene
+
+    for seed in range(1000):
+        counts = [sample_scene("eyrc", seed=seed, index=i).params["obstacles.count"]
+                  for i in range(COUNT)]
+        if 0 < sum(c == 1 for c in counts) < sum(c % 2 for c in counts) < COUNT:
+            return seed
+    raise AssertionError("no seed gives distinct pass counts")  # pragma: no cover
+
+
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
     from arenabench.generator.dataset import generate_dataset
 
     out = tmp_path_factory.mktemp("grade-data") / "hidden"
-    generate_dataset(out, preset="eyrc", count=COUNT, seed=SEED, workers=1, progress=False)
+    generate_dataset(out, preset="eyrc", count=COUNT, seed=_distinct_seed(), workers=1,
+                     progress=False)
     return out
 
 
@@ -75,7 +92,7 @@ def submissions(tmp_path_factory):
 def graded(dataset, submissions, tmp_path_factory):
     out = tmp_path_factory.mktemp("grade-out") / "results"
     proc = _grade_cli(str(dataset), str(submissions), "--out", str(out), "--timeout", TIMEOUT,
-                      "--workers", "2")
+                      "--workers", WORKERS)
     assert proc.returncode == 0, proc.stderr[-3000:]
     return out, proc
 
@@ -100,8 +117,7 @@ def test_six_teams_are_ranked_as_expected(graded, dataset):
     counts = _gt_counts(dataset)
     n_odd = sum(c % 2 for c in counts)
     n_one = sum(c == 1 for c in counts)
-    # the dataset is chosen so that the expected order needs no latency
-    assert COUNT > COUNT - n_one > COUNT - n_odd > 0
+    assert COUNT > COUNT - n_one > COUNT - n_odd > 0  # see _distinct_seed
     for team in ("correct", "total_area"):  # 'Total Area:' is read like 'Area:'
         assert teams[team]["n_passed"] == COUNT, teams[team]
     assert teams["partly_right"]["n_passed"] == COUNT - n_one
@@ -151,7 +167,7 @@ def test_grading_again_skips_every_team(graded, dataset, submissions):
     before = (out / "leaderboard.json").read_bytes()
     stamps = {p: p.stat().st_mtime_ns for p in (out / "teams").rglob("*") if p.is_file()}
     proc = _grade_cli(str(dataset), str(submissions), "--out", str(out), "--timeout", TIMEOUT,
-                      "--workers", "2")
+                      "--workers", WORKERS)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout.count("skipped: already graded") == 6
     assert "0 graded, 6 skipped" in proc.stdout
@@ -167,7 +183,7 @@ def test_dask_local_cluster_gives_the_same_leaderboard(graded, dataset, submissi
     # the workers run 'python3' from PATH: this Python's
     monkeypatch.setenv("PATH", _env()["PATH"])
     settings = RunSettings(limits=RunLimits(timeout_s=float(TIMEOUT)))
-    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=True,
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         result = grade(dataset, submissions, tmp_path / "dask",
                        options=GradeOptions(settings=settings),
@@ -358,3 +374,17 @@ def test_leaderboard_page_sorts_in_headless_chromium(graded, tmp_path):
     assert order("#sort=-team") == sorted(TEAMS, reverse=True)
     by_timeouts = order("#sort=-failures.timeout")
     assert by_timeouts[0] == "slow"
+
+
+def test_unreachable_scheduler_exits_2_before_writing(dataset, tmp_path):
+    subs = _fast_teams(tmp_path / "subs", {"a": 1})
+    out = tmp_path / "out"
+    proc = subprocess.run(
+        [sys.executable, "-m", "arenabench", "grade", str(dataset), str(subs), "--out", str(out),
+         "--scheduler", "tcp://127.0.0.1:9"],
+        capture_output=True, text=True, timeout=120,
+        env={**os.environ, "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"})
+    err = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and err[-1].startswith("arenabench grade: error: "), err
+    assert "127.0.0.1:9" in err[-1]
+    assert not out.exists()

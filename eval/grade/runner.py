@@ -307,9 +307,9 @@ def grade(
     ------
     DatasetError, SubmissionsError, ValueError
         Before anything runs, for a bad dataset, submissions folder, output folder or option.
+    OSError
+        When the scheduler cannot be reached (before anything is written).
     """
-    from tqdm import tqdm
-
     opts = options or GradeOptions()
     if workers is not None and (int(workers) != workers or workers < 1):
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
@@ -317,11 +317,28 @@ def grade(
     teams = find_teams(submissions)
     root = Path(out).resolve()
     check_out_dir(root, Path(submissions))
-    emit = log or (lambda line: None)
     expect_common = {
         "dataset_manifest_sha256": sha256_file(data.root / "manifest.jsonl"),
         "options_sha256": opts.fingerprint(),
     }
+    client = None
+    if scheduler is not None:  # reach the cluster before writing anything
+        from arenabench.cluster import connect
+
+        client = connect(scheduler)
+    try:
+        return _grade(data, teams, root, opts, expect_common, workers=workers, client=client,
+                      progress=progress, emit=log or (lambda line: None))
+    finally:
+        if client is not None and client is not scheduler:
+            client.close()
+
+
+def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
+           expect_common: dict[str, str], *, workers: int | None, client: Any, progress: bool,
+           emit: Callable[[str], None]) -> GradeResult:
+    from tqdm import tqdm
+
     (root / TEAMS_DIR).mkdir(parents=True, exist_ok=True)
 
     states: dict[str, dict[str, Any]] = {}
@@ -341,6 +358,8 @@ def grade(
             (team_dir / STATE_FILE).unlink(missing_ok=True)  # stale: never trusted again
             todo.append((team, digest))
 
+    if todo:
+        emit(f"grading {len(todo)} of {len(teams)} teams on {len(data.samples)} images")
     units: list[GradeUnit] = []
     owner: list[int] = []
     for k, (team, _) in enumerate(todo):
@@ -365,7 +384,7 @@ def grade(
             emit(line)
 
     try:
-        for i, pred in _execute(units, workers=workers, scheduler=scheduler):
+        for i, pred in _execute(units, workers=workers, scheduler=client):
             k = owner[i]
             preds[k][i - k * n_images] = pred
             left[k] -= 1

@@ -5,13 +5,33 @@ are submitted at once, results come back in completion order, each result is dro
 cluster as soon as it has been handed over (so large results, such as rendered images, do not
 pile up in the workers' memory), and whatever is still pending is cancelled when the caller
 stops early (an error, an interrupt, a ``break``). ``dask.distributed`` is imported only when
-this runs. See ``docs/scale-out.md`` for starting a scheduler and workers.
+this runs; :func:`connect` lets a command reach the scheduler before it writes anything.
+See ``docs/scale-out.md`` for starting a scheduler and workers.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
+
+
+def connect(scheduler: Any) -> Any:
+    """A ``distributed.Client`` of ``scheduler``.
+
+    Parameters
+    ----------
+    scheduler : str or distributed.Client
+        ``tcp://HOST:PORT`` (a new connection, which the caller closes) or a connected client
+        (returned as is).
+
+    Raises
+    ------
+    OSError
+        When the scheduler cannot be reached (after ``distributed.comm.timeouts.connect``).
+    """
+    from distributed import Client
+
+    return scheduler if isinstance(scheduler, Client) else Client(str(scheduler))
 
 
 def cluster_map(
@@ -41,9 +61,9 @@ def cluster_map(
     Exception
         Whatever ``func`` raised on a worker, re-raised here (pending units are cancelled).
     """
-    from distributed import Client, as_completed
+    from distributed import as_completed
 
-    client = scheduler if isinstance(scheduler, Client) else Client(str(scheduler))
+    client = connect(scheduler)
     try:
         futures = client.map(func, list(items), pure=False)
         position = {fut.key: i for i, fut in enumerate(futures)}
