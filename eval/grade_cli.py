@@ -70,6 +70,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
                    help="run on an existing Dask cluster (dataset and submissions at the same "
                         "paths on every worker; see docs/scale-out.md)")
+    p.add_argument("--report-workers", type=int, default=None,
+                   help="processes here writing the teams' reports (default: cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_run_arguments(p)
     return p
@@ -93,6 +95,8 @@ def main(argv: list[str] | None = None) -> int:
         return int(exc.code or 0)
     if args.workers is not None and args.workers < 1:
         return _error(f"--workers must be >= 1, got {args.workers}")
+    if args.report_workers is not None and args.report_workers < 1:
+        return _error(f"--report-workers must be >= 1, got {args.report_workers}")
     if args.scheduler is not None and args.workers is not None:
         return _error("--workers and --scheduler exclude each other (the cluster's workers "
                       "run the commands)")
@@ -119,7 +123,8 @@ def main(argv: list[str] | None = None) -> int:
     try:
         result = grade(dataset, args.submissions, args.out, options=options,
                        workers=args.workers, scheduler=args.scheduler,
-                       progress=not args.no_progress, log=print)
+                       report_workers=args.report_workers, progress=not args.no_progress,
+                       log=print)
     except (DatasetError, SubmissionsError, ValueError) as exc:
         return _error(str(exc))
     except OSError as exc:  # e.g. the scheduler cannot be reached

@@ -248,12 +248,32 @@ def test_interrupted_grade_keeps_finished_teams(dataset, tmp_path):
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        grade(dataset, subs, out, options=_opts(), workers=1, log=interrupt)
+        grade(dataset, subs, out, options=_opts(), workers=1, report_workers=1, log=interrupt)
     finished = [p.parent.name for p in (out / "teams").glob(f"*/{STATE_FILE}")]
     assert len(finished) == 1
     again = grade(dataset, subs, out, options=_opts(), workers=1)
     assert again.skipped == finished and len(again.graded) == 2
     assert len(again.rows) == 3
+
+
+def test_odd_team_names_are_escaped_and_linked(dataset, tmp_path):
+    import html
+    import re
+    from urllib.parse import unquote
+
+    name = 'we <b>"rock" & ü #1?'
+    subs = _fast_teams(tmp_path / "subs", {name: 1, "plain": 2})
+    out = tmp_path / "out"
+    result = grade(dataset, subs, out, options=_opts(), workers=2)
+    assert sorted(result.graded) == sorted([name, "plain"])
+    page = (out / "leaderboard.html").read_text()
+    assert "<b>" not in page and html.escape(name) in page
+    hrefs = re.findall(r'<a href="([^"]+)">', page)
+    assert len(hrefs) == 2
+    for href in hrefs:  # every link resolves to the team's report
+        assert (out / unquote(html.unescape(href))).is_file(), href
+    rows = list(csv.DictReader((out / "leaderboard.csv").read_text().splitlines()))
+    assert {r["team"] for r in rows} == {name, "plain"}
 
 
 def test_team_command_substitutes_the_team_folder(tmp_path):

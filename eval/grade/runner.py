@@ -24,8 +24,8 @@ import json
 import os
 import shlex
 import sys
-from collections.abc import Callable, Iterator, Sequence
-from concurrent.futures import ThreadPoolExecutor, as_completed
+from collections.abc import Callable, Generator, Sequence
+from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -227,7 +227,8 @@ def _row(team: str, state: dict[str, Any]) -> LeaderboardRow:
 # ----------------------------------------------------------------------------- execution
 
 
-def _threads(units: list[GradeUnit], workers: int) -> Iterator[tuple[int, Prediction]]:
+def _threads(units: list[GradeUnit],
+             workers: int) -> Generator[tuple[int, Prediction], None, None]:
     pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="arenabench-grade")
     futures = {pool.submit(run_unit, u): i for i, u in enumerate(units)}
     try:
@@ -238,11 +239,11 @@ def _threads(units: list[GradeUnit], workers: int) -> Iterator[tuple[int, Predic
 
 
 def _execute(units: list[GradeUnit], *, workers: int | None,
-             scheduler: Any) -> Iterator[tuple[int, Prediction]]:
+             scheduler: Any) -> Generator[tuple[int, Prediction], None, None]:
     if scheduler is not None:
         from arenabench.cluster import cluster_map
 
-        return cluster_map(run_unit, units, scheduler)
+        return cluster_map(run_unit, units, scheduler)  # type: ignore[return-value]
     n = min(workers or default_workers(), max(1, len(units)))
     return _threads(units, n)
 
@@ -274,6 +275,7 @@ def grade(
     options: GradeOptions | None = None,
     workers: int | None = None,
     scheduler: Any = None,
+    report_workers: int | None = None,
     progress: bool = False,
     log: Callable[[str], None] | None = None,
 ) -> GradeResult:
@@ -294,6 +296,9 @@ def grade(
     scheduler : str or distributed.Client, optional, keyword-only
         ``tcp://HOST:PORT`` of a Dask cluster to run the units on instead; the dataset and
         the submissions must be at the same paths on every worker.
+    report_workers : int, optional, keyword-only
+        Processes here that write the teams' reports while the commands go on (default: the
+        machine's cores when HTML reports are written, else 1: in this process).
     progress : bool, keyword-only
         tqdm bar over units on stderr.
     log : callable, optional, keyword-only
@@ -311,8 +316,9 @@ def grade(
         When the scheduler cannot be reached (before anything is written).
     """
     opts = options or GradeOptions()
-    if workers is not None and (int(workers) != workers or workers < 1):
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    for name, value in (("workers", workers), ("report_workers", report_workers)):
+        if value is not None and (int(value) != value or value < 1):
+            raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
     data = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
     teams = find_teams(submissions)
     root = Path(out).resolve()
@@ -328,14 +334,16 @@ def grade(
         client = connect(scheduler)
     try:
         return _grade(data, teams, root, opts, expect_common, workers=workers, client=client,
-                      progress=progress, emit=log or (lambda line: None))
+                      report_workers=report_workers, progress=progress,
+                      emit=log or (lambda line: None))
     finally:
         if client is not None and client is not scheduler:
             client.close()
 
 
 def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
-           expect_common: dict[str, str], *, workers: int | None, client: Any, progress: bool,
+           expect_common: dict[str, str], *, workers: int | None, client: Any,
+           report_workers: int | None, progress: bool,
            emit: Callable[[str], None]) -> GradeResult:
     from tqdm import tqdm
 
@@ -383,27 +391,47 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
         else:
             emit(line)
 
+    if report_workers is None:  # only the HTML report is worth other processes
+        report_workers = default_workers() if "html" in opts.formats else 1
+    finisher = _Finisher(report_workers, n_teams=len(todo))
+    finishing: dict[Future, str] = {}
+
+    def collect(block: bool) -> None:
+        ready = list(finishing) if block else [f for f in finishing if f.done()]
+        for fut in ready:
+            name = finishing.pop(fut)
+            try:
+                states[name] = fut.result()
+            except Exception as exc:  # the grader's own failure on this team only
+                errors[name] = f"{type(exc).__name__}: {exc}"
+                say(f"{name}: error: {errors[name]}")
+                continue
+            graded.append(name)
+            say(f"{name}: graded ({_passed(states[name])})")
+
+    results = _execute(units, workers=workers, scheduler=client)
+    finished = False
     try:
-        for i, pred in _execute(units, workers=workers, scheduler=client):
+        for i, pred in results:
             k = owner[i]
             preds[k][i - k * n_images] = pred
             left[k] -= 1
             bar.update(1)
             if left[k] == 0:
                 team, digest = todo[k]
-                try:
-                    states[team.name] = _finish_team(
-                        team, digest, [p for p in preds[k] if p is not None], data, root,
-                        opts, expect_common)
-                except Exception as exc:  # the grader's own failure on this team only
-                    errors[team.name] = f"{type(exc).__name__}: {exc}"
-                    say(f"{team.name}: error: {errors[team.name]}")
-                    continue
-                preds[k] = []  # free the outputs kept for the report
-                graded.append(team.name)
-                say(f"{team.name}: graded ({_passed(states[team.name])})")
+                job = _FinishJob(team=team, digest=digest,
+                                 preds=[p for p in preds[k] if p is not None],
+                                 dataset_root=str(data.root), root=str(root), opts=opts,
+                                 expect_common=expect_common)
+                preds[k] = []  # the job holds them now
+                finishing[finisher.submit(job, data)] = team.name
+            collect(block=False)
+        collect(block=True)
+        finished = True
     finally:
+        results.close()  # stops and cancels what is still running or pending
         bar.close()
+        finisher.close(wait=finished)
 
     rows = rank_rows(_row(t.name, states[t.name]) for t in teams if t.name in states)
     files = write_leaderboard_files(root, rows, data=data, opts=opts,
@@ -411,26 +439,80 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
     return GradeResult(rows=rows, graded=graded, skipped=skipped, errors=errors, files=files)
 
 
+@dataclass(frozen=True)
+class _FinishJob:
+    """Everything needed to write one team's reports and state (picklable)."""
+
+    team: Team
+    digest: str
+    preds: list[Prediction]
+    dataset_root: str
+    root: str
+    opts: GradeOptions
+    expect_common: dict[str, str]
+
+
+_WORKER_DATASETS: dict[str, Dataset] = {}
+
+
+def _finish_in_worker(job: _FinishJob) -> dict[str, Any]:
+    data = _WORKER_DATASETS.get(job.dataset_root)
+    if data is None:
+        data = _WORKER_DATASETS[job.dataset_root] = load_dataset(job.dataset_root)
+    return _finish_team(job, data)
+
+
+class _Finisher:
+    """Writes teams' reports while the commands go on: in a pool of spawned processes (the
+    HTML report's plots and thumbnails take seconds per team, more than a busy grader can
+    spend in one thread), or inline for ``workers <= 1``."""
+
+    def __init__(self, workers: int, *, n_teams: int) -> None:
+        n = min(workers, n_teams)
+        self._pool = None
+        if n > 1:
+            import multiprocessing
+            from concurrent.futures import ProcessPoolExecutor
+
+            self._pool = ProcessPoolExecutor(
+                max_workers=n, mp_context=multiprocessing.get_context("spawn"))
+
+    def submit(self, job: _FinishJob, data: Dataset) -> Future:
+        if self._pool is not None:
+            return self._pool.submit(_finish_in_worker, job)
+        fut: Future = Future()
+        try:
+            fut.set_result(_finish_team(job, data))
+        except Exception as exc:
+            fut.set_exception(exc)
+        return fut
+
+    def close(self, *, wait: bool) -> None:
+        if self._pool is not None:
+            self._pool.shutdown(wait=wait, cancel_futures=True)
+
+
 def _passed(state: dict[str, Any]) -> str:
     s = state["summary"]
     return f"{s.get('n_passed', 0)}/{s.get('n', 0)} passed"
 
 
-def _finish_team(team: Team, digest: str, preds: list[Prediction], data: Dataset, root: Path,
-                 opts: GradeOptions, expect_common: dict[str, str]) -> dict[str, Any]:
+def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
+    """Score one team's predictions, write its reports, then its state file (last)."""
+    team, opts = job.team, job.opts
     results = [
         _result(s, p, tolerance=opts.tolerance, area_reference=opts.area_reference)
-        for s, p in zip(data.samples, preds, strict=True)
+        for s, p in zip(data.samples, job.preds, strict=True)
     ]
     report = build_report(results, pipeline=team.name, dataset=str(data.root),
                           area_reference=opts.area_reference, tolerance=opts.tolerance)
-    team_dir = root / TEAMS_DIR / team.name
+    team_dir = Path(job.root) / TEAMS_DIR / team.name
     write_reports(report, team_dir, formats=opts.formats, dataset=data)
     state = {
         "schema": STATE_SCHEMA,
         "team": team.name,
-        **expect_common,
-        "submission_sha256": digest,
+        **job.expect_common,
+        "submission_sha256": job.digest,
         "options": opts.to_dict(),
         "report": _report_link(team.name, opts.formats),
         "summary": report.summary.to_dict(),
