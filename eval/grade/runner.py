@@ -26,6 +26,7 @@ import shlex
 import sys
 from collections.abc import Callable, Generator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor, as_completed
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -394,14 +395,18 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
     if report_workers is None:  # only the HTML report is worth other processes
         report_workers = default_workers() if "html" in opts.formats else 1
     finisher = _Finisher(report_workers, n_teams=len(todo))
-    finishing: dict[Future, str] = {}
+    finishing: dict[Future, _FinishJob] = {}
 
     def collect(block: bool) -> None:
         ready = list(finishing) if block else [f for f in finishing if f.done()]
         for fut in ready:
-            name = finishing.pop(fut)
+            job = finishing.pop(fut)
+            name = job.team.name
             try:
-                states[name] = fut.result()
+                try:
+                    states[name] = fut.result()
+                except BrokenProcessPool:  # lost with a dead report process: once more here
+                    states[name] = _finish_team(job, data)
             except Exception as exc:  # the grader's own failure on this team only
                 errors[name] = f"{type(exc).__name__}: {exc}"
                 say(f"{name}: error: {errors[name]}")
@@ -424,7 +429,7 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
                                  dataset_root=str(data.root), root=str(root), opts=opts,
                                  expect_common=expect_common)
                 preds[k] = []  # the job holds them now
-                finishing[finisher.submit(job, data)] = team.name
+                finishing[finisher.submit(job, data)] = job
             collect(block=False)
         collect(block=True)
         finished = True
@@ -452,14 +457,14 @@ class _FinishJob:
     expect_common: dict[str, str]
 
 
-_WORKER_DATASETS: dict[str, Dataset] = {}
+_WORKER_DATASETS: dict[tuple[str, int], Dataset] = {}
 
 
 def _finish_in_worker(job: _FinishJob) -> dict[str, Any]:
-    data = _WORKER_DATASETS.get(job.dataset_root)
-    if data is None:
-        data = _WORKER_DATASETS[job.dataset_root] = load_dataset(job.dataset_root)
-    return _finish_team(job, data)
+    key = (job.dataset_root, len(job.preds))  # the grade's images: the first n of the dataset
+    if key not in _WORKER_DATASETS:
+        _WORKER_DATASETS[key] = load_dataset(job.dataset_root, limit=len(job.preds))
+    return _finish_team(job, _WORKER_DATASETS[key])
 
 
 class _Finisher:
@@ -478,8 +483,12 @@ class _Finisher:
                 max_workers=n, mp_context=multiprocessing.get_context("spawn"))
 
     def submit(self, job: _FinishJob, data: Dataset) -> Future:
+        """Start writing ``job``'s reports (inline when there is no usable pool)."""
         if self._pool is not None:
-            return self._pool.submit(_finish_in_worker, job)
+            try:
+                return self._pool.submit(_finish_in_worker, job)
+            except BrokenProcessPool:  # a report process died: go on in this process
+                self._pool = None
         fut: Future = Future()
         try:
             fut.set_result(_finish_team(job, data))
