@@ -5,6 +5,7 @@ submissions or options are graded again, an interrupted grade resumes; usage err
 the leaderboard page works in a real headless chromium."""
 
 import csv
+import inspect
 import json
 import os
 import shutil
@@ -34,7 +35,7 @@ TEAMS = ("cheating", "correct", "crashing", "partly_right", "slow", "total_area"
 COUNT, TIMEOUT, WORKERS = 4, "5", "4"
 #: CommandPipeline runs each image in a private directory with the image under a neutral name
 #: (the sandboxed runner); until then a team can read the dataset's files next to its image.
-SANDBOXED = "settings" in CommandPipeline.__dataclass_fields__
+SANDBOXED = "settings" in inspect.signature(CommandPipeline).parameters
 
 
 def _env() -> dict[str, str]:

@@ -20,6 +20,7 @@ other teams go on.
 
 from __future__ import annotations
 
+import inspect
 import json
 import os
 import shlex
@@ -171,7 +172,7 @@ def _team_pipeline(
     environment do, and the other limits are not enforced.
     """
     settings = replace(settings, env={**settings.env, **TEAM_ENV})
-    if "settings" in CommandPipeline.__dataclass_fields__:
+    if "settings" in inspect.signature(CommandPipeline).parameters:
         return CommandPipeline(  # type: ignore[call-arg]
             command, settings=settings, output=output, name=team, base_dir=base_dir
         )
