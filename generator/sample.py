@@ -15,9 +15,10 @@ from typing import Any
 import cv2
 import numpy as np
 
+from arenabench.fileio import rounded
 from arenabench.frame import FrameSpec
 from arenabench.generator.degrade import Degradations, apply_degradations
-from arenabench.generator.groundtruth import compute_ground_truth, rounded
+from arenabench.generator.groundtruth import compute_ground_truth
 from arenabench.generator.presets import Value
 from arenabench.generator.render import Renderer, RenderOutput
 from arenabench.generator.sampler import sample_scene

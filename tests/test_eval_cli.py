@@ -10,14 +10,13 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+import toy_arena
 
 from arenabench.cli import main as arenabench_main
 from arenabench.eval.reports import write_reports
 from arenabench.eval.runner import evaluate
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
-sys.path.insert(0, str(PIPES))
-import toy_arena  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -181,6 +180,7 @@ def test_compare_shows_metrics_and_verdict_changes(toy, tmp_path, capsys):
     assert "pass_rate" in out and "(worse)" in out
 
 
+@pytest.mark.slow
 def test_pytest_plugin_fixture_and_score(toy, tmp_path):
     test_file = tmp_path / "test_team.py"
     test_file.write_text(
