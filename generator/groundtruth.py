@@ -1,4 +1,4 @@
-"""Analytic ground truth (DESIGN.md "Ground truth"): geometry only, never read from pixels.
+"""Analytic ground truth (docs/ground-truth.md): geometry only, never read from pixels.
 
 - Image -> frame homography ``H = world_to_frame @ inv(K [r1 r2 t])`` (floor plane z = 0).
 - Visible silhouette of a box: its vertices projected from the camera centre onto z = 0
@@ -110,7 +110,7 @@ def compute_ground_truth(scene: Scene, *, frame: FrameSpec | None = None) -> dic
     -------
     dict
         Keys ``image_size``, ``scene``, ``count``, ``components``, ``area``, ``frame``,
-        ``homography``, ``camera``, ``markers``, ``obstacles`` as in DESIGN.md.
+        ``homography``, ``camera``, ``markers``, ``obstacles`` (docs/ground-truth.md).
     """
     frame = frame or FrameSpec()
     K = cam.intrinsics(scene.camera)

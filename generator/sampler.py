@@ -52,7 +52,7 @@ SCALAR_KEYS: tuple[str, ...] = (
     "background.gray",
 )
 _CAMERA_KEYS = tuple(k for k in SCALAR_KEYS if k.startswith("camera."))
-#: Degradation and scene-variation parameters (issue 5), drawn in this order from their own
+#: Degradation and scene-variation parameters, drawn in this order from their own
 #: generator (:func:`variation_rng`) so that presets without them draw exactly as before.
 VARIATION_KEYS: tuple[str, ...] = (
     *LENS_PARAMS,

@@ -44,7 +44,7 @@ def run_dir(toy, tmp_path_factory):
     return out
 
 
-def test_report_json_has_the_design_keys(run_dir, toy):
+def test_report_json_has_the_documented_keys(run_dir, toy):
     rep = json.loads((run_dir / "report.json").read_text())
     assert rep["schema"] == "arenabench.report/1"
     assert {"pipeline", "dataset", "area_reference", "tolerance", "summary", "images"} <= set(rep)

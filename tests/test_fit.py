@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parent.parent
 IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
 SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
 
-#: Acceptance thresholds of issue 7.
+#: Acceptance thresholds: the shipped fit must look like the real image.
 MIN_SSIM = 0.95
 MAX_MAD = 6.0
 MAX_AREA_REL = 0.01
