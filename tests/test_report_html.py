@@ -15,8 +15,6 @@ import toy_arena
 from arenabench.eval.reports import write_reports
 from arenabench.eval.runner import evaluate
 
-PIPES = Path(__file__).resolve().parent / "pipelines"
-
 CHROMIUM_FLAGS = [
     "--headless",
     "--no-sandbox",
