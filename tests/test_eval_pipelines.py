@@ -9,6 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import toy_arena
 
 from arenabench.eval.cli import main as eval_main
 from arenabench.eval.pipelines import CallablePipeline, CommandPipeline
@@ -16,8 +17,6 @@ from arenabench.eval.records import Prediction
 from arenabench.eval.runner import evaluate
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
-sys.path.insert(0, str(PIPES))
-import toy_arena  # noqa: E402
 
 PY = sys.executable
 
@@ -42,6 +41,7 @@ def _per_image(report):
     ]
 
 
+@pytest.mark.slow
 def test_callable_command_and_json_line_give_identical_results(toy):
     by_spec = evaluate("toy_arena:detect", toy, workers=2)
     by_function = evaluate(toy_arena.detect, toy, workers=2)
@@ -62,6 +62,7 @@ def test_callable_command_and_json_line_give_identical_results(toy):
     assert all(r.prediction.latency_ms > 0 for r in by_cmd.images)
 
 
+@pytest.mark.slow
 def test_process_pool_matches_thread_pool(toy):
     threads = evaluate("toy_arena:detect", toy, workers=2, executor="thread")
     procs = evaluate("toy_arena:detect", toy, workers=2, executor="process")
@@ -103,6 +104,7 @@ def _alive(pid: int) -> bool:
     return state not in ("Z", "X")
 
 
+@pytest.mark.slow
 def test_hanging_command_times_out_and_its_children_are_killed(toy, tmp_path):
     report = evaluate(
         CommandPipeline(f"{PY} {PIPES / 'hang.py'}", timeout_s=1.5), toy, workers=3, limit=3
@@ -132,6 +134,7 @@ def test_missing_obstacles_file_and_missing_executable(toy):
     assert "cannot start command" in absent.images[0].prediction.message
 
 
+@pytest.mark.slow
 def test_eight_parallel_commands_never_share_a_working_directory(toy):
     report = evaluate(
         CommandPipeline(f"{PY} {PIPES / 'isolation.py'} --image {{image}}"), toy, workers=8
