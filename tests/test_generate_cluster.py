@@ -34,6 +34,7 @@ def local_run(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_cluster_run_writes_the_same_bytes_as_a_local_run(local_run, tmp_path):
     distributed = pytest.importorskip("distributed")
     out = tmp_path / "dask"

@@ -102,6 +102,7 @@ def _gt_counts(dataset):
     return [json.loads(p.read_text())["count"] for p in sorted((dataset / "gt").glob("*.json"))]
 
 
+@pytest.mark.slow
 def test_six_teams_are_ranked_as_expected(graded, dataset):
     jsonschema = pytest.importorskip("jsonschema")
     out, proc = graded
@@ -143,12 +144,13 @@ def test_six_teams_are_ranked_as_expected(graded, dataset):
         assert rep["pipeline"] == name and rep["summary"]["n_passed"] == t["n_passed"]
     rows = list(csv.DictReader((out / "leaderboard.csv").read_text().splitlines()))
     assert [r["team"] for r in rows] == [t["team"] for t in doc["teams"]]
-    assert rows[-1]["area_rel_err_median"] == "" and rows[-1]["failures.timeout"] == str(COUNT)
+    assert rows[-1]["area_rel_err_median"] == "" and rows[-1]["failures_timeout"] == str(COUNT)
     page = (out / "leaderboard.html").read_text()
     assert all(f'href="teams/{name}/report.html"' in page for name in TEAMS)
     assert proc.stdout.count(": graded (") == 6
 
 
+@pytest.mark.slow
 @pytest.mark.xfail(not SANDBOXED, strict=True,
                    reason="the command runner does not yet hide the dataset from a team "
                           "(private directory, neutral image name, bubblewrap)")
@@ -163,6 +165,7 @@ def test_cheating_team_cannot_read_the_ground_truth(graded):
     assert [t["team"] for t in doc["teams"]][-2:] == ["cheating", "slow"]
 
 
+@pytest.mark.slow
 def test_grading_again_skips_every_team(graded, dataset, submissions):
     out, _ = graded
     before = (out / "leaderboard.json").read_bytes()
@@ -177,6 +180,7 @@ def test_grading_again_skips_every_team(graded, dataset, submissions):
     assert not list(submissions.rglob("__pycache__"))  # submissions are only read
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_the_same_leaderboard(graded, dataset, submissions, tmp_path,
                                                        monkeypatch):
     distributed = pytest.importorskip("distributed")
@@ -367,6 +371,7 @@ def test_bad_inputs_exit_2_naming_them(dataset, tmp_path, capsys):
     assert sorted(p.name for p in (subs / "a").iterdir()) == ["map.py"]
 
 
+@pytest.mark.slow
 def test_leaderboard_page_sorts_in_headless_chromium(graded, tmp_path):
     from test_report_html import CHROMIUM_FLAGS, _find_chromium
 
@@ -393,7 +398,7 @@ def test_leaderboard_page_sorts_in_headless_chromium(graded, tmp_path):
     assert order("") == [t["team"] for t in doc["teams"]]
     assert order("#sort=team") == sorted(TEAMS)
     assert order("#sort=-team") == sorted(TEAMS, reverse=True)
-    by_timeouts = order("#sort=-failures.timeout")
+    by_timeouts = order("#sort=-failures_timeout")
     assert by_timeouts[0] == "slow"
 
 

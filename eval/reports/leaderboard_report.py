@@ -6,7 +6,7 @@ self-contained (inline style and script, nothing fetched): one row per team with
 categories and a link to its report; clicking a column header sorts by it (again: reverse),
 and ``leaderboard.html#sort=KEY`` or ``#sort=-KEY`` opens it sorted (``KEY`` is a column's
 ``data-key``: ``rank``, ``team``, ``pass_rate``, ``count_exact_rate``,
-``area_rel_err_median``, ``latency_ms_median``, ``failures.CATEGORY``). Empty values sort last.
+``area_rel_err_median``, ``latency_ms_median``, ``failures_CATEGORY``). Empty values sort last.
 """
 
 from __future__ import annotations
@@ -60,9 +60,9 @@ SCRIPT = """
 """
 
 
-#: Columns of ``leaderboard.csv``; ``failures.CATEGORY`` columns and ``report`` follow.
+#: Columns of ``leaderboard.csv``; ``failures_CATEGORY`` columns and ``report`` follow.
 CSV_COLUMNS: tuple[str, ...] = (
-    "rank", "team", "n", "n_passed", "pass_rate", "pass_rate_ci95_low", "pass_rate_ci95_high",
+    "rank", "team", "n", "n_passed", "pass_rate", "pass_rate_ci95_lo", "pass_rate_ci95_hi",
     "count_exact_rate", "count_mae", "area_rel_err_median", "latency_ms_median",
 )
 
@@ -99,7 +99,7 @@ def leaderboard_html(doc: dict[str, Any]) -> str:
             ("count_exact_rate", "Count exact", True),
             ("area_rel_err_median", "Median |area error|", False),
             ("latency_ms_median", "Median latency (ms)", False)]
-    cols += [(f"failures.{c}", c, True) for c in cats]
+    cols += [(f"failures_{c}", c, True) for c in cats]
     head = "".join(
         f'<th data-key="{html.escape(k)}" data-desc="{int(d)}" data-num="{int(k != "team")}"'
         f'{" class=team" if k == "team" else ""}>{html.escape(label)}</th>'
@@ -124,7 +124,7 @@ def leaderboard_html(doc: dict[str, Any]) -> str:
         ]
         for c in cats:
             n = int(t["failures"].get(c, 0))
-            cells.append(_cell(f"failures.{c}", n, str(n), "fail" if n else "zero"))
+            cells.append(_cell(f"failures_{c}", n, str(n), "fail" if n else "zero"))
         body.append("<tr>" + "".join(cells) + "</tr>")
     ds = doc["dataset"]
     opts = doc["options"]
@@ -150,7 +150,7 @@ def leaderboard_csv(doc: dict[str, Any]) -> str:
     cats = list(doc["categories"])
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
-    writer.writerow([*CSV_COLUMNS, *(f"failures.{c}" for c in cats), "report"])
+    writer.writerow([*CSV_COLUMNS, *(f"failures_{c}" for c in cats), "report"])
     for t in doc["teams"]:
         lo, hi = t["pass_rate_ci95"]
         row = [t["rank"], t["team"], t["n"], t["n_passed"], t["pass_rate"], lo, hi,
