@@ -8,6 +8,7 @@ import sys
 import textwrap
 from pathlib import Path
 
+from arenabench.clihelp import HelpFormatter
 from arenabench.eval.bench import TARGETS, BenchConfig, BenchResult, target_met
 
 #: (key, label, unit) rows of the table, in the issue's order.
@@ -90,6 +91,7 @@ def format_table(result: BenchResult) -> str:
 def build_parser() -> argparse.ArgumentParser:
     """The ``arenabench bench`` argument parser."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench bench",
         description="Measure generation and scoring throughput on this machine (about two "
         "minutes on 2 cores): prints a table and writes OUT/bench.json.",

@@ -7,10 +7,13 @@ import argparse
 import sys
 from pathlib import Path
 
+from arenabench.clihelp import HelpFormatter
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``arenabench demo``."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench demo",
         description="Generate a small eyrc dataset, evaluate the reference pipeline on it and "
         "write report.json/.csv/.md/.html and junit.xml.",

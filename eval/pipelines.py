@@ -188,6 +188,9 @@ class BuiltinPipeline:
 def load_callable(spec: str) -> Callable[[Any], Any]:
     """Import ``"pkg.module:function"`` (dotted attribute paths allowed after the colon).
 
+    The module is looked for in the current folder first, then on ``sys.path`` (as
+    ``python -m`` does), so ``mymod:fn`` finds ``./mymod.py``.
+
     Raises
     ------
     ValueError
@@ -197,10 +200,17 @@ def load_callable(spec: str) -> Callable[[Any], Any]:
     module_name, sep, attr = spec.partition(":")
     if not sep or not module_name or not attr:
         raise ValueError(f"pipeline spec must look like 'pkg.module:function', got {spec!r}")
+    saved_path = list(sys.path)
+    sys.path.insert(0, os.getcwd())
     try:
         obj: Any = importlib.import_module(module_name)
     except ImportError as exc:
-        raise ValueError(f"pipeline {spec!r}: cannot import {module_name!r}: {exc}") from None
+        raise ValueError(
+            f"pipeline {spec!r}: cannot import {module_name!r} (looked in the current folder "
+            f"{os.getcwd()} and on sys.path): {exc}"
+        ) from None
+    finally:
+        sys.path[:] = saved_path
     for part in attr.split("."):
         if not hasattr(obj, part):
             raise ValueError(f"pipeline {spec!r}: {module_name!r} has no attribute {attr!r}")
@@ -440,8 +450,11 @@ def make_pipeline(
             return BuiltinPipeline(spec)
         if ":" in spec:
             return CallablePipeline(spec)
+        from arenabench.suggest import did_you_mean
+
         raise ValueError(
-            f"pipeline must be one of {BUILTIN_PIPELINES} or 'pkg.module:function', got {spec!r}"
+            f"pipeline must be one of {BUILTIN_PIPELINES} or 'pkg.module:function', got "
+            f"{spec!r}{did_you_mean(spec, BUILTIN_PIPELINES)}"
         )
     if hasattr(spec, "run") and hasattr(spec, "name"):
         return spec  # type: ignore[return-value]

@@ -6,12 +6,14 @@ import argparse
 import os
 import sys
 
+from arenabench.clihelp import HelpFormatter
 from arenabench.generator.presets import preset_names
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``arenabench generate`` argument parser."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench generate",
         description="Render COUNT scenes of a preset into OUT (images/, gt/, manifest.jsonl, "
                     "dataset.json, coco.json). Re-running with the same arguments resumes or "

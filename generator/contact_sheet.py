@@ -13,6 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from arenabench.clihelp import HelpFormatter
 from arenabench.fileio import atomic_write_bytes
 
 
@@ -110,6 +111,7 @@ def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench contact-sheet``; returns 0, or 2 on a usage error."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench contact-sheet",
         description="Render the first COUNT scenes of a preset and tile them into one image.",
     )

@@ -5,10 +5,13 @@ from __future__ import annotations
 import argparse
 import sys
 
+from arenabench.clihelp import HelpFormatter
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``arenabench fit`` argument parser."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench fit",
         description="Fit a scene (camera from the four markers, boxes, colours, lighting) to "
                     "IMAGE and write it as a scene file for 'arenabench render'. The arena is "
