@@ -6,7 +6,9 @@ Layout of ``DIR``::
 
 Every file is written atomically. ``dataset.json`` is written first (``"complete": false``)
 with the run's arguments, so a re-run can tell an interrupted run of the same arguments
-(resumed: scenes whose image and GT exist are skipped) from a different one (refused); the
+(resumed: scenes whose image and GT exist are skipped) from a different one (refused; a
+larger ``count`` with otherwise equal arguments extends the set, since scenes are
+independent by index, and gives the same files as generating the larger count at once); the
 manifest and ``coco.json`` are written last, in id order, and ``dataset.json`` is rewritten
 with ``"complete": true``. Output is byte-identical for the same arguments whatever the
 number of workers (one spawned process per worker, one renderer each).
@@ -101,6 +103,8 @@ class DatasetResult:
 
     def summary(self) -> str:
         """One line for the CLI."""
+        if not self.rendered:
+            return f"{self.out}: already complete: {self.skipped} images"
         rate = self.rendered / self.seconds if self.seconds > 0 and self.rendered else 0.0
         parts = [f"{self.rendered} rendered", f"{self.skipped} already present",
                  f"{self.seconds:.1f} s", f"{rate:.1f} images/s"]
@@ -181,6 +185,13 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
         raise DatasetError(f"{meta_path} is unreadable ({exc}): refusing to overwrite") from exc
     new = args.to_dict()
     for key in ("preset", "count", "seed", "overrides", "generator_version"):
+        if key == "count" and isinstance(old.get(key), int) and new[key] > old[key]:
+            continue  # extending a set: scenes are independent by index
+        if key == "count" and isinstance(old.get(key), int) and new[key] < old[key]:
+            raise DatasetError(
+                f"{out} holds {old[key]} scenes and --count {new[key]} is smaller: a set can "
+                "grow (same seed, preset and --set) but not shrink (use another --out)"
+            )
         if old.get(key) != new[key]:
             name = {"overrides": "--set"}.get(key, f"--{key}")
             raise DatasetError(
@@ -329,7 +340,7 @@ def generate_dataset(
         return DatasetResult(root, 0, skipped, time.perf_counter() - start)
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
-    if meta is None:
+    if meta is None or meta["args"].get("count") != args.count:
         _write_meta(root, args, complete=False)
     stored = args.to_dict()
     tasks = [("task", stored, args.seed, i, str(root)) for i in todo]
