@@ -314,7 +314,8 @@ def generate_dataset(
     workers : int, keyword-only
         Rendering processes (1 = this process).
     progress : bool, keyword-only
-        Show a tqdm progress bar on stderr.
+        Show progress on stderr (:mod:`arenabench.progress`: a bar on a terminal, a few
+        plain lines otherwise).
 
     Returns
     -------
@@ -376,7 +377,6 @@ def generate_dataset(
 
 
 def _progress(total: int, enabled: bool):
-    from tqdm import tqdm
+    from arenabench.progress import progress
 
-    return tqdm(total=total, unit="img", disable=not enabled or not sys.stderr.isatty(),
-                file=sys.stderr, dynamic_ncols=True)
+    return progress(total, desc="generate", enabled=enabled)

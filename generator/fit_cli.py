@@ -40,9 +40,14 @@ def main(argv: list[str] | None = None) -> int:
         image = load_image(args.image)
         options = FitOptions(arena=ArenaSpec(side_m=args.arena_side, logo_text="eyantra"),
                              refine_rounds=args.refine_rounds)
-        result = fit_scene(image, options=options)
     except (ImageLoadError, ValueError) as exc:
         print(f"arenabench fit: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        result = fit_scene(image, options=options)
+    except ValueError as exc:  # about the image's content: name the file
+        why = str(exc).removeprefix("image: ")
+        print(f"arenabench fit: error: {args.image}: {why}", file=sys.stderr)
         return 2
     atomic_write_json(args.out, result.scene.to_dict())
     summary = {"fov_deg": result.fov_deg, "reprojection_px": round(result.reprojection_px, 4),
