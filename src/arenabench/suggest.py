@@ -25,6 +25,12 @@ def did_you_mean(name: str, known: Iterable[str], *, n: int = 3) -> str:
     """
     known = list(dict.fromkeys(known))
     close = difflib.get_close_matches(name, known, n=n, cutoff=0.6)
+    if close:  # only the ones about as close as the best
+        def ratio(k: str) -> float:
+            return difflib.SequenceMatcher(None, name, k).ratio()
+
+        best = ratio(close[0])
+        close = [k for k in close if ratio(k) >= best - 0.1]
     if not close:
         # a dotted key typed without its section ("tilt_deg" for "camera.tilt_deg")
         close = [k for k in known if k.rsplit(".", 1)[-1] == name][:n]
