@@ -269,10 +269,17 @@ def test_plain_progress_prints_a_few_lines():
     buf, now = io.StringIO(), [0.0]
     with PlainProgress(200, desc="generate", unit="img", file=buf, clock=lambda: now[0]) as bar:
         for _ in range(200):
+            now[0] += 0.25
             bar.update(1)
     lines = buf.getvalue().splitlines()
-    assert len(lines) == 10 and lines[-1] == "generate: 200/200 img (100 %), 0.0 s"
-    assert lines[0] == "generate: 20/200 img (10 %), 0.0 s"
+    assert len(lines) == 10 and lines[-1] == "generate: 200/200 img (100 %), 50.0 s"
+    assert lines[0] == "generate: 20/200 img (10 %), 5.0 s"
+    # a quick run: only the final line
+    quick = io.StringIO()
+    with PlainProgress(200, desc="eval", unit="img", file=quick, clock=lambda: now[0]) as bar:
+        for _ in range(200):
+            bar.update(1)
+    assert quick.getvalue().splitlines() == ["eval: 200/200 img (100 %), 0.0 s"]
     # slow work: a line every 10 s even between 10 % steps
     buf2 = io.StringIO()
     bar = PlainProgress(1000, desc="eval", unit="img", file=buf2, clock=lambda: now[0])

@@ -1,8 +1,9 @@
 """The one progress rule of every command (generate, eval, sweep, contact-sheet, bench, ...).
 
 On a terminal (stderr is a TTY) a tqdm bar; otherwise (logs, CI, pipes) a few plain lines on
-stderr, one each time another 10 % is done or 10 s have passed, and one at the end; nothing
-at all when disabled (``--no-progress``). Use :func:`progress` as a context manager::
+stderr, one each time another 10 % is done (at most one per 2 s) or 10 s have passed, and
+one at the end; nothing at all when disabled (``--no-progress``). Use :func:`progress` as a
+context manager::
 
     with progress(len(tasks), desc="generate", unit="img", enabled=show) as bar:
         for task in tasks:
@@ -18,8 +19,10 @@ from typing import Any, TextIO
 
 #: Plain-line mode: a line each time this fraction of the work is done ...
 PLAIN_STEP_FRACTION = 0.10
-#: ... or this many seconds have passed since the last line.
+#: ... or this many seconds have passed since the last line ...
 PLAIN_STEP_SECONDS = 10.0
+#: ... but never sooner than this after the last line (a short run prints little).
+PLAIN_MIN_SECONDS = 2.0
 
 
 class _Closing:
@@ -79,8 +82,10 @@ class PlainProgress(_Closing):
         step = max(1, round(self.total * PLAIN_STEP_FRACTION))
         if self.n >= self.total:
             return  # the final line comes from close()
-        if (self.n - self._last_n >= step
-                or self.clock() - self._last_time >= PLAIN_STEP_SECONDS):
+        since = self.clock() - self._last_time
+        if since >= PLAIN_STEP_SECONDS or (
+            self.n - self._last_n >= step and since >= PLAIN_MIN_SECONDS
+        ):
             self._line()
 
     def close(self) -> None:
