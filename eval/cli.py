@@ -10,6 +10,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from arenabench.clihelp import HelpFormatter
+
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 
 EPILOG = """\
@@ -39,13 +41,14 @@ def build_parser() -> argparse.ArgumentParser:
         prog="arenabench eval",
         description="Score an obstacle-detection pipeline on a dataset written by the generator.",
         epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("dataset", nargs="?", help="dataset folder (holds manifest.jsonl and gt/)")
     src = p.add_mutually_exclusive_group()
     src.add_argument(
         "--pipeline",
-        help=f"built-in ({', '.join(BUILTIN_PIPELINES)}) or a callable 'pkg.module:function'",
+        help=f"built-in ({', '.join(BUILTIN_PIPELINES)}) or a callable 'pkg.module:function' "
+        "(the module is looked for in the current folder first, then on sys.path)",
     )
     src.add_argument(
         "--cmd", help="external command template, e.g. 'python3 map.py --image {image}'"
@@ -68,7 +71,11 @@ def build_parser() -> argparse.ArgumentParser:
         help="pool for in-process pipelines (default thread)",
     )
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible")
+    p.add_argument(
+        "--area-reference", choices=("visible", "footprint"), default="visible",
+        help="GT area the answer is compared with: visible (the silhouettes a camera-side "
+        "segmentation sees) or footprint (the boxes' floor area)",
+    )
     p.add_argument("--out", type=Path, default=None, help="folder for the report files")
     p.add_argument(
         "--formats",

@@ -117,7 +117,73 @@ def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") 
         marker_ids=ids_v,
         stdout=tail(stdout),
         latency_ms=latency_ms,
+        **drawing_from_result(result),
     )
+
+
+#: Most polygons / points per polygon kept for drawing (more is not a box outline).
+MAX_DRAWN_POLYGONS, MAX_POLYGON_POINTS = 100, 400
+#: Largest distance (px) of a drawn polygon from the pipeline's contour (a thumbnail shows
+#: the 1000 px frame at about 380 px, so 2 px is under one thumbnail pixel).
+DRAWN_POLYGON_TOLERANCE_PX = 2.0
+
+
+def _polygon(points: Any) -> tuple[tuple[float, float], ...] | None:
+    import math
+
+    import cv2
+    import numpy as np
+
+    try:
+        pts = np.asarray(points, dtype=np.float64)
+    except (TypeError, ValueError):
+        return None
+    if pts.ndim != 2 or pts.shape[1] != 2 or not 3 <= len(pts) <= 100_000:
+        return None
+    if not np.isfinite(pts).all() or np.abs(pts).max() > 1e6:
+        return None
+    if len(pts) > 8:  # contours: keep the outline to within DRAWN_POLYGON_TOLERANCE_PX
+        pts = cv2.approxPolyDP(pts.astype(np.float32).reshape(-1, 1, 2),
+                               DRAWN_POLYGON_TOLERANCE_PX, True)
+        pts = pts.reshape(-1, 2).astype(np.float64)[:MAX_POLYGON_POINTS]
+    if len(pts) < 3:
+        return None
+    return tuple((round(float(x), 1), round(float(y), 1)) for x, y in pts
+                 if math.isfinite(x) and math.isfinite(y))
+
+
+def drawing_from_result(result: Any) -> dict[str, Any]:
+    """The :class:`Prediction` drawing fields (``obstacles``, ``obstacles_space``,
+    ``homography``) found in what a pipeline returned; empty when there are none.
+
+    Read from, in order: ``obstacles_frame`` (polygons in frame px), ``obstacles_image``
+    (polygons in input image px), or ``obstacles`` whose items have a ``contour`` (frame px, as
+    :class:`arenabench.pipeline.Detection` and ``arenabench detect --json --contours`` give);
+    ``homography`` is the input image px -> frame px matrix. Malformed values are ignored:
+    drawing never changes a score.
+    """
+    out: dict[str, Any] = {}
+    polys, space = None, "frame"
+    if (found := _get(result, "obstacles_frame")) is not None:
+        polys = found
+    elif (found := _get(result, "obstacles_image")) is not None:
+        polys, space = found, "image"
+    elif isinstance(found := _get(result, "obstacles"), (list, tuple)):
+        polys = [_get(o, "contour") for o in found]
+    if isinstance(polys, (list, tuple)):
+        kept = [p for p in (_polygon(q) for q in polys[:MAX_DRAWN_POLYGONS]) if p]
+        out["obstacles"], out["obstacles_space"] = tuple(kept), space
+    h = _get(result, "homography")
+    if h is not None:
+        try:
+            import numpy as np
+
+            m = np.asarray(h, dtype=np.float64)
+            if m.shape == (3, 3) and np.isfinite(m).all() and abs(np.linalg.det(m)) > 1e-12:
+                out["homography"] = tuple(tuple(float(v) for v in row) for row in m)
+        except (TypeError, ValueError):
+            pass
+    return out
 
 
 def _call_in_process(func: Callable[[Any], Any], image_path: Path) -> Prediction:
@@ -188,6 +254,9 @@ class BuiltinPipeline:
 def load_callable(spec: str) -> Callable[[Any], Any]:
     """Import ``"pkg.module:function"`` (dotted attribute paths allowed after the colon).
 
+    The module is looked for in the current folder first, then on ``sys.path`` (as
+    ``python -m`` does), so ``mymod:fn`` finds ``./mymod.py``.
+
     Raises
     ------
     ValueError
@@ -197,10 +266,17 @@ def load_callable(spec: str) -> Callable[[Any], Any]:
     module_name, sep, attr = spec.partition(":")
     if not sep or not module_name or not attr:
         raise ValueError(f"pipeline spec must look like 'pkg.module:function', got {spec!r}")
+    saved_path = list(sys.path)
+    sys.path.insert(0, os.getcwd())
     try:
         obj: Any = importlib.import_module(module_name)
     except ImportError as exc:
-        raise ValueError(f"pipeline {spec!r}: cannot import {module_name!r}: {exc}") from None
+        raise ValueError(
+            f"pipeline {spec!r}: cannot import {module_name!r} (looked in the current folder "
+            f"{os.getcwd()} and on sys.path): {exc}"
+        ) from None
+    finally:
+        sys.path[:] = saved_path
     for part in attr.split("."):
         if not hasattr(obj, part):
             raise ValueError(f"pipeline {spec!r}: {module_name!r} has no attribute {attr!r}")
@@ -440,8 +516,11 @@ def make_pipeline(
             return BuiltinPipeline(spec)
         if ":" in spec:
             return CallablePipeline(spec)
+        from arenabench.suggest import did_you_mean
+
         raise ValueError(
-            f"pipeline must be one of {BUILTIN_PIPELINES} or 'pkg.module:function', got {spec!r}"
+            f"pipeline must be one of {BUILTIN_PIPELINES} or 'pkg.module:function', got "
+            f"{spec!r}{did_you_mean(spec, BUILTIN_PIPELINES)}"
         )
     if hasattr(spec, "run") and hasattr(spec, "name"):
         return spec  # type: ignore[return-value]

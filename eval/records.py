@@ -25,6 +25,9 @@ CATEGORIES: tuple[str, ...] = (
     "bad_output",
 )
 
+#: Pixel spaces a pipeline's obstacle polygons may be given in.
+OBSTACLE_SPACES: tuple[str, ...] = ("frame", "image")
+
 #: Longest stdout/stderr tail kept per image (characters).
 TAIL_CHARS = 2000
 
@@ -74,6 +77,13 @@ class Prediction:
         Tails of the pipeline's output streams (external commands; tracebacks in-process).
     latency_ms : float
         Wall time of the pipeline call in milliseconds.
+    obstacles : tuple of polygons or None
+        What the pipeline found, for drawing: one polygon (tuple of (x, y)) per obstacle, in
+        ``obstacles_space`` px, simplified to within about 2 px; ``None`` when not reported.
+    obstacles_space : {"frame", "image"}
+        Whether ``obstacles`` are in rectified frame px or input image px.
+    homography : 3 x 3 tuple or None
+        The pipeline's input image px -> frame px homography, when it reports one.
     """
 
     status: str
@@ -84,10 +94,40 @@ class Prediction:
     stdout: str = ""
     stderr: str = ""
     latency_ms: float = 0.0
+    obstacles: tuple[tuple[tuple[float, float], ...], ...] | None = None
+    obstacles_space: str = "frame"
+    homography: tuple[tuple[float, float, float], ...] | None = None
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
             raise ValueError(f"status must be one of {STATUSES}, got {self.status!r}")
+        if self.obstacles_space not in OBSTACLE_SPACES:
+            raise ValueError(
+                f"obstacles_space must be one of {OBSTACLE_SPACES}, got {self.obstacles_space!r}"
+            )
+
+    def drawing_dict(self) -> dict[str, Any]:
+        """The drawing fields as JSON (empty when the pipeline reported no polygons)."""
+        out: dict[str, Any] = {}
+        if self.obstacles is not None:
+            out["obstacles"] = [[[x, y] for x, y in poly] for poly in self.obstacles]
+            out["obstacles_space"] = self.obstacles_space
+        if self.homography is not None:
+            out["homography"] = [list(row) for row in self.homography]
+        return out
+
+
+def drawing_from_json(pred: dict[str, Any]) -> dict[str, Any]:
+    """``Prediction`` keyword arguments from the drawing fields of a ``pred`` record."""
+    out: dict[str, Any] = {}
+    if pred.get("obstacles") is not None:
+        out["obstacles"] = tuple(
+            tuple((float(x), float(y)) for x, y in poly) for poly in pred["obstacles"]
+        )
+        out["obstacles_space"] = str(pred.get("obstacles_space", "frame"))
+    if pred.get("homography") is not None:
+        out["homography"] = tuple(tuple(float(v) for v in row) for row in pred["homography"])
+    return out
 
 
 @dataclass(frozen=True)
@@ -150,6 +190,7 @@ class ImageResult:
                 "count": p.count,
                 "area": p.area,
                 "marker_ids": None if p.marker_ids is None else list(p.marker_ids),
+                **p.drawing_dict(),
             },
             "area_rel_err": s.area_rel_err,
             "area_err_kind": s.area_err_kind,
@@ -175,6 +216,7 @@ class ImageResult:
             stdout=d.get("stdout_tail", ""),
             stderr=d.get("stderr_tail", ""),
             latency_ms=float(d.get("latency_ms") or 0.0),
+            **drawing_from_json(pred),
         )
         truth = Truth(
             count=int(gt.get("count", 0)),

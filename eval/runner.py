@@ -109,7 +109,8 @@ def evaluate(
     executor : {"thread", "process"}
         Pool for in-process pipelines; external commands always use threads.
     progress : bool
-        Show a tqdm progress bar on stderr.
+        Show progress on stderr (:mod:`arenabench.progress`: a bar on a terminal, a few
+        plain lines otherwise).
     limit : int, optional
         Evaluate only the first ``limit`` images.
 
@@ -145,14 +146,12 @@ def evaluate(
     else:
         pool = ThreadPoolExecutor(max_workers=n_workers, thread_name_prefix="arenabench-eval")
         submit = lambda s: pool.submit(pipe.run, s.image_path)  # noqa: E731
-    from tqdm import tqdm
+    from arenabench.progress import progress as progress_bar
 
     preds: list[Prediction | None] = [None] * len(samples)
     with (
         pool,
-        tqdm(
-            total=len(samples), desc=f"eval {pipe.name}"[:40], unit="img", disable=not progress
-        ) as bar,
+        progress_bar(len(samples), desc=f"eval {pipe.name}", enabled=progress) as bar,
     ):
         futures = {submit(s): i for i, s in enumerate(samples)}
         from concurrent.futures import as_completed

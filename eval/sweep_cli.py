@@ -10,6 +10,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from arenabench.clihelp import HelpFormatter
+
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 
 EPILOG = """\
@@ -58,7 +60,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Robustness sweep: vary preset parameters over a grid (or at random), "
                     "render and score every point in memory, report breakdown points.",
         epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("--preset", default="eyrc",
                    help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
@@ -74,14 +76,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="different scenes at every point (default: the same base scenes)")
     p.add_argument("--pipeline", dest="pipes", action=_PipelineAction, metavar="NAME",
                    help=f"built-in ({', '.join(BUILTIN_PIPELINES)}) or 'pkg.module:function' "
-                        "(repeatable)")
+                        "(repeatable; modules are looked for in the current folder first)")
     p.add_argument("--cmd", dest="pipes", action=_PipelineAction, metavar="TEMPLATE",
                    help="external command, e.g. 'python3 map.py --image {image}' (repeatable)")
     p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
                    help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line")
     p.add_argument("--timeout", type=float, default=60.0, help="seconds per image for --cmd")
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible")
+    p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible",
+                   help="GT area the answer is compared with: visible (the silhouettes a "
+                        "camera-side segmentation sees) or footprint (the boxes' floor area)")
     p.add_argument("--threshold", type=float, default=0.9,
                    help="breakdown threshold on the pass rate's lower 95 %% bound (default 0.9)")
     p.add_argument("--breakdown-mode", choices=("marginal", "axis"), default="marginal",

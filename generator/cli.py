@@ -6,16 +6,20 @@ import argparse
 import os
 import sys
 
+from arenabench.clihelp import HelpFormatter
 from arenabench.generator.presets import preset_names
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``arenabench generate`` argument parser."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench generate",
         description="Render COUNT scenes of a preset into OUT (images/, gt/, manifest.jsonl, "
                     "dataset.json, coco.json). Re-running with the same arguments resumes or "
-                    "does nothing; different arguments are refused.",
+                    "does nothing; a larger --count with the same seed, preset and --set "
+                    "extends the set (the same files as generating the larger count at once); "
+                    "other changes are refused.",
     )
     p.add_argument("--preset", default="eyrc",
                    help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
@@ -48,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     except (DatasetError, SamplingError, ValueError) as exc:
         print(f"arenabench generate: error: {exc}", file=sys.stderr)
         return 2
-    print(result.summary(), file=sys.stderr)
+    print(result.summary())
     return 0
 
 

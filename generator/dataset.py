@@ -6,7 +6,9 @@ Layout of ``DIR``::
 
 Every file is written atomically. ``dataset.json`` is written first (``"complete": false``)
 with the run's arguments, so a re-run can tell an interrupted run of the same arguments
-(resumed: scenes whose image and GT exist are skipped) from a different one (refused); the
+(resumed: scenes whose image and GT exist are skipped) from a different one (refused; a
+larger ``count`` with otherwise equal arguments extends the set, since scenes are
+independent by index, and gives the same files as generating the larger count at once); the
 manifest and ``coco.json`` are written last, in id order, and ``dataset.json`` is rewritten
 with ``"complete": true``. Output is byte-identical for the same arguments whatever the
 number of workers (one spawned process per worker, one renderer each).
@@ -101,6 +103,8 @@ class DatasetResult:
 
     def summary(self) -> str:
         """One line for the CLI."""
+        if not self.rendered:
+            return f"{self.out}: already complete: {self.skipped} images"
         rate = self.rendered / self.seconds if self.seconds > 0 and self.rendered else 0.0
         parts = [f"{self.rendered} rendered", f"{self.skipped} already present",
                  f"{self.seconds:.1f} s", f"{rate:.1f} images/s"]
@@ -181,6 +185,13 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
         raise DatasetError(f"{meta_path} is unreadable ({exc}): refusing to overwrite") from exc
     new = args.to_dict()
     for key in ("preset", "count", "seed", "overrides", "generator_version"):
+        if key == "count" and isinstance(old.get(key), int) and new[key] > old[key]:
+            continue  # extending a set: scenes are independent by index
+        if key == "count" and isinstance(old.get(key), int) and new[key] < old[key]:
+            raise DatasetError(
+                f"{out} holds {old[key]} scenes and --count {new[key]} is smaller: a set can "
+                "grow (same seed, preset and --set) but not shrink (use another --out)"
+            )
         if old.get(key) != new[key]:
             name = {"overrides": "--set"}.get(key, f"--{key}")
             raise DatasetError(
@@ -234,6 +245,9 @@ def coco_from_gts(gts: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def _versions(gl: dict[str, str] | None) -> dict[str, str]:
+    from arenabench import glplatform
+
+    glplatform.configure()  # before OpenGL is first imported in this process
     import pyrender
 
     out = {"arenabench": __version__, "opencv": cv2.__version__, "numpy": np.__version__,
@@ -303,7 +317,8 @@ def generate_dataset(
     workers : int, keyword-only
         Rendering processes (1 = this process).
     progress : bool, keyword-only
-        Show a tqdm progress bar on stderr.
+        Show progress on stderr (:mod:`arenabench.progress`: a bar on a terminal, a few
+        plain lines otherwise).
 
     Returns
     -------
@@ -329,7 +344,7 @@ def generate_dataset(
         return DatasetResult(root, 0, skipped, time.perf_counter() - start)
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
-    if meta is None:
+    if meta is None or meta["args"].get("count") != args.count:
         _write_meta(root, args, complete=False)
     stored = args.to_dict()
     tasks = [("task", stored, args.seed, i, str(root)) for i in todo]
@@ -365,7 +380,6 @@ def generate_dataset(
 
 
 def _progress(total: int, enabled: bool):
-    from tqdm import tqdm
+    from arenabench.progress import progress
 
-    return tqdm(total=total, unit="img", disable=not enabled or not sys.stderr.isatty(),
-                file=sys.stderr, dynamic_ncols=True)
+    return progress(total, desc="generate", enabled=enabled)

@@ -185,7 +185,8 @@ def run_sweep(
     scheduler : str or distributed.Client, optional, keyword-only
         Run on an existing Dask cluster instead.
     progress : bool, keyword-only
-        tqdm bar over samples on stderr.
+        Progress over samples on stderr (:mod:`arenabench.progress`: a bar on a terminal,
+        a few plain lines otherwise).
     on_output : callable, optional, keyword-only
         Called with each task's raw result as it arrives (e.g. to write kept images).
 
@@ -193,14 +194,14 @@ def run_sweep(
     -------
     SweepResult
     """
-    from tqdm import tqdm
+    from arenabench.progress import progress as progress_bar
 
     start = time.perf_counter()
     points = sweep_points(spec)
     tasks = sweep_tasks(spec, points)
     outputs: list[dict[str, Any]] = []
     timings: dict[str, list[float]] = {}
-    with tqdm(total=len(tasks), desc="sweep", unit="img", disable=not progress) as bar:
+    with progress_bar(len(tasks), desc="sweep", enabled=progress) as bar:
         for out in execute(tasks, workers=workers, scheduler=scheduler):
             if on_output is not None:
                 on_output(out)
