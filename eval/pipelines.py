@@ -443,6 +443,10 @@ class CommandPipeline:
                 except subprocess.TimeoutExpired:  # a grandchild escaped the group
                     proc.kill()
                     out_b, err_b = b"", b""
+            except BaseException:  # interrupted (a stop signal): the command goes too
+                _kill_group(proc)
+                proc.wait()
+                raise
             latency = (time.perf_counter() - start) * 1000.0
             _kill_group(proc)  # leftovers of a command that exited
             return self._interpret(proc.returncode, timed_out, out_b, err_b, workdir, latency)

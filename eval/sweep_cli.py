@@ -1,7 +1,8 @@
 """``arenabench sweep``: vary preset parameters, render and score every point in memory, find
 each parameter's breakdown point.
 
-Exit status: 0 done; 2 usage error (bad --vary, unknown parameter, bad options, no cluster).
+Exit status: 0 done; 2 usage error (bad --vary, unknown parameter, bad options, no cluster);
+130 / 143 stopped by SIGINT / SIGTERM (what finished is written, ``"complete": false``).
 """
 
 from __future__ import annotations
@@ -11,6 +12,7 @@ import sys
 from pathlib import Path
 
 from arenabench.clihelp import HelpFormatter
+from arenabench.interrupts import Interrupted, stop_on_signals
 
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 
@@ -161,14 +163,29 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         return _error(str(exc))
     writer = KeptImageWriter(args.out)
-    try:
-        result = run_sweep(spec, workers=args.workers, scheduler=args.scheduler,
-                           progress=not args.no_progress, on_output=writer)
-    except (ValueError, SamplingError) as exc:
-        return _error(str(exc))
-    except OSError as exc:  # e.g. the scheduler cannot be reached
-        return _error(f"{type(exc).__name__}: {exc}")
-    written = write_sweep(result, args.out, plots=not args.no_plots)
+    with stop_on_signals() as stop:
+        try:
+            result = run_sweep(spec, workers=args.workers, scheduler=args.scheduler,
+                               progress=not args.no_progress, on_output=writer)
+        except (ValueError, SamplingError) as exc:
+            return _error(str(exc))
+        except OSError as exc:  # e.g. the scheduler cannot be reached
+            return _error(f"{type(exc).__name__}: {exc}")
+        except Interrupted as exc:  # before the first task or after the last one
+            print(f"arenabench sweep: {exc}; nothing written", file=sys.stderr)
+            return exc.exit_code
+        try:
+            with stop.deferred():  # a signal now waits until the outputs are written
+                written = write_sweep(result, args.out, plots=not args.no_plots)
+        except Interrupted:
+            pass
+    if not result.complete:
+        run = result.run
+        print(f"arenabench sweep: interrupted by {run['interrupted']}: {run['samples_done']} "
+              f"of {run['samples']} samples done ({run['points_done']} of "
+              f"{len(result.points)} points complete); partial results written to "
+              f"{written['json'].parent}/ (\"complete\": false)", file=sys.stderr)
+        return stop.exit_code or 130
     run = result.run
     print(f"sweep: {len(result.points)} points x {spec.per_point} scenes x "
           f"{len(pipelines)} pipeline(s) in {run['seconds']:.1f} s "
@@ -179,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  wrote {written['json'].parent}/ (sweep.json, sweep.csv, results.jsonl"
           f"{', plots/, sweep.html' if not args.no_plots else ''}"
           f"{f', {writer.written} images' if writer.written else ''})")
-    return 0
+    return stop.exit_code or 0  # a signal during the final writes: they were completed
 
 
 if __name__ == "__main__":  # pragma: no cover

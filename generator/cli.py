@@ -37,21 +37,31 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run ``arenabench generate``; returns 0 on success, 2 on a usage or argument error."""
+    """Run ``arenabench generate``; returns 0 on success, 2 on a usage or argument error,
+    130 / 143 when stopped by SIGINT / SIGTERM (what finished is kept; re-running resumes)."""
     args = build_parser().parse_args(argv)
     from arenabench.generator.dataset import DatasetError, generate_dataset
     from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError
+    from arenabench.interrupts import Interrupted, exit_code, stop_on_signals
 
-    try:
-        overrides = parse_overrides(args.overrides)
-        result = generate_dataset(
-            args.out, preset=args.preset, count=args.count, seed=args.seed,
-            overrides=overrides, workers=args.workers, progress=not args.no_progress,
-        )
-    except (DatasetError, SamplingError, ValueError) as exc:
-        print(f"arenabench generate: error: {exc}", file=sys.stderr)
-        return 2
+    with stop_on_signals():
+        try:
+            overrides = parse_overrides(args.overrides)
+            result = generate_dataset(
+                args.out, preset=args.preset, count=args.count, seed=args.seed,
+                overrides=overrides, workers=args.workers, progress=not args.no_progress,
+            )
+        except (DatasetError, SamplingError, ValueError) as exc:
+            print(f"arenabench generate: error: {exc}", file=sys.stderr)
+            return 2
+        except Interrupted as exc:  # before or after the rendering loop
+            print(f"arenabench generate: {exc}; run the same command again to resume",
+                  file=sys.stderr)
+            return exc.exit_code
+    if result.interrupted is not None:
+        print(f"arenabench generate: {result.summary()}", file=sys.stderr)
+        return exit_code(result.interrupted)
     print(result.summary())
     return 0
 

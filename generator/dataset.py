@@ -12,6 +12,11 @@ independent by index, and gives the same files as generating the larger count at
 manifest and ``coco.json`` are written last, in id order, and ``dataset.json`` is rewritten
 with ``"complete": true``. Output is byte-identical for the same arguments whatever the
 number of workers (one spawned process per worker, one renderer each).
+
+Interrupted (SIGINT/SIGTERM inside :func:`arenabench.interrupts.stop_on_signals`), a run stops
+its workers, writes ``manifest.jsonl`` for the scenes finished so far and ``dataset.json``
+with ``"complete": false`` and ``"finished"``, and returns; running it again resumes and ends
+with the same files as an uninterrupted run.
 """
 
 from __future__ import annotations
@@ -41,6 +46,14 @@ from arenabench.fileio import (
 )
 from arenabench.generator.presets import Value, format_value, get_preset, resolve
 from arenabench.generator.sample import GENERATOR_VERSION, make_sample, scene_id
+from arenabench.interrupts import (
+    Interrupted,
+    children_ignore_sigint,
+    init_worker_process,
+    signal_name,
+    stop_workers,
+    worker_task,
+)
 
 #: dataset.json schema id.
 DATASET_SCHEMA = "arenabench.dataset/1"
@@ -88,6 +101,12 @@ class DatasetResult:
         The dataset directory.
     rendered, skipped : int
         Scenes rendered now / found already on disk.
+    count : int
+        Scenes of the dataset.
+    interrupted : int or None
+        The signal that stopped the run (then only ``finished`` scenes are on disk).
+    finished : int
+        Scenes on disk when the run ended (``count`` unless interrupted).
     seconds : float
         Wall time.
     timings_ms : dict
@@ -100,9 +119,21 @@ class DatasetResult:
     skipped: int
     seconds: float
     timings_ms: dict[str, float] = field(default_factory=dict)
+    count: int = 0
+    interrupted: int | None = None
+    finished: int = 0
+
+    @property
+    def complete(self) -> bool:
+        """Whether every scene is on disk with the manifest and ``coco.json``."""
+        return self.interrupted is None
 
     def summary(self) -> str:
         """One line for the CLI."""
+        if self.interrupted is not None:
+            return (f"interrupted by {signal_name(self.interrupted)}: {self.finished} of "
+                    f"{self.count} images written to {self.out}; run the same command again "
+                    "to resume")
         if not self.rendered:
             return f"{self.out}: already complete: {self.skipped} images"
         rate = self.rendered / self.seconds if self.seconds > 0 and self.rendered else 0.0
@@ -119,7 +150,9 @@ class DatasetResult:
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(lp_threads: int | None) -> None:
+def _init_worker(lp_threads: int | None, parent_pid: int | None = None) -> None:
+    if parent_pid is not None:  # a pool worker
+        init_worker_process(parent_pid=parent_pid)
     if lp_threads and "LP_NUM_THREADS" not in os.environ:
         os.environ["LP_NUM_THREADS"] = str(lp_threads)
     from arenabench.generator.render import Renderer
@@ -138,6 +171,11 @@ def _encode_png(rgb: np.ndarray) -> bytes:
 
 
 def _render_one(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
+    with worker_task():
+        return _render_task(task)
+
+
+def _render_task(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
     args_dict, out, index = task[1], Path(task[4]), task[3]
     renderer = _WORKER["renderer"]
     sample = make_sample(args_dict["preset"], seed=task[2], index=index,
@@ -145,13 +183,15 @@ def _render_one(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, An
     t1 = time.perf_counter()
     png = _encode_png(sample.rgb)
     t2 = time.perf_counter()
+    gt_bytes = dumps_json(sample.gt).encode("utf-8")
     atomic_write_bytes(out / "images" / f"{sample.id}.png", png)
-    atomic_write_text(out / "gt" / f"{sample.id}.json", dumps_json(sample.gt))
+    atomic_write_bytes(out / "gt" / f"{sample.id}.json", gt_bytes)
     t3 = time.perf_counter()
     if "gl" not in _WORKER:
         _WORKER["gl"] = renderer.gl_info()
     return {"id": sample.id, **sample.timings_ms, "encode": (t2 - t1) * 1000,
-            "write": (t3 - t2) * 1000, "gl": _WORKER["gl"]}
+            "write": (t3 - t2) * 1000, "gl": _WORKER["gl"],
+            "image_sha256": sha256_bytes(png), "gt_sha256": sha256_bytes(gt_bytes)}
 
 
 def _parse_stored(overrides: dict[str, str]) -> dict[str, Value]:
@@ -257,6 +297,13 @@ def _versions(gl: dict[str, str] | None) -> dict[str, str]:
     return out
 
 
+def _manifest_line(sid: str, image_sha256: str, gt_sha256: str) -> str:
+    return json.dumps({
+        "id": sid, "image": f"images/{sid}.png", "gt": f"gt/{sid}.json",
+        "image_sha256": image_sha256, "gt_sha256": gt_sha256,
+    }, sort_keys=True)
+
+
 def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
     ids = [scene_id(i) for i in range(args.count)]
     lines, gts = [], []
@@ -264,17 +311,43 @@ def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
         gt_path, img_path = out / "gt" / f"{sid}.json", out / "images" / f"{sid}.png"
         gt_bytes = gt_path.read_bytes()
         gts.append(json.loads(gt_bytes))
-        lines.append(json.dumps({
-            "id": sid, "image": f"images/{sid}.png", "gt": f"gt/{sid}.json",
-            "image_sha256": sha256_file(img_path), "gt_sha256": sha256_bytes(gt_bytes),
-        }, sort_keys=True))
+        lines.append(_manifest_line(sid, sha256_file(img_path), sha256_bytes(gt_bytes)))
     atomic_write_text(out / "manifest.jsonl", "".join(line + "\n" for line in lines))
     atomic_write_json(out / "coco.json", coco_from_gts(gts))
     _write_meta(out, args, complete=True, gl=gl)
 
 
+def _finish_partial(out: Path, args: DatasetArgs, results: list[dict[str, Any]]) -> int:
+    """After an interrupt: the manifest of the scenes on disk; returns how many there are.
+
+    Hashes come from this run's results, then from the manifest of an earlier interrupted
+    run; only scenes in neither (at most one per worker stopped mid-write) are read again.
+    """
+    known = {r["id"]: (r["image_sha256"], r["gt_sha256"]) for r in results}
+    old = out / "manifest.jsonl"
+    if old.is_file():
+        for line in old.read_text(encoding="utf-8").splitlines():
+            try:
+                entry = json.loads(line)
+                known.setdefault(entry["id"], (entry["image_sha256"], entry["gt_sha256"]))
+            except (ValueError, KeyError, TypeError):
+                continue
+    lines = []
+    for i in range(args.count):
+        sid = scene_id(i)
+        if not _present(out, sid):
+            continue
+        if sid not in known:
+            known[sid] = (sha256_file(out / "images" / f"{sid}.png"),
+                          sha256_file(out / "gt" / f"{sid}.json"))
+        lines.append(_manifest_line(sid, *known[sid]))
+    atomic_write_text(out / "manifest.jsonl", "".join(line + "\n" for line in lines))
+    _write_meta(out, args, complete=False, finished=len(lines))
+    return len(lines)
+
+
 def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
-                gl: dict[str, str] | None = None) -> None:
+                gl: dict[str, str] | None = None, finished: int | None = None) -> None:
     params = resolve(args.preset, args.overrides)
     meta = {
         "schema": DATASET_SCHEMA, "args": args.to_dict(), "preset": args.preset,
@@ -287,6 +360,8 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
         "files": {"images": "images/", "gt": "gt/", "manifest": "manifest.jsonl",
                   "coco": "coco.json"},
     }
+    if finished is not None:  # an interrupted run: the manifest lists these scenes only
+        meta["finished"] = int(finished)
     atomic_write_json(out / "dataset.json", meta)
 
 
@@ -323,6 +398,8 @@ def generate_dataset(
     Returns
     -------
     DatasetResult
+        With ``interrupted`` set when a stop signal (see :mod:`arenabench.interrupts`) ended
+        the run early.
 
     Raises
     ------
@@ -341,7 +418,8 @@ def generate_dataset(
     todo = [i for i in range(args.count) if not _present(root, scene_id(i))]
     skipped = args.count - len(todo)
     if meta is not None and meta.get("complete") and not todo:
-        return DatasetResult(root, 0, skipped, time.perf_counter() - start)
+        return DatasetResult(root, 0, skipped, time.perf_counter() - start, count=args.count,
+                             finished=args.count)
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
     if meta is None or meta["args"].get("count") != args.count:
@@ -360,10 +438,21 @@ def generate_dataset(
             cores = os.cpu_count() or 1
             lp = max(1, cores // workers)
             ctx = multiprocessing.get_context("spawn")
-            with ctx.Pool(workers, initializer=_init_worker, initargs=(lp,)) as pool:
-                for res in pool.imap_unordered(_render_one, tasks, chunksize=1):
-                    results.append(res)
-                    bar.update(1)
+            with children_ignore_sigint():
+                pool = ctx.Pool(workers, initializer=_init_worker, initargs=(lp, os.getpid()))
+            with pool:
+                try:
+                    for res in pool.imap_unordered(_render_one, tasks, chunksize=1):
+                        results.append(res)
+                        bar.update(1)
+                except BaseException:
+                    stop_workers()  # before the pool's own terminate(), which waits on them
+                    raise
+    except Interrupted as exc:
+        bar.close()
+        finished = _finish_partial(root, args, results)
+        return DatasetResult(root, len(results), skipped, time.perf_counter() - start,
+                             count=args.count, interrupted=exc.signum, finished=finished)
     finally:
         bar.close()
     gl = results[0]["gl"] if results else (meta or {}).get("versions") or None
@@ -376,7 +465,8 @@ def generate_dataset(
     if results:
         for key in ("sample", "render", "gt", "encode", "write"):
             timings[key] = float(np.median([r[key] for r in results]))
-    return DatasetResult(root, len(results), skipped, time.perf_counter() - start, timings)
+    return DatasetResult(root, len(results), skipped, time.perf_counter() - start, timings,
+                         count=args.count, finished=args.count)
 
 
 def _progress(total: int, enabled: bool):

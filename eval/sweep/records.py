@@ -273,7 +273,9 @@ class SweepResult:
     breakdown : dict
         ``{pipeline: {parameter: value or None}}``.
     run : dict
-        How it ran (executor, workers, seconds); not part of the results proper.
+        How it ran (executor, workers, seconds; ``complete``, ``samples_done``,
+        ``points_done`` and, when stopped by a signal, ``interrupted``); not part of the
+        results proper.
     """
 
     spec: SweepSpec
@@ -282,6 +284,11 @@ class SweepResult:
     images: tuple[dict[str, Any], ...]
     breakdown: dict[str, dict[str, Any]]
     run: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def complete(self) -> bool:
+        """False when a stop signal ended the sweep early (``run`` says how far it got)."""
+        return bool(self.run.get("complete", True))
 
     def image_results(self, pipeline: str) -> list[ImageResult]:
         """Per-image results of one pipeline as harness records."""
@@ -293,6 +300,7 @@ class SweepResult:
             "schema": SWEEP_SCHEMA,
             **self.spec.to_dict(),
             "n_points": len(self.points),
+            "complete": self.complete,
             "points": [s.to_dict() for s in self.summaries],
             "breakdown": self.breakdown,
             "run": dict(self.run),
