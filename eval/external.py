@@ -377,7 +377,7 @@ class CommandPipeline:
             ):
                 args += ["--tmpfs", ds]
         args += ["--bind", work, SANDBOX_DIR, "--bind", tmp, "/tmp", "--proc", "/proc",
-                 "--dev", "/dev", "--chdir", SANDBOX_DIR, "--"]
+                 "--dev", "/dev", "--remount-ro", "/", "--chdir", SANDBOX_DIR, "--"]
         return [shutil.which("bwrap") or "bwrap", *args[1:]]
 
     def _env(self, home: str, tmp: str) -> dict[str, str]:

