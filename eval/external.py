@@ -32,11 +32,13 @@ How one image runs
 - Sandbox (``settings.sandbox``): ``bwrap`` runs the command under bubblewrap with new user,
   mount, PID, IPC, UTS and network namespaces (no network), ``--die-with-parent``, a fresh
   ``/dev`` and ``/proc``; visible read-only: ``/usr`` (and the ``/bin``, ``/lib*`` links),
-  a few ``/etc`` files, the Python installation and virtual environment, and the
-  submission's own folder (the folders of files named in the command); read-write only the
-  private directory (at :data:`SANDBOX_DIR`) and ``/tmp`` (the run's ``tmp/``). The
-  dataset, its ground truth and the rest of the machine are not visible. ``none`` runs
-  without namespaces (private directory, environment, limits and cleanup still apply);
+  a few ``/etc`` files, the Python installation and virtual environment (with the source
+  folders of its editable installs), and the submission's own folder (the folders of files
+  named in the command); read-write only the private directory (at :data:`SANDBOX_DIR`)
+  and ``/tmp`` (the run's ``tmp/``). The dataset, its ground truth and the rest of the
+  machine are not visible; a dataset inside a visible folder is hidden under an empty tmpfs.
+  ``none`` runs without namespaces (private directory, environment, limits and cleanup
+  still apply; it is no security boundary: the command can read what the harness can);
   ``auto`` is ``bwrap`` when it works, else ``none`` with one warning line on stderr.
 - Limits: ``RLIMIT_AS`` per process (memory), ``RLIMIT_FSIZE`` (file size), a pids cgroup
   per run when the cgroup file system is writable (else ``RLIMIT_NPROC``, which the kernel
@@ -183,6 +185,38 @@ def pids_cgroup_parent() -> str | None:
         if ok:
             return parent
     return None
+
+
+@lru_cache(maxsize=1)
+def python_source_paths() -> tuple[str, ...]:
+    """Folders outside the Python installation that its site-packages point to: plain path
+    lines of ``.pth`` files and the package folders of editable installs (setuptools'
+    ``__editable__`` finders). Bound read-only in the sandbox so the interpreter works there
+    as it does outside (e.g. ``{python} -m arenabench.detect``)."""
+    import ast
+    import re
+    import site
+
+    dirs = set(site.getsitepackages()) if hasattr(site, "getsitepackages") else set()
+    out: set[str] = set()
+    for d in dirs:
+        for pth in Path(d).glob("*.pth"):
+            try:
+                lines = pth.read_text(errors="replace").splitlines()
+            except OSError:
+                continue
+            for line in lines:
+                line = line.strip()
+                if line and not line.startswith(("#", "import")) and os.path.isdir(line):
+                    out.add(os.path.realpath(line))
+        for finder in Path(d).glob("__editable__*finder.py"):
+            try:
+                m = re.search(r"^MAPPING[^=]*=\s*(\{.*?\})\s*$", finder.read_text(), re.M)
+                mapping = ast.literal_eval(m.group(1)) if m else {}
+            except (OSError, ValueError, SyntaxError):
+                continue
+            out.update(os.path.realpath(v) for v in mapping.values() if os.path.isdir(v))
+    return tuple(sorted(out))
 
 
 def _format_size(n: int) -> str:
@@ -338,7 +372,7 @@ class CommandPipeline:
     def _visible_paths(self) -> list[str]:
         """Read-only folders of the sandbox besides /usr (outermost first, no duplicates)."""
         paths = {sys.prefix, sys.base_prefix, sys.exec_prefix, sys.base_exec_prefix,
-                 str(Path(sys.executable).resolve().parent)}
+                 str(Path(sys.executable).resolve().parent), *python_source_paths()}
         if self._executable:
             paths.add(str(Path(self._executable).resolve().parent))
         for arg in self._resolved_args():
