@@ -56,7 +56,7 @@ hitting a limit, the message starting with which: ``memory limit (--memory-limit
 
 from __future__ import annotations
 
-import json
+import marshal
 import os
 import shlex
 import shutil
@@ -253,6 +253,23 @@ def _read_small(path: Path, limit: int) -> bytes:
         return fh.read(limit + 1)[:limit]
 
 
+def _wait(proc: subprocess.Popen, timeout: float) -> int:
+    """``proc.wait(timeout)`` without its polling sleeps (a pidfd is readable at exit)."""
+    import select
+
+    try:
+        fd = os.pidfd_open(proc.pid)
+    except (AttributeError, OSError):  # old kernel, or already reaped
+        return proc.wait(timeout=timeout)
+    try:
+        ready, _, _ = select.select([fd], [], [], timeout)
+    finally:
+        os.close(fd)
+    if not ready:
+        raise subprocess.TimeoutExpired(proc.args, timeout)
+    return proc.wait()
+
+
 def _is_within(path: str, root: str) -> bool:
     return path == root or path.startswith(root.rstrip("/") + "/")
 
@@ -337,7 +354,7 @@ class CommandPipeline:
             if not path.is_file() or not os.access(path, os.X_OK):
                 why = "does not exist" if not path.exists() else "is not an executable file"
                 raise ValueError(f"--cmd: executable {exe!r} {why} (relative to {self.base_dir})")
-            return str(path.resolve())
+            return os.path.abspath(path)  # not resolved: a venv's python is a symlink
         found = shutil.which(exe)
         if found is None:
             raise ValueError(f"--cmd: executable {exe!r} not found on PATH")
@@ -349,7 +366,7 @@ class CommandPipeline:
             if "{" not in arg and not arg.startswith("-") and not os.path.isabs(arg):
                 candidate = Path(self.base_dir, arg)
                 if candidate.exists():
-                    arg = str(candidate.resolve())
+                    arg = os.path.abspath(candidate)
             out.append(arg)
         return out
 
@@ -466,6 +483,7 @@ class CommandPipeline:
             env = self._env(work, tmp)
             pids_max = lim.max_procs
         cfg = {
+            "exe": argv[0] if self.sandbox == "bwrap" else (self._executable or argv[0]),
             "argv": argv, "env": env, "cwd": work, "rundir": rundir,
             "timeout_s": lim.timeout_s, "memory_bytes": lim.memory_bytes,
             "max_file_size": lim.max_file_size, "max_output": lim.max_output,
@@ -474,21 +492,23 @@ class CommandPipeline:
             "nproc_rlimit": self._cgroup is None and os.getuid() != 0,
             "parent_pid": os.getpid(),
         }  # fmt: skip
-        cfg_path = os.path.join(rundir, "launch.json")
-        with open(cfg_path, "w") as fh:
-            json.dump(cfg, fh)
+        cfg_path = os.path.join(rundir, "launch.bin")
+        with open(cfg_path, "wb") as fh:
+            marshal.dump(cfg, fh)
         with self._lock:
             if self._stopped:
                 return Prediction(status="crash", message="interrupted")
             with open(os.path.join(rundir, "launcher.log"), "wb") as log:
+                # close_fds=False lets Python use posix_spawn (no fork of the harness); the
+                # harness's own descriptors are non-inheritable (PEP 446)
                 proc = subprocess.Popen(
                     [sys.executable, "-I", "-S", LAUNCHER, cfg_path],
-                    stdin=subprocess.DEVNULL, stdout=log, stderr=log, close_fds=True,
+                    stdin=subprocess.DEVNULL, stdout=log, stderr=log, close_fds=False,
                 )
             self._live.add(proc)
         try:
             try:
-                proc.wait(timeout=lim.timeout_s + LAUNCHER_GRACE_S)
+                _wait(proc, lim.timeout_s + LAUNCHER_GRACE_S)
             except subprocess.TimeoutExpired:
                 proc.terminate()
                 try:
@@ -500,8 +520,8 @@ class CommandPipeline:
             with self._lock:
                 self._live.discard(proc)
         try:
-            result = json.loads(Path(rundir, "result.json").read_text())
-        except (OSError, ValueError):
+            result = marshal.loads(Path(rundir, "result.bin").read_bytes())
+        except (OSError, ValueError, EOFError, TypeError):
             if self._stopped:
                 return Prediction(status="crash", message="interrupted")
             log_text = tail(_decode(Path(rundir, "launcher.log").read_bytes()[-4000:]))

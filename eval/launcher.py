@@ -1,8 +1,9 @@
 """The per-run launcher of external commands: one small process that owns one run.
 
 Started by :class:`arenabench.eval.external.CommandPipeline` as
-``python -I -S .../launcher.py RUNDIR/launch.json`` (standard library only, so it starts
-fast and imports nothing of the project). It
+``python -I -S .../launcher.py RUNDIR/launch.bin`` (a few C-level standard modules only, so
+it starts fast and imports nothing of the project; its configuration and result are
+:mod:`marshal` dicts, read and written by the same interpreter). It
 
 1. makes itself a child subreaper (``PR_SET_CHILD_SUBREAPER``): every process the command
    starts stays its descendant, however it detaches (``setsid``, double fork);
@@ -14,9 +15,9 @@ fast and imports nothing of the project). It
    ``max_output`` bytes of each (memory stays bounded whatever the command prints);
 4. waits for the command's *main* process (a detached child holding stdout open does not
    keep the run going), or the timeout, then SIGKILLs and reaps every remaining descendant;
-5. writes ``RUNDIR/stdout``, ``RUNDIR/stderr`` (the tails) and ``RUNDIR/result.json``.
+5. writes ``RUNDIR/stdout``, ``RUNDIR/stderr`` (the tails) and ``RUNDIR/result.bin``.
 
-``result.json``: ``rc`` (exit status, negative for a signal, ``null`` when not started),
+``result.bin``: ``rc`` (exit status, negative for a signal, ``null`` when not started),
 ``timed_out``, ``latency_ms`` (start of the command to the exit of its main process),
 ``stdout_bytes``/``stderr_bytes`` (total printed), ``pids_limit_hit`` (the cgroup refused a
 fork), ``error`` (the command could not be started).
@@ -24,15 +25,12 @@ fork), ``error`` (the command could not be started).
 
 from __future__ import annotations
 
-import contextlib
 import ctypes
-import json
+import marshal
 import os
 import resource
-import selectors
-import shutil
+import select
 import signal
-import subprocess
 import sys
 import time
 
@@ -53,9 +51,11 @@ def _on_signal(signum: int, frame: object) -> None:
         raise _Stop()
 
 
+_LIBC = ctypes.CDLL(None, use_errno=True)
+
+
 def _prctl(option: int, value: int) -> None:
-    libc = ctypes.CDLL(None, use_errno=True)
-    if libc.prctl(option, value, 0, 0, 0) != 0:
+    if _LIBC.prctl(option, value, 0, 0, 0) != 0:
         err = ctypes.get_errno()
         raise OSError(err, f"prctl({option}) failed: {os.strerror(err)}")
 
@@ -105,15 +105,19 @@ def kill_descendants(cgroup: str | None = None) -> None:
     for _ in range(2000):
         pids = descendants(me)
         if cgroup:
-            with contextlib.suppress(OSError):
+            try:
                 with open(os.path.join(cgroup, "cgroup.procs")) as fh:
                     pids += [int(p) for p in fh.read().split()]
+            except OSError:
+                pass
         if not pids:
             _reap()
             return
         for pid in pids:
-            with contextlib.suppress(OSError):
+            try:
                 os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
         _reap()
         time.sleep(0.001)
 
@@ -127,8 +131,10 @@ def _make_cgroup(parent: str | None, max_procs: int) -> str | None:
         with open(os.path.join(path, "pids.max"), "w") as fh:
             fh.write(str(max_procs))
     except OSError:
-        with contextlib.suppress(OSError):
+        try:
             os.rmdir(path)
+        except OSError:
+            pass
         return None
     return path
 
@@ -192,86 +198,137 @@ def _child_setup(cfg: dict, cgroup: str | None) -> None:
         resource.setrlimit(resource.RLIMIT_NPROC, (cfg["max_procs"], cfg["max_procs"]))
 
 
+def _spawn(cfg: dict, cgroup: str | None, out_fd: int, err_fd: int) -> int:
+    """fork + exec the command (new session, limits, cgroup); returns its pid.
+
+    Raises
+    ------
+    OSError
+        When it could not be started (the child's error, passed back through a pipe).
+    """
+    r_err, w_err = os.pipe()  # close-on-exec: EOF without data means exec succeeded
+    pid = os.fork()
+    if pid == 0:  # child
+        try:
+            os.close(r_err)
+            os.setsid()
+            null = os.open(os.devnull, os.O_RDONLY)
+            os.dup2(null, 0)
+            os.dup2(out_fd, 1)
+            os.dup2(err_fd, 2)
+            for s in (signal.SIGPIPE, signal.SIGXFSZ, signal.SIGTERM, signal.SIGINT,
+                      signal.SIGHUP):
+                signal.signal(s, signal.SIG_DFL)
+            _child_setup(cfg, cgroup)
+            os.closerange(3, w_err)
+            os.closerange(w_err + 1, 1 << 16)
+            os.chdir(cfg["cwd"])
+            os.execve(cfg["exe"], cfg["argv"], cfg["env"])
+        except BaseException as exc:
+            try:
+                os.write(w_err, f"{type(exc).__name__}: {exc}".encode(errors="replace"))
+            finally:
+                os._exit(127)
+    os.close(w_err)
+    try:
+        chunks = []
+        while True:
+            chunk = os.read(r_err, 4096)
+            if not chunk:
+                break
+            chunks.append(chunk)
+    finally:
+        os.close(r_err)
+    if chunks:
+        os.waitpid(pid, 0)
+        raise OSError(b"".join(chunks).decode(errors="replace"))
+    return pid
+
+
 def _write_result(rundir: str, result: dict, tails: dict[str, _Tail]) -> None:
     for name, t in tails.items():
         with open(os.path.join(rundir, name), "wb") as fh:
             fh.write(t.value())
-    tmp = os.path.join(rundir, "result.json.tmp")
-    with open(tmp, "w") as fh:
-        json.dump(result, fh)
-    os.replace(tmp, os.path.join(rundir, "result.json"))
+    tmp = os.path.join(rundir, "result.bin.tmp")
+    with open(tmp, "wb") as fh:
+        marshal.dump(result, fh)
+    os.replace(tmp, os.path.join(rundir, "result.bin"))
+
+
+def _exit_status(status: int) -> int:
+    return -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
+
+
+def _rmtree(path: str) -> None:
+    import shutil
+
+    shutil.rmtree(path, ignore_errors=True)
 
 
 def run(cfg: dict) -> int:
-    """Run one command as described by ``cfg`` (the launch.json); returns the exit status."""
+    """Run one command as described by ``cfg`` (the launch file); returns the exit status."""
     rundir = cfg["rundir"]
     tails = {"stdout": _Tail(cfg["max_output"]), "stderr": _Tail(cfg["max_output"])}
     result: dict = {"rc": None, "timed_out": False, "latency_ms": 0.0, "error": "",
                     "pids_limit_hit": False}
     cgroup = _make_cgroup(cfg.get("cgroup_parent"), cfg["pids_max"])
-    proc = None
     try:
         r_out, w_out = os.pipe()
         r_err, w_err = os.pipe()
         start = time.perf_counter()
         try:
-            proc = subprocess.Popen(
-                cfg["argv"], cwd=cfg["cwd"], env=cfg["env"], stdin=subprocess.DEVNULL,
-                stdout=w_out, stderr=w_err, close_fds=True, start_new_session=True,
-                preexec_fn=lambda: _child_setup(cfg, cgroup),
-            )
-        except (OSError, subprocess.SubprocessError) as exc:
+            pid = _spawn(cfg, cgroup, w_out, w_err)
+        except OSError as exc:
             result["error"] = f"cannot start command: {exc}"
             return 0
         finally:
             os.close(w_out)
             os.close(w_err)
         deadline = start + cfg["timeout_s"]
-        pidfd = os.pidfd_open(proc.pid)
-        sel = selectors.DefaultSelector()
-        sel.register(pidfd, selectors.EVENT_READ, None)
-        sel.register(r_out, selectors.EVENT_READ, tails["stdout"])
-        sel.register(r_err, selectors.EVENT_READ, tails["stderr"])
+        pidfd = os.pidfd_open(pid)
+        poller = select.poll()
+        streams = {r_out: tails["stdout"], r_err: tails["stderr"]}
+        for fd in (pidfd, r_out, r_err):
+            poller.register(fd, select.POLLIN)
         exited = False
         while not exited:
             remaining = deadline - time.perf_counter()
             if remaining <= 0:
                 result["timed_out"] = True
                 break
-            for key, _ in sel.select(timeout=remaining):
-                if key.data is None:
+            for fd, _ in poller.poll(remaining * 1000.0):
+                if fd == pidfd:
                     exited = True
                     continue
-                chunk = os.read(key.fd, 1 << 16)
+                chunk = os.read(fd, 1 << 16)
                 if chunk:
-                    key.data.add(chunk)
+                    streams[fd].add(chunk)
                 else:
-                    sel.unregister(key.fd)
-        if exited:
-            result["rc"] = proc.wait()
-            result["latency_ms"] = (time.perf_counter() - start) * 1000.0
+                    poller.unregister(fd)
+                    del streams[fd]
+        if not exited:
             kill_descendants(cgroup)
-        else:
-            kill_descendants(cgroup)
-            result["rc"] = proc.wait()
-            result["latency_ms"] = (time.perf_counter() - start) * 1000.0
+        result["rc"] = _exit_status(os.waitpid(pid, 0)[1])
+        result["latency_ms"] = (time.perf_counter() - start) * 1000.0
+        kill_descendants(cgroup)
         # every writer is gone: drain what is left in the pipes
-        sel.unregister(pidfd)
+        poller.unregister(pidfd)
         os.close(pidfd)
         drain_until = time.perf_counter() + 2.0
-        while sel.get_map() and time.perf_counter() < drain_until:
-            for key, _ in sel.select(timeout=0.1):
-                chunk = os.read(key.fd, 1 << 16)
+        while streams and time.perf_counter() < drain_until:
+            for fd, _ in poller.poll(100):
+                chunk = os.read(fd, 1 << 16)
                 if chunk:
-                    key.data.add(chunk)
+                    streams[fd].add(chunk)
                 else:
-                    sel.unregister(key.fd)
+                    poller.unregister(fd)
+                    del streams[fd]
         result["pids_limit_hit"] = _pids_limit_hit(cgroup)
         return 0
     except _Stop:
         kill_descendants(cgroup)
         _remove_cgroup(cgroup)
-        shutil.rmtree(rundir, ignore_errors=True)
+        _rmtree(rundir)
         return 128 + (_stop_signal or signal.SIGTERM)
     finally:
         if _stop_signal is None:
@@ -281,20 +338,21 @@ def run(cfg: dict) -> int:
 
 
 def main(argv: list[str]) -> int:
-    """Entry point: ``launcher.py LAUNCH_JSON``."""
-    with open(argv[1]) as fh:
-        cfg = json.load(fh)
+    """Entry point: ``launcher.py LAUNCH_FILE`` (a marshal dict)."""
+    with open(argv[1], "rb") as fh:
+        cfg = marshal.load(fh)
     for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
         signal.signal(s, _on_signal)
     try:
         _prctl(PR_SET_CHILD_SUBREAPER, 1)
         _prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
         if os.getppid() != cfg["parent_pid"]:  # the harness died before PDEATHSIG was set
-            shutil.rmtree(cfg["rundir"], ignore_errors=True)
+            _rmtree(cfg["rundir"])
             return 128 + signal.SIGTERM
         return run(cfg)
     except _Stop:
-        shutil.rmtree(cfg["rundir"], ignore_errors=True)
+        kill_descendants(None)
+        _rmtree(cfg["rundir"])
         return 128 + (_stop_signal or signal.SIGTERM)
 
 
