@@ -488,7 +488,7 @@ class CommandPipeline:
             "timeout_s": lim.timeout_s, "memory_bytes": lim.memory_bytes,
             "max_file_size": lim.max_file_size, "max_output": lim.max_output,
             "max_procs": lim.max_procs, "pids_max": pids_max,
-            "cgroup_parent": self._cgroup,
+            "cgroup_parent": self._cgroup, "sandboxed": self.sandbox == "bwrap",
             "nproc_rlimit": self._cgroup is None and os.getuid() != 0,
             "parent_pid": os.getpid(),
         }  # fmt: skip

@@ -99,17 +99,23 @@ def _reap() -> None:
             return
 
 
-def kill_descendants(cgroup: str | None = None) -> None:
-    """SIGKILL and reap every descendant of this process (and everything in ``cgroup``)."""
+def _cgroup_pids(cgroup: str) -> list[int]:
+    try:
+        with open(os.path.join(cgroup, "cgroup.procs")) as fh:
+            return [int(p) for p in fh.read().split()]
+    except OSError:
+        return []
+
+
+def kill_descendants(cgroup: str | None = None, *, scan: bool = True) -> None:
+    """SIGKILL and reap every process of the run: everything in ``cgroup`` and, with
+    ``scan`` (always without a cgroup), every descendant of this process found in ``/proc``."""
     me = os.getpid()
+    scan = scan or not cgroup
     for _ in range(2000):
-        pids = descendants(me)
-        if cgroup:
-            try:
-                with open(os.path.join(cgroup, "cgroup.procs")) as fh:
-                    pids += [int(p) for p in fh.read().split()]
-            except OSError:
-                pass
+        pids = _cgroup_pids(cgroup) if cgroup else []
+        if scan:
+            pids += descendants(me)
         if not pids:
             _reap()
             return
@@ -163,7 +169,7 @@ def _remove_cgroup(cgroup: str | None) -> None:
         except FileNotFoundError:
             return
         except OSError:
-            kill_descendants(cgroup)
+            kill_descendants(cgroup, scan=False)
             time.sleep(0.005)
 
 
@@ -272,6 +278,7 @@ def run(cfg: dict) -> int:
     result: dict = {"rc": None, "timed_out": False, "latency_ms": 0.0, "error": "",
                     "pids_limit_hit": False}
     cgroup = _make_cgroup(cfg.get("cgroup_parent"), cfg["pids_max"])
+    cleaned = False
     try:
         r_out, w_out = os.pipe()
         r_err, w_err = os.pipe()
@@ -280,6 +287,7 @@ def run(cfg: dict) -> int:
             pid = _spawn(cfg, cgroup, w_out, w_err)
         except OSError as exc:
             result["error"] = f"cannot start command: {exc}"
+            cleaned = True
             return 0
         finally:
             os.close(w_out)
@@ -306,11 +314,15 @@ def run(cfg: dict) -> int:
                 else:
                     poller.unregister(fd)
                     del streams[fd]
+        # in a sandbox nothing can leave the run's cgroup: reading it finds every process;
+        # without one a process could move itself out, so /proc is scanned too
+        scan = not cfg.get("sandboxed")
         if not exited:
-            kill_descendants(cgroup)
+            kill_descendants(cgroup, scan=scan)
         result["rc"] = _exit_status(os.waitpid(pid, 0)[1])
         result["latency_ms"] = (time.perf_counter() - start) * 1000.0
-        kill_descendants(cgroup)
+        kill_descendants(cgroup, scan=scan)
+        cleaned = True
         # every writer is gone: drain what is left in the pipes
         poller.unregister(pidfd)
         os.close(pidfd)
@@ -332,7 +344,8 @@ def run(cfg: dict) -> int:
         return 128 + (_stop_signal or signal.SIGTERM)
     finally:
         if _stop_signal is None:
-            kill_descendants(cgroup)
+            if not cleaned:  # an unexpected error: still leave nothing behind
+                kill_descendants(cgroup)
             _remove_cgroup(cgroup)
             _write_result(rundir, result, tails)
 
