@@ -15,9 +15,9 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-#: How external commands are contained: ``auto`` uses bubblewrap when it is installed,
-#: ``bwrap`` requires it, ``none`` runs without namespaces (private directory, limits and
-#: process cleanup still apply).
+#: How external commands are contained: ``auto`` uses bubblewrap when it is installed and
+#: works (else ``none``, with a warning), ``bwrap`` requires it, ``none`` runs without
+#: namespaces (private directory, limits and process cleanup still apply).
 SANDBOX_MODES: tuple[str, ...] = ("auto", "bwrap", "none")
 
 _SIZE_RE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgGtT]?)(?:i?[bB])?\s*$")
@@ -166,8 +166,8 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--sandbox", choices=SANDBOX_MODES, default="auto",
-        help="auto: bubblewrap when installed; bwrap: require it; none: no namespaces "
-        "(default: %(default)s)",
+        help="auto: bubblewrap when it works here (else a warning and none); bwrap: require "
+        "it; none: no namespaces (default: %(default)s)",
     )
     g.add_argument(
         "--image-name", default=None,

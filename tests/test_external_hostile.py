@@ -283,3 +283,22 @@ def test_sandbox_bwrap_where_it_does_not_work_is_a_usage_error(toy, capsys, monk
     assert rc == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "bubblewrap (bwrap) is not installed" in err[0]
+
+
+def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
+    toy, run_tmp, monkeypatch, capsys
+):
+    from arenabench.eval import external
+
+    monkeypatch.setenv("PATH", str(Path(PY).parent))  # no bwrap on this PATH
+    monkeypatch.setattr(external, "_warned_once", [])
+    external.bwrap_problem.cache_clear()
+    try:
+        pipes = [_pipe("snoop.py", "auto") for _ in range(3)]
+    finally:
+        external.bwrap_problem.cache_clear()
+    assert {p.sandbox for p in pipes} == {"none"}
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len([line for line in err if "WITHOUT a sandbox" in line]) == 1
+    seen = json.loads(pipes[0].run(sorted((toy / "images").iterdir())[0]).stdout.splitlines()[-1])
+    assert seen["cwd_files"] == ["image.png"] and seen["env"]["HOME"] == seen["cwd"]
