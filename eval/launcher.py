@@ -201,7 +201,21 @@ def _child_setup(cfg: dict, cgroup: str | None) -> None:
     resource.setrlimit(resource.RLIMIT_AS, (cfg["memory_bytes"], cfg["memory_bytes"]))
     resource.setrlimit(resource.RLIMIT_FSIZE, (cfg["max_file_size"], cfg["max_file_size"]))
     if cfg.get("nproc_rlimit"):
-        resource.setrlimit(resource.RLIMIT_NPROC, (cfg["max_procs"], cfg["max_procs"]))
+        # RLIMIT_NPROC counts every process of the real uid, so the user's others are added
+        # (approximate: the fallback where no pids cgroup can be made)
+        n = cfg["pids_max"] + _processes_of(os.getuid())
+        resource.setrlimit(resource.RLIMIT_NPROC, (n, n))
+
+
+def _processes_of(uid: int) -> int:
+    n = 0
+    for entry in os.scandir("/proc"):
+        if entry.name.isdigit():
+            try:
+                n += entry.stat().st_uid == uid
+            except OSError:
+                pass
+    return n
 
 
 def _spawn(cfg: dict, cgroup: str | None, out_fd: int, err_fd: int) -> int:
