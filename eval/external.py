@@ -540,7 +540,7 @@ class CommandPipeline:
             self._cgroup is None and any(s in last for s in _NPROC_SIGNS)
         ):
             return f"process limit (--max-procs {lim.max_procs}) reached"
-        if rc == -signal.SIGXFSZ or any(s in last for s in _FSIZE_SIGNS):
+        if rc in (-signal.SIGXFSZ, 128 + signal.SIGXFSZ) or any(s in last for s in _FSIZE_SIGNS):
             return f"file size limit (--max-file-size {_format_size(lim.max_file_size)}) reached"
         if any(s in last for s in _MEMORY_SIGNS):
             return f"memory limit (--memory-limit {_format_size(lim.memory_bytes)}) reached"

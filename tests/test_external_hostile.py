@@ -195,6 +195,15 @@ def test_file_size_limit_and_oversized_answer(sandbox, toy, run_tmp):
         assert "more than the 65536 allowed" in r.prediction.message
 
 
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_sigxfsz_of_a_native_writer_is_a_limit(sandbox, toy, run_tmp):
+    settings = RunSettings(limits=RunLimits(max_file_size=1024**2), sandbox=sandbox)
+    pipe = CommandPipeline("dd if=/dev/zero of=big.bin bs=64k count=64", settings=settings)
+    for r in evaluate(pipe, toy, workers=2, limit=2).images:
+        assert r.category == "limit", (r.prediction.message, r.prediction.stderr)
+        assert r.prediction.message.startswith("file size limit (--max-file-size 1M)")
+
+
 def _eval_cmd(toy, out, tmpdir, *, hang, marker, workers=1, sandbox="auto"):
     env = {**os.environ, "TMPDIR": str(tmpdir)}
     argv = [
