@@ -392,15 +392,18 @@ class CommandPipeline:
                  str(Path(sys.executable).resolve().parent), *python_source_paths()}
         if self._executable:
             paths.add(str(Path(self._executable).resolve().parent))
+        roots = ("/", "/proc", "/dev", "/sys", "/tmp", "/run", "/var", "/home", "/root", "/mnt")
         for arg in self._resolved_args():
             if "{" in arg or not os.path.isabs(arg) or not os.path.exists(arg):
                 continue
             real = os.path.realpath(arg)
-            paths.add(real if os.path.isdir(real) else os.path.dirname(real))
+            folder = real if os.path.isdir(real) else os.path.dirname(real)
+            # a file directly in a top folder such as /tmp: only the file itself
+            paths.add(real if folder in roots and real != folder else folder)
         out: list[str] = []
         for p in sorted(paths, key=len):
             p = os.path.realpath(p)
-            if p in ("/", "/proc", "/dev", "/sys", "/tmp") or _is_within(p, "/usr"):
+            if p in roots or _is_within(p, "/usr"):
                 continue
             if not any(_is_within(p, q) for q in out):
                 out.append(p)
@@ -415,6 +418,8 @@ class CommandPipeline:
                 args += ["--ro-bind", top, top]
         for f in _ETC_FILES:
             args += ["--ro-bind-try", f, f]
+        # the private directory and /tmp first: a submission under /tmp is bound on top
+        args += ["--bind", tmp, "/tmp", "--bind", work, SANDBOX_DIR]
         visible = self._visible_paths()
         for p in visible:
             args += ["--ro-bind", p, p]
@@ -427,8 +432,8 @@ class CommandPipeline:
                 _is_within(v, ds) for v in visible
             ):
                 args += ["--tmpfs", ds]
-        args += ["--bind", work, SANDBOX_DIR, "--bind", tmp, "/tmp", "--proc", "/proc",
-                 "--dev", "/dev", "--remount-ro", "/", "--chdir", SANDBOX_DIR, "--"]
+        args += ["--proc", "/proc", "--dev", "/dev", "--remount-ro", "/", "--chdir", SANDBOX_DIR,
+                 "--"]
         return [shutil.which("bwrap") or "bwrap", *args[1:]]
 
     def _env(self, home: str, tmp: str) -> dict[str, str]:

@@ -72,6 +72,26 @@ def test_snooping_finds_no_dataset_under_bwrap(toy, run_tmp):
         assert r.prediction.status == "ok"
 
 
+@needs_bwrap
+def test_a_submission_under_tmp_runs_and_still_sees_no_dataset(toy, run_tmp, tmp_path):
+    import shutil
+
+    team = tmp_path / "team folder"
+    team.mkdir()
+    for name in ("snoop.py", "common.py"):
+        shutil.copy(HOSTILE / name, team / name)
+    pipe = CommandPipeline(
+        f"{PY} snoop.py --image {{image}}", settings=RunSettings(sandbox="bwrap",
+                                                                  env={"TARGET": str(toy)}),
+        base_dir=str(team),
+    )
+    for r in evaluate(pipe, toy, workers=2, limit=2).images:
+        assert r.prediction.status == "ok", (r.prediction.message, r.prediction.stderr)
+        seen = json.loads(r.prediction.stdout.strip().splitlines()[-1])
+        assert seen["found"] == [] and seen["suspicious"] == []
+        assert seen["target"] == ["<No such file or directory>"]
+
+
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_private_directory_and_scrubbed_environment(sandbox, toy, run_tmp, monkeypatch):
     monkeypatch.setenv("SECRET_TOKEN", "s3cr3t")
