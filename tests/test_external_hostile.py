@@ -331,3 +331,15 @@ def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
     assert len([line for line in err if "WITHOUT a sandbox" in line]) == 1
     seen = json.loads(pipes[0].run(sorted((toy / "images").iterdir())[0]).stdout.splitlines()[-1])
     assert seen["cwd_files"] == ["image.png"] and seen["env"]["HOME"] == seen["cwd"]
+
+
+def test_limit_is_a_failure_category_everywhere(toy, run_tmp):
+    from arenabench.eval.records import CATEGORIES, STATUSES
+    from arenabench.eval.thresholds import check_thresholds, parse_thresholds
+
+    assert "limit" in CATEGORIES and "limit" in STATUSES
+    report = evaluate(_pipe("memory.py", "none", env={"MB": "1024"}, memory_bytes=256 * 1024**2),
+                      toy, workers=2, limit=2)
+    assert report.summary.failures["limit"] == 2
+    reasons = check_thresholds(report.summary, parse_thresholds(["failures.limit=0"]))
+    assert reasons == ["failures.limit 2 > 0 (maximum)"]
