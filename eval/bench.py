@@ -50,7 +50,7 @@ import numpy as np
 #: bench.json schema id.
 BENCH_SCHEMA = "arenabench.bench/1"
 
-#: (key, comparison, value, what): the issue's targets for a 2-core machine without a GPU.
+#: (key, comparison, value, what): the project's targets for a 2-core machine without a GPU.
 TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("generate_disk_ips", ">=", 40.0, "images/s"),
     ("disk_vs_naive", ">=", 3.0, "x"),

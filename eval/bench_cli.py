@@ -10,7 +10,7 @@ from pathlib import Path
 
 from arenabench.eval.bench import TARGETS, BenchConfig, BenchResult, target_met
 
-#: (key, label, unit) rows of the table, in the issue's order.
+#: (key, label, unit) rows of the table, in the README's order.
 ROWS: tuple[tuple[str, str, str], ...] = (
     ("generate_disk_ips", "1 generation to disk (PNG + GT)", "images/s"),
     ("generate_memory_ips", "2 generation in memory (render + GT)", "images/s"),
@@ -77,7 +77,7 @@ def format_table(result: BenchResult) -> str:
                f"{v.get('gl_renderer', '?')}; python {v.get('python')}, "
                f"opencv {v.get('opencv')}, numpy {v.get('numpy')}, "
                f"pyrender {v.get('pyrender')}; {result.seconds:.0f} s in all")
-    out.append("Targets are the issue's, for a 2-core machine without a GPU. CPU ms/img: CPU "
+    out.append("Targets are the project's, for a 2-core machine without a GPU. CPU ms/img: CPU "
                "time (all processes and threads) per image.")
     load = result.details.get("load_avg_start") or []
     cores = m.get("cores") or 1

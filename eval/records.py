@@ -1,7 +1,7 @@
 """Typed records of an evaluation: what a pipeline predicted, per-image results, summary, report.
 
 Every record converts to and from the JSON of ``report.json`` (schema ``arenabench.report/1``,
-keys as in the project's design contract; extra keys are only ever added, never renamed).
+keys as in docs/formats.md; extra keys are only ever added, never renamed).
 """
 
 from __future__ import annotations
@@ -100,7 +100,7 @@ class ImageScore:
     """Metrics of one image (output of :func:`arenabench.eval.metrics.score_image`).
 
     ``area_err_kind`` is ``"relative"`` normally and ``"absolute_px"`` when the ground-truth
-    area is 0 (``area_rel_err`` then holds the absolute error in px, per the design contract).
+    area is 0 (``area_rel_err`` then holds the absolute error in px; docs/ground-truth.md).
     """
 
     passed: bool
@@ -168,7 +168,7 @@ class ImageResult:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ImageResult:
-        """Inverse of :meth:`to_dict` (tolerates the minimal keys of the design example)."""
+        """Inverse of :meth:`to_dict` (tolerates a minimal entry: id, pass, gt, pred)."""
         gt, pred = d.get("gt", {}), d.get("pred", {})
         ids = pred.get("marker_ids")
         prediction = Prediction(

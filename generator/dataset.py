@@ -33,10 +33,10 @@ from arenabench.fileio import (
     atomic_write_json,
     atomic_write_text,
     dumps_json,
+    rounded,
     sha256_bytes,
     sha256_file,
 )
-from arenabench.generator.groundtruth import rounded
 from arenabench.generator.presets import Value, format_value, get_preset, resolve
 from arenabench.generator.sample import GENERATOR_VERSION, make_sample, scene_id
 

@@ -1,4 +1,4 @@
-"""Analytic ground truth (DESIGN.md "Ground truth"): geometry only, never read from pixels.
+"""Analytic ground truth (docs/ground-truth.md): geometry only, never read from pixels.
 
 - Image -> frame homography ``H = world_to_frame @ inv(K [r1 r2 t])`` (floor plane z = 0).
 - Visible silhouette of a box: its vertices projected from the camera centre onto z = 0
@@ -16,6 +16,7 @@ import numpy as np
 import shapely
 from shapely.geometry import MultiPoint, Polygon, box
 
+from arenabench.fileio import rounded
 from arenabench.frame import CORNER_ORDER, FrameSpec
 from arenabench.generator import camera as cam
 from arenabench.generator.degrade import densify, distort_points
@@ -29,30 +30,10 @@ from arenabench.generator.layout import (
 )
 from arenabench.generator.scene import Scene
 
-#: Decimal places kept in ground-truth JSON (stable, byte-identical files).
-DECIMALS = 6
 #: Significant digits kept for matrices (homography, K, pose).
 SIGNIFICANT_DIGITS = 12
 #: A marker is in view when its corners lie this many px inside the image border.
 IN_VIEW_MARGIN_PX = 2.0
-
-
-def rounded(obj: Any, decimals: int = DECIMALS) -> Any:
-    """Round every float in a nested structure (numpy values become Python numbers)."""
-    if isinstance(obj, dict):
-        return {k: rounded(v, decimals) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [rounded(v, decimals) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return rounded(obj.tolist(), decimals)
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        value = round(float(obj), decimals)
-        return 0.0 if value == 0 else value
-    return obj
 
 
 def significant(a: np.ndarray, digits: int = SIGNIFICANT_DIGITS) -> list:
@@ -129,7 +110,7 @@ def compute_ground_truth(scene: Scene, *, frame: FrameSpec | None = None) -> dic
     -------
     dict
         Keys ``image_size``, ``scene``, ``count``, ``components``, ``area``, ``frame``,
-        ``homography``, ``camera``, ``markers``, ``obstacles`` as in DESIGN.md.
+        ``homography``, ``camera``, ``markers``, ``obstacles`` (docs/ground-truth.md).
     """
     frame = frame or FrameSpec()
     K = cam.intrinsics(scene.camera)

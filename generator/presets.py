@@ -88,7 +88,7 @@ PARAMETERS: dict[str, ParamDef] = {
                                      -360, 360),
     "background.gray": ParamDef("int", "grey level around the arena", 0, 255),
     **{
-        # Degradations and scene-side variations (issue 5): every one neutral by default.
+        # Degradations and scene-side variations: every one neutral by default.
         "camera.k1": ParamDef("float", "lens radial distortion k1 (0 = pinhole; < 0 barrel)",
                               -1, 1),
         "camera.k2": ParamDef("float", "lens radial distortion k2", -1, 1),
@@ -127,7 +127,7 @@ PARAMETERS: dict[str, ParamDef] = {
     },
 }
 
-#: Neutral values of the degradation / variation parameters (issue 5): a preset or mapping
+#: Neutral values of the degradation / variation parameters: a preset or mapping
 #: that lacks them gets these, which change nothing in the image.
 NEUTRAL: dict[str, Value] = {
     "camera.k1": 0.0, "camera.k2": 0.0, "camera.p1": 0.0, "camera.p2": 0.0, "camera.k3": 0.0,
@@ -186,7 +186,7 @@ _EYRC: dict[str, Value] = {
     **NEUTRAL,
 }
 
-#: eyrc under what a real drone adds (issue 7): every draw stays in a range a flight camera
+#: eyrc under what a real drone adds: every draw stays in a range a flight camera
 #: plausibly sees; the reference pipeline's pass rate on it is a figure, not a tuning target.
 _EYRC_HARD: dict[str, Value] = {
     **_EYRC,

@@ -15,15 +15,16 @@ from typing import Any
 import cv2
 import numpy as np
 
+from arenabench.fileio import rounded
 from arenabench.frame import FrameSpec
 from arenabench.generator.degrade import Degradations, apply_degradations
-from arenabench.generator.groundtruth import compute_ground_truth, rounded
+from arenabench.generator.groundtruth import compute_ground_truth
 from arenabench.generator.presets import Value
 from arenabench.generator.render import Renderer, RenderOutput
 from arenabench.generator.sampler import sample_scene
 
 #: Bumped whenever the same (preset, seed, index) would give different images or GT.
-#: 2: degradation / scene-variation parameters (issue 5) recorded in the GT's params and
+#: 2: degradation / scene-variation parameters recorded in the GT's params and
 #: scene, per-marker occlusion fields, "homography_domain"; images unchanged.
 #: 3: textures sampled bilinearly in the nearest mip level (mean change 0.1 grey level, ~20 %
 #: faster renders); Gaussian noise drawn with OpenCV's sampler; eyrc re-tuned so that the

@@ -65,6 +65,7 @@ def test_layout_manifest_and_metadata(one_worker):
     assert img.shape == (1000, 1000, 3)
 
 
+@pytest.mark.slow
 def test_two_workers_write_byte_identical_files(one_worker, tmp_path):
     out, _ = one_worker
     proc = _generate(tmp_path / "two", "--workers", "2")
@@ -72,6 +73,7 @@ def test_two_workers_write_byte_identical_files(one_worker, tmp_path):
     assert _files(tmp_path / "two") == _files(out)
 
 
+@pytest.mark.slow
 def test_rerun_does_nothing_and_interrupted_run_resumes(one_worker, tmp_path):
     out, _ = one_worker
     reference = _files(out)

@@ -10,14 +10,13 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+import toy_arena
 
 from arenabench.cli import main as arenabench_main
 from arenabench.eval.reports import write_reports
 from arenabench.eval.runner import evaluate
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
-sys.path.insert(0, str(PIPES))
-import toy_arena  # noqa: E402
 
 
 @pytest.fixture(scope="module")
@@ -45,7 +44,7 @@ def run_dir(toy, tmp_path_factory):
     return out
 
 
-def test_report_json_has_the_design_keys(run_dir, toy):
+def test_report_json_has_the_documented_keys(run_dir, toy):
     rep = json.loads((run_dir / "report.json").read_text())
     assert rep["schema"] == "arenabench.report/1"
     assert {"pipeline", "dataset", "area_reference", "tolerance", "summary", "images"} <= set(rep)
@@ -182,6 +181,7 @@ def test_compare_shows_metrics_and_verdict_changes(toy, tmp_path, capsys):
     assert "pass_rate" in out and "(worse)" in out
 
 
+@pytest.mark.slow
 def test_pytest_plugin_fixture_and_score(toy, tmp_path):
     test_file = tmp_path / "test_team.py"
     test_file.write_text(

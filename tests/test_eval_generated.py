@@ -45,6 +45,7 @@ def _per_image(report):
     ]
 
 
+@pytest.mark.slow
 def test_reference_same_in_process_by_command_and_by_callable(eyrc, tmp_path, monkeypatch):
     # "python" on PATH must be this interpreter (the venv's), as it is for a user in the venv
     monkeypatch.setenv("PATH", f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
@@ -71,6 +72,7 @@ def test_reference_same_in_process_by_command_and_by_callable(eyrc, tmp_path, mo
     assert set(reports["builtin"].breakdown) >= {"camera.tilt_deg", "obstacles.count"}
 
 
+@pytest.mark.slow
 def test_demo_ends_with_the_report_and_its_path(tmp_path, capsys):
     assert demo_main(["--out", str(tmp_path / "demo"), "--count", "4", "--workers", "2"]) == 0
     out = capsys.readouterr().out.strip().splitlines()

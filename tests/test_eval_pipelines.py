@@ -9,6 +9,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import toy_arena
 
 from arenabench.eval.cli import main as eval_main
 from arenabench.eval.pipelines import CallablePipeline, CommandPipeline
@@ -17,8 +18,6 @@ from arenabench.eval.run_limits import RunLimits, RunSettings
 from arenabench.eval.runner import evaluate
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
-sys.path.insert(0, str(PIPES))
-import toy_arena  # noqa: E402
 
 PY = sys.executable
 
@@ -43,6 +42,7 @@ def _per_image(report):
     ]
 
 
+@pytest.mark.slow
 def test_callable_command_and_json_line_give_identical_results(toy):
     by_spec = evaluate("toy_arena:detect", toy, workers=2)
     by_function = evaluate(toy_arena.detect, toy, workers=2)
@@ -63,6 +63,7 @@ def test_callable_command_and_json_line_give_identical_results(toy):
     assert all(r.prediction.latency_ms > 0 for r in by_cmd.images)
 
 
+@pytest.mark.slow
 def test_process_pool_matches_thread_pool(toy):
     threads = evaluate("toy_arena:detect", toy, workers=2, executor="thread")
     procs = evaluate("toy_arena:detect", toy, workers=2, executor="process")
@@ -96,6 +97,7 @@ def test_crashing_command_is_a_crash_with_its_stderr(toy, tmp_path, capsys):
     assert "deliberate crash in the test pipeline" in first.stderr
 
 
+@pytest.mark.slow
 def test_hanging_command_times_out_and_its_children_are_killed(toy, tmp_path):
     from hostile_util import processes_with
 
@@ -135,6 +137,7 @@ def test_missing_obstacles_file_and_missing_executable(toy):
         CommandPipeline("no-such-tool-xyz --image {image}")
 
 
+@pytest.mark.slow
 def test_eight_parallel_commands_never_share_a_working_directory(toy, tmp_path, monkeypatch):
     import tempfile
 

@@ -179,6 +179,7 @@ def _rss_mb() -> float:
     raise AssertionError("no VmRSS")
 
 
+@pytest.mark.slow
 def test_100_mb_of_stdout_keeps_a_bounded_tail_and_flat_memory(toy, run_tmp):
     peak = [_rss_mb()]
     base = peak[0]
@@ -241,6 +242,7 @@ def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_signal_stops_eval_with_a_partial_report(signum, toy, tmp_path):
     marker = f"signal-marker-{os.getpid()}-{int(signum)}"
@@ -266,6 +268,7 @@ def test_signal_stops_eval_with_a_partial_report(signum, toy, tmp_path):
     assert list(tmpdir.iterdir()) == []
 
 
+@pytest.mark.slow
 def test_sigkill_of_the_harness_leaves_no_processes_or_directories(toy, tmp_path):
     marker = f"sigkill-marker-{os.getpid()}"
     children = f"{marker}:child"

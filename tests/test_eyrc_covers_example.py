@@ -1,4 +1,4 @@
-"""The eyrc preset's distribution contains the fitted competition example (issue 7)."""
+"""The eyrc preset's distribution contains the fitted competition example."""
 
 import json
 import math

@@ -1,4 +1,4 @@
-"""Atomic file writes and hashing shared by every package.
+"""Atomic file writes, hashing and float rounding for JSON, shared by every package.
 
 Nothing half-written is ever left under a final name: data goes to a temporary file in the
 same directory, is flushed, then renamed over the target (``os.replace`` is atomic on POSIX).
@@ -12,6 +12,12 @@ import os
 import tempfile
 from pathlib import Path
 from typing import Any
+
+import numpy as np
+
+#: Decimal places kept for floats in the JSON files arenabench writes (ground truth,
+#: coco.json): stable, byte-identical files.
+JSON_DECIMALS = 6
 
 
 def _process_umask() -> int:
@@ -86,3 +92,34 @@ def sha256_file(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
         while block := fh.read(chunk):
             h.update(block)
     return h.hexdigest()
+
+
+def rounded(obj: Any, decimals: int = JSON_DECIMALS) -> Any:
+    """Round every float in a nested structure (numpy values become Python numbers).
+
+    Parameters
+    ----------
+    obj : any
+        Dicts, lists, tuples, NumPy arrays and scalars, nested; other values pass unchanged.
+    decimals : int
+        Decimal places kept (default :data:`JSON_DECIMALS`); ``-0.0`` becomes ``0.0``.
+
+    Returns
+    -------
+    any
+        The same structure with lists for tuples and arrays.
+    """
+    if isinstance(obj, dict):
+        return {k: rounded(v, decimals) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [rounded(v, decimals) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return rounded(obj.tolist(), decimals)
+    if isinstance(obj, (bool, np.bool_)):
+        return bool(obj)
+    if isinstance(obj, (int, np.integer)):
+        return int(obj)
+    if isinstance(obj, (float, np.floating)):
+        value = round(float(obj), decimals)
+        return 0.0 if value == 0 else value
+    return obj

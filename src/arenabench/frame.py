@@ -1,6 +1,6 @@
 """The rectified frame: the 1000 x 1000 top-down view every part of the project agrees on.
 
-Conventions (see README "Coordinates"):
+Conventions (defined in docs/ground-truth.md, "Coordinate systems"):
 
 - World: metres, floor plane z = 0, z up; the arena is a square of side L centred at the
   origin; north is +y, east is +x.
@@ -56,8 +56,3 @@ class FrameSpec:
     def to_dict(self) -> dict:
         """JSON form used in ground truth: ``{"size": [S, S], "corners": ...}``."""
         return {"size": [int(self.size), int(self.size)], "corners": self.corners}
-
-
-def world_to_frame_scale(dx_m: float, dy_m: float, size: int = 1000) -> tuple[float, float]:
-    """Pixels per metre along x and y for reference corners ``dx_m`` x ``dy_m`` metres apart."""
-    return size / dx_m, size / dy_m

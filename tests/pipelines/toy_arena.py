@@ -29,10 +29,7 @@ def draw_toy_arena(
 ) -> tuple[np.ndarray, dict]:
     """Draw one arena with tests/drawing.py; returns (BGR image, GT dict in the
     arenabench.gt/1 layout). ``gain`` scales the floor brightness."""
-    tests_dir = str(Path(__file__).resolve().parents[1])
-    if tests_dir not in sys.path:
-        sys.path.insert(0, tests_dir)
-    from drawing import Box, draw_arena
+    from drawing import Box, draw_arena  # tests/ is on sys.path (pytest's pythonpath option)
 
     boxes: list[Box] = []
     tries = 0
