@@ -22,6 +22,7 @@ ROWS: tuple[tuple[str, str, str], ...] = (
     ("sweep_ips", "6 streaming sweep (render..score)", "scenes/s"),
     ("worker_peak_rss_mb", "7 peak RSS per worker", "MB"),
     ("worker_rss_growth_mb", "7 RSS growth over the renders", "MB"),
+    ("sandbox_overhead_ms", "8 bubblewrap cost per external run", "ms"),
     ("disk_vs_naive", "(1)/(3)", "x"),
     ("disk_vs_floor", "(1)/(4)", "x"),
 )

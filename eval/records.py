@@ -12,8 +12,12 @@ from typing import Any
 REPORT_SCHEMA = "arenabench.report/1"
 
 #: Pipeline statuses. ``ok`` and ``markers_not_found`` come from the pipeline itself; the
-#: other three are assigned by the harness when the pipeline did not produce a usable answer.
-STATUSES: tuple[str, ...] = ("ok", "markers_not_found", "crash", "timeout", "bad_output")
+#: others are assigned by the harness when the pipeline did not produce a usable answer
+#: (``limit``: an external command failed after hitting a run limit other than the timeout,
+#: i.e. memory, processes or file size; the message says which).
+STATUSES: tuple[str, ...] = (
+    "ok", "markers_not_found", "crash", "timeout", "limit", "bad_output",
+)  # fmt: skip
 
 #: Failure categories, in the order reports list them.
 CATEGORIES: tuple[str, ...] = (
@@ -22,6 +26,7 @@ CATEGORIES: tuple[str, ...] = (
     "area_off",
     "crash",
     "timeout",
+    "limit",
     "bad_output",
 )
 
@@ -302,7 +307,11 @@ class Summary:
 
 @dataclass(frozen=True)
 class Report:
-    """A whole evaluation: settings, summary, per-image results and the parameter breakdown."""
+    """A whole evaluation: settings, summary, per-image results and the parameter breakdown.
+
+    ``complete`` is ``False`` for a run stopped early (SIGINT/SIGTERM); its summary then
+    covers the ``n_done`` images evaluated before the stop.
+    """
 
     pipeline: str
     dataset: str
@@ -312,6 +321,13 @@ class Report:
     images: tuple[ImageResult, ...]
     breakdown: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     schema: str = REPORT_SCHEMA
+    complete: bool = True
+    n_done: int | None = None
+
+    @property
+    def images_done(self) -> int:
+        """Images evaluated (``n_done``, or every image of a complete report)."""
+        return len(self.images) if self.n_done is None else self.n_done
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form (``report.json``)."""
@@ -321,6 +337,8 @@ class Report:
             "dataset": self.dataset,
             "area_reference": self.area_reference,
             "tolerance": self.tolerance,
+            "complete": self.complete,
+            "n_done": self.images_done,
             "summary": self.summary.to_dict(),
             "breakdown": self.breakdown,
             "images": [r.to_dict() for r in self.images],
@@ -345,4 +363,6 @@ class Report:
             summary=Summary.from_dict(d["summary"]),
             images=tuple(ImageResult.from_dict(i) for i in d.get("images", [])),
             breakdown=dict(d.get("breakdown", {})),
+            complete=bool(d.get("complete", True)),
+            n_done=None if d.get("n_done") is None else int(d["n_done"]),
         )

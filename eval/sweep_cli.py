@@ -15,6 +15,7 @@ from arenabench.clihelp import HelpFormatter
 from arenabench.interrupts import Interrupted, stop_on_signals
 
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
+from .run_limits import add_run_arguments, run_settings_from_args
 
 EPILOG = """\
 examples:
@@ -83,7 +84,6 @@ def build_parser() -> argparse.ArgumentParser:
                    help="external command, e.g. 'python3 map.py --image {image}' (repeatable)")
     p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
                    help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line")
-    p.add_argument("--timeout", type=float, default=60.0, help="seconds per image for --cmd")
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
     p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible",
                    help="GT area the answer is compared with: visible (the silhouettes a "
@@ -105,6 +105,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run on an existing Dask distributed cluster")
     p.add_argument("--no-plots", action="store_true", help="skip plots and sweep.html")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_run_arguments(p)
     return p
 
 
@@ -144,14 +145,14 @@ def main(argv: list[str] | None = None) -> int:
         clash = sorted(set(overrides) & {a.key for a in axes})
         if clash:
             raise ValueError(f"--set {clash[0]}: also given with --vary")
+        settings = run_settings_from_args(args)
         pipelines = tuple(
-            PipelineSpec(kind, value, timeout_s=args.timeout, output=args.output)
+            PipelineSpec(kind, value, settings=settings, output=args.output)
             for kind, value in args.pipes
         )
-        if any(p.kind == "pipeline" and ":" in p.value for p in pipelines):
-            for p in pipelines:
-                if p.kind == "pipeline":
-                    p.build()  # import errors now, as one line, not in every worker
+        for p in pipelines:
+            if p.kind == "cmd" or ":" in p.value:
+                p.build()  # import errors, missing executables now, as one line
         spec = SweepSpec(
             preset=args.preset, axes=axes, pipelines=pipelines, per_point=args.per_point,
             seed=args.seed, random=args.random, overrides=overrides,
