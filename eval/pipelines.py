@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import importlib
 import json
-import shlex
+import os
+import sys
 import time
 import traceback
 from collections.abc import Callable, Mapping
@@ -359,8 +360,3 @@ def make_pipeline(
     if callable(spec):
         return CallablePipeline(spec)
     raise ValueError(f"pipeline must be a name, a callable or a pipeline object, got {spec!r}")
-
-
-def quote_command(argv: list[str]) -> str:
-    """Shell-quoted rendering of an argument list (for messages only)."""
-    return shlex.join(argv)
