@@ -39,9 +39,7 @@ golden: $(STAMP)
 	$(PY) -m tests.golden --update
 
 demo: $(STAMP) system-deps
-	$(PY) -m arenabench detect --image tests/data/task1c_image.jpg --output $(DEMO_OUT)/obstacles.txt --json
-	@echo "obstacles.txt written to $(DEMO_OUT)/obstacles.txt:"; cat $(DEMO_OUT)/obstacles.txt
-	$(PY) -m arenabench demo --out $(DEMO_OUT)
+	@$(PY) -m arenabench demo --out $(DEMO_OUT) --example tests/data/task1c_image.jpg
 
 lint: $(STAMP)
 	$(PY) -m ruff check .

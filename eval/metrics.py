@@ -2,8 +2,9 @@
 
 Failure category of a failing image (exactly one, first match wins):
 
-1. the pipeline gave no usable answer: its status (``crash``, ``timeout``, ``bad_output``,
-   ``markers_not_found``); these are mutually exclusive, so no count or area is judged;
+1. the pipeline gave no usable answer: its status (``crash``, ``timeout``, ``limit``,
+   ``bad_output``, ``markers_not_found``); these are mutually exclusive, so no count or area
+   is judged;
 2. ``wrong_count``: predicted count differs from the ground truth;
 3. ``area_off``: the count is right but ``|area_rel_err| > tolerance``.
 """

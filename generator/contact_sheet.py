@@ -13,6 +13,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from arenabench.clihelp import HelpFormatter
 from arenabench.fileio import atomic_write_bytes
 
 
@@ -68,7 +69,8 @@ def tile_images(
 
 
 def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
-                 overrides: dict | None = None, columns: int = 4, tile: int = 320) -> np.ndarray:
+                 overrides: dict | None = None, columns: int = 4, tile: int = 320,
+                 progress: bool = False) -> np.ndarray:
     """Render scenes ``0..count-1`` of ``preset`` with ``seed`` and tile them.
 
     Parameters
@@ -81,6 +83,8 @@ def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
         Parsed ``--set`` values.
     columns, tile : int, keyword-only
         Layout, see :func:`tile_images`.
+    progress : bool, keyword-only
+        Show progress on stderr (:mod:`arenabench.progress`).
 
     Returns
     -------
@@ -94,9 +98,11 @@ def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
     glplatform.configure()
     from arenabench.generator.render import Renderer
     from arenabench.generator.sample import make_sample
+    from arenabench.progress import progress as progress_bar
 
     images, captions = [], []
-    with Renderer() as renderer:
+    with Renderer() as renderer, progress_bar(count, desc="contact-sheet",
+                                              enabled=progress) as bar:
         for index in range(count):
             s = make_sample(preset, seed=seed, index=index, overrides=overrides,
                             renderer=renderer)
@@ -104,12 +110,14 @@ def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
             captions.append(
                 f"{s.id}  count {s.gt['count']}  area {s.gt['area']['visible_px']:.0f}"
             )
+            bar.update(1)
     return tile_images(images, captions, columns=columns, tile=tile)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench contact-sheet``; returns 0, or 2 on a usage error."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench contact-sheet",
         description="Render the first COUNT scenes of a preset and tile them into one image.",
     )
@@ -122,6 +130,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tile", type=int, default=320, help="tile side in px (default 320)")
     p.add_argument("--out", type=Path, default=None,
                    help="output image (.jpg or .png; default contact-PRESET.jpg)")
+    p.add_argument("--no-progress", action="store_true", help="no progress output")
     args = p.parse_args(argv)
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
@@ -135,7 +144,7 @@ def main(argv: list[str] | None = None) -> int:
         get_preset(args.preset)
         sheet = render_sheet(args.preset, count=args.count, seed=args.seed,
                              overrides=parse_overrides(args.overrides), columns=args.columns,
-                             tile=args.tile)
+                             tile=args.tile, progress=not args.no_progress)
     except (SamplingError, ValueError) as exc:
         print(f"arenabench contact-sheet: error: {exc}", file=sys.stderr)
         return 2

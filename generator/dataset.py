@@ -6,12 +6,20 @@ Layout of ``DIR``::
 
 Every file is written atomically. ``dataset.json`` is written first (``"complete": false``)
 with the run's arguments, so a re-run can tell an interrupted run of the same arguments
-(resumed: scenes whose image and GT exist are skipped) from a different one (refused); the
+(resumed: scenes whose image and GT exist are skipped) from a different one (refused; a
+larger ``count`` with otherwise equal arguments extends the set, since scenes are
+independent by index, and gives the same files as generating the larger count at once); the
 manifest and ``coco.json`` are written last, in id order, and ``dataset.json`` is rewritten
 with ``"complete": true``. Output is byte-identical for the same arguments whatever the
-number of workers (one spawned process per worker, one renderer each). On a Dask cluster
-(``scheduler=``) the workers render and encode, and this process writes the files they send
-back, so the output folder needs no shared file system.
+number of workers (one spawned process per worker, one renderer each).
+
+On a Dask cluster (``scheduler=``) the workers render and encode, and this process writes the
+files they send back, so the output folder needs no shared file system.
+
+Interrupted (SIGINT/SIGTERM inside :func:`arenabench.interrupts.stop_on_signals`), a run stops
+its workers, writes ``manifest.jsonl`` for the scenes finished so far and ``dataset.json``
+with ``"complete": false`` and ``"finished"``, and returns; running it again resumes and ends
+with the same files as an uninterrupted run.
 """
 
 from __future__ import annotations
@@ -42,6 +50,14 @@ from arenabench.fileio import (
 )
 from arenabench.generator.presets import Value, format_value, get_preset, resolve
 from arenabench.generator.sample import GENERATOR_VERSION, make_sample, scene_id
+from arenabench.interrupts import (
+    Interrupted,
+    children_ignore_sigint,
+    init_worker_process,
+    signal_name,
+    stop_workers,
+    worker_task,
+)
 
 #: dataset.json schema id.
 DATASET_SCHEMA = "arenabench.dataset/1"
@@ -89,6 +105,12 @@ class DatasetResult:
         The dataset directory.
     rendered, skipped : int
         Scenes rendered now / found already on disk.
+    count : int
+        Scenes of the dataset.
+    interrupted : int or None
+        The signal that stopped the run (then only ``finished`` scenes are on disk).
+    finished : int
+        Scenes on disk when the run ended (``count`` unless interrupted).
     seconds : float
         Wall time.
     timings_ms : dict
@@ -101,9 +123,23 @@ class DatasetResult:
     skipped: int
     seconds: float
     timings_ms: dict[str, float] = field(default_factory=dict)
+    count: int = 0
+    interrupted: int | None = None
+    finished: int = 0
+
+    @property
+    def complete(self) -> bool:
+        """Whether every scene is on disk with the manifest and ``coco.json``."""
+        return self.interrupted is None
 
     def summary(self) -> str:
         """One line for the CLI."""
+        if self.interrupted is not None:
+            return (f"interrupted by {signal_name(self.interrupted)}: {self.finished} of "
+                    f"{self.count} images written to {self.out}; run the same command again "
+                    "to resume")
+        if not self.rendered:
+            return f"{self.out}: already complete: {self.skipped} images"
         rate = self.rendered / self.seconds if self.seconds > 0 and self.rendered else 0.0
         parts = [f"{self.rendered} rendered", f"{self.skipped} already present",
                  f"{self.seconds:.1f} s", f"{rate:.1f} images/s"]
@@ -118,7 +154,9 @@ class DatasetResult:
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(lp_threads: int | None) -> None:
+def _init_worker(lp_threads: int | None, parent_pid: int | None = None) -> None:
+    if parent_pid is not None:  # a pool worker
+        init_worker_process(parent_pid=parent_pid)
     if lp_threads and "LP_NUM_THREADS" not in os.environ:
         os.environ["LP_NUM_THREADS"] = str(lp_threads)
     from arenabench.generator.render import Renderer
@@ -136,43 +174,36 @@ def _encode_png(rgb: np.ndarray) -> bytes:
     return buf.tobytes()
 
 
-def _render_bytes(
-    task: tuple[str, dict[str, Any], int, int, str], renderer: Any
-) -> dict[str, Any]:
-    """Render one scene and encode it: ``{"id", "png_bytes", "gt_text", timings...}``."""
-    args_dict, index = task[1], task[3]
+def _render_one(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
+    with worker_task():
+        return _render_task(task)
+
+
+def _render_task(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
+    args_dict, out, index = task[1], Path(task[4]), task[3]
+    renderer = _WORKER["renderer"]
     sample = make_sample(args_dict["preset"], seed=task[2], index=index,
                          overrides=_parse_stored(args_dict["overrides"]), renderer=renderer)
     t1 = time.perf_counter()
     png = _encode_png(sample.rgb)
     t2 = time.perf_counter()
-    return {**sample.timings_ms, "id": sample.id, "png_bytes": png,
-            "gt_text": dumps_json(sample.gt), "encode": (t2 - t1) * 1000}
-
-
-def _write_rendered(out: Path, res: dict[str, Any]) -> dict[str, Any]:
-    """Write a rendered scene's files; returns its record without the bytes."""
-    t2 = time.perf_counter()
-    atomic_write_bytes(out / "images" / f"{res['id']}.png", res["png_bytes"])
-    atomic_write_text(out / "gt" / f"{res['id']}.json", res["gt_text"])
+    gt_bytes = dumps_json(sample.gt).encode("utf-8")
+    atomic_write_bytes(out / "images" / f"{sample.id}.png", png)
+    atomic_write_bytes(out / "gt" / f"{sample.id}.json", gt_bytes)
     t3 = time.perf_counter()
-    return {**{k: v for k, v in res.items() if k not in ("png_bytes", "gt_text")},
-            "write": (t3 - t2) * 1000}
-
-
-def _render_one(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
-    renderer = _WORKER["renderer"]
-    res = _write_rendered(Path(task[4]), _render_bytes(task, renderer))
     if "gl" not in _WORKER:
         _WORKER["gl"] = renderer.gl_info()
-    return {**res, "gl": _WORKER["gl"]}
+    return {"id": sample.id, **sample.timings_ms, "encode": (t2 - t1) * 1000,
+            "write": (t3 - t2) * 1000, "gl": _WORKER["gl"],
+            "image_sha256": sha256_bytes(png), "gt_sha256": sha256_bytes(gt_bytes)}
 
 
 _CLUSTER_LOCAL = threading.local()
 
 
 def _render_on_cluster(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
-    """A Dask worker's unit: render and encode, return the bytes (the client writes them).
+    """A Dask worker's unit: render and encode as :func:`_render_task`, but return the bytes
+    (``png_bytes``, ``gt_text``) for the client to write (:func:`_write_rendered`).
 
     The renderer is created on first use, one per worker thread (an OpenGL context is current
     in one thread only), and reused.
@@ -183,7 +214,28 @@ def _render_on_cluster(task: tuple[str, dict[str, Any], int, int, str]) -> dict[
 
         renderer = _CLUSTER_LOCAL.renderer = Renderer()
         _CLUSTER_LOCAL.gl = renderer.gl_info()
-    return {**_render_bytes(task, renderer), "gl": _CLUSTER_LOCAL.gl}
+    args_dict, index = task[1], task[3]
+    sample = make_sample(args_dict["preset"], seed=task[2], index=index,
+                         overrides=_parse_stored(args_dict["overrides"]), renderer=renderer)
+    t1 = time.perf_counter()
+    png = _encode_png(sample.rgb)
+    t2 = time.perf_counter()
+    return {**sample.timings_ms, "id": sample.id, "png_bytes": png,
+            "gt_text": dumps_json(sample.gt), "encode": (t2 - t1) * 1000,
+            "gl": _CLUSTER_LOCAL.gl}
+
+
+def _write_rendered(out: Path, res: dict[str, Any]) -> dict[str, Any]:
+    """Write the files of a scene rendered on a cluster; returns the same record as
+    :func:`_render_task` (without the bytes)."""
+    gt_bytes = res["gt_text"].encode("utf-8")
+    t2 = time.perf_counter()
+    atomic_write_bytes(out / "images" / f"{res['id']}.png", res["png_bytes"])
+    atomic_write_bytes(out / "gt" / f"{res['id']}.json", gt_bytes)
+    t3 = time.perf_counter()
+    return {**{k: v for k, v in res.items() if k not in ("png_bytes", "gt_text")},
+            "write": (t3 - t2) * 1000, "image_sha256": sha256_bytes(res["png_bytes"]),
+            "gt_sha256": sha256_bytes(gt_bytes)}
 
 
 def _parse_stored(overrides: dict[str, str]) -> dict[str, Value]:
@@ -217,6 +269,13 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
         raise DatasetError(f"{meta_path} is unreadable ({exc}): refusing to overwrite") from exc
     new = args.to_dict()
     for key in ("preset", "count", "seed", "overrides", "generator_version"):
+        if key == "count" and isinstance(old.get(key), int) and new[key] > old[key]:
+            continue  # extending a set: scenes are independent by index
+        if key == "count" and isinstance(old.get(key), int) and new[key] < old[key]:
+            raise DatasetError(
+                f"{out} holds {old[key]} scenes and --count {new[key]} is smaller: a set can "
+                "grow (same seed, preset and --set) but not shrink (use another --out)"
+            )
         if old.get(key) != new[key]:
             name = {"overrides": "--set"}.get(key, f"--{key}")
             raise DatasetError(
@@ -270,6 +329,9 @@ def coco_from_gts(gts: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def _versions(gl: dict[str, str] | None) -> dict[str, str]:
+    from arenabench import glplatform
+
+    glplatform.configure()  # before OpenGL is first imported in this process
     import pyrender
 
     out = {"arenabench": __version__, "opencv": cv2.__version__, "numpy": np.__version__,
@@ -279,6 +341,13 @@ def _versions(gl: dict[str, str] | None) -> dict[str, str]:
     return out
 
 
+def _manifest_line(sid: str, image_sha256: str, gt_sha256: str) -> str:
+    return json.dumps({
+        "id": sid, "image": f"images/{sid}.png", "gt": f"gt/{sid}.json",
+        "image_sha256": image_sha256, "gt_sha256": gt_sha256,
+    }, sort_keys=True)
+
+
 def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
     ids = [scene_id(i) for i in range(args.count)]
     lines, gts = [], []
@@ -286,17 +355,43 @@ def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
         gt_path, img_path = out / "gt" / f"{sid}.json", out / "images" / f"{sid}.png"
         gt_bytes = gt_path.read_bytes()
         gts.append(json.loads(gt_bytes))
-        lines.append(json.dumps({
-            "id": sid, "image": f"images/{sid}.png", "gt": f"gt/{sid}.json",
-            "image_sha256": sha256_file(img_path), "gt_sha256": sha256_bytes(gt_bytes),
-        }, sort_keys=True))
+        lines.append(_manifest_line(sid, sha256_file(img_path), sha256_bytes(gt_bytes)))
     atomic_write_text(out / "manifest.jsonl", "".join(line + "\n" for line in lines))
     atomic_write_json(out / "coco.json", coco_from_gts(gts))
     _write_meta(out, args, complete=True, gl=gl)
 
 
+def _finish_partial(out: Path, args: DatasetArgs, results: list[dict[str, Any]]) -> int:
+    """After an interrupt: the manifest of the scenes on disk; returns how many there are.
+
+    Hashes come from this run's results, then from the manifest of an earlier interrupted
+    run; only scenes in neither (at most one per worker stopped mid-write) are read again.
+    """
+    known = {r["id"]: (r["image_sha256"], r["gt_sha256"]) for r in results}
+    old = out / "manifest.jsonl"
+    if old.is_file():
+        for line in old.read_text(encoding="utf-8").splitlines():
+            try:
+                entry = json.loads(line)
+                known.setdefault(entry["id"], (entry["image_sha256"], entry["gt_sha256"]))
+            except (ValueError, KeyError, TypeError):
+                continue
+    lines = []
+    for i in range(args.count):
+        sid = scene_id(i)
+        if not _present(out, sid):
+            continue
+        if sid not in known:
+            known[sid] = (sha256_file(out / "images" / f"{sid}.png"),
+                          sha256_file(out / "gt" / f"{sid}.json"))
+        lines.append(_manifest_line(sid, *known[sid]))
+    atomic_write_text(out / "manifest.jsonl", "".join(line + "\n" for line in lines))
+    _write_meta(out, args, complete=False, finished=len(lines))
+    return len(lines)
+
+
 def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
-                gl: dict[str, str] | None = None) -> None:
+                gl: dict[str, str] | None = None, finished: int | None = None) -> None:
     params = resolve(args.preset, args.overrides)
     meta = {
         "schema": DATASET_SCHEMA, "args": args.to_dict(), "preset": args.preset,
@@ -309,6 +404,8 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
         "files": {"images": "images/", "gt": "gt/", "manifest": "manifest.jsonl",
                   "coco": "coco.json"},
     }
+    if finished is not None:  # an interrupted run: the manifest lists these scenes only
+        meta["finished"] = int(finished)
     atomic_write_json(out / "dataset.json", meta)
 
 
@@ -345,11 +442,14 @@ def generate_dataset(
         no access to ``out``); ``workers`` is then ignored. The files are the same bytes as a
         local run's.
     progress : bool, keyword-only
-        Show a tqdm progress bar on stderr.
+        Show progress on stderr (:mod:`arenabench.progress`: a bar on a terminal, a few
+        plain lines otherwise).
 
     Returns
     -------
     DatasetResult
+        With ``interrupted`` set when a stop signal (see :mod:`arenabench.interrupts`) ended
+        the run early.
 
     Raises
     ------
@@ -368,7 +468,8 @@ def generate_dataset(
     todo = [i for i in range(args.count) if not _present(root, scene_id(i))]
     skipped = args.count - len(todo)
     if meta is not None and meta.get("complete") and not todo:
-        return DatasetResult(root, 0, skipped, time.perf_counter() - start)
+        return DatasetResult(root, 0, skipped, time.perf_counter() - start, count=args.count,
+                             finished=args.count)
     client = None
     if scheduler is not None and todo:  # reach the cluster before writing anything
         from arenabench.cluster import connect
@@ -376,7 +477,7 @@ def generate_dataset(
         client = connect(scheduler)
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
-    if meta is None:
+    if meta is None or meta["args"].get("count") != args.count:
         _write_meta(root, args, complete=False)
     stored = args.to_dict()
     tasks = [("task", stored, args.seed, i, str(root)) for i in todo]
@@ -398,10 +499,21 @@ def generate_dataset(
             cores = os.cpu_count() or 1
             lp = max(1, cores // workers)
             ctx = multiprocessing.get_context("spawn")
-            with ctx.Pool(workers, initializer=_init_worker, initargs=(lp,)) as pool:
-                for res in pool.imap_unordered(_render_one, tasks, chunksize=1):
-                    results.append(res)
-                    bar.update(1)
+            with children_ignore_sigint():
+                pool = ctx.Pool(workers, initializer=_init_worker, initargs=(lp, os.getpid()))
+            with pool:
+                try:
+                    for res in pool.imap_unordered(_render_one, tasks, chunksize=1):
+                        results.append(res)
+                        bar.update(1)
+                except BaseException:
+                    stop_workers()  # before the pool's own terminate(), which waits on them
+                    raise
+    except Interrupted as exc:
+        bar.close()
+        finished = _finish_partial(root, args, results)
+        return DatasetResult(root, len(results), skipped, time.perf_counter() - start,
+                             count=args.count, interrupted=exc.signum, finished=finished)
     finally:
         bar.close()
         if client is not None and client is not scheduler:
@@ -416,11 +528,11 @@ def generate_dataset(
     if results:
         for key in ("sample", "render", "gt", "encode", "write"):
             timings[key] = float(np.median([r[key] for r in results]))
-    return DatasetResult(root, len(results), skipped, time.perf_counter() - start, timings)
+    return DatasetResult(root, len(results), skipped, time.perf_counter() - start, timings,
+                         count=args.count, finished=args.count)
 
 
 def _progress(total: int, enabled: bool):
-    from tqdm import tqdm
+    from arenabench.progress import progress
 
-    return tqdm(total=total, unit="img", disable=not enabled or not sys.stderr.isatty(),
-                file=sys.stderr, dynamic_ncols=True)
+    return progress(total, desc="generate", enabled=enabled)

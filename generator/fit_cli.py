@@ -5,10 +5,13 @@ from __future__ import annotations
 import argparse
 import sys
 
+from arenabench.clihelp import HelpFormatter
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``arenabench fit`` argument parser."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench fit",
         description="Fit a scene (camera from the four markers, boxes, colours, lighting) to "
                     "IMAGE and write it as a scene file for 'arenabench render'. The arena is "
@@ -37,9 +40,14 @@ def main(argv: list[str] | None = None) -> int:
         image = load_image(args.image)
         options = FitOptions(arena=ArenaSpec(side_m=args.arena_side, logo_text="eyantra"),
                              refine_rounds=args.refine_rounds)
-        result = fit_scene(image, options=options)
     except (ImageLoadError, ValueError) as exc:
         print(f"arenabench fit: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        result = fit_scene(image, options=options)
+    except ValueError as exc:  # about the image's content: name the file
+        why = str(exc).removeprefix("image: ")
+        print(f"arenabench fit: error: {args.image}: {why}", file=sys.stderr)
         return 2
     atomic_write_json(args.out, result.scene.to_dict())
     summary = {"fov_deg": result.fov_deg, "reprojection_px": round(result.reprojection_px, 4),

@@ -11,6 +11,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from arenabench.suggest import did_you_mean
+
 #: A parameter value as stored in a preset: a fixed value or a (lo, hi) range.
 Value = Any
 
@@ -267,7 +269,8 @@ def get_preset(name: str) -> dict[str, Value]:
         For an unknown name (the message lists the known ones).
     """
     if name not in PRESETS:
-        raise ValueError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})")
+        raise ValueError(f"unknown preset {name!r}{did_you_mean(name, PRESETS)} "
+                         f"(known: {', '.join(PRESETS)})")
     return dict(PRESETS[name][1])
 
 
@@ -316,8 +319,9 @@ def validate_value(key: str, value: Value) -> Value:
         Naming the key and the value: unknown key, wrong type, out of bounds, bad range.
     """
     if key not in PARAMETERS:
-        raise ValueError(f"--set: unknown parameter {key!r} (list them: arenabench presets "
-                         "--params)")
+        raise ValueError(f"--set: unknown parameter {key!r}"
+                         f"{did_you_mean(key, [*PARAMETERS, *ALIASES])} (list them: "
+                         "arenabench presets --params)")
     spec = PARAMETERS[key]
     if spec.kind in ("float", "int"):
         if isinstance(value, (tuple, list)):

@@ -96,7 +96,8 @@ def _fast_renderer_class(pyrender):
 
     - ``antialias=False`` draws straight into the single-sample framebuffer (no 4x MSAA and no
       resolve blit: about 2x faster on llvmpipe, edges stay crisp);
-    - the depth buffer is read back (and linearised) only when asked for.
+    - the depth buffer is read back (and linearised) only when asked for;
+    - meshes are drawn in a fixed order (:func:`_draw_order`), not pyrender's.
     """
     from OpenGL import GL
 
@@ -110,6 +111,9 @@ def _fast_renderer_class(pyrender):
             super()._configure_forward_pass_viewport(flags)
             if flags & flags_cls.OFFSCREEN and not self.antialias:
                 GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+
+        def _sorted_mesh_nodes(self, scene):
+            return _draw_order(scene.mesh_nodes)
 
         def _read_main_framebuffer(self, scene, flags):
             w, h = self._main_fb_dims
@@ -138,6 +142,31 @@ def _fast_renderer_class(pyrender):
             return color, depth
 
     return _LeanRenderer
+
+
+#: Draw ranks, front to back, in node names (``"<rank>:<index>"``): the first surface drawn
+#: wins a depth tie, so ties resolve the same way in every run (see :func:`_draw_order`).
+_RANK = {"obstacle": 0, "overlay": 1, "marker": 2, "floor": 3}
+
+
+def _node_name(kind: str, index: int) -> str:
+    """The name of the ``index``-th mesh node of ``kind``: its place in the draw order."""
+    return f"{_RANK[kind]}:{index:06d}"
+
+
+def _draw_order(nodes) -> list:
+    """Mesh nodes in a fixed draw order: opaque ones by name, then transparent ones by name.
+
+    pyrender sorts nodes by the distance of their origin to the camera, and nodes at the same
+    distance (floor, obstacles and overlays all sit at the world origin) by the iteration
+    order of a ``set``, which follows memory addresses and so changes from run to run. Where
+    two surfaces meet (a box side meeting the floor) their depths can tie in a pixel, and the
+    first one drawn wins it (``GL_LESS``): such a pixel flipped between box and floor colour
+    from one run to the next. Ordering by name makes every render of a scene the same.
+    """
+    nodes = sorted(nodes, key=lambda n: n.name or "")
+    return ([n for n in nodes if not n.mesh.is_transparent]
+            + [n for n in nodes if n.mesh.is_transparent])
 
 
 def box_mesh_arrays(obstacle: Obstacle, scene: Scene) -> tuple[np.ndarray, ...]:
@@ -280,7 +309,8 @@ class Renderer:
             floor = np.array([[-e, e], [e, e], [e, -e], [-e, -e]])
             self._floor_nodes = [
                 self._scene.add(_textured_quad(
-                    pr, floor, 0.0, self._cached_texture(floor_texture(scene.arena)), f))
+                    pr, floor, 0.0, self._cached_texture(floor_texture(scene.arena)), f),
+                    name=_node_name("floor", 0))
             ]
             self._floor_key = scene.arena
         # Marker sheets: one unit quad per marker, kept while the sheet images stay the same;
@@ -294,8 +324,9 @@ class Renderer:
                 self._scene.remove_node(node)
             self._marker_nodes = [
                 self._scene.add(_textured_quad(pr, _UNIT_QUAD, 0.0,
-                                               self._cached_texture(image), f))
-                for image, _ in sheets
+                                               self._cached_texture(image), f),
+                                name=_node_name("marker", k))
+                for k, (image, _) in enumerate(sheets)
             ]
             self._markers_key = key
         for node, corner, (_, pad) in zip(self._marker_nodes, CORNER_ORDER, sheets, strict=True):
@@ -314,10 +345,11 @@ class Renderer:
         for node in self._obstacle_nodes:
             self._scene.remove_node(node)
         self._obstacle_nodes = []
-        for ob in scene.obstacles:
+        for k, ob in enumerate(scene.obstacles):
             pos, rgba, tris = box_mesh_arrays(ob, scene)
             prim = pr.Primitive(positions=pos, color_0=rgba, indices=tris, mode=4)
-            self._obstacle_nodes.append(self._scene.add(pr.Mesh([prim])))
+            self._obstacle_nodes.append(self._scene.add(pr.Mesh([prim]),
+                                                        name=_node_name("obstacle", k)))
         for node in self._overlay_nodes:
             self._scene.remove_node(node)
         self._overlay_nodes = []
@@ -325,13 +357,15 @@ class Renderer:
         if patches is not None:
             prim = pr.Primitive(positions=patches[0], color_0=patches[1], indices=patches[2],
                                 mode=4)
-            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim])))
+            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim]),
+                                                       name=_node_name("overlay", 0)))
         shadow = shadow_mesh_arrays(scene)
         if shadow is not None:
             material = pr.MetallicRoughnessMaterial(alphaMode="BLEND", doubleSided=True)
             prim = pr.Primitive(positions=shadow[0], color_0=shadow[1], indices=shadow[2],
                                 mode=4, material=material)
-            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim])))
+            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim]),
+                                                       name=_node_name("overlay", 1)))
         if self._camera_node is not None:
             self._scene.remove_node(self._camera_node)
         K = cam.intrinsics(scene.camera)

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from arenabench.clihelp import HelpFormatter
 from arenabench.generator.scene import Scene
 
 #: Top-level keys of a scene file.
@@ -71,6 +72,7 @@ def render_scene_files(scene: Scene, out: str | Path, *, source: str = "scene") 
 def build_parser() -> argparse.ArgumentParser:
     """The ``arenabench render`` argument parser."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench render",
         description="Render a scene file (JSON, e.g. from 'arenabench fit') with its ground "
                     "truth: DIR/images/000000.png and DIR/gt/000000.json.",

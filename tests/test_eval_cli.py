@@ -69,6 +69,7 @@ def test_report_json_has_the_documented_keys(run_dir, toy):
         "area_off",
         "crash",
         "timeout",
+        "limit",
         "bad_output",
     }
     assert s["n"] == 8 and s["pass_rate"] == 1.0

@@ -42,14 +42,14 @@ def test_cluster_run_writes_the_same_bytes_as_a_local_run(local_run, tmp_path):
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         proc = _generate(out, "--scheduler", cluster.scheduler_address)
         assert proc.returncode == 0, proc.stderr
-        assert f"{COUNT} rendered" in proc.stderr
+        assert f"{COUNT} rendered" in proc.stdout + proc.stderr
         reference = _files(local_run)
         assert len(reference) == 2 * COUNT + 3  # images, GT, manifest, dataset.json, coco.json
         assert _files(out) == reference
         # an interrupted run resumes on the cluster too
         (out / "images" / "000002.png").unlink()
         proc = _generate(out, "--scheduler", cluster.scheduler_address)
-        assert proc.returncode == 0 and "1 rendered" in proc.stderr, proc.stderr
+        assert proc.returncode == 0 and "1 rendered" in proc.stdout + proc.stderr, proc.stderr
         assert _files(out) == reference
 
 

@@ -77,6 +77,9 @@ def test_writes_every_output_file(cli_run, capsys):
     page = (out / "sweep.html").read_text()
     assert page.count("data:image/png;base64,") == 2
     assert "Breakdown points" in page and 'src="http' not in page
+    # a 100 % point is never red (small n: amber, with the colours explained)
+    assert 'class="fail">100.0 %' not in page and "100.0 %</td>" in page
+    assert "amber</span> = the pass rate clears it" in page
 
 
 @pytest.mark.slow

@@ -51,3 +51,13 @@ def test_nothing_is_installed_without_the_opt_in(stub_path):
     proc = _run(bin_dir)
     assert proc.returncode == 0, proc.stderr
     assert not log.exists()
+
+
+def test_bubblewrap_is_installed_when_opted_in_else_a_hint(stub_path):
+    bin_dir, log = stub_path
+    hint = _run(bin_dir)
+    assert hint.returncode == 0 and "sudo apt-get install -y bubblewrap" in hint.stderr
+    assert not log.exists()
+    proc = _run(bin_dir, CI="true")
+    assert proc.returncode == 0, proc.stderr
+    assert "install -y -qq bubblewrap" in log.read_text()

@@ -1,5 +1,7 @@
 #!/usr/bin/env bash
 # Check the system libraries that off-screen rendering needs (EGL through Mesa, or OSMesa).
+# Also bubblewrap (bwrap), the sandbox of external pipelines (`eval --cmd`): installed with the
+# opt-in below, else a hint (without it commands run unsandboxed, with a warning).
 # Prints the exact install command when something is missing. Installs it itself only when
 # allowed: running as root with apt-get, and ARENABENCH_INSTALL_SYSTEM_DEPS=1 or CI=true.
 # With the same opt-in it also installs chromium (the headless browser tests/test_report_html.py
@@ -22,6 +24,15 @@ apt_install() {
 if [ "$can_install" = 1 ] && ! have_chromium; then
   echo "arenabench: installing chromium with apt-get (for the HTML report test)" >&2
   apt_install chromium || echo "arenabench: apt-get install chromium failed" >&2
+fi
+
+if ! command -v bwrap >/dev/null 2>&1; then
+  if [ "$can_install" = 1 ]; then
+    echo "arenabench: installing bubblewrap with apt-get (the sandbox of external pipelines)" >&2
+    apt_install bubblewrap || echo "arenabench: apt-get install bubblewrap failed" >&2
+  else
+    echo "arenabench: bubblewrap (bwrap) missing: external pipelines (--cmd) would run without a sandbox; install it with: sudo apt-get install -y bubblewrap" >&2
+  fi
 fi
 
 egl_ok=0; osmesa_ok=0

@@ -131,6 +131,7 @@ def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
     """
     from arenabench.generator.presets import parse_overrides
 
+    from ..run_limits import RunSettings
     from .grid import parse_vary
     from .records import SWEEP_SCHEMA, PipelineSpec, PointSummary, SweepSpec
 
@@ -144,7 +145,9 @@ def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
         axes=tuple(parse_vary(f"{a['key']}={a['spec']}") for a in doc["vary"]),
         pipelines=tuple(
             PipelineSpec("cmd" if p["kind"] == "cmd" else "pipeline", p["name"],
-                         timeout_s=p.get("timeout_s", 60.0), output=p.get("output", "obstacles"))
+                         settings=RunSettings.from_dict(
+                             p.get("run") or {"timeout_s": p.get("timeout_s", 60.0)}),
+                         output=p.get("output", "obstacles"))
             for p in doc["pipelines"]
         ),
         per_point=doc["per_point"], seed=doc["seed"], random=doc.get("random"),

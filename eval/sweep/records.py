@@ -12,6 +12,7 @@ from arenabench.generator.presets import Value, format_value
 from ..metrics import DEFAULT_TOLERANCE
 from ..pipelines import BUILTIN_PIPELINES, OUTPUT_MODES, CommandPipeline, Pipeline, make_pipeline
 from ..records import ImageResult, Summary
+from ..run_limits import RunSettings
 from .grid import Axis
 
 SWEEP_SCHEMA = "arenabench.sweep/1"
@@ -35,8 +36,9 @@ class PipelineSpec:
         template for :class:`~arenabench.eval.pipelines.CommandPipeline`.
     value : str
         The name, spec or template.
-    timeout_s : float
-        Per-image limit of a command.
+    settings : RunSettings
+        How a command runs: limits (``settings.limits.timeout_s`` per image), sandbox,
+        image name, environment.
     output : {"obstacles", "json"}
         How a command answers.
     base_dir : str
@@ -45,7 +47,7 @@ class PipelineSpec:
 
     kind: str
     value: str
-    timeout_s: float = 60.0
+    settings: RunSettings = field(default_factory=RunSettings)
     output: str = "obstacles"
     base_dir: str = field(default_factory=os.getcwd)
 
@@ -78,7 +80,7 @@ class PipelineSpec:
         """The adapter (:func:`~arenabench.eval.pipelines.make_pipeline` or a command)."""
         if self.kind == "cmd":
             return CommandPipeline(
-                self.value, timeout_s=self.timeout_s, output=self.output, base_dir=self.base_dir
+                self.value, settings=self.settings, output=self.output, base_dir=self.base_dir
             )
         return make_pipeline(self.value)
 
@@ -173,9 +175,9 @@ class SweepSpec:
             "vary": [a.to_dict() for a in self.axes],
             "set": {k: format_value(v) for k, v in sorted(self.overrides.items())},
             "pipelines": [
-                {"name": p.name, "kind": p.kind, **({"timeout_s": p.timeout_s,
-                                                      "output": p.output}
-                                                     if p.kind == "cmd" else {})}
+                {"name": p.name, "kind": p.kind,
+                 **({"output": p.output, "run": p.settings.to_dict()}
+                    if p.kind == "cmd" else {})}
                 for p in self.pipelines
             ],
             "tolerance": self.tolerance,
@@ -273,7 +275,9 @@ class SweepResult:
     breakdown : dict
         ``{pipeline: {parameter: value or None}}``.
     run : dict
-        How it ran (executor, workers, seconds); not part of the results proper.
+        How it ran (executor, workers, seconds; ``complete``, ``samples_done``,
+        ``points_done`` and, when stopped by a signal, ``interrupted``); not part of the
+        results proper.
     """
 
     spec: SweepSpec
@@ -282,6 +286,11 @@ class SweepResult:
     images: tuple[dict[str, Any], ...]
     breakdown: dict[str, dict[str, Any]]
     run: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def complete(self) -> bool:
+        """False when a stop signal ended the sweep early (``run`` says how far it got)."""
+        return bool(self.run.get("complete", True))
 
     def image_results(self, pipeline: str) -> list[ImageResult]:
         """Per-image results of one pipeline as harness records."""
@@ -293,6 +302,7 @@ class SweepResult:
             "schema": SWEEP_SCHEMA,
             **self.spec.to_dict(),
             "n_points": len(self.points),
+            "complete": self.complete,
             "points": [s.to_dict() for s in self.summaries],
             "breakdown": self.breakdown,
             "run": dict(self.run),
