@@ -3,7 +3,8 @@ report and a ranked leaderboard; re-running skips teams already graded.
 
 Exit status: 0 done; 1 the grader could not finish some team (the others are ranked);
 2 usage error (bad dataset, submissions folder, output folder or option; no cluster);
-130 interrupted (teams already finished stay graded: run again to resume).
+130 / 143 interrupted by SIGINT / SIGTERM (running commands are killed; teams already
+finished stay graded: run the same command again to resume).
 """
 
 from __future__ import annotations
@@ -120,19 +121,22 @@ def main(argv: list[str] | None = None) -> int:
             if msg.startswith(f"{param} "):
                 msg = f"{option}{msg[len(param):]}"
         return _error(msg)
-    try:
-        result = grade(dataset, args.submissions, args.out, options=options,
-                       workers=args.workers, scheduler=args.scheduler,
-                       report_workers=args.report_workers, progress=not args.no_progress,
-                       log=print)
-    except (DatasetError, SubmissionsError, ValueError) as exc:
-        return _error(str(exc))
-    except OSError as exc:  # e.g. the scheduler cannot be reached
-        return _error(f"{type(exc).__name__}: {exc}")
-    except KeyboardInterrupt:
-        print(f"{PROG}: interrupted: finished teams stay graded; run the same command again "
-              "to resume", file=sys.stderr)
-        return 130
+    from arenabench.interrupts import Interrupted, stop_on_signals
+
+    with stop_on_signals():
+        try:
+            result = grade(dataset, args.submissions, args.out, options=options,
+                           workers=args.workers, scheduler=args.scheduler,
+                           report_workers=args.report_workers, progress=not args.no_progress,
+                           log=print)
+        except (DatasetError, SubmissionsError, ValueError) as exc:
+            return _error(str(exc))
+        except OSError as exc:  # e.g. the scheduler cannot be reached
+            return _error(f"{type(exc).__name__}: {exc}")
+        except Interrupted as exc:
+            print(f"{PROG}: {exc}: finished teams stay graded; run the same command again "
+                  "to resume", file=sys.stderr)
+            return exc.exit_code
     failed = f", {len(result.errors)} failed" if result.errors else ""
     print(f"{len(result.graded)} graded, {len(result.skipped)} skipped{failed}; "
           f"leaderboard of {len(result.rows)} teams:")

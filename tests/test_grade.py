@@ -5,10 +5,10 @@ submissions or options are graded again, an interrupted grade resumes; usage err
 the leaderboard page works in a real headless chromium."""
 
 import csv
-import inspect
 import json
 import os
 import shutil
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -33,9 +33,6 @@ TEAMS = ("cheating", "correct", "crashing", "partly_right", "slow", "total_area"
 #: 4 images; the timeout only has to stop 'slow' (it sleeps 120 s) and must never stop the
 #: others on a loaded machine, where starting Python and OpenCV alone can take a second or two
 COUNT, TIMEOUT, WORKERS = 4, "5", "4"
-#: CommandPipeline runs each image in a private directory with the image under a neutral name
-#: (the sandboxed runner); until then a team can read the dataset's files next to its image.
-SANDBOXED = "settings" in inspect.signature(CommandPipeline).parameters
 
 
 def _env() -> dict[str, str]:
@@ -151,12 +148,10 @@ def test_six_teams_are_ranked_as_expected(graded, dataset):
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(not SANDBOXED, strict=True,
-                   reason="the command runner does not yet hide the dataset from a team "
-                          "(private directory, neutral image name, bubblewrap)")
 def test_cheating_team_cannot_read_the_ground_truth(graded):
-    # What the final product must give: the cheat finds no GT, answers 0 obstacles on every
-    # image and ranks below every team that answered something right.
+    # Each run sees a private copy of its image under a neutral name (and, with bubblewrap,
+    # nothing of the dataset): the cheat finds no GT, answers 0 obstacles on every image and
+    # ranks below every team that answered something right.
     out, _ = graded
     doc = json.loads((out / "leaderboard.json").read_text())
     cheat = next(t for t in doc["teams"] if t["team"] == "cheating")
@@ -414,3 +409,31 @@ def test_unreachable_scheduler_exits_2_before_writing(dataset, tmp_path):
     assert proc.returncode == 2 and err[-1].startswith("arenabench grade: error: "), err
     assert "127.0.0.1:9" in err[-1]
     assert not out.exists()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_signal_stops_running_commands_and_keeps_finished_teams(sig, dataset, tmp_path):
+    subs = _fast_teams(tmp_path / "subs", {"a": 1})
+    (subs / "zz_slow").mkdir()
+    (subs / "zz_slow" / "map.py").write_text("import time\ntime.sleep(300)\n")
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "arenabench", "grade", str(dataset), str(subs), "--out",
+            str(out), "--cmd", "{python} {submission}/map.py --image {image}", "--workers", "1",
+            "--report-workers", "1", "--formats", "json", "--timeout", "300", "--no-progress"]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        for line in proc.stdout:  # team 'a' runs first (teams in name order, one at a time)
+            if line.startswith("a: graded"):
+                break
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 128 + sig, err
+    assert "finished teams stay graded" in err and "Traceback" not in err
+    assert (out / "teams" / "a" / STATE_FILE).is_file()
+    assert not (out / "teams" / "zz_slow" / STATE_FILE).exists()
+    ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
+    assert str(subs / "zz_slow" / "map.py") not in ps  # the running command was killed

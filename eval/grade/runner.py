@@ -20,11 +20,11 @@ other teams go on.
 
 from __future__ import annotations
 
-import inspect
 import json
 import os
 import shlex
 import sys
+import threading
 from collections.abc import Callable, Generator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -165,26 +165,21 @@ def team_command(template: str, submission: str | os.PathLike[str]) -> str:
 def _team_pipeline(
     command: str, *, settings: RunSettings, output: str, team: str, base_dir: str
 ) -> CommandPipeline:
-    """The team's :class:`CommandPipeline`: the only place that knows its signature.
-
-    With the sandboxed runner (``CommandPipeline(..., settings=RunSettings)``) the settings
-    go through whole; with the older one (``timeout_s=``, ``env=``) the timeout and the
-    environment do, and the other limits are not enforced.
-    """
+    """The team's :class:`CommandPipeline`: ``settings`` plus :data:`TEAM_ENV`."""
     settings = replace(settings, env={**settings.env, **TEAM_ENV})
-    if "settings" in inspect.signature(CommandPipeline).parameters:
-        return CommandPipeline(  # type: ignore[call-arg]
-            command, settings=settings, output=output, name=team, base_dir=base_dir
-        )
-    return CommandPipeline(command, timeout_s=settings.limits.timeout_s, output=output,
-                           env=dict(settings.env), name=team, base_dir=base_dir)
+    return CommandPipeline(command, settings=settings, output=output, name=team,
+                           base_dir=base_dir)
 
 
-def run_unit(unit: GradeUnit) -> Prediction:
-    """Run one team's command on one image; never raises (a grader error is a ``crash``)."""
+def run_unit(unit: GradeUnit, pipe: CommandPipeline | None = None) -> Prediction:
+    """Run one team's command on one image; never raises (a grader error is a ``crash``).
+
+    ``pipe`` is the team's pipeline when the caller made it (to be able to stop it).
+    """
     try:
-        pipe = _team_pipeline(unit.command, settings=unit.settings, output=unit.output,
-                              team=unit.team, base_dir=unit.submission)
+        if pipe is None:
+            pipe = _team_pipeline(unit.command, settings=unit.settings, output=unit.output,
+                                  team=unit.team, base_dir=unit.submission)
         return pipe.run(Path(unit.image))
     except Exception as exc:
         return Prediction(status="crash", message=f"grader: {type(exc).__name__}: {exc}"[:500])
@@ -229,15 +224,50 @@ def _row(team: str, state: dict[str, Any]) -> LeaderboardRow:
 # ----------------------------------------------------------------------------- execution
 
 
+class _LocalRuns:
+    """The units running in this process's threads, so that an interrupt can stop them."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._live: dict[int, CommandPipeline] = {}
+        self._stopped = False
+
+    def run(self, unit: GradeUnit) -> Prediction:
+        try:
+            pipe = _team_pipeline(unit.command, settings=unit.settings, output=unit.output,
+                                  team=unit.team, base_dir=unit.submission)
+        except Exception as exc:
+            return Prediction(status="crash", message=f"grader: {type(exc).__name__}: {exc}")
+        with self._lock:
+            if self._stopped:
+                return Prediction(status="crash", message="interrupted")
+            self._live[id(pipe)] = pipe
+        try:
+            return run_unit(unit, pipe)
+        finally:
+            with self._lock:
+                self._live.pop(id(pipe), None)
+
+    def stop(self) -> None:
+        """Kill every running command; later units return at once."""
+        with self._lock:
+            self._stopped = True
+            live = list(self._live.values())
+        for pipe in live:
+            pipe.stop()
+
+
 def _threads(units: list[GradeUnit],
              workers: int) -> Generator[tuple[int, Prediction], None, None]:
+    runs = _LocalRuns()
     pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="arenabench-grade")
-    futures = {pool.submit(run_unit, u): i for i, u in enumerate(units)}
+    futures = {pool.submit(runs.run, u): i for i, u in enumerate(units)}
     try:
         for fut in as_completed(futures):
             yield futures[fut], fut.result()
     finally:
-        pool.shutdown(wait=False, cancel_futures=True)
+        runs.stop()  # no-op after the last unit; on an interrupt, ends the running commands
+        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _execute(units: list[GradeUnit], *, workers: int | None,
@@ -302,7 +332,7 @@ def grade(
         Processes here that write the teams' reports while the commands go on (default: the
         machine's cores when HTML reports are written, else 1: in this process).
     progress : bool, keyword-only
-        tqdm bar over units on stderr.
+        Progress over units on stderr (:mod:`arenabench.progress`).
     log : callable, optional, keyword-only
         Receives one line per team (graded, skipped or failed).
 
@@ -347,7 +377,7 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
            expect_common: dict[str, str], *, workers: int | None, client: Any,
            report_workers: int | None, progress: bool,
            emit: Callable[[str], None]) -> GradeResult:
-    from tqdm import tqdm
+    from arenabench.progress import progress as progress_bar
 
     (root / TEAMS_DIR).mkdir(parents=True, exist_ok=True)
 
@@ -385,10 +415,10 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
     left = [n_images] * len(todo)
     graded: list[str] = []
     errors: dict[str, str] = {}
-    bar = tqdm(total=len(units), desc="grade", unit="run", disable=not progress)
+    bar = progress_bar(len(units), desc="grade", unit="run", enabled=progress)
 
     def say(line: str) -> None:
-        if progress:
+        if hasattr(bar, "write"):  # a tqdm bar on a terminal: print above it
             bar.write(line, file=sys.stdout)
         else:
             emit(line)
@@ -480,8 +510,11 @@ class _Finisher:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
+            from arenabench.interrupts import init_worker_process
+
             self._pool = ProcessPoolExecutor(
-                max_workers=n, mp_context=multiprocessing.get_context("spawn"))
+                max_workers=n, mp_context=multiprocessing.get_context("spawn"),
+                initializer=init_worker_process)
 
     def submit(self, job: _FinishJob, data: Dataset) -> Future:
         """Start writing ``job``'s reports (inline when there is no usable pool)."""
