@@ -7,6 +7,7 @@ stderr); 2 usage error (bad options, bad dataset, unreadable report).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
@@ -84,6 +85,11 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--limit", type=int, default=None, help="evaluate only the first N images")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument(
+        "--no-verify",
+        action="store_true",
+        help="do not check images and GT against the sha256 values of manifest.jsonl",
+    )
     return p
 
 
@@ -122,6 +128,17 @@ def main(argv: list[str] | None = None) -> int:
         return _usage_error(parser, f"--workers must be >= 1, got {args.workers}")
     if args.limit is not None and args.limit < 1:
         return _usage_error(parser, f"--limit must be >= 1, got {args.limit}")
+    if not (math.isfinite(args.tolerance) and args.tolerance >= 0):
+        return _usage_error(
+            parser, f"--tolerance must be a finite number >= 0, got {args.tolerance}"
+        )
+    if args.out is not None:
+        from arenabench.fileio import OutputPathError, check_output_dir
+
+        try:
+            check_output_dir(args.out)
+        except OutputPathError as exc:
+            return _usage_error(parser, f"--out {args.out}: {exc}")
 
     from .dataset import DatasetError, load_dataset
     from .pipelines import CommandPipeline, make_pipeline
@@ -141,7 +158,7 @@ def main(argv: list[str] | None = None) -> int:
             if args.cmd
             else make_pipeline(args.pipeline)
         )
-        dataset = load_dataset(args.dataset, limit=args.limit)
+        dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify)
     except (DatasetError, ValueError) as exc:
         return _usage_error(parser, str(exc))
     try:

@@ -31,7 +31,13 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
-from arenabench.competition import OBSTACLES_FILE, OutputFormatError, parse_obstacles_txt
+from arenabench.competition import (
+    OBSTACLES_FILE,
+    OutputFormatError,
+    check_area,
+    check_count,
+    parse_obstacles_txt,
+)
 
 from .records import Prediction, tail
 
@@ -71,6 +77,15 @@ def _get(result: Any, *names: str) -> Any:
     return None
 
 
+def _as_list(ids: Any) -> list[Any]:
+    if isinstance(ids, (str, bytes, Mapping)):
+        raise OutputFormatError(f"marker ids are not a list of integers: {ids!r:.100}")
+    try:
+        return list(ids)
+    except TypeError:
+        raise OutputFormatError(f"marker ids are not a list of integers: {ids!r:.100}") from None
+
+
 def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") -> Prediction:
     """Normalise what an in-process pipeline (or a JSON line) returned.
 
@@ -87,7 +102,9 @@ def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") 
     Returns
     -------
     Prediction
-        Status ``bad_output`` (with a message) when fields are missing or malformed.
+        Status ``bad_output`` (with a message) when fields are missing or malformed: a count
+        or marker id that is not a non-negative integer, an area that is negative or not a
+        finite number (NaN, infinity), a boolean or a string where a number belongs.
     """
     status = _get(result, "status") or "ok"
     count, area = _get(result, "count"), _get(result, "area", "total_area")
@@ -99,15 +116,16 @@ def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") 
         )
 
     if status not in ("ok", "markers_not_found"):
-        return bad(f"unknown status {status!r} in pipeline result {result!r:.200}")
+        return bad(f"unknown status {status!r:.100} in pipeline result {result!r:.200}")
     try:
-        count_v = None if count is None else int(count)
-        area_v = None if area is None else float(area)
-        ids_v = None if ids is None else tuple(int(i) for i in ids)
-    except (TypeError, ValueError) as exc:
-        return bad(f"malformed pipeline result {result!r:.200}: {exc}")
-    if count_v is not None and count_v != count:
-        return bad(f"count is not an integer: {count!r}")
+        count_v = None if count is None else check_count(count)
+        area_v = None if area is None else check_area(area)
+        ids_v = (
+            None if ids is None
+            else tuple(check_count(i, name="marker id") for i in _as_list(ids))
+        )
+    except OutputFormatError as exc:
+        return bad(str(exc))
     if status == "ok" and (count_v is None or area_v is None):
         return bad(f"pipeline result lacks count or area: {result!r:.200}")
     return Prediction(

@@ -114,6 +114,7 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse: --help (0) or usage error (2)
         return int(exc.code or 0)
+    from arenabench.fileio import OutputPathError, check_output_dir
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
 
@@ -122,6 +123,10 @@ def main(argv: list[str] | None = None) -> int:
     from .sweep.records import PipelineSpec, SweepSpec
     from .sweep.runner import run_sweep
 
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        return _error(f"--out {args.out}: {exc}")
     if not args.vary:
         return _error("give at least one --vary KEY=SPEC")
     if not args.pipes:

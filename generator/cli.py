@@ -35,10 +35,16 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench generate``; returns 0 on success, 2 on a usage or argument error."""
     args = build_parser().parse_args(argv)
+    from arenabench.fileio import OutputPathError, check_output_dir
     from arenabench.generator.dataset import DatasetError, generate_dataset
     from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError
 
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        print(f"arenabench generate: error: --out {args.out}: {exc}", file=sys.stderr)
+        return 2
     try:
         overrides = parse_overrides(args.overrides)
         result = generate_dataset(

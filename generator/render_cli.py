@@ -83,6 +83,13 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench render``; returns 0 on success, 2 on bad input."""
     args = build_parser().parse_args(argv)
+    from arenabench.fileio import OutputPathError, check_output_dir
+
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        print(f"arenabench render: error: --out {args.out}: {exc}", file=sys.stderr)
+        return 2
     try:
         scene = load_scene(args.scene)
         image = render_scene_files(scene, args.out, source=Path(args.scene).stem)

@@ -6,6 +6,8 @@ import json
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from arenabench.fileio import json_safe
+
 Status = Literal["ok", "markers_not_found"]
 
 #: Version tag written into :meth:`Detection.to_dict`.
@@ -132,8 +134,9 @@ class Detection:
         }
 
     def to_json(self, *, indent: int | None = 2) -> str:
-        """JSON text of :meth:`to_dict` (sorted keys, no NaN)."""
-        return json.dumps(self.to_dict(), indent=indent, sort_keys=True, allow_nan=False)
+        """JSON text of :meth:`to_dict` (sorted keys; an undefined number is ``null``)."""
+        return json.dumps(json_safe(self.to_dict()), indent=indent, sort_keys=True,
+                          allow_nan=False)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Detection:
