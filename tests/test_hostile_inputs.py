@@ -419,3 +419,33 @@ def test_resumed_generate_removes_stale_temp_files_and_leaves_no_lock(tmp_path):
     assert not any(p.exists() for p in stale)
     assert json.loads((out / "dataset.json").read_text())["complete"] is True
     assert not (out / LOCK_FILE).exists()
+
+
+def test_two_generate_runs_at_once_the_second_is_refused_then_the_first_resumes(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "ds"
+    first = subprocess.Popen(
+        [sys.executable, "-m", "arenabench", "generate", "--count", "6", "--seed", "1",
+         "--workers", "1", "--out", str(out), "--no-progress"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / LOCK_FILE).exists():
+            assert first.poll() is None and time.monotonic() < deadline, "no lock taken"
+            time.sleep(0.05)
+        second = run("generate", "--count", "6", "--seed", "2", "--out", str(out),
+                     "--no-progress", timeout=120)
+        assert_clean_error(second, "is being written by another run", f"pid {first.pid}",
+                           "--seed 1", prog="generate")
+    finally:
+        first.send_signal(signal.SIGKILL)  # a killed run: the kernel releases its lock
+        first.wait(timeout=60)
+    resumed = run("generate", "--count", "6", "--seed", "1", "--workers", "1", "--out",
+                  str(out), "--no-progress", timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    seeds = {json.loads(p.read_text())["seed"] for p in (out / "gt").glob("*.json")}
+    assert seeds == {1} and len(list((out / "gt").glob("*.json"))) == 6
+    assert not [p for p in out.rglob(".*") if p.is_file()]  # no temp or lock file left
