@@ -38,8 +38,20 @@ class CompetitionOutput:
     marker_ids: list[int] = field(default_factory=list)
 
 
+#: Largest count accepted: beyond 2**53 an integer has no exact float (nor JSON) value.
+MAX_COUNT = 2**53
+
+
 def _refuse(name: str, problem: str, value: Any, shown: str | None) -> OutputFormatError:
-    quoted = shown if shown is not None else repr(value)[:100]
+    if shown is not None:
+        quoted = shown
+    elif isinstance(value, int) and abs(value) > MAX_COUNT:
+        quoted = f"an integer of {value.bit_length()} bits"  # repr may refuse huge ints
+    else:
+        try:
+            quoted = repr(value)[:100]
+        except Exception:
+            quoted = f"<unprintable {type(value).__name__}>"
     return OutputFormatError(f"{name} {problem}: {quoted}")
 
 
@@ -71,6 +83,8 @@ def check_count(value: Any, *, name: str = "count", shown: str | None = None) ->
         number = int(as_float)
     if number < 0:
         raise _refuse(name, "is negative", value, shown)
+    if number > MAX_COUNT:
+        raise _refuse(name, f"is larger than {MAX_COUNT}", value, shown)
     return number
 
 

@@ -21,6 +21,9 @@ ANSWERS: dict[str, dict] = {
     "infinite_count": {"count": float("inf"), "area": 100.0},
     "negative_count": {"count": -1, "area": 100.0},
     "nan_marker_id": {"count": 1, "area": 100.0, "marker_ids": [80, float("nan")]},
+    "huge_count": {"count": 2**20000, "area": 100.0},  # repr() of it raises in Python 3.11+
+    "huge_area": {"count": 1, "area": 2**20000},
+    "status_array": {"status": [1, 2], "count": 1, "area": 100.0},
 }
 
 
