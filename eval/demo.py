@@ -32,6 +32,13 @@ def main(argv: list[str] | None = None) -> int:
     if args.count < 1:
         print(f"arenabench demo: error: --count must be >= 1, got {args.count}", file=sys.stderr)
         return 2
+    from arenabench.fileio import OutputPathError, check_output_dir
+
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        print(f"arenabench demo: error: --out {args.out}: {exc}", file=sys.stderr)
+        return 2
     dataset_dir = args.out / f"dataset-eyrc-n{args.count}-s{args.seed}"
     if (dataset_dir / "manifest.jsonl").is_file():
         print(f"reusing dataset {dataset_dir}")
