@@ -212,7 +212,6 @@ def check_output_dir(path: str | os.PathLike[str]) -> Path:
     return target
 
 
-_SPECIAL_ROOTS = ("/dev/", "/proc/")
 _FD_LINK = re.compile(r"^/(?:proc/self|dev)/fd/(\d+)$")
 _STD_LINKS = {"/dev/stdin": 0, "/dev/stdout": 1, "/dev/stderr": 2}
 
@@ -241,16 +240,15 @@ def _inherited_fd(path: str | os.PathLike[str]) -> int | None:
 
 def writes_through(path: str | os.PathLike[str]) -> bool:
     """Whether an output path must be opened and written as it is, never replaced by a
-    rename: ``-``, an existing non-regular file (device, FIFO, socket), or a path whose
-    symbolic links live in or point into ``/dev`` or ``/proc`` (``/dev/stdout`` ->
-    ``/proc/self/fd/1``, even when file descriptor 1 is a regular file)."""
+    rename: ``-``, an existing non-regular file (device, FIFO, socket), or a link to an
+    inherited file descriptor (``/dev/stdout`` -> ``/proc/self/fd/1``, ``/dev/fd/N``), even
+    when that descriptor is a regular file."""
     text = os.fspath(path)
     if text == "-":
         return True
     if os.path.exists(text) and not os.path.isfile(text) and not os.path.isdir(text):
         return True
-    hops = _link_chain(text)
-    return len(hops) > 1 and any(h.startswith(_SPECIAL_ROOTS) for h in hops)
+    return _inherited_fd(text) is not None
 
 
 def check_output_file(path: str | os.PathLike[str], *, allow_special: bool = False) -> Path:
@@ -262,7 +260,7 @@ def check_output_file(path: str | os.PathLike[str], *, allow_special: bool = Fal
     path : path-like
         The output file.
     allow_special : bool
-        Accept ``-``, a device, a FIFO or a link into ``/dev`` or ``/proc`` (see
+        Accept ``-``, a device, a FIFO or a link to an inherited descriptor (see
         :func:`writes_through`), written as they are by :func:`write_output_text`; refused
         by default.
 
@@ -278,7 +276,7 @@ def check_output_file(path: str | os.PathLike[str], *, allow_special: bool = Fal
         raise OutputPathError("is a folder, not a file")
     if writes_through(path):
         if not allow_special:
-            raise OutputPathError("is not a regular file (a device, pipe or link into /dev)")
+            raise OutputPathError("is not a regular file (a device, pipe or standard stream)")
         if str(path) != "-" and not target.exists():
             raise OutputPathError("is a link to nothing")
         return target
@@ -290,8 +288,8 @@ def write_output_text(path: str | os.PathLike[str], text: str) -> None:
     """Write ``text`` to a user-chosen output file.
 
     ``-`` is standard output; ``/dev/stdout``, ``/dev/fd/N`` and the like are written to the
-    inherited descriptor; a device, FIFO or other link into ``/dev`` / ``/proc`` (see
-    :func:`writes_through`) is opened and appended to; none is ever replaced (an atomic rename
+    inherited descriptor; a device or FIFO (see :func:`writes_through`) is opened and
+    written to; none is ever replaced (an atomic rename
     over ``/dev/stdout`` would replace the link or device node); anything else is written
     atomically (:func:`atomic_write_text`), through a symbolic link to its target.
     """
