@@ -11,6 +11,8 @@ import math
 import sys
 from pathlib import Path
 
+from arenabench.limits import MAX_WORKERS
+
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 
 EPILOG = """\
@@ -124,8 +126,8 @@ def main(argv: list[str] | None = None) -> int:
         return _usage_error(parser, "a DATASET folder is required (or --compare OLD NEW)")
     if not args.pipeline and not args.cmd:
         return _usage_error(parser, "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE")
-    if args.workers is not None and args.workers < 1:
-        return _usage_error(parser, f"--workers must be >= 1, got {args.workers}")
+    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
+        return _usage_error(parser, f"--workers must be in [1, {MAX_WORKERS}], got {args.workers}")
     if args.limit is not None and args.limit < 1:
         return _usage_error(parser, f"--limit must be >= 1, got {args.limit}")
     if not (math.isfinite(args.tolerance) and args.tolerance >= 0):

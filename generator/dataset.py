@@ -46,7 +46,7 @@ from arenabench.fileio import (
 from arenabench.generator.groundtruth import rounded
 from arenabench.generator.presets import Value, format_value, get_preset, resolve
 from arenabench.generator.sample import GENERATOR_VERSION, make_sample, scene_id
-from arenabench.limits import MAX_DATASET_SCENES, check_at_most
+from arenabench.limits import MAX_DATASET_SCENES, MAX_WORKERS, check_at_most
 
 #: dataset.json schema id.
 DATASET_SCHEMA = "arenabench.dataset/1"
@@ -329,6 +329,7 @@ def generate_dataset(
     """
     if int(workers) != workers or workers < 1:
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    check_at_most(int(workers), MAX_WORKERS, "workers")
     DatasetArgs(preset=preset, count=int(count), seed=int(seed),
                 overrides=dict(overrides or {}))  # refuse bad arguments before creating out
     try:

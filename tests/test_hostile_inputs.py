@@ -292,11 +292,16 @@ def test_unwritable_out_is_refused_before_any_work(toy, tmp_path, command, where
         (("contact-sheet", "--count", str(10**12)), "exceeds the limit of 8192"),
         (("contact-sheet", "--tile", "200000"), "tile = 200000 exceeds the limit of 8192"),
         (("detect", "--image", str(EXAMPLE), "--frame-size", "200000"), "[16, 8192]"),
+        (("generate", "--count", "1", "--workers", str(10**12)), "exceeds the limit of 256"),
+        (("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+          "--workers", str(10**12)), "in [1, 256]"),
+        (("eval", ".", "--pipeline", "reference", "--workers", str(10**12)), "in [1, 256]"),
     ],
 )
 def test_absurd_sizes_are_refused_at_once(tmp_path, argv, needle):
     out = ("--out", str(tmp_path / ("o.jpg" if argv[0] == "contact-sheet" else "o")))
-    proc = run(*argv, *(out if argv[0] != "detect" else ()), cwd=tmp_path, timeout=120)
+    proc = run(*argv, *(out if argv[0] not in ("detect", "eval") else ()), cwd=tmp_path,
+               timeout=120)
     assert_clean_error(proc, needle, prog=argv[0])
     assert not (tmp_path / "o").exists() and not (tmp_path / "o.jpg").exists()
 

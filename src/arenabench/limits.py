@@ -14,6 +14,9 @@ MAX_IMAGE_SIDE_PX = 8192
 #: Most scenes in one dataset (``generate --count``): scene ids have six digits.
 MAX_DATASET_SCENES = 1_000_000
 
+#: Most local worker processes or threads (``--workers``) of generate, sweep and eval.
+MAX_WORKERS = 256
+
 #: Most scenes rendered by one sweep: points x scenes per point (``sweep --per-point``,
 #: ``--random`` and the grid of ``--vary`` axes).
 MAX_SWEEP_SCENES = 1_000_000
