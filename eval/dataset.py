@@ -9,11 +9,10 @@ from pathlib import Path
 from typing import Any
 
 from arenabench.fileio import sha256_bytes, sha256_file
-from arenabench.schemas import GT_SCHEMA, gt_problem
+from arenabench.schemas import gt_problem
 
 from .records import Truth
 
-__all__ = ["AREA_REFERENCES", "GT_SCHEMA", "Dataset", "DatasetError", "Sample", "load_dataset"]
 AREA_REFERENCES: dict[str, str] = {"visible": "visible_px", "footprint": "footprint_px"}
 
 

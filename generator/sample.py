@@ -21,6 +21,7 @@ from arenabench.generator.groundtruth import compute_ground_truth, rounded
 from arenabench.generator.presets import Value
 from arenabench.generator.render import Renderer, RenderOutput
 from arenabench.generator.sampler import sample_scene
+from arenabench.schemas import GT_SCHEMA
 
 #: Bumped whenever the same (preset, seed, index) would give different images or GT.
 #: 2: degradation / scene-variation parameters (issue 5) recorded in the GT's params and
@@ -30,8 +31,6 @@ from arenabench.generator.sampler import sample_scene
 #: fitted competition example lies inside it (marker side, fov, altitude, light); any other
 #: range-valued parameter drawn from its own stream; warehouse preset.
 GENERATOR_VERSION = "3"
-#: GT file schema id.
-GT_SCHEMA = "arenabench.gt/1"
 
 #: A post-render hook: (rgb uint8 (H, W, 3), rng) -> rgb uint8 (H, W, 3).
 Degrade = Callable[[np.ndarray, np.random.Generator], np.ndarray]

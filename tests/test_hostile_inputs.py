@@ -184,8 +184,9 @@ def test_every_gt_the_generator_writes_validates():
     from arenabench.generator.render_cli import load_scene, scene_gt_record
     from arenabench.generator.sample import gt_record
     from arenabench.generator.sampler import sample_scene
-    from arenabench.schemas import gt_problem
+    from arenabench.schemas import GT_SCHEMA, gt_problem, gt_schema
 
+    assert gt_schema()["properties"]["schema"]["const"] == GT_SCHEMA
     checked = 0
     for preset in preset_names():
         for index in range(8):
