@@ -152,6 +152,8 @@ def load_dataset(
     manifest = base / "manifest.jsonl"
     if not base.is_dir():
         raise DatasetError(f"{base}: dataset folder does not exist")
+    if manifest.exists() and not manifest.is_file():
+        raise DatasetError(f"{manifest}: not a regular file")
     if not manifest.is_file():
         raise DatasetError(f"{manifest}: missing (is {base} a dataset written by the generator?)")
     samples: list[Sample] = []
@@ -181,10 +183,11 @@ def load_dataset(
                     )
         image_path, gt_path = base / entry["image"], base / entry["gt"]
         shown_image, shown_gt = shown / entry["image"], shown / entry["gt"]
-        if not image_path.is_file():
-            raise DatasetError(f"{where}: image file {shown_image} does not exist")
-        if not gt_path.is_file():
-            raise DatasetError(f"{where}: ground-truth file {shown_gt} does not exist")
+        for what, path, shown_path in (("image", image_path, shown_image),
+                                       ("ground-truth", gt_path, shown_gt)):
+            if not path.is_file():
+                why = "is not a regular file" if path.exists() else "does not exist"
+                raise DatasetError(f"{where}: {what} file {shown_path} {why}")
         try:
             gt_bytes = gt_path.read_bytes()
         except OSError as exc:

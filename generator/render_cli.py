@@ -30,6 +30,8 @@ def load_scene(path: str | Path) -> Scene:
         On a missing or unreadable file, invalid JSON, an unknown field or an invalid value.
     """
     p = Path(path)
+    if p.exists() and not p.is_file():
+        raise ValueError(f"scene file {str(p)!r} is not a regular file")
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
     except OSError as exc:

@@ -327,6 +327,27 @@ def test_detect_on_a_fifo_is_refused_without_blocking(tmp_path):
     assert_clean_error(proc, "not a regular file", prog="detect")
 
 
+@pytest.mark.parametrize("command", ["compare", "render", "eval-gt"])
+def test_other_inputs_that_are_fifos_are_refused_without_blocking(toy, tmp_path, command):
+    import shutil
+
+    fifo = tmp_path / "input.json"
+    os.mkfifo(fifo)
+    if command == "compare":
+        proc = run("eval", "--compare", str(fifo), str(fifo), timeout=60)
+        assert_clean_error(proc, "not a regular file", prog="eval")
+    elif command == "render":
+        proc = run("render", str(fifo), "--out", str(tmp_path / "o"), timeout=60)
+        assert_clean_error(proc, "not a regular file", prog="render")
+    else:
+        bad = tmp_path / "bad"
+        shutil.copytree(toy, bad)
+        (bad / "gt" / "000001.json").unlink()
+        os.mkfifo(bad / "gt" / "000001.json")
+        proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", timeout=60)
+        assert_clean_error(proc, "gt/000001.json is not a regular file", prog="eval")
+
+
 def test_detect_output_dash_is_stdout(tmp_path):
     proc = run("detect", "--image", str(EXAMPLE), "--output", "-", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
