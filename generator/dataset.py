@@ -358,9 +358,9 @@ def _generate_locked(
     root = Path(out)
     start = time.perf_counter()
     meta = _check_existing(root, args)
-    if meta is not None:  # resuming: files a killed run was writing are garbage
-        for folder in (root, root / "images", root / "gt"):
-            remove_temp_files(folder)
+    # ours (same arguments) or empty: files a killed run was writing are garbage
+    for folder in (root, root / "images", root / "gt"):
+        remove_temp_files(folder)
     todo = [i for i in range(args.count) if not _present(root, scene_id(i))]
     skipped = args.count - len(todo)
     if meta is not None and meta.get("complete") and not todo:

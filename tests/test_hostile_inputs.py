@@ -297,6 +297,9 @@ def test_unwritable_out_is_refused_before_any_work(toy, tmp_path, command, where
         (("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
           "--workers", str(10**12)), "in [1, 256]"),
         (("eval", ".", "--pipeline", "reference", "--workers", str(10**12)), "in [1, 256]"),
+        (("eval", ".", "--pipeline", "reference", "--tolerance", "nan"), "finite number >= 0"),
+        (("eval", ".", "--pipeline", "reference", "--fail-under", "pass_rate=nan"),
+         "not finite"),
     ],
 )
 def test_absurd_sizes_are_refused_at_once(tmp_path, argv, needle):
