@@ -295,7 +295,7 @@ def _json_line(stdout: str) -> Any:
         if line.startswith("{"):
             try:
                 return json.loads(line)
-            except json.JSONDecodeError:
+            except (json.JSONDecodeError, RecursionError):  # nested too deeply: not an answer
                 continue
     raise OutputFormatError(f"no JSON object line on stdout: {stdout.strip()[-200:]!r}")
 

@@ -77,12 +77,15 @@ def gt_problem(gt: Any) -> str | None:
         One line such as ``area.visible_px: nan is not a finite number`` or
         ``count: -1 is less than the minimum of 0``.
     """
-    for path, value in _non_finite(gt):
-        where = dotted(path) or "(root)"
-        return f"{where}: {value!r} is not a finite number"
     import jsonschema
 
-    error = jsonschema.exceptions.best_match(_gt_validator().iter_errors(gt))
+    try:
+        for path, value in _non_finite(gt):
+            where = dotted(path) or "(root)"
+            return f"{where}: {value!r} is not a finite number"
+        error = jsonschema.exceptions.best_match(_gt_validator().iter_errors(gt))
+    except RecursionError:
+        return "nested too deeply"
     if error is None:
         return None
     where = dotted(error.absolute_path)
