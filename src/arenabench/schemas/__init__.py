@@ -27,6 +27,20 @@ def gt_schema() -> dict[str, Any]:
     return json.loads(text)
 
 
+def _inline_refs(node: Any, defs: dict[str, Any]) -> Any:
+    """``node`` with every local ``{"$ref": "#/$defs/NAME"}`` replaced by its definition
+    (the schema has no recursive definitions); resolving references is a large part of
+    jsonschema's time per record."""
+    if isinstance(node, dict):
+        ref = node.get("$ref")
+        if isinstance(ref, str) and ref.startswith("#/$defs/") and len(node) == 1:
+            return _inline_refs(defs[ref.removeprefix("#/$defs/")], defs)
+        return {k: _inline_refs(v, defs) for k, v in node.items() if k != "$defs"}
+    if isinstance(node, list):
+        return [_inline_refs(v, defs) for v in node]
+    return node
+
+
 @cache
 def _gt_validator() -> Any:
     import jsonschema
@@ -34,7 +48,7 @@ def _gt_validator() -> Any:
     schema = gt_schema()
     cls = jsonschema.validators.validator_for(schema)
     cls.check_schema(schema)
-    return cls(schema)
+    return cls(_inline_refs(schema, schema.get("$defs", {})))
 
 
 def dotted(path: Any) -> str:
