@@ -121,20 +121,26 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse: --help (0) or usage error (2)
         return int(exc.code or 0)
+    from arenabench.fileio import OutputPathError, check_output_dir
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
+    from arenabench.limits import MAX_WORKERS
 
     from .sweep.grid import parse_varies
     from .sweep.outputs import KeptImageWriter, write_sweep
     from .sweep.records import PipelineSpec, SweepSpec
     from .sweep.runner import run_sweep
 
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        return _error(f"--out {args.out}: {exc}")
     if not args.vary:
         return _error("give at least one --vary KEY=SPEC")
     if not args.pipes:
         return _error("give --pipeline NAME|pkg.module:function and/or --cmd TEMPLATE")
-    if args.workers is not None and args.workers < 1:
-        return _error(f"--workers must be >= 1, got {args.workers}")
+    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
+        return _error(f"--workers must be in [1, {MAX_WORKERS}], got {args.workers}")
     if args.scheduler is not None and args.workers is not None:
         return _error("--workers and --scheduler exclude each other (the cluster's workers "
                       "do the work)")

@@ -3,11 +3,13 @@
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from typing import Any
 
 from arenabench.generator.presets import Value, format_value
+from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 
 from ..metrics import DEFAULT_TOLERANCE
 from ..pipelines import BUILTIN_PIPELINES, OUTPUT_MODES, CommandPipeline, Pipeline, make_pipeline
@@ -141,6 +143,15 @@ class SweepSpec:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
         if self.random is not None and (int(self.random) != self.random or self.random < 1):
             raise ValueError(f"random must be an integer >= 1, got {self.random!r}")
+        check_at_most(int(self.per_point), MAX_SWEEP_SCENES, "per_point")
+        if self.random is not None:
+            check_at_most(int(self.random), MAX_SWEEP_SCENES, "random (points)")
+        # counted, not listed: a grid of several long axes can have 10**12 points
+        n_points = self.random if self.random is not None else math.prod(
+            len(a.values) for a in self.axes
+        )
+        check_at_most(int(n_points) * int(self.per_point), MAX_SWEEP_SCENES,
+                      f"scenes ({n_points} points x {self.per_point} per point)")
         if not self.pipelines:
             raise ValueError("pipelines must not be empty")
         names = [p.name for p in self.pipelines]
