@@ -29,7 +29,9 @@ from arenabench.generator.sampler import sample_scene
 #: faster renders); Gaussian noise drawn with OpenCV's sampler; eyrc re-tuned so that the
 #: fitted competition example lies inside it (marker side, fov, altitude, light); any other
 #: range-valued parameter drawn from its own stream; warehouse preset.
-GENERATOR_VERSION = "3"
+#: 4: GT ``area.contour_px`` (what cv2.contourArea of the pixelated visible silhouettes gives);
+#: images unchanged.
+GENERATOR_VERSION = "4"
 #: GT file schema id.
 GT_SCHEMA = "arenabench.gt/1"
 
