@@ -10,6 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from .dataset import AREA_REFERENCES
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 
 EPILOG = """\
@@ -68,7 +69,13 @@ def build_parser() -> argparse.ArgumentParser:
         help="pool for in-process pipelines (default thread)",
     )
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible")
+    p.add_argument(
+        "--area-reference",
+        choices=tuple(AREA_REFERENCES),
+        default="visible",
+        help="GT area to score against: visible (default), footprint, or contour (what "
+        "cv2.contourArea of the pixelated silhouettes gives, about half a perimeter less)",
+    )
     p.add_argument("--out", type=Path, default=None, help="folder for the report files")
     p.add_argument(
         "--formats",

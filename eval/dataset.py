@@ -11,7 +11,11 @@ from typing import Any
 from .records import Truth
 
 GT_SCHEMA = "arenabench.gt/1"
-AREA_REFERENCES: dict[str, str] = {"visible": "visible_px", "footprint": "footprint_px"}
+#: ``--area-reference`` name -> GT ``area`` field. ``contour_px`` is absent from GT files
+#: written before generator version 4.
+AREA_REFERENCES: dict[str, str] = {
+    "visible": "visible_px", "footprint": "footprint_px", "contour": "contour_px",
+}
 
 
 class DatasetError(ValueError):
@@ -49,9 +53,14 @@ class Sample:
             raise ValueError(
                 f"area_reference must be one of {sorted(AREA_REFERENCES)}, got {area_reference!r}"
             )
+        key = AREA_REFERENCES[area_reference]
+        if key not in self.gt["area"]:
+            raise _fail(self.gt_path, f"field 'area.{key}' is missing (written by an older "
+                                      f"generator?): regenerate the dataset to score against "
+                                      f"--area-reference {area_reference}")
         return Truth(
             count=int(self.gt["count"]),
-            area=float(self.gt["area"][AREA_REFERENCES[area_reference]]),
+            area=float(self.gt["area"][key]),
             marker_ids=tuple(
                 int(m["id"])
                 for m in self.gt.get("markers", [])
@@ -121,7 +130,8 @@ def validate_gt(gt: Any, path: Path) -> None:
     count = _number(gt, path, "count")
     if count < 0 or count != int(count):
         raise _fail(path, f"field 'count' must be a non-negative integer, got {gt['count']!r}")
-    for key in ("area.visible_px", "area.footprint_px"):
+    optional = ("area.contour_px",) if "contour_px" in (gt.get("area") or {}) else ()
+    for key in ("area.visible_px", "area.footprint_px", *optional):
         if _number(gt, path, key) < 0:
             raise _fail(path, f"field {key!r} must be >= 0")
     for key in ("markers", "obstacles"):

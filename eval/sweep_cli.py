@@ -10,6 +10,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from .dataset import AREA_REFERENCES
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 
 EPILOG = """\
@@ -81,7 +82,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line")
     p.add_argument("--timeout", type=float, default=60.0, help="seconds per image for --cmd")
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible")
+    p.add_argument("--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
+                   help="GT area to score against: visible (default), footprint or contour")
     p.add_argument("--threshold", type=float, default=0.9,
                    help="breakdown threshold on the pass rate's lower 95 %% bound (default 0.9)")
     p.add_argument("--breakdown-mode", choices=("marginal", "axis"), default="marginal",
