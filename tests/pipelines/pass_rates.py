@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import statistics
 import sys
 from collections import Counter
 from dataclasses import dataclass, field
@@ -129,8 +130,6 @@ def pass_rate_table(results: dict[str, dict[str, Tally]],
     lines = ["| " + " | ".join(head) + " |", "|" + "---|" * len(head)]
     for preset, tallies in results.items():
         for spec, t in tallies.items():
-            import statistics
-
             errs = [f"{statistics.median(t.area_rel_err[r]):+.2%}" if t.area_rel_err.get(r)
                     else "-" for r in references]
             fails = t.failures.get(references[0], Counter()).most_common(1)
