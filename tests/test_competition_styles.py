@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import cv2
+import numpy as np
 import pytest
 
 from arenabench.eval.cli import main as eval_main
@@ -60,7 +61,7 @@ def test_style_command_writes_the_competition_file(style, real_image, tmp_path):
 
 def test_style_command_without_markers_exits_3(tmp_path):
     blank = tmp_path / "blank.png"
-    cv2.imwrite(str(blank), 255 * (cv2.imread(str(REAL)) * 0 + 1))
+    cv2.imwrite(str(blank), np.full((600, 600, 3), 255, dtype=np.uint8))
     proc = subprocess.run([sys.executable, str(PIPES / "style_canny.py"), "--image", str(blank)],
                           cwd=tmp_path, capture_output=True, text=True, timeout=60)
     assert proc.returncode == 3
