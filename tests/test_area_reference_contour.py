@@ -88,10 +88,11 @@ def test_truth_without_contour_px_raises_naming_the_file():
 
 
 def test_sweep_with_contour_reference(tmp_path):
+    # --workers 2: worker processes, so no renderer is left cached in this test process
     out = tmp_path / "sweep"
     assert sweep_main(["--preset", "eyrc", "--vary", "camera.tilt_deg=0,3", "--per-point", "2",
                        "--pipeline", "reference", "--area-reference", "contour", "--out",
-                       str(out), "--workers", "1", "--no-plots", "--no-progress"]) == 0
+                       str(out), "--workers", "2", "--no-plots", "--no-progress"]) == 0
     assert json.loads((out / "sweep.json").read_text())["area_reference"] == "contour"
     rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     assert len(rows) == 4
