@@ -16,6 +16,7 @@ from pathlib import Path
 from arenabench.clihelp import HelpFormatter
 from arenabench.limits import MAX_WORKERS
 
+from .dataset import AREA_REFERENCES
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 from .run_limits import add_run_arguments, run_settings_from_args
 
@@ -80,9 +81,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
     p.add_argument(
-        "--area-reference", choices=("visible", "footprint"), default="visible",
+        "--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
         help="GT area the answer is compared with: visible (the silhouettes a camera-side "
-        "segmentation sees) or footprint (the boxes' floor area)",
+        "segmentation sees), footprint (the boxes' floor area) or contour (what "
+        "cv2.contourArea of the pixelated silhouettes gives, about half a perimeter less)",
     )
     p.add_argument("--out", type=Path, default=None, help="folder for the report files")
     p.add_argument(

@@ -13,7 +13,11 @@ from arenabench.schemas import gt_problem
 
 from .records import Truth
 
-AREA_REFERENCES: dict[str, str] = {"visible": "visible_px", "footprint": "footprint_px"}
+#: ``--area-reference`` name -> GT ``area`` field. ``contour_px`` is absent from GT files
+#: written before generator version 4.
+AREA_REFERENCES: dict[str, str] = {
+    "visible": "visible_px", "footprint": "footprint_px", "contour": "contour_px",
+}
 
 
 class DatasetError(ValueError):
@@ -51,9 +55,14 @@ class Sample:
             raise ValueError(
                 f"area_reference must be one of {sorted(AREA_REFERENCES)}, got {area_reference!r}"
             )
+        key = AREA_REFERENCES[area_reference]
+        if key not in self.gt["area"]:
+            raise _fail(self.gt_path, f"field 'area.{key}' is missing (written by an older "
+                                      f"generator?): regenerate the dataset to score against "
+                                      f"--area-reference {area_reference}")
         return Truth(
             count=int(self.gt["count"]),
-            area=float(self.gt["area"][AREA_REFERENCES[area_reference]]),
+            area=float(self.gt["area"][key]),
             marker_ids=tuple(
                 int(m["id"])
                 for m in self.gt.get("markers", [])

@@ -14,6 +14,7 @@ from pathlib import Path
 from arenabench.clihelp import HelpFormatter
 from arenabench.interrupts import Interrupted, stop_on_signals
 
+from .dataset import AREA_REFERENCES
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 from .run_limits import add_run_arguments, run_settings_from_args
 
@@ -85,9 +86,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
                    help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line")
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible",
+    p.add_argument("--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
                    help="GT area the answer is compared with: visible (the silhouettes a "
-                        "camera-side segmentation sees) or footprint (the boxes' floor area)")
+                        "camera-side segmentation sees), footprint (the boxes' floor area) or "
+                        "contour (what cv2.contourArea of the pixelated silhouettes gives)")
     p.add_argument("--threshold", type=float, default=0.9,
                    help="breakdown threshold on the pass rate's lower 95 %% bound (default 0.9)")
     p.add_argument("--breakdown-mode", choices=("marginal", "axis"), default="marginal",

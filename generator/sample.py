@@ -33,7 +33,8 @@ from arenabench.schemas import GT_SCHEMA
 #: range-valued parameter drawn from its own stream; warehouse preset.
 #: 4: meshes drawn in a fixed order (obstacles, floor overlays, markers, floor): where a box
 #: side meets the floor their depths can tie in a pixel, and which one won used to depend on
-#: memory addresses, so 1-2 % of images differed in a pixel from run to run, on every preset.
+#: memory addresses, so 1-2 % of images differed in a pixel from run to run, on every preset;
+#: GT ``area.contour_px`` (what cv2.contourArea of the pixelated visible silhouettes gives).
 GENERATOR_VERSION = "4"
 
 #: A post-render hook: (rgb uint8 (H, W, 3), rng) -> rgb uint8 (H, W, 3).
