@@ -4,6 +4,7 @@ naming the file, before any work."""
 
 from __future__ import annotations
 
+import hashlib
 import json
 import shutil
 import statistics
@@ -48,13 +49,25 @@ def test_contour_reference_scores_against_contour_px(eyrc, tmp_path):
     assert abs(median_signed(contour)) < abs(median_signed(visible)) / 2
 
 
+def _rewrite_gt(dataset: Path, gt_file: Path, gt: dict) -> None:
+    """Replace one GT file and its manifest hash, as an older (consistent) dataset would be."""
+    data = json.dumps(gt).encode()
+    gt_file.write_bytes(data)
+    manifest = dataset / "manifest.jsonl"
+    lines = [json.loads(line) for line in manifest.read_text().splitlines() if line.strip()]
+    for line in lines:
+        if line["gt"] == f"gt/{gt_file.name}":
+            line["gt_sha256"] = hashlib.sha256(data).hexdigest()
+    manifest.write_text("".join(json.dumps(line, sort_keys=True) + "\n" for line in lines))
+
+
 def test_old_dataset_without_contour_px_is_refused_naming_the_file(eyrc, tmp_path, capsys):
     old = tmp_path / "old"
     shutil.copytree(eyrc, old)
     gt_file = old / "gt" / "000003.json"
     gt = json.loads(gt_file.read_text())
     del gt["area"]["contour_px"]
-    gt_file.write_text(json.dumps(gt))
+    _rewrite_gt(old, gt_file, gt)
     out = tmp_path / "out"
     rc = arenabench_main(["eval", str(old), "--pipeline", "reference", "--area-reference",
                           "contour", "--out", str(out), "--no-progress"])
@@ -73,7 +86,7 @@ def test_negative_contour_px_makes_the_dataset_invalid(eyrc, tmp_path):
     gt_file = bad / "gt" / "000001.json"
     gt = json.loads(gt_file.read_text())
     gt["area"]["contour_px"] = -1.0
-    gt_file.write_text(json.dumps(gt))
+    _rewrite_gt(bad, gt_file, gt)
     with pytest.raises(DatasetError, match=r"area\.contour_px"):
         load_dataset(bad)
 
