@@ -128,8 +128,13 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:
         return int(exc.code or 0)
     from arenabench.eval.bench import run_bench
-    from arenabench.fileio import atomic_write_json
+    from arenabench.fileio import OutputPathError, atomic_write_json, check_output_dir
 
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        print(f"arenabench bench: error: --out {args.out}: {exc}", file=sys.stderr)
+        return 2
     try:
         if args.quick:
             cfg = BenchConfig.quick(workers=args.workers)

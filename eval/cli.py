@@ -9,11 +9,14 @@ written with ``"complete": false``).
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
 from arenabench.clihelp import HelpFormatter
+from arenabench.limits import MAX_WORKERS
 
+from .dataset import AREA_REFERENCES
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 from .run_limits import add_run_arguments, run_settings_from_args
 
@@ -78,9 +81,10 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
     p.add_argument(
-        "--area-reference", choices=("visible", "footprint"), default="visible",
+        "--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
         help="GT area the answer is compared with: visible (the silhouettes a camera-side "
-        "segmentation sees) or footprint (the boxes' floor area)",
+        "segmentation sees), footprint (the boxes' floor area) or contour (what "
+        "cv2.contourArea of the pixelated silhouettes gives, about half a perimeter less)",
     )
     p.add_argument("--out", type=Path, default=None, help="folder for the report files")
     p.add_argument(
@@ -98,6 +102,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--limit", type=int, default=None, help="evaluate only the first N images")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     add_run_arguments(p)
+    p.add_argument(
+        "--no-verify",
+        action="store_true",
+        help="do not check images and GT against the sha256 values of manifest.jsonl",
+    )
     return p
 
 
@@ -144,10 +153,21 @@ def _main(argv: list[str] | None) -> int:
         return _usage_error(parser, "a DATASET folder is required (or --compare OLD NEW)")
     if not args.pipeline and not args.cmd:
         return _usage_error(parser, "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE")
-    if args.workers is not None and args.workers < 1:
-        return _usage_error(parser, f"--workers must be >= 1, got {args.workers}")
+    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
+        return _usage_error(parser, f"--workers must be in [1, {MAX_WORKERS}], got {args.workers}")
     if args.limit is not None and args.limit < 1:
         return _usage_error(parser, f"--limit must be >= 1, got {args.limit}")
+    if not (math.isfinite(args.tolerance) and args.tolerance >= 0):
+        return _usage_error(
+            parser, f"--tolerance must be a finite number >= 0, got {args.tolerance}"
+        )
+    if args.out is not None:
+        from arenabench.fileio import OutputPathError, check_output_dir
+
+        try:
+            check_output_dir(args.out)
+        except OutputPathError as exc:
+            return _usage_error(parser, f"--out {args.out}: {exc}")
 
     from .dataset import DatasetError, load_dataset
     from .pipelines import CommandPipeline, make_pipeline
@@ -167,7 +187,7 @@ def _main(argv: list[str] | None) -> int:
             if args.cmd
             else make_pipeline(args.pipeline)
         )
-        dataset = load_dataset(args.dataset, limit=args.limit)
+        dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify)
     except (DatasetError, ValueError) as exc:
         return _usage_error(parser, str(exc))
     interrupted: EvaluationInterrupted | None = None

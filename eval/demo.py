@@ -67,6 +67,14 @@ def main(argv: list[str] | None = None) -> int:
     if args.count < 1:
         print(f"arenabench demo: error: --count must be >= 1, got {args.count}", file=sys.stderr)
         return 2
+    from arenabench.fileio import OutputPathError, check_output_dir
+
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        print(f"arenabench demo: error: --out {args.out}: {exc}", file=sys.stderr)
+        return 2
+
     step = 1
     if args.example is not None:
         rc = _example(args.example, args.out)

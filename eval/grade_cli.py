@@ -63,7 +63,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="how the command answers: obstacles.txt in its cwd (default) or a "
                         "JSON line")
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=tuple(AREA_REFERENCES), default="visible")
+    p.add_argument("--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
+                   help="GT area the answer is compared with (default: %(default)s)")
     p.add_argument("--formats", default=",".join(FORMATS),
                    help="report files per team (default: %(default)s)")
     p.add_argument("--workers", type=int, default=None,

@@ -19,6 +19,7 @@ from __future__ import annotations
 import importlib
 import json
 import os
+import reprlib
 import sys
 import time
 import traceback
@@ -27,7 +28,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
-from arenabench.competition import OutputFormatError
+from arenabench.competition import (
+    OutputFormatError,
+    check_area,
+    check_count,
+)
 
 from .external import EXIT_MARKERS_NOT_FOUND, OUTPUT_MODES, CommandPipeline
 from .records import Prediction, tail
@@ -70,6 +75,23 @@ def _get(result: Any, *names: str) -> Any:
     return None
 
 
+def _short(value: Any) -> str:
+    """A bounded repr (a pipeline may return a huge or unprintable object)."""
+    try:
+        return reprlib.repr(value)[:200]
+    except Exception:
+        return f"<unprintable {type(value).__name__}>"
+
+
+def _as_list(ids: Any) -> list[Any]:
+    if isinstance(ids, (str, bytes, Mapping)):
+        raise OutputFormatError(f"marker ids are not a list of integers: {_short(ids)}")
+    try:
+        return list(ids)
+    except Exception:
+        raise OutputFormatError(f"marker ids are not a list of integers: {_short(ids)}") from None
+
+
 def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") -> Prediction:
     """Normalise what an in-process pipeline (or a JSON line) returned.
 
@@ -86,29 +108,36 @@ def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") 
     Returns
     -------
     Prediction
-        Status ``bad_output`` (with a message) when fields are missing or malformed.
+        Status ``bad_output`` (with a message) when fields are missing or malformed: a count
+        or marker id that is not a non-negative integer, an area that is negative or not a
+        finite number (NaN, infinity), a boolean or a string where a number belongs.
     """
-    status = _get(result, "status") or "ok"
-    count, area = _get(result, "count"), _get(result, "area", "total_area")
-    ids = _get(result, "marker_ids", "ids")
-
     def bad(msg: str) -> Prediction:
         return Prediction(
             status="bad_output", message=msg, stdout=tail(stdout), latency_ms=latency_ms
         )
 
-    if status not in ("ok", "markers_not_found"):
-        return bad(f"unknown status {status!r} in pipeline result {result!r:.200}")
+    try:  # a hostile result may raise from attribute access, comparison or repr
+        status = _get(result, "status")
+        status = "ok" if status is None else status
+        count, area = _get(result, "count"), _get(result, "area", "total_area")
+        ids = _get(result, "marker_ids", "ids")
+        known = isinstance(status, str) and status in ("ok", "markers_not_found")
+    except Exception as exc:
+        return bad(f"unreadable pipeline result ({type(exc).__name__}: {exc})"[:500])
+    if not known:
+        return bad(f"unknown status {_short(status)} in pipeline result {_short(result)}")
     try:
-        count_v = None if count is None else int(count)
-        area_v = None if area is None else float(area)
-        ids_v = None if ids is None else tuple(int(i) for i in ids)
-    except (TypeError, ValueError) as exc:
-        return bad(f"malformed pipeline result {result!r:.200}: {exc}")
-    if count_v is not None and count_v != count:
-        return bad(f"count is not an integer: {count!r}")
+        count_v = None if count is None else check_count(count)
+        area_v = None if area is None else check_area(area)
+        ids_v = (
+            None if ids is None
+            else tuple(check_count(i, name="marker id") for i in _as_list(ids))
+        )
+    except OutputFormatError as exc:
+        return bad(str(exc))
     if status == "ok" and (count_v is None or area_v is None):
-        return bad(f"pipeline result lacks count or area: {result!r:.200}")
+        return bad(f"pipeline result lacks count or area: {_short(result)}")
     return Prediction(
         status=status,
         count=count_v,
@@ -328,7 +357,7 @@ def _json_line(stdout: str) -> Any:
         if line.startswith("{"):
             try:
                 return json.loads(line)
-            except json.JSONDecodeError:
+            except (json.JSONDecodeError, RecursionError):  # nested too deeply: not an answer
                 continue
     raise OutputFormatError(f"no JSON object line on stdout: {stdout.strip()[-200:]!r}")
 

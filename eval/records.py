@@ -54,7 +54,7 @@ class Truth:
     count : int
         Number of obstacles in the frame.
     area : float
-        Reference area in frame px (``visible_px`` or ``footprint_px``).
+        Reference area in frame px (``visible_px``, ``footprint_px`` or ``contour_px``).
     marker_ids : tuple of int
         Ids of the markers fully in view.
     """

@@ -129,8 +129,9 @@ def evaluate(
         Parallel workers (default: the machine's cores).
     tolerance : float
         Largest passing ``|area_rel_err|``.
-    area_reference : {"visible", "footprint"}
-        Which GT area the prediction is compared with.
+    area_reference : {"visible", "footprint", "contour"}
+        Which GT area the prediction is compared with (``area.visible_px``,
+        ``area.footprint_px`` or ``area.contour_px``).
     executor : {"thread", "process"}
         Pool for in-process pipelines; external commands always use threads.
     progress : bool
@@ -165,6 +166,8 @@ def evaluate(
         raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
     data = dataset if isinstance(dataset, Dataset) else load_dataset(dataset, limit=limit)
     samples = data.samples[:limit] if limit else data.samples
+    for s in samples:  # a missing reference area is a data error, found before any work
+        s.truth(area_reference=area_reference)
     pipe = make_pipeline(pipeline)
     n_workers = min(workers or default_workers(), max(1, len(samples)))
     use_process = executor == "process" and pipe.in_process and isinstance(pipeline, str)

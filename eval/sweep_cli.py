@@ -14,6 +14,7 @@ from pathlib import Path
 from arenabench.clihelp import HelpFormatter
 from arenabench.interrupts import Interrupted, stop_on_signals
 
+from .dataset import AREA_REFERENCES
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 from .run_limits import add_run_arguments, run_settings_from_args
 
@@ -85,9 +86,10 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
                    help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line")
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible",
+    p.add_argument("--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
                    help="GT area the answer is compared with: visible (the silhouettes a "
-                        "camera-side segmentation sees) or footprint (the boxes' floor area)")
+                        "camera-side segmentation sees), footprint (the boxes' floor area) or "
+                        "contour (what cv2.contourArea of the pixelated silhouettes gives)")
     p.add_argument("--threshold", type=float, default=0.9,
                    help="breakdown threshold on the pass rate's lower 95 %% bound (default 0.9)")
     p.add_argument("--breakdown-mode", choices=("marginal", "axis"), default="marginal",
@@ -121,20 +123,26 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse: --help (0) or usage error (2)
         return int(exc.code or 0)
+    from arenabench.fileio import OutputPathError, check_output_dir
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
+    from arenabench.limits import MAX_WORKERS
 
     from .sweep.grid import parse_varies
     from .sweep.outputs import KeptImageWriter, write_sweep
     from .sweep.records import PipelineSpec, SweepSpec
     from .sweep.runner import run_sweep
 
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        return _error(f"--out {args.out}: {exc}")
     if not args.vary:
         return _error("give at least one --vary KEY=SPEC")
     if not args.pipes:
         return _error("give --pipeline NAME|pkg.module:function and/or --cmd TEMPLATE")
-    if args.workers is not None and args.workers < 1:
-        return _error(f"--workers must be >= 1, got {args.workers}")
+    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
+        return _error(f"--workers must be in [1, {MAX_WORKERS}], got {args.workers}")
     if args.scheduler is not None and args.workers is not None:
         return _error("--workers and --scheduler exclude each other (the cluster's workers "
                       "do the work)")

@@ -43,11 +43,17 @@ def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench generate``; returns 0 on success, 2 on a usage or argument error,
     130 / 143 when stopped by SIGINT / SIGTERM (what finished is kept; re-running resumes)."""
     args = build_parser().parse_args(argv)
+    from arenabench.fileio import OutputPathError, check_output_dir
     from arenabench.generator.dataset import DatasetError, generate_dataset
     from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError
     from arenabench.interrupts import Interrupted, exit_code, stop_on_signals
 
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        print(f"arenabench generate: error: --out {args.out}: {exc}", file=sys.stderr)
+        return 2
     with stop_on_signals():
         try:
             overrides = parse_overrides(args.overrides)

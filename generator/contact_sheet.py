@@ -15,6 +15,10 @@ import numpy as np
 
 from arenabench.clihelp import HelpFormatter
 from arenabench.fileio import atomic_write_bytes
+from arenabench.limits import MAX_IMAGE_SIDE_PX, check_at_most
+
+#: Padding around a tile and height of its caption strip, in px.
+_PAD, _TEXT_H = 6, 22
 
 
 def tile_images(
@@ -49,12 +53,10 @@ def tile_images(
             f"images and captions must be non-empty and of equal length, got {len(images)} "
             f"and {len(captions)}"
         )
-    if columns < 1 or tile < 16:
-        raise ValueError(f"columns must be >= 1 and tile >= 16, got {columns} and {tile}")
-    pad, text_h = 6, 22
-    rows = -(-len(images) // columns)
+    width, height = sheet_size(len(images), columns=columns, tile=tile)
+    pad, text_h = _PAD, _TEXT_H
     cell_w, cell_h = tile + 2 * pad, tile + text_h + 2 * pad
-    sheet = np.full((rows * cell_h, columns * cell_w, 3), 255, np.uint8)
+    sheet = np.full((height, width, 3), 255, np.uint8)
     for k, (img, caption) in enumerate(zip(images, captions, strict=True)):
         h, w = img.shape[:2]
         scale = tile / max(h, w)
@@ -66,6 +68,28 @@ def tile_images(
         cv2.putText(sheet, caption, (x0, y0 + tile + text_h - 6), cv2.FONT_HERSHEY_SIMPLEX,
                     0.45, (40, 40, 40), 1, cv2.LINE_AA)
     return sheet
+
+
+def sheet_size(count: int, *, columns: int, tile: int) -> tuple[int, int]:
+    """Width and height in px of a sheet of ``count`` tiles.
+
+    Raises
+    ------
+    ValueError
+        When ``count``, ``columns`` or ``tile`` are out of range, or the sheet would be wider
+        or taller than :data:`arenabench.limits.MAX_IMAGE_SIDE_PX`.
+    """
+    if count < 1:
+        raise ValueError(f"count must be >= 1, got {count}")
+    if columns < 1 or tile < 16:
+        raise ValueError(f"columns must be >= 1 and tile >= 16, got {columns} and {tile}")
+    check_at_most(tile, MAX_IMAGE_SIDE_PX, "tile")
+    rows = -(-count // columns)
+    width = columns * (tile + 2 * _PAD)
+    height = rows * (tile + _TEXT_H + 2 * _PAD)
+    check_at_most(width, MAX_IMAGE_SIDE_PX, f"sheet width ({columns} columns x tile {tile})")
+    check_at_most(height, MAX_IMAGE_SIDE_PX, f"sheet height ({rows} rows x tile {tile})")
+    return width, height
 
 
 def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
@@ -91,8 +115,7 @@ def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
     numpy.ndarray
         The sheet, BGR uint8.
     """
-    if count < 1:
-        raise ValueError(f"count must be >= 1, got {count}")
+    sheet_size(count, columns=columns, tile=tile)  # refuse before rendering anything
     from arenabench import glplatform
 
     glplatform.configure()
@@ -132,6 +155,7 @@ def main(argv: list[str] | None = None) -> int:
                    help="output image (.jpg or .png; default contact-PRESET.jpg)")
     p.add_argument("--no-progress", action="store_true", help="no progress output")
     args = p.parse_args(argv)
+    from arenabench.fileio import OutputPathError, check_output_file
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
 
@@ -139,6 +163,11 @@ def main(argv: list[str] | None = None) -> int:
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         print(f"arenabench contact-sheet: error: --out must end in .jpg or .png, got {out}",
               file=sys.stderr)
+        return 2
+    try:
+        check_output_file(out)
+    except OutputPathError as exc:
+        print(f"arenabench contact-sheet: error: --out {out}: {exc}", file=sys.stderr)
         return 2
     try:
         get_preset(args.preset)

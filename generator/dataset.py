@@ -27,6 +27,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import shlex
 import sys
 import threading
 import time
@@ -40,10 +41,16 @@ from shapely.geometry import Polygon, box
 
 from arenabench import __version__
 from arenabench.fileio import (
+    LOCK_FILE,
+    FolderLockedError,
     atomic_write_bytes,
     atomic_write_json,
     atomic_write_text,
     dumps_json,
+    dumps_json_line,
+    is_temp_name,
+    lock_folder,
+    remove_temp_files,
     rounded,
     sha256_bytes,
     sha256_file,
@@ -58,6 +65,7 @@ from arenabench.interrupts import (
     stop_workers,
     worker_task,
 )
+from arenabench.limits import MAX_DATASET_SCENES, MAX_WORKERS, check_at_most
 
 #: dataset.json schema id.
 DATASET_SCHEMA = "arenabench.dataset/1"
@@ -82,6 +90,7 @@ class DatasetArgs:
         get_preset(self.preset)
         if int(self.count) != self.count or self.count < 0:
             raise ValueError(f"count must be an integer >= 0, got {self.count!r}")
+        check_at_most(int(self.count), MAX_DATASET_SCENES, "count")
         if int(self.seed) != self.seed or self.seed < 0:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
         resolve(self.preset, self.overrides)
@@ -258,7 +267,7 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
     if not out.exists():
         return None
     if not meta_path.exists():
-        if any(out.iterdir()):
+        if any(p.name != LOCK_FILE and not is_temp_name(p.name) for p in out.iterdir()):
             raise DatasetError(f"{out} is not empty and holds no dataset.json: refusing to "
                                "write a dataset into it")
         return None
@@ -342,10 +351,10 @@ def _versions(gl: dict[str, str] | None) -> dict[str, str]:
 
 
 def _manifest_line(sid: str, image_sha256: str, gt_sha256: str) -> str:
-    return json.dumps({
+    return dumps_json_line({
         "id": sid, "image": f"images/{sid}.png", "gt": f"gt/{sid}.json",
         "image_sha256": image_sha256, "gt_sha256": gt_sha256,
-    }, sort_keys=True)
+    })
 
 
 def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
@@ -356,7 +365,7 @@ def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
         gt_bytes = gt_path.read_bytes()
         gts.append(json.loads(gt_bytes))
         lines.append(_manifest_line(sid, sha256_file(img_path), sha256_bytes(gt_bytes)))
-    atomic_write_text(out / "manifest.jsonl", "".join(line + "\n" for line in lines))
+    atomic_write_text(out / "manifest.jsonl", "".join(lines))
     atomic_write_json(out / "coco.json", coco_from_gts(gts))
     _write_meta(out, args, complete=True, gl=gl)
 
@@ -385,7 +394,7 @@ def _finish_partial(out: Path, args: DatasetArgs, results: list[dict[str, Any]])
             known[sid] = (sha256_file(out / "images" / f"{sid}.png"),
                           sha256_file(out / "gt" / f"{sid}.json"))
         lines.append(_manifest_line(sid, *known[sid]))
-    atomic_write_text(out / "manifest.jsonl", "".join(line + "\n" for line in lines))
+    atomic_write_text(out / "manifest.jsonl", "".join(lines))
     _write_meta(out, args, complete=False, finished=len(lines))
     return len(lines)
 
@@ -454,10 +463,47 @@ def generate_dataset(
     Raises
     ------
     DatasetError
-        When ``out`` holds a dataset made with other arguments, or unrelated files.
+        When ``out`` holds a dataset made with other arguments, or unrelated files, or
+        another run is writing into it (an exclusive lock on ``out`` for the whole run;
+        the message names the holder's pid, host and command).
     ValueError
         For invalid arguments.
     """
+    if int(workers) != workers or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    check_at_most(int(workers), MAX_WORKERS, "workers")
+    DatasetArgs(preset=preset, count=int(count), seed=int(seed),
+                overrides=dict(overrides or {}))  # refuse bad arguments before creating out
+    client = None
+    if scheduler is not None:  # reach the cluster before writing anything
+        from arenabench.cluster import connect
+
+        client = connect(scheduler)
+    try:
+        with lock_folder(out, command=shlex.join(sys.argv)[:300]):
+            return _generate_locked(out, preset=preset, count=count, seed=seed,
+                                    overrides=overrides, workers=workers, client=client,
+                                    progress=progress)
+    except FolderLockedError as exc:
+        raise DatasetError(f"{exc}; wait for it to finish or use another --out") from None
+    finally:
+        if client is not None and client is not scheduler:
+            client.close()
+
+
+def _generate_locked(
+    out: str | os.PathLike[str],
+    *,
+    preset: str,
+    count: int,
+    seed: int,
+    overrides: dict[str, Value] | None = None,
+    workers: int = 1,
+    client: Any = None,
+    progress: bool = True,
+) -> DatasetResult:
+    """:func:`generate_dataset` while holding the lock on ``out`` (``client``: a connected
+    Dask client to render on, or None)."""
     if int(workers) != workers or workers < 1:
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     args = DatasetArgs(preset=preset, count=int(count), seed=int(seed),
@@ -465,16 +511,14 @@ def generate_dataset(
     root = Path(out)
     start = time.perf_counter()
     meta = _check_existing(root, args)
+    # ours (same arguments) or empty: files a killed run was writing are garbage
+    for folder in (root, root / "images", root / "gt"):
+        remove_temp_files(folder)
     todo = [i for i in range(args.count) if not _present(root, scene_id(i))]
     skipped = args.count - len(todo)
     if meta is not None and meta.get("complete") and not todo:
         return DatasetResult(root, 0, skipped, time.perf_counter() - start, count=args.count,
                              finished=args.count)
-    client = None
-    if scheduler is not None and todo:  # reach the cluster before writing anything
-        from arenabench.cluster import connect
-
-        client = connect(scheduler)
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
     if meta is None or meta["args"].get("count") != args.count:
@@ -484,7 +528,7 @@ def generate_dataset(
     results: list[dict[str, Any]] = []
     bar = _progress(len(tasks), progress)
     try:
-        if client is not None:
+        if client is not None and tasks:
             from arenabench.cluster import cluster_map
 
             for _, res in cluster_map(_render_on_cluster, tasks, client):
@@ -516,8 +560,6 @@ def generate_dataset(
                              count=args.count, interrupted=exc.signum, finished=finished)
     finally:
         bar.close()
-        if client is not None and client is not scheduler:
-            client.close()
     gl = results[0]["gl"] if results else (meta or {}).get("versions") or None
     if gl is None:
         _init_worker(None)

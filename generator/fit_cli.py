@@ -31,11 +31,21 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench fit``; returns 0 on success, 2 on bad input."""
     args = build_parser().parse_args(argv)
-    from arenabench.fileio import atomic_write_json, dumps_json
+    from arenabench.fileio import (
+        OutputPathError,
+        atomic_write_json,
+        check_output_file,
+        dumps_json,
+    )
     from arenabench.generator.fit import FitOptions, fit_scene
     from arenabench.generator.scene import ArenaSpec
     from arenabench.imageio import ImageLoadError, load_image
 
+    try:
+        check_output_file(args.out)
+    except OutputPathError as exc:
+        print(f"arenabench fit: error: --out {args.out}: {exc}", file=sys.stderr)
+        return 2
     try:
         image = load_image(args.image)
         options = FitOptions(arena=ArenaSpec(side_m=args.arena_side, logo_text="eyantra"),

@@ -11,6 +11,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from arenabench.limits import MAX_IMAGE_SIDE_PX
 from arenabench.suggest import did_you_mean
 
 #: A parameter value as stored in a preset: a fixed value or a (lo, hi) range.
@@ -70,8 +71,8 @@ PARAMETERS: dict[str, ParamDef] = {
     "obstacles.edge_margin_m": ParamDef("float", "minimum distance to the frame edge (m)", 0,
                                         100),
     "obstacles.max_tries": ParamDef("int", "placement tries per box before failing", 1, 100000),
-    "camera.width": ParamDef("int", "image width (px)", 16, 16384),
-    "camera.height": ParamDef("int", "image height (px)", 16, 16384),
+    "camera.width": ParamDef("int", "image width (px)", 16, MAX_IMAGE_SIDE_PX),
+    "camera.height": ParamDef("int", "image height (px)", 16, MAX_IMAGE_SIDE_PX),
     "camera.fov_deg": ParamDef("float", "vertical field of view (deg)", 1, 170),
     "camera.altitude_m": ParamDef("float", "camera height above the floor (m)", 0.01, 10000),
     "camera.tilt_deg": ParamDef("float", "optical axis angle from the nadir (deg)", 0, 79),

@@ -22,6 +22,7 @@ from arenabench.generator.groundtruth import compute_ground_truth
 from arenabench.generator.presets import Value
 from arenabench.generator.render import Renderer, RenderOutput
 from arenabench.generator.sampler import sample_scene
+from arenabench.schemas import GT_SCHEMA
 
 #: Bumped whenever the same (preset, seed, index) would give different images or GT.
 #: 2: degradation / scene-variation parameters recorded in the GT's params and
@@ -32,10 +33,9 @@ from arenabench.generator.sampler import sample_scene
 #: range-valued parameter drawn from its own stream; warehouse preset.
 #: 4: meshes drawn in a fixed order (obstacles, floor overlays, markers, floor): where a box
 #: side meets the floor their depths can tie in a pixel, and which one won used to depend on
-#: memory addresses, so 1-2 % of images differed in a pixel from run to run, on every preset.
+#: memory addresses, so 1-2 % of images differed in a pixel from run to run, on every preset;
+#: GT ``area.contour_px`` (what cv2.contourArea of the pixelated visible silhouettes gives).
 GENERATOR_VERSION = "4"
-#: GT file schema id.
-GT_SCHEMA = "arenabench.gt/1"
 
 #: A post-render hook: (rgb uint8 (H, W, 3), rng) -> rgb uint8 (H, W, 3).
 Degrade = Callable[[np.ndarray, np.random.Generator], np.ndarray]

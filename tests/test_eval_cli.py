@@ -149,9 +149,14 @@ def test_malformed_ground_truth_names_file_and_field(toy, tmp_path, capsys):
     gt = json.loads(gt_file.read_text())
     del gt["area"]["visible_px"]
     gt_file.write_text(json.dumps(gt))
-    assert arenabench_main(["eval", str(bad), "--pipeline", "toy_arena:detect"]) == 2
+    argv = ["eval", str(bad), "--pipeline", "toy_arena:detect"]
+    assert arenabench_main(argv) == 2  # the edited file no longer matches the manifest
     err = capsys.readouterr().err
-    assert str(gt_file) in err and "'area.visible_px'" in err and len(err.splitlines()) == 1
+    assert str(gt_file) in err and "gt_sha256" in err and len(err.splitlines()) == 1
+    assert arenabench_main([*argv, "--no-verify"]) == 2
+    err = capsys.readouterr().err
+    assert f"{gt_file}: area: 'visible_px' is a required property" in err
+    assert len(err.splitlines()) == 1
 
 
 def test_compare_shows_metrics_and_verdict_changes(toy, tmp_path, capsys):

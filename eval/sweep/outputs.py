@@ -19,7 +19,12 @@ import os
 from pathlib import Path
 from typing import Any
 
-from arenabench.fileio import atomic_write_bytes, atomic_write_text, dumps_json
+from arenabench.fileio import (
+    atomic_write_bytes,
+    atomic_write_text,
+    dumps_json,
+    dumps_json_line,
+)
 from arenabench.generator.presets import format_value
 
 from ..records import CATEGORIES
@@ -64,7 +69,7 @@ def sweep_csv(result: SweepResult) -> str:
 
 def results_jsonl(result: SweepResult) -> str:
     """``results.jsonl`` text (sorted by point, scene, pipeline order)."""
-    return "".join(json.dumps(row, sort_keys=True, allow_nan=False) + "\n" for row in result.images)
+    return "".join(dumps_json_line(row) for row in result.images)
 
 
 class KeptImageWriter:

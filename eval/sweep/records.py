@@ -3,12 +3,15 @@
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from typing import Any
 
 from arenabench.generator.presets import Value, format_value
+from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 
+from ..dataset import AREA_REFERENCES
 from ..metrics import DEFAULT_TOLERANCE
 from ..pipelines import BUILTIN_PIPELINES, OUTPUT_MODES, CommandPipeline, Pipeline, make_pipeline
 from ..records import ImageResult, Summary
@@ -108,8 +111,8 @@ class SweepSpec:
         Fixed ``--set`` values applied at every point (the varied keys win).
     tolerance : float
         Largest passing ``|area_rel_err|``.
-    area_reference : {"visible", "footprint"}
-        GT area scored against.
+    area_reference : {"visible", "footprint", "contour"}
+        GT area scored against (:data:`arenabench.eval.dataset.AREA_REFERENCES`).
     threshold : float
         Breakdown threshold on the pass rate's lower 95 % bound.
     breakdown_mode : {"marginal", "axis"}
@@ -141,6 +144,15 @@ class SweepSpec:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
         if self.random is not None and (int(self.random) != self.random or self.random < 1):
             raise ValueError(f"random must be an integer >= 1, got {self.random!r}")
+        check_at_most(int(self.per_point), MAX_SWEEP_SCENES, "per_point")
+        if self.random is not None:
+            check_at_most(int(self.random), MAX_SWEEP_SCENES, "random (points)")
+        # counted, not listed: a grid of several long axes can have 10**12 points
+        n_points = self.random if self.random is not None else math.prod(
+            len(a.values) for a in self.axes
+        )
+        check_at_most(int(n_points) * int(self.per_point), MAX_SWEEP_SCENES,
+                      f"scenes ({n_points} points x {self.per_point} per point)")
         if not self.pipelines:
             raise ValueError("pipelines must not be empty")
         names = [p.name for p in self.pipelines]
@@ -148,10 +160,9 @@ class SweepSpec:
             raise ValueError(f"pipelines must have distinct names, got {names!r}")
         if not self.tolerance >= 0:
             raise ValueError(f"tolerance must be >= 0, got {self.tolerance!r}")
-        if self.area_reference not in ("visible", "footprint"):
-            raise ValueError(
-                f"area_reference must be 'visible' or 'footprint', got {self.area_reference!r}"
-            )
+        if self.area_reference not in AREA_REFERENCES:
+            raise ValueError(f"area_reference must be one of {tuple(AREA_REFERENCES)}, "
+                             f"got {self.area_reference!r}")
         if not 0 <= self.threshold <= 1:
             raise ValueError(f"threshold must be in [0, 1], got {self.threshold!r}")
         if self.breakdown_mode not in BREAKDOWN_MODES:

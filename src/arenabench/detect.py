@@ -1,13 +1,14 @@
 """``arenabench detect`` (also ``python -m arenabench.detect``): competition-compatible I/O.
 
 Runs the pipeline on ``--image PATH`` and writes ``obstacles.txt`` in the competition's exact
-format to the working directory (or ``--output FILE``); ``--json`` also prints the
-Detection on stdout as one compact JSON line (``--indent N`` for people, ``--contours`` to
-include the obstacle contours). Drops into any place a team's ``map.py --image PATH`` would
-run.
+format to the working directory (or ``--output FILE``; ``-`` is standard output, and an
+existing device or FIFO such as ``/dev/stdout`` is written through, never replaced);
+``--json`` also prints the Detection on stdout as one compact JSON line (``--indent N`` for
+people, ``--contours`` to include the obstacle contours). Drops into any place a team's
+``map.py --image PATH`` would run.
 
-stdout carries only the ``--json`` line; one human line on stderr says where
-``obstacles.txt`` went and what it holds.
+stdout carries only the ``--json`` line (or the competition output with ``--output -``); one
+human line on stderr says where ``obstacles.txt`` went and what it holds.
 
 Exit status: 0 ok; 2 bad input or usage (one line on stderr, ``arenabench detect: error:
 ...``); 3 markers not found (``obstacles.txt`` is still written, with the ids found, count 0
@@ -21,7 +22,7 @@ import sys
 
 from arenabench.clihelp import HelpFormatter
 from arenabench.competition import OBSTACLES_FILE, format_obstacles_txt
-from arenabench.fileio import atomic_write_text
+from arenabench.fileio import OutputPathError, check_output_file, write_output_text
 from arenabench.frame import FrameSpec
 
 PROG = "arenabench detect"
@@ -47,7 +48,8 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--image", required=True, help="input image (PNG, JPEG, ...)")
     p.add_argument("--output", default=OBSTACLES_FILE, metavar="FILE",
-                   help="where to write the competition output (default: ./obstacles.txt)")
+                   help="where to write the competition output (default: ./obstacles.txt; "
+                        "'-' is standard output)")
     p.add_argument("--json", action="store_true",
                    help="also print the Detection on stdout as one compact JSON line (what "
                         "'arenabench eval --output json' reads)")
@@ -105,6 +107,11 @@ def main(argv: list[str] | None = None) -> int:
         )
     except ValueError as exc:
         return _error(str(exc))
+    if args.output != "-":
+        try:
+            check_output_file(args.output, allow_special=True)
+        except OutputPathError as exc:
+            return _error(f"--output {args.output}: {exc}")
     try:
         image = load_image(args.image)
     except ImageLoadError as exc:
@@ -115,7 +122,7 @@ def main(argv: list[str] | None = None) -> int:
         return _error(str(exc))
     text = format_obstacles_txt(result.marker_ids, result.count, result.total_area)
     try:
-        atomic_write_text(args.output, text)
+        write_output_text(args.output, text)
     except OSError as exc:
         return _error(f"cannot write {args.output}: {exc.strerror or exc}")
     if args.json:

@@ -18,6 +18,8 @@ from typing import Literal
 
 import numpy as np
 
+from arenabench.limits import MAX_IMAGE_SIDE_PX
+
 #: Corner names in frame order.
 CORNER_ORDER: tuple[str, ...] = ("nw", "ne", "se", "sw")
 
@@ -43,8 +45,10 @@ class FrameSpec:
     corners: CornerConvention = "inner"
 
     def __post_init__(self) -> None:
-        if int(self.size) != self.size or self.size < 16:
-            raise ValueError(f"frame size must be an integer >= 16, got {self.size!r}")
+        if int(self.size) != self.size or not 16 <= self.size <= MAX_IMAGE_SIDE_PX:
+            raise ValueError(
+                f"frame size must be an integer in [16, {MAX_IMAGE_SIDE_PX}], got {self.size!r}"
+            )
         if self.corners not in ("inner", "outer"):
             raise ValueError(f"frame corners must be 'inner' or 'outer', got {self.corners!r}")
 

@@ -6,6 +6,8 @@ import json
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from arenabench.fileio import json_safe
+
 Status = Literal["ok", "markers_not_found"]
 
 #: Version tag written into :meth:`Detection.to_dict`.
@@ -140,11 +142,11 @@ class Detection:
         }
 
     def to_json(self, *, indent: int | None = 2, contours: bool = True) -> str:
-        """JSON text of :meth:`to_dict` (sorted keys, no NaN; one line when ``indent`` is
-        None)."""
+        """JSON text of :meth:`to_dict` (sorted keys; an undefined number is ``null``; one
+        line when ``indent`` is None)."""
         separators = (",", ":") if indent is None else None
-        return json.dumps(self.to_dict(contours=contours), indent=indent, sort_keys=True,
-                          allow_nan=False, separators=separators)
+        return json.dumps(json_safe(self.to_dict(contours=contours)), indent=indent,
+                          sort_keys=True, allow_nan=False, separators=separators)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Detection:
