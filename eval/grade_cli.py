@@ -103,6 +103,9 @@ def main(argv: list[str] | None = None) -> int:
         return _error("--workers and --scheduler exclude each other (the cluster's workers "
                       "run the commands)")
 
+    from arenabench.fileio import OutputPathError, check_output_dir
+    from arenabench.limits import MAX_WORKERS, check_at_most
+
     from .dataset import DatasetError, load_dataset
     from .grade.runner import GradeOptions, check_out_dir, grade
     from .grade.submissions import SubmissionsError, find_teams
@@ -110,6 +113,14 @@ def main(argv: list[str] | None = None) -> int:
 
     formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
     try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        return _error(f"--out {args.out}: {exc}")
+    try:
+        for option, value in (("--workers", args.workers),
+                              ("--report-workers", args.report_workers)):
+            if value is not None:
+                check_at_most(value, MAX_WORKERS, option)
         options = GradeOptions(command=args.cmd, output=args.output, tolerance=args.tolerance,
                                area_reference=args.area_reference,
                                settings=run_settings_from_args(args), formats=formats)
