@@ -11,6 +11,7 @@ import functools
 import cv2
 import numpy as np
 
+from arenabench.generator import competition_arena as comp
 from arenabench.generator.layout import floor_extent
 from arenabench.generator.scene import ArenaSpec
 
@@ -66,12 +67,17 @@ def _marker_sheet(dictionary: str, marker_id: int, side_px: int, pad_px: int) ->
 
 
 def floor_texture(arena: ArenaSpec, *, texels: int = FLOOR_TEXELS) -> np.ndarray:
-    """The floor texture (albedo, unlit) covering the floor square; cached by ``arena``."""
+    """The floor texture (albedo, unlit) covering the floor square; cached by ``arena``.
+
+    The competition texture keeps its own resolution (``texels`` is ignored for it).
+    """
     return _floor_texture(arena, texels)
 
 
 @functools.lru_cache(maxsize=8)
 def _floor_texture(arena: ArenaSpec, texels: int) -> np.ndarray:
+    if arena.texture == comp.TEXTURE_NAME:
+        texels = comp.texture_rgb().shape[0]
     e = floor_extent(arena)
     scale = texels / (2.0 * e)  # texels per metre
     centres = (np.arange(texels) + 0.5) / scale - e  # x of column centres; y = -x of rows
@@ -79,6 +85,9 @@ def _floor_texture(arena: ArenaSpec, texels: int) -> np.ndarray:
     y = -centres[:, None]
     img = np.empty((texels, texels, 3), np.uint8)
     img[:] = arena.floor_rgb
+    if arena.texture == comp.TEXTURE_NAME:  # the printed arena, tinted by the floor colour
+        tint = np.asarray(arena.floor_rgb, np.float32) / 255.0
+        img = np.rint(comp.texture_rgb().astype(np.float32) * tint).astype(np.uint8)
     if arena.texture == "speckle":
         rng = np.random.default_rng(arena.texture_seed)
         noise = rng.normal(0.0, 2.0, size=(texels // 4, texels // 4)).astype(np.float32)
