@@ -13,7 +13,6 @@ outer edge of the 4-texel border line. Hence the scene values below: ``arena.sid
 
 from __future__ import annotations
 
-import functools
 from pathlib import Path
 
 import cv2
@@ -45,9 +44,9 @@ def markers_are_printed(dictionary: str, ids: tuple[int, ...], side_m: float,
             and float(rotation_deg) % 360.0 == MARKER_ROTATION_DEG)
 
 
-@functools.lru_cache(maxsize=1)
 def texture_rgb() -> np.ndarray:
-    """The texture as (2880, 2880, 3) uint8 RGB, row 0 north (read-only, cached).
+    """The texture as (2880, 2880, 3) uint8 RGB, row 0 north (read from the file each call:
+    the tinted floor texture built from it is what gets cached).
 
     Raises
     ------
@@ -57,6 +56,4 @@ def texture_rgb() -> np.ndarray:
     bgr = cv2.imread(str(TEXTURE_PATH), cv2.IMREAD_COLOR)
     if bgr is None:
         raise ValueError(f"arena.texture={TEXTURE_NAME}: cannot read {TEXTURE_PATH}")
-    rgb = np.ascontiguousarray(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
-    rgb.setflags(write=False)
-    return rgb
+    return np.ascontiguousarray(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
