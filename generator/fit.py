@@ -48,6 +48,11 @@ class FitOptions:
         Also fit the marker side (for an arena whose marker size is not known exactly).
     match_detector_rounds : int
         Rounds per step size of :func:`match_detector` (0 = skip it).
+    fov_deg : float or None
+        Known vertical field of view (default: the competition camera's, from its world
+        files); None searches ``fov_range_deg``. Under a near-nadir camera the markers barely
+        constrain it: on the competition example 60 and 66.5 deg fit equally well (RMS
+        reprojection 1.00 vs 0.98 px), so a known value is the better evidence.
     fov_range_deg : tuple of float
         Range of the field-of-view search.
     refine_rounds : int
@@ -61,6 +66,7 @@ class FitOptions:
         border_width_m=0.0))
     markers: MarkerSpec = field(default_factory=lambda: MarkerSpec(side_m=comp.MARKER_SIDE_M))
     fit_marker_side: bool = False
+    fov_deg: float | None = comp.CAMERA_FOV_DEG
     fov_range_deg: tuple[float, float] = (20.0, 100.0)
     match_detector_rounds: int = 3
     refine_rounds: int = 1
@@ -74,6 +80,8 @@ class FitOptions:
             )
         if self.refine_rounds < 0:
             raise ValueError(f"refine_rounds must be >= 0, got {self.refine_rounds!r}")
+        if self.fov_deg is not None and not 1.0 <= float(self.fov_deg) <= 170.0:
+            raise ValueError(f"fov_deg must be in [1, 170] or None, got {self.fov_deg!r}")
         if self.match_detector_rounds < 0:
             raise ValueError(f"match_detector_rounds must be >= 0, got "
                              f"{self.match_detector_rounds!r}")
@@ -187,8 +195,9 @@ def camera_from_pose(
 def fit_camera(
     corners: dict[str, np.ndarray], *, arena: ArenaSpec, markers: MarkerSpec,
     width: int, height: int, fov_range_deg: tuple[float, float] = (20.0, 100.0),
+    fov_deg: float | None = None,
 ) -> tuple[CameraSpec, float, float]:
-    """Fit intrinsics (fov) and pose to the 16 marker corners.
+    """Fit intrinsics (fov, unless ``fov_deg`` is given) and pose to the 16 marker corners.
 
     Returns
     -------
@@ -196,6 +205,11 @@ def fit_camera(
     """
     world = _world_points(arena, markers)
     image = np.vstack([corners[c] for c in CORNER_ORDER])
+    if fov_deg is not None:
+        pose, _ = _pnp(world, image, _intrinsics(fov_deg, width, height))
+        camera = camera_from_pose(pose, fov_deg=fov_deg, width=width, height=height)
+        proj = cam.project(world, cam.intrinsics(camera), cam.world_from_camera(camera))
+        return camera, fov_deg, float(np.sqrt(np.mean(np.sum((proj - image) ** 2, axis=1))))
 
     def err(fov: float) -> float:
         return _pnp(world, image, _intrinsics(fov, width, height))[1]
@@ -234,7 +248,7 @@ def _moved_camera(camera: CameraSpec, name: str, d: float) -> CameraSpec:
 
 
 def match_detector(
-    scene: Scene, image_bgr: np.ndarray, renderer, *, rounds: int = 3,
+    scene: Scene, image_bgr: np.ndarray, renderer, *, rounds: int = 3, fit_fov: bool = True,
 ) -> tuple[Scene, int]:
     """Nudge the camera until the detector finds the render's markers where it finds the image's.
 
@@ -242,8 +256,8 @@ def match_detector(
     whole-pixel corners from the thresholded outline, and it sorts markers by outline length;
     a camera fitted to sub-pixel corners can leave a few corners one pixel off and swap two
     markers of nearly equal size. A coordinate search over the orbit camera's parameters in
-    sub-pixel steps minimises the number of differing corner pixels, ties broken by the mean
-    absolute difference around the markers.
+    sub-pixel steps (the field of view too when ``fit_fov``) minimises the number of
+    differing corner pixels, ties broken by the mean absolute difference around the markers.
 
     Returns
     -------
@@ -272,6 +286,8 @@ def match_detector(
         for _ in range(rounds):
             improved = False
             for name, step in _MATCH_STEPS.items():
+                if name == "fov_deg" and not fit_fov:
+                    continue
                 for d in (-step * scale, step * scale):
                     cand = replace(scene, camera=_moved_camera(scene.camera, name, d))
                     c = cost(cand)
@@ -405,8 +421,13 @@ class BoxObservation:
     iou: float
 
 
+#: A pixel belongs to a box when it is this much darker than the floor (lit side faces can be
+#: only a little darker than the floor, so the margin stays small).
+DARK_MARGIN = 40
+
+
 def _dark_blobs(gray: np.ndarray, exclude: np.ndarray, min_px: int, floor: float) -> list:
-    dark = ((gray < floor - 40) & ~exclude).astype(np.uint8)
+    dark = ((gray < floor - DARK_MARGIN) & ~exclude).astype(np.uint8)
     dark = cv2.morphologyEx(dark, cv2.MORPH_OPEN, np.ones((5, 5), np.uint8))
     n, labels, stats, _ = cv2.connectedComponentsWithStats(dark, connectivity=8)
     return [labels == i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= min_px]
@@ -565,7 +586,8 @@ def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
         markers = options.markers
         camera, fov, err = fit_camera(corners, arena=options.arena, markers=markers,
                                       width=width, height=height,
-                                      fov_range_deg=options.fov_range_deg)
+                                      fov_range_deg=options.fov_range_deg,
+                                      fov_deg=options.fov_deg)
     arena = options.arena
     probe = Scene(arena=arena, markers=markers, obstacles=(), camera=camera)
     inner = _floor_mask(probe, gray.shape, arena.side_m / 2 - markers.side_m - 0.1)
@@ -605,7 +627,8 @@ def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
                     if s[0] > best[0]:
                         best, scene = s, cand
         if options.match_detector_rounds:
-            scene, _ = match_detector(scene, img, renderer, rounds=options.match_detector_rounds)
+            scene, _ = match_detector(scene, img, renderer, rounds=options.match_detector_rounds,
+                                      fit_fov=options.fov_deg is None)
             best = score(scene, img, renderer)
     finally:
         if own:

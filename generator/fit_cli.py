@@ -43,7 +43,8 @@ def main(argv: list[str] | None = None) -> int:
         else:
             options = FitOptions(arena=ArenaSpec(side_m=args.arena_side, logo_text="eyantra"),
                                  markers=MarkerSpec(side_m=0.0669 * args.arena_side),
-                                 fit_marker_side=True, refine_rounds=args.refine_rounds)
+                                 fit_marker_side=True, fov_deg=None,
+                                 refine_rounds=args.refine_rounds)
         result = fit_scene(image, options=options)
     except (ImageLoadError, ValueError) as exc:
         print(f"arenabench fit: error: {exc}", file=sys.stderr)

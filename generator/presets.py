@@ -273,7 +273,7 @@ def _twin() -> dict[str, Value]:
         "obstacles.count": (1, 4),
         "obstacles.length_m": (0.45, 1.0),
         "obstacles.width_m": (0.28, 0.34),
-        "obstacles.height_m": (0.22, 0.32),
+        "obstacles.height_m": (0.2, 0.35),
         "obstacles.yaw_deg": (-45.0, 135.0),
         "obstacles.yaw_step_deg": 90.0,
         "obstacles.gray": grays[0] if len(grays) == 1 else (grays[0], grays[-1]),
