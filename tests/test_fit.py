@@ -143,7 +143,7 @@ def test_fit_recovers_a_known_scene():
     base = replace(load_scene(SCENE), arena=arena, markers=MarkerSpec(side_m=0.535))
     truth = replace(
         base,
-        camera=replace(base.camera, fov_deg=60.0, eye_m=(0.3, -0.4, 8.6),
+        camera=replace(base.camera, fov_deg=60.0, eye_m=(0.3, -2.0, 8.6),
                        look_at_m=(0.1, 0.2, 0.0), roll_deg=3.0),
         obstacles=(
             Obstacle(center_m=(-1.5, -1.0), yaw_deg=20.0, length_m=1.2, width_m=0.6,
