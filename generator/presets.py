@@ -146,8 +146,11 @@ NEUTRAL: dict[str, Value] = {
     "lighting.spot_y_m": 0.0, "lighting.spot_radius_m": 3.0,
     "distractors.tapes": 0, "distractors.papers": 0,
     "markers.occlusion": 0.0, "markers.occluded": 0,
-    "obstacles.yaw_step_deg": 0.0,
 }
+
+#: Scene parameters added after the first presets (not degradations): a preset or mapping that
+#: lacks them gets these defaults, which keep its scenes as they were.
+LATER_DEFAULTS: dict[str, Value] = {"obstacles.yaw_step_deg": 0.0}
 
 #: The competition example's look, widened: a procedural 8 m arena, the camera, light, box greys
 #: and yaw jittered around the fitted example.
@@ -458,7 +461,7 @@ def resolve(preset: str | dict[str, Value], overrides: dict[str, Value] | None =
             ) -> dict[str, Value]:
     """Preset parameters with ``overrides`` applied, every value validated."""
     params = get_preset(preset) if isinstance(preset, str) else dict(preset)
-    params = {**NEUTRAL, **params}
+    params = {**NEUTRAL, **LATER_DEFAULTS, **params}
     for key, value in (overrides or {}).items():
         params[key] = value
     missing = sorted(set(PARAMETERS) - set(params))
