@@ -67,27 +67,30 @@ def _marker_sheet(dictionary: str, marker_id: int, side_px: int, pad_px: int) ->
 
 
 def floor_texture(arena: ArenaSpec, *, texels: int = FLOOR_TEXELS) -> np.ndarray:
-    """The floor texture (albedo, unlit) covering the floor square; cached by ``arena``.
-
-    The competition texture keeps its own resolution (``texels`` is ignored for it).
-    """
+    """The floor texture (albedo, unlit) covering the floor square; cached by ``arena``."""
     return _floor_texture(arena, texels)
 
 
 @functools.lru_cache(maxsize=8)
 def _floor_texture(arena: ArenaSpec, texels: int) -> np.ndarray:
-    if arena.texture == comp.TEXTURE_NAME:
-        texels = comp.texture_rgb().shape[0]
     e = floor_extent(arena)
     scale = texels / (2.0 * e)  # texels per metre
     centres = (np.arange(texels) + 0.5) / scale - e  # x of column centres; y = -x of rows
     x = centres[None, :]
     y = -centres[:, None]
-    img = np.empty((texels, texels, 3), np.uint8)
-    img[:] = arena.floor_rgb
     if arena.texture == comp.TEXTURE_NAME:  # the printed arena, tinted by the floor colour
-        tint = np.asarray(arena.floor_rgb, np.float32) / 255.0
-        img = np.rint(comp.texture_rgb().astype(np.float32) * tint).astype(np.uint8)
+        levels = np.arange(256, dtype=np.float64)[:, None] * np.asarray(arena.floor_rgb) / 255.0
+        lut = np.rint(levels).astype(np.uint8).reshape(256, 1, 3)
+        # halved by 2 x 2 averages: exactly the texture's first mip level, so the GPU samples
+        # the same levels below it as from the original (the arena spans about 1000 px, so
+        # renders use level 1-2 of the 2880-texel original anyway), for a quarter of the
+        # memory (the original would cost a rendering worker about 100 MB)
+        full = cv2.LUT(comp.texture_rgb(), lut)
+        img = cv2.resize(full, (full.shape[1] // 2, full.shape[0] // 2),
+                         interpolation=cv2.INTER_AREA)
+    else:
+        img = np.empty((texels, texels, 3), np.uint8)
+        img[:] = arena.floor_rgb
     if arena.texture == "speckle":
         rng = np.random.default_rng(arena.texture_seed)
         noise = rng.normal(0.0, 2.0, size=(texels // 4, texels // 4)).astype(np.float32)
