@@ -405,7 +405,8 @@ def _side_faces(gray, ob: Obstacle, K, pose, side_mask) -> tuple:
         px = cam.project(quad, K, pose)
         m = np.zeros(gray.shape, np.uint8)
         cv2.fillPoly(m, [np.round(px).astype(np.int32)], 1)
-        m = cv2.erode(m, np.ones((3, 3), np.uint8)).astype(bool) & side_mask
+        # 5 x 5: a face seen nearly edge-on (a sliver a few px wide) is all edge pixels
+        m = cv2.erode(m, np.ones((5, 5), np.uint8)).astype(bool) & side_mask
         if m.sum() >= 30:
             out.append((tuple(float(c) for c in normal), float(np.median(gray[m]))))
     return tuple(out)
@@ -489,6 +490,10 @@ def fit_boxes(
     return out
 
 
+#: Weight of the light intensity in :func:`fit_lighting`'s least squares (a tie-breaker).
+LIGHT_PENALTY = 1e-4
+
+
 def fit_lighting(boxes: list[BoxObservation]) -> LightingSpec:
     """Ambient + one directional light whose baked shades give the observed face ratios.
 
@@ -511,7 +516,11 @@ def fit_lighting(boxes: list[BoxObservation]) -> LightingSpec:
             x = lam - math.sin(el)
             inten = (x @ (ratios - 1.0)) / max(x @ x, 1e-12)
             inten = float(np.clip(inten, 0.0, 1.0 / math.sin(el)))
-            res = float(np.sum((1.0 + inten * x - ratios) ** 2))
+            # the small penalty picks, among lights that fit the observed faces equally well,
+            # the weakest one: faces the image does not show (e.g. east and west when only
+            # south and north faces are seen) then keep the ambient shade instead of an
+            # arbitrary bright one
+            res = float(np.sum((1.0 + inten * x - ratios) ** 2)) + LIGHT_PENALTY * inten ** 2
             if best is None or res < best[0]:
                 best = (res, to_light, inten, el)
     _, to_light, inten, el = best

@@ -477,9 +477,9 @@ def format_value(value: Value) -> str:
     if isinstance(value, tuple) and len(value) == 2 and all(
         isinstance(v, (int, float)) for v in value
     ):
-        return f"{value[0]:g}:{value[1]:g}"
+        return f"{value[0]:.10g}:{value[1]:.10g}"
     if isinstance(value, tuple):
         return ",".join(str(v) for v in value)
     if isinstance(value, float):
-        return f"{value:g}"
+        return f"{value:.10g}"
     return str(value)
