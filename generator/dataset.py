@@ -234,6 +234,9 @@ def coco_from_gts(gts: list[dict[str, Any]]) -> dict[str, Any]:
 
 
 def _versions(gl: dict[str, str] | None) -> dict[str, str]:
+    from arenabench import glplatform
+
+    glplatform.configure()  # importing pyrender imports OpenGL: choose the platform first
     import pyrender
 
     out = {"arenabench": __version__, "opencv": cv2.__version__, "numpy": np.__version__,
