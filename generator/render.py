@@ -93,6 +93,10 @@ def _textured_quad(pyrender, corners_xy: np.ndarray, z: float, texture, factor: 
     return pyrender.Mesh([prim])
 
 
+def _node_key(node) -> str:
+    return node.name or ""
+
+
 def _fast_renderer_class(pyrender):
     """A ``pyrender.Renderer`` subclass with a leaner off-screen path (pyrender 0.1.45 internals).
 
@@ -100,7 +104,8 @@ def _fast_renderer_class(pyrender):
       get coverage-blended pixels, as the competition's renderer gives) when ``antialias`` is
       set; SEG renders and ``antialias=False`` draw straight into the single-sample
       framebuffer (no resolve blit; SEG colours are exact);
-    - the depth buffer is read back (and linearised) only when asked for.
+    - the depth buffer is read back (and linearised) only when asked for;
+    - meshes are drawn in the fixed order of their node names (history-independent).
     """
     from OpenGL import GL
 
@@ -109,6 +114,17 @@ def _fast_renderer_class(pyrender):
     class _LeanRenderer(pyrender.renderer.Renderer):
         antialias = False
         want_depth = False
+
+        def _sorted_mesh_nodes(self, scene):
+            # pyrender orders nodes by their pose's distance from the camera; every node here
+            # but the marker sheets has the identity pose, so that leaves the order of a set
+            # (object ids: it changes with what was rendered before). Where two surfaces tie
+            # in depth (a box's bottom edge on the floor), MSAA samples then follow the draw
+            # order: draw in the fixed order of the nodes' names instead.
+            nodes = super()._sorted_mesh_nodes(scene)
+            solid = sorted((n for n in nodes if not n.mesh.is_transparent), key=_node_key)
+            clear = sorted((n for n in nodes if n.mesh.is_transparent), key=_node_key)
+            return solid + clear
 
         def _multisample(self, flags) -> bool:
             return self.antialias and not flags & flags_cls.SEG
@@ -289,7 +305,8 @@ class Renderer:
             floor = np.array([[-e, e], [e, e], [e, -e], [-e, -e]])
             self._floor_nodes = [
                 self._scene.add(_textured_quad(
-                    pr, floor, 0.0, self._cached_texture(floor_texture(scene.arena)), f))
+                    pr, floor, 0.0, self._cached_texture(floor_texture(scene.arena)), f),
+                    name="0-floor")
             ]
             self._floor_key = scene.arena
         # Marker sheets: one unit quad per marker, kept while the sheet images stay the same;
@@ -306,8 +323,9 @@ class Renderer:
                 self._scene.remove_node(node)
             self._marker_nodes = [
                 self._scene.add(_textured_quad(pr, _UNIT_QUAD, 0.0,
-                                               self._cached_texture(image), f))
-                for image, _ in sheets
+                                               self._cached_texture(image), f),
+                                name=f"1-marker-{k}")
+                for k, (image, _) in enumerate(sheets)
             ]
             self._markers_key = key
         for node, corner, (_, pad) in zip(self._marker_nodes, CORNER_ORDER[:len(sheets)], sheets,
@@ -327,10 +345,11 @@ class Renderer:
         for node in self._obstacle_nodes:
             self._scene.remove_node(node)
         self._obstacle_nodes = []
-        for ob in scene.obstacles:
+        for i, ob in enumerate(scene.obstacles):
             pos, rgba, tris = box_mesh_arrays(ob, scene)
             prim = pr.Primitive(positions=pos, color_0=rgba, indices=tris, mode=4)
-            self._obstacle_nodes.append(self._scene.add(pr.Mesh([prim])))
+            self._obstacle_nodes.append(self._scene.add(pr.Mesh([prim]),
+                                                        name=f"3-obstacle-{i:06d}"))
         for node in self._overlay_nodes:
             self._scene.remove_node(node)
         self._overlay_nodes = []
@@ -338,13 +357,13 @@ class Renderer:
         if patches is not None:
             prim = pr.Primitive(positions=patches[0], color_0=patches[1], indices=patches[2],
                                 mode=4)
-            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim])))
+            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim]), name="2-patches"))
         shadow = shadow_mesh_arrays(scene)
         if shadow is not None:
             material = pr.MetallicRoughnessMaterial(alphaMode="BLEND", doubleSided=True)
             prim = pr.Primitive(positions=shadow[0], color_0=shadow[1], indices=shadow[2],
                                 mode=4, material=material)
-            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim])))
+            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim]), name="4-shadow"))
         if self._camera_node is not None:
             self._scene.remove_node(self._camera_node)
         K = cam.intrinsics(scene.camera)
