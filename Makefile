@@ -1,4 +1,5 @@
 # The two commands a newcomer runs: `make demo` and `make test`.
+# Inner loop while developing: `make test-fast` (skips tests marked slow; CI runs `make test`).
 # Both create .venv when missing and install the project into it; only python3 and make are assumed.
 
 PYTHON ?= python3
@@ -8,7 +9,7 @@ STAMP := $(VENV)/.arenabench-installed
 DEMO_OUT ?= demo-out
 PYTEST_ARGS ?=
 
-.PHONY: demo test lint venv system-deps clean
+.PHONY: demo test test-fast golden lint venv system-deps clean
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV) || { \
@@ -27,10 +28,18 @@ test: $(STAMP) system-deps
 	  if [ $$rc -eq 5 ]; then echo "make test: pytest collected no tests - failing" >&2; exit 1; fi; \
 	  exit $$rc
 
+test-fast: $(STAMP) system-deps
+	@$(PY) -m pytest -m "not slow" $(PYTEST_ARGS); rc=$$?; \
+	  if [ $$rc -eq 5 ]; then echo "make test-fast: pytest collected no tests - failing" >&2; exit 1; fi; \
+	  exit $$rc
+
+# Rewrite tests/data/golden_gt.json after a deliberate change of the generator's output
+# (bump GENERATOR_VERSION in generator/sample.py first; see docs/architecture.md).
+golden: $(STAMP)
+	$(PY) -m tests.golden --update
+
 demo: $(STAMP) system-deps
-	$(PY) -m arenabench detect --image tests/data/task1c_image.jpg --output $(DEMO_OUT)/obstacles.txt --json
-	@echo "obstacles.txt written to $(DEMO_OUT)/obstacles.txt:"; cat $(DEMO_OUT)/obstacles.txt
-	$(PY) -m arenabench demo --out $(DEMO_OUT)
+	@$(PY) -m arenabench demo --out $(DEMO_OUT) --example tests/data/task1c_image.jpg
 
 lint: $(STAMP)
 	$(PY) -m ruff check .

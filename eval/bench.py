@@ -1,6 +1,6 @@
 """``arenabench bench``: throughput of generation and scoring on this machine, in one run.
 
-Seven measurements (see :func:`run_bench`), each on the same ``eyrc`` scenes at the camera's
+Eight measurements (see :func:`run_bench`), each on the same ``eyrc`` scenes at the camera's
 size (1000 x 1000):
 
 1. ``generate_disk_ips``: :func:`arenabench.generator.dataset.generate_dataset` end to end
@@ -16,7 +16,12 @@ size (1000 x 1000):
 6. ``sweep_ips``: a streaming sweep in memory (render, degrade, detect, score) through
    :func:`arenabench.eval.sweep.run_sweep`, varying ``SWEEP_AXIS``, its start-up included;
 7. ``worker_peak_rss_mb`` / ``worker_rss_growth_mb``: peak resident memory of a rendering
-   worker and its growth over ``rss_renders`` consecutive renders.
+   worker and its growth over ``rss_renders`` consecutive renders;
+8. ``sandbox_overhead_ms``: what bubblewrap adds to one external run
+   (:class:`~arenabench.eval.pipelines.CommandPipeline`, a trivial shell command writing
+   ``obstacles.txt``): median wall time per run with ``--sandbox bwrap`` minus with
+   ``--sandbox none`` (``sandbox_runs`` runs each, interleaved, one at a time; 0 with
+   ``details.sandbox.bwrap`` false where bubblewrap does not work).
 
 Items 2, 4 and 5 run on ``workers`` spawned processes that are started and warmed up
 (one renderer each) before the clock starts; item 3 on started processes (modules imported)
@@ -45,7 +50,7 @@ import numpy as np
 #: bench.json schema id.
 BENCH_SCHEMA = "arenabench.bench/1"
 
-#: (key, comparison, value, what): the issue's targets for a 2-core machine without a GPU.
+#: (key, comparison, value, what): the project's targets for a 2-core machine without a GPU.
 TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("generate_disk_ips", ">=", 40.0, "images/s"),
     ("disk_vs_naive", ">=", 3.0, "x"),
@@ -53,6 +58,7 @@ TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("sweep_ips", ">=", 40.0, "scenes/s"),
     ("worker_peak_rss_mb", "<=", 400.0, "MB"),
     ("worker_rss_growth_mb", "<", 20.0, "MB"),
+    ("sandbox_overhead_ms", "<=", 50.0, "ms"),
 )
 
 #: The streaming sweep's varied parameter (item 6): Gaussian sensor noise, off to strong.
@@ -62,7 +68,7 @@ SWEEP_AXIS = "degrade.noise_sigma=0:6:2"
 FIGURE_KEYS: tuple[str, ...] = (
     "generate_disk_ips", "generate_memory_ips", "naive_ips", "encode_floor_ips",
     "pipeline_ips", "sweep_ips", "worker_peak_rss_mb", "worker_rss_growth_mb",
-    "pipeline_eval_ips", "disk_vs_naive", "disk_vs_floor",
+    "pipeline_eval_ips", "disk_vs_naive", "disk_vs_floor", "sandbox_overhead_ms",
 )  # fmt: skip
 
 
@@ -80,6 +86,8 @@ class BenchConfig:
         Scenes of the naive baseline (item 3; slow, so fewer).
     rss_renders : int
         Consecutive renders of the memory measurement (item 7).
+    sandbox_runs : int
+        External runs per sandbox mode (item 8).
     workers : int or None
         Processes; default: the usable cores.
     preset : str
@@ -92,12 +100,13 @@ class BenchConfig:
     sweep_count: int = 300
     naive_count: int = 40
     rss_renders: int = 2000
+    sandbox_runs: int = 40
     workers: int | None = None
     preset: str = "eyrc"
     seed: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("count", "sweep_count", "naive_count", "rss_renders"):
+        for name in ("count", "sweep_count", "naive_count", "rss_renders", "sandbox_runs"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
@@ -110,7 +119,8 @@ class BenchConfig:
     @classmethod
     def quick(cls, *, workers: int | None = None) -> BenchConfig:
         """A tiny configuration (seconds): every figure, none of them meaningful."""
-        return cls(count=6, sweep_count=6, naive_count=2, rss_renders=20, workers=workers)
+        return cls(count=6, sweep_count=6, naive_count=2, rss_renders=20, sandbox_runs=3,
+                   workers=workers)
 
 
 @dataclass
@@ -387,7 +397,7 @@ def run_bench(
     workdir: str | os.PathLike[str] | None = None,
     on_item: Callable[[str, float], None] | None = None,
 ) -> BenchResult:
-    """Run the seven measurements (see the module docstring).
+    """Run the eight measurements (see the module docstring).
 
     Parameters
     ----------
@@ -525,6 +535,12 @@ def run_bench(
                                               - rss["rss_after_warmup_mb"])
         details["rss"] = rss
         notify("worker_rss_growth_mb", rss["seconds"])
+
+        # 8. what bubblewrap adds to an external run
+        t0 = time.perf_counter()
+        figures["sandbox_overhead_ms"], details["sandbox"] = _sandbox_overhead(
+            scratch / "dataset" / "images" / "000000.png", cfg.sandbox_runs)
+        notify("sandbox_overhead_ms", time.perf_counter() - t0)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     details["load_avg_end"] = _load_avg()
@@ -533,6 +549,37 @@ def run_bench(
     return BenchResult(figures=figures, details=details, machine=_machine(gl_info),
                        config=asdict(cfg) | {"workers": workers},
                        seconds=time.perf_counter() - start)
+
+
+#: Item 8's trivial external command: a shell writing a well-formed obstacles.txt.
+SANDBOX_COMMAND = "sh -c 'printf \"Aruco ID: []\\nObstacles: 0\\nArea: 0\\n\" > obstacles.txt'"
+
+
+def _sandbox_overhead(image: Path, runs: int) -> tuple[float, dict[str, Any]]:
+    """Median wall ms per external run with and without bubblewrap (item 8)."""
+    from arenabench.eval.external import bwrap_problem
+    from arenabench.eval.pipelines import CommandPipeline
+    from arenabench.eval.run_limits import RunSettings
+
+    problem = bwrap_problem()
+    modes = ("none",) if problem else ("none", "bwrap")
+    pipes = {m: CommandPipeline(SANDBOX_COMMAND, settings=RunSettings(sandbox=m)) for m in modes}
+    times: dict[str, list[float]] = {m: [] for m in modes}
+    for i in range(runs + 1):
+        for m in modes:
+            t0 = time.perf_counter()
+            pred = pipes[m].run(image)
+            if pred.status != "ok":
+                raise RuntimeError(f"bench: the trivial command failed ({m}): {pred.message}")
+            if i:  # the first round warms up
+                times[m].append((time.perf_counter() - t0) * 1000.0)
+    median = {m: float(np.median(v)) for m, v in times.items()}
+    detail: dict[str, Any] = {"runs": runs, "command": SANDBOX_COMMAND,
+                              "median_ms_per_run": median, "bwrap": problem is None}
+    if problem:
+        detail["bwrap_problem"] = problem
+        return 0.0, detail
+    return max(0.0, median["bwrap"] - median["none"]), detail
 
 
 def _per(seconds: float, n: int) -> float:

@@ -1,16 +1,24 @@
 """``arenabench eval``: score a pipeline on a dataset, write reports, gate CI with exit codes.
 
 Exit status: 0 all thresholds met; 1 a ``--fail-under`` threshold missed (one-line reason on
-stderr); 2 usage error (bad options, bad dataset, unreadable report).
+stderr); 2 usage error (bad options, bad dataset, unreadable report, missing executable);
+130/143 stopped by SIGINT/SIGTERM (running commands killed, the finished images' reports
+written with ``"complete": false``).
 """
 
 from __future__ import annotations
 
 import argparse
+import math
 import sys
 from pathlib import Path
 
+from arenabench.clihelp import HelpFormatter
+from arenabench.limits import MAX_WORKERS
+
+from .dataset import AREA_REFERENCES
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
+from .run_limits import add_run_arguments, run_settings_from_args
 
 EPILOG = """\
 examples:
@@ -20,16 +28,20 @@ examples:
   arenabench eval DATASET --pipeline seed --fail-under pass_rate=0.95,area_rel_err.p95=0.05
   arenabench eval --compare OLD/report.json NEW/report.json
 
---cmd: split into arguments without a shell; {image} is the image's absolute path and {python}
-the Python running arenabench. Each image runs in its own empty temporary working directory;
-the command writes obstacles.txt there (or prints a JSON line with --output json). Exit
-status 3 means "markers not found".
+--cmd: split into arguments without a shell; {image} is the path of a private copy of the
+image (named image.png etc., --image-name) and {python} the Python running arenabench. Each
+image runs in its own private directory holding only that copy; the command writes
+obstacles.txt there (or prints a JSON line with --output json). Exit status 3 means "markers
+not found". Under bubblewrap (--sandbox auto|bwrap) the command sees only the system, Python
+and its own folder (read-only), no network and no dataset; without it the private directory,
+limits and cleanup still apply. A run that hits --memory-limit, --max-procs or
+--max-file-size is category 'limit'; every process a run starts is killed when it ends.
 
 --fail-under metric=value (comma-separated or repeated). Minimums (fail when below):
 pass_rate, pass_rate_ci95.0, count_exact_rate, marker_id_accuracy. Maximums (fail when above):
 count_mae, area_rel_err.median|p95|max, latency_ms.median|p95, failures.<category>.
 
-exit status: 0 ok, 1 a threshold missed, 2 usage error.
+exit status: 0 ok, 1 a threshold missed, 2 usage error, 130/143 interrupted (SIGINT/SIGTERM).
 """
 
 
@@ -39,13 +51,14 @@ def build_parser() -> argparse.ArgumentParser:
         prog="arenabench eval",
         description="Score an obstacle-detection pipeline on a dataset written by the generator.",
         epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("dataset", nargs="?", help="dataset folder (holds manifest.jsonl and gt/)")
     src = p.add_mutually_exclusive_group()
     src.add_argument(
         "--pipeline",
-        help=f"built-in ({', '.join(BUILTIN_PIPELINES)}) or a callable 'pkg.module:function'",
+        help=f"built-in ({', '.join(BUILTIN_PIPELINES)}) or a callable 'pkg.module:function' "
+        "(the module is looked for in the current folder first, then on sys.path)",
     )
     src.add_argument(
         "--cmd", help="external command template, e.g. 'python3 map.py --image {image}'"
@@ -59,7 +72,6 @@ def build_parser() -> argparse.ArgumentParser:
         default="obstacles",
         help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line",
     )
-    p.add_argument("--timeout", type=float, default=60.0, help="seconds per image for --cmd")
     p.add_argument("--workers", type=int, default=None, help="parallel workers (default: cores)")
     p.add_argument(
         "--executor",
@@ -68,7 +80,12 @@ def build_parser() -> argparse.ArgumentParser:
         help="pool for in-process pipelines (default thread)",
     )
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible")
+    p.add_argument(
+        "--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
+        help="GT area the answer is compared with: visible (the silhouettes a camera-side "
+        "segmentation sees), footprint (the boxes' floor area) or contour (what "
+        "cv2.contourArea of the pixelated silhouettes gives, about half a perimeter less)",
+    )
     p.add_argument("--out", type=Path, default=None, help="folder for the report files")
     p.add_argument(
         "--formats",
@@ -84,6 +101,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--limit", type=int, default=None, help="evaluate only the first N images")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_run_arguments(p)
+    p.add_argument(
+        "--no-verify",
+        action="store_true",
+        help="do not check images and GT against the sha256 values of manifest.jsonl",
+    )
     return p
 
 
@@ -107,6 +130,18 @@ def _run_compare(old: str, new: str) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``arenabench eval``; returns the exit status."""
+    from arenabench.interrupts import Interrupted, stop_on_signals
+
+    with stop_on_signals():
+        try:
+            return _main(argv)
+        except Interrupted as exc:
+            print(f"arenabench eval: interrupted ({exc}); nothing more written",
+                  file=sys.stderr)
+            return exc.exit_code
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -118,16 +153,27 @@ def main(argv: list[str] | None = None) -> int:
         return _usage_error(parser, "a DATASET folder is required (or --compare OLD NEW)")
     if not args.pipeline and not args.cmd:
         return _usage_error(parser, "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE")
-    if args.workers is not None and args.workers < 1:
-        return _usage_error(parser, f"--workers must be >= 1, got {args.workers}")
+    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
+        return _usage_error(parser, f"--workers must be in [1, {MAX_WORKERS}], got {args.workers}")
     if args.limit is not None and args.limit < 1:
         return _usage_error(parser, f"--limit must be >= 1, got {args.limit}")
+    if not (math.isfinite(args.tolerance) and args.tolerance >= 0):
+        return _usage_error(
+            parser, f"--tolerance must be a finite number >= 0, got {args.tolerance}"
+        )
+    if args.out is not None:
+        from arenabench.fileio import OutputPathError, check_output_dir
+
+        try:
+            check_output_dir(args.out)
+        except OutputPathError as exc:
+            return _usage_error(parser, f"--out {args.out}: {exc}")
 
     from .dataset import DatasetError, load_dataset
     from .pipelines import CommandPipeline, make_pipeline
     from .reports import FORMATS, write_reports
     from .reports.summary_rows import headline
-    from .runner import evaluate
+    from .runner import EvaluationInterrupted, evaluate
     from .thresholds import check_thresholds, parse_thresholds
 
     formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
@@ -137,13 +183,14 @@ def main(argv: list[str] | None = None) -> int:
     try:
         thresholds = parse_thresholds(args.fail_under)
         pipeline = (
-            CommandPipeline(args.cmd, timeout_s=args.timeout, output=args.output)
+            CommandPipeline(args.cmd, settings=run_settings_from_args(args), output=args.output)
             if args.cmd
             else make_pipeline(args.pipeline)
         )
-        dataset = load_dataset(args.dataset, limit=args.limit)
+        dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify)
     except (DatasetError, ValueError) as exc:
         return _usage_error(parser, str(exc))
+    interrupted: EvaluationInterrupted | None = None
     try:
         report = evaluate(
             args.pipeline if args.pipeline else pipeline,
@@ -156,6 +203,18 @@ def main(argv: list[str] | None = None) -> int:
         )
     except ValueError as exc:
         return _usage_error(parser, str(exc))
+    except EvaluationInterrupted as exc:
+        interrupted, report = exc, exc.report
+    if interrupted is not None:
+        print(
+            f"arenabench eval: interrupted by signal {interrupted.signum} after "
+            f"{report.images_done} of {len(dataset.samples)} images; running commands killed",
+            file=sys.stderr,
+        )
+        if args.out is not None and report.images:
+            write_reports(report, args.out, formats=formats, dataset=dataset)
+            print(f"  partial reports (\"complete\": false) in {args.out}", file=sys.stderr)
+        return interrupted.exit_code
     print(headline(report))
     if args.out is not None:
         written = write_reports(report, args.out, formats=formats, dataset=dataset)

@@ -8,10 +8,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from arenabench.fileio import sha256_bytes, sha256_file
+from arenabench.schemas import gt_problem
+
 from .records import Truth
 
-GT_SCHEMA = "arenabench.gt/1"
-AREA_REFERENCES: dict[str, str] = {"visible": "visible_px", "footprint": "footprint_px"}
+#: ``--area-reference`` name -> GT ``area`` field. ``contour_px`` is absent from GT files
+#: written before generator version 4.
+AREA_REFERENCES: dict[str, str] = {
+    "visible": "visible_px", "footprint": "footprint_px", "contour": "contour_px",
+}
 
 
 class DatasetError(ValueError):
@@ -49,9 +55,14 @@ class Sample:
             raise ValueError(
                 f"area_reference must be one of {sorted(AREA_REFERENCES)}, got {area_reference!r}"
             )
+        key = AREA_REFERENCES[area_reference]
+        if key not in self.gt["area"]:
+            raise _fail(self.gt_path, f"field 'area.{key}' is missing (written by an older "
+                                      f"generator?): regenerate the dataset to score against "
+                                      f"--area-reference {area_reference}")
         return Truth(
             count=int(self.gt["count"]),
-            area=float(self.gt["area"][AREA_REFERENCES[area_reference]]),
+            area=float(self.gt["area"][key]),
             marker_ids=tuple(
                 int(m["id"])
                 for m in self.gt.get("markers", [])
@@ -91,50 +102,35 @@ def flatten_numeric(obj: Any, prefix: str = "") -> dict[str, float]:
     return out
 
 
+def _is_sha256(value: Any) -> bool:
+    return (
+        isinstance(value, str) and len(value) == 64
+        and all(c in "0123456789abcdef" for c in value)
+    )
+
+
 def _fail(path: Path, what: str) -> DatasetError:
     return DatasetError(f"{path}: {what}")
 
 
-def _number(gt: dict, path: Path, dotted: str) -> float:
-    node: Any = gt
-    for part in dotted.split("."):
-        if not isinstance(node, dict) or part not in node:
-            raise _fail(path, f"missing field {dotted!r}")
-        node = node[part]
-    if isinstance(node, bool) or not isinstance(node, (int, float)):
-        raise _fail(path, f"field {dotted!r} must be a number, got {node!r}")
-    return float(node)
-
-
 def validate_gt(gt: Any, path: Path) -> None:
-    """Check the GT fields the harness uses.
+    """Check a parsed GT record against the ``arenabench.gt/1`` JSON Schema (shipped in
+    :mod:`arenabench.schemas`) and that every number in it is finite.
 
     Raises
     ------
     DatasetError
-        Naming ``path`` and the first bad field.
+        One line naming ``path``, the field and the problem, e.g.
+        ``gt/000003.json: area.visible_px: nan is not a finite number``.
     """
-    if not isinstance(gt, dict):
-        raise _fail(path, "ground truth must be a JSON object")
-    if gt.get("schema") != GT_SCHEMA:
-        raise _fail(path, f"field 'schema' must be {GT_SCHEMA!r}, got {gt.get('schema')!r}")
-    count = _number(gt, path, "count")
-    if count < 0 or count != int(count):
-        raise _fail(path, f"field 'count' must be a non-negative integer, got {gt['count']!r}")
-    for key in ("area.visible_px", "area.footprint_px"):
-        if _number(gt, path, key) < 0:
-            raise _fail(path, f"field {key!r} must be >= 0")
-    for key in ("markers", "obstacles"):
-        if not isinstance(gt.get(key, []), list):
-            raise _fail(path, f"field {key!r} must be a list")
-    for i, marker in enumerate(gt.get("markers", [])):
-        if not isinstance(marker, dict) or "id" not in marker:
-            raise _fail(path, f"field 'markers[{i}].id' is missing")
-    if "params" in gt and not isinstance(gt["params"], dict):
-        raise _fail(path, "field 'params' must be an object")
+    problem = gt_problem(gt)
+    if problem is not None:
+        raise _fail(path, problem)
 
 
-def load_dataset(root: str | Path, *, limit: int | None = None) -> Dataset:
+def load_dataset(
+    root: str | Path, *, limit: int | None = None, verify: bool = True
+) -> Dataset:
     """Read and validate a dataset folder.
 
     Parameters
@@ -143,6 +139,11 @@ def load_dataset(root: str | Path, *, limit: int | None = None) -> Dataset:
         Folder holding ``manifest.jsonl``, ``images/`` and ``gt/``.
     limit : int, optional
         Read only the first ``limit`` manifest entries.
+    verify : bool
+        Check every image and GT file against the ``image_sha256`` / ``gt_sha256`` of its
+        manifest entry (default). A truncated, corrupt or swapped file is a
+        :class:`DatasetError` naming it, before any image is scored. The GT bytes are hashed
+        as they are parsed (read once); images are hashed in chunks.
 
     Returns
     -------
@@ -155,10 +156,13 @@ def load_dataset(root: str | Path, *, limit: int | None = None) -> Dataset:
     """
     if limit is not None and limit < 1:
         raise ValueError(f"limit must be >= 1, got {limit!r}")
-    base = Path(root).resolve()
+    shown = Path(root)  # paths in messages as the user gave them
+    base = shown.resolve()
     manifest = base / "manifest.jsonl"
     if not base.is_dir():
         raise DatasetError(f"{base}: dataset folder does not exist")
+    if manifest.exists() and not manifest.is_file():
+        raise DatasetError(f"{manifest}: not a regular file")
     if not manifest.is_file():
         raise DatasetError(f"{manifest}: missing (is {base} a dataset written by the generator?)")
     samples: list[Sample] = []
@@ -179,16 +183,44 @@ def load_dataset(root: str | Path, *, limit: int | None = None) -> Dataset:
         if entry["id"] in seen:
             raise DatasetError(f"{where}: duplicate id {entry['id']!r}")
         seen.add(entry["id"])
+        if verify:
+            for key in ("image_sha256", "gt_sha256"):
+                if not _is_sha256(entry.get(key)):
+                    raise DatasetError(
+                        f"{where}: field {key!r} missing or not a SHA-256 hex digest "
+                        "(--no-verify skips the check)"
+                    )
         image_path, gt_path = base / entry["image"], base / entry["gt"]
-        if not image_path.is_file():
-            raise DatasetError(f"{where}: image file {image_path} does not exist")
-        if not gt_path.is_file():
-            raise DatasetError(f"{where}: ground-truth file {gt_path} does not exist")
+        shown_image, shown_gt = shown / entry["image"], shown / entry["gt"]
+        for what, path, shown_path in (("image", image_path, shown_image),
+                                       ("ground-truth", gt_path, shown_gt)):
+            if not path.is_file():
+                why = "is not a regular file" if path.exists() else "does not exist"
+                raise DatasetError(f"{where}: {what} file {shown_path} {why}")
         try:
-            gt = json.loads(gt_path.read_text(encoding="utf-8"))
+            gt_bytes = gt_path.read_bytes()
+        except OSError as exc:
+            raise _fail(shown_gt, f"cannot read ({exc.strerror or exc})") from None
+        if verify and sha256_bytes(gt_bytes) != entry["gt_sha256"]:
+            raise _fail(shown_gt, "content does not match gt_sha256 in manifest.jsonl "
+                        "(corrupt or replaced; --no-verify skips the check)")
+        if verify:
+            try:
+                digest = sha256_file(image_path)
+            except OSError as exc:
+                raise _fail(shown_image, f"cannot read ({exc.strerror or exc})") from None
+            if digest != entry["image_sha256"]:
+                raise _fail(shown_image, "content does not match image_sha256 in manifest.jsonl "
+                            "(truncated, corrupt or replaced; --no-verify skips the check)")
+        try:
+            gt = json.loads(gt_bytes.decode("utf-8"))
+        except UnicodeDecodeError:
+            raise _fail(shown_gt, "not UTF-8 text") from None
         except json.JSONDecodeError as exc:
-            raise _fail(gt_path, f"not JSON ({exc.msg} at line {exc.lineno})") from None
-        validate_gt(gt, gt_path)
+            raise _fail(shown_gt, f"not JSON ({exc.msg} at line {exc.lineno})") from None
+        except RecursionError:
+            raise _fail(shown_gt, "not JSON (nested too deeply)") from None
+        validate_gt(gt, shown_gt)
         params = gt.get("params")
         flat = (
             {k: float(v) for k, v in params.items() if isinstance(v, (int, float))}

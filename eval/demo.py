@@ -1,5 +1,11 @@
-"""``arenabench demo``: generate a small eyrc set (reused when present), score the reference
-pipeline on it, write the reports and say where ``report.html`` is."""
+"""``arenabench demo``: the project in one short story.
+
+1. (``--example IMAGE``) the pipeline on one real image, in three lines, and the
+   ``obstacles.txt`` it writes;
+2. a small eyrc set generated (reused when present);
+3. the reference pipeline scored on it: the summary table;
+4. where ``report.html`` is.
+"""
 
 from __future__ import annotations
 
@@ -7,20 +13,49 @@ import argparse
 import sys
 from pathlib import Path
 
+from arenabench.clihelp import HelpFormatter
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The argument parser of ``arenabench demo``."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench demo",
         description="Generate a small eyrc dataset, evaluate the reference pipeline on it and "
-        "write report.json/.csv/.md/.html and junit.xml.",
+        "write report.json/.csv/.md/.html and junit.xml. With --example, first run the "
+        "pipeline on one real image and write OUT/obstacles.txt.",
     )
     p.add_argument("--out", type=Path, default=Path("demo-out"), help="output folder")
     p.add_argument("--count", type=int, default=24, help="images (default 24)")
     p.add_argument("--seed", type=int, default=0, help="generator seed (default 0)")
     p.add_argument("--pipeline", default="reference", help="pipeline to score (default reference)")
     p.add_argument("--workers", type=int, default=None, help="parallel workers (default: cores)")
+    p.add_argument("--example", type=Path, default=None, metavar="IMAGE",
+                   help="first detect on this image and write OUT/obstacles.txt")
+    p.add_argument("--no-progress", action="store_true", help="no progress output")
     return p
+
+
+def _example(image_path: Path, out: Path) -> int:
+    from arenabench.competition import format_obstacles_txt
+    from arenabench.fileio import atomic_write_text
+    from arenabench.imageio import ImageLoadError, load_image
+    from arenabench.pipeline import detect
+
+    try:
+        image = load_image(image_path)
+    except ImageLoadError as exc:
+        print(f"arenabench demo: error: {exc}", file=sys.stderr)
+        return 2
+    result = detect(image)
+    target = out / "obstacles.txt"
+    atomic_write_text(target, format_obstacles_txt(result.marker_ids, result.count,
+                                                   result.total_area))
+    print(f"1. the reference pipeline on {image_path}:")
+    print(f"   markers {list(result.marker_ids)}, {result.count} obstacles, "
+          f"area {result.total_area:.1f} px^2 ({result.status})")
+    print(f"   competition output: {target}")
+    return 0
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -32,48 +67,64 @@ def main(argv: list[str] | None = None) -> int:
     if args.count < 1:
         print(f"arenabench demo: error: --count must be >= 1, got {args.count}", file=sys.stderr)
         return 2
+    from arenabench.fileio import OutputPathError, check_output_dir
+
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        print(f"arenabench demo: error: --out {args.out}: {exc}", file=sys.stderr)
+        return 2
+
+    step = 1
+    if args.example is not None:
+        rc = _example(args.example, args.out)
+        if rc:
+            return rc
+        step = 2
     dataset_dir = args.out / f"dataset-eyrc-n{args.count}-s{args.seed}"
     if (dataset_dir / "manifest.jsonl").is_file():
-        print(f"reusing dataset {dataset_dir}")
+        print(f"{step}. reusing dataset {dataset_dir} ({args.count} eyrc images)")
     else:
-        from arenabench.generator.cli import main as generate_main
+        from arenabench.generator.dataset import DatasetError, generate_dataset
+        from arenabench.generator.sampler import SamplingError
 
-        print(f"generating {args.count} eyrc images into {dataset_dir} ...")
-        rc = generate_main(
-            [
-                "--preset",
-                "eyrc",
-                "--count",
-                str(args.count),
-                "--seed",
-                str(args.seed),
-                "--out",
-                str(dataset_dir),
-                "--no-progress",
-            ]
-        )
-        if rc != 0:
-            print(f"arenabench demo: error: generation failed (exit status {rc})", file=sys.stderr)
+        try:
+            result = generate_dataset(
+                dataset_dir, preset="eyrc", count=args.count, seed=args.seed,
+                workers=args.workers or _cores(),
+                progress=not args.no_progress,
+            )
+        except (DatasetError, SamplingError, ValueError) as exc:
+            print(f"arenabench demo: error: generation failed: {exc}", file=sys.stderr)
             return 2
+        print(f"{step}. generated {result.rendered} eyrc images (seed {args.seed}) into "
+              f"{dataset_dir} in {result.seconds:.0f} s")
+    step += 1
     from .dataset import load_dataset
     from .reports import write_reports
     from .reports.summary_rows import headline, summary_rows
     from .runner import evaluate
 
     dataset = load_dataset(dataset_dir)
-    report = evaluate(args.pipeline, dataset, workers=args.workers, progress=True)
+    report = evaluate(args.pipeline, dataset, workers=args.workers,
+                      progress=not args.no_progress)
     report_dir = args.out / f"report-{report.pipeline.replace(':', '_').replace('/', '_')}"
     written = write_reports(report, report_dir, dataset=dataset)
-    print()
-    width = max(len(k) for k, _ in summary_rows(report.summary))
-    for key, value in summary_rows(report.summary):
-        if not key.startswith("failures:") or value != "0":
-            print(f"  {key:<{width}}  {value}")
-    print()
-    print(headline(report))
-    print(f"report files in {report_dir}/ (report.json, results.csv, report.md, junit.xml)")
+    print(f"{step}. {headline(report)}")
+    rows = [(k, v) for k, v in summary_rows(report.summary)
+            if not k.startswith("failures:") or v != "0"]
+    width = max(len(k) for k, _ in rows)
+    for key, value in rows:
+        print(f"   {key:<{width}}  {value}")
+    print(f"   report files in {report_dir}/ (report.json, results.csv, report.md, junit.xml)")
     print(f"open the HTML report: {written['html'].resolve()}")
     return 0
+
+
+def _cores() -> int:
+    from .runner import default_workers
+
+    return default_workers()
 
 
 if __name__ == "__main__":  # pragma: no cover

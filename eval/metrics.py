@@ -2,8 +2,9 @@
 
 Failure category of a failing image (exactly one, first match wins):
 
-1. the pipeline gave no usable answer: its status (``crash``, ``timeout``, ``bad_output``,
-   ``markers_not_found``); these are mutually exclusive, so no count or area is judged;
+1. the pipeline gave no usable answer: its status (``crash``, ``timeout``, ``limit``,
+   ``bad_output``, ``markers_not_found``); these are mutually exclusive, so no count or area
+   is judged;
 2. ``wrong_count``: predicted count differs from the ground truth;
 3. ``area_off``: the count is right but ``|area_rel_err| > tolerance``.
 """
@@ -63,6 +64,18 @@ def area_error(pred_area: float, gt_area: float) -> tuple[float, str]:
     return (float(pred_area) - float(gt_area)) / float(gt_area), "relative"
 
 
+def _is_count(value: object) -> bool:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
+    return math.isfinite(value) and value >= 0 and value == int(value)
+
+
+def _is_area(value: object) -> bool:
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+        return False
+    return math.isfinite(value) and value >= 0
+
+
 def score_image(
     truth: Truth, prediction: Prediction, *, tolerance: float = DEFAULT_TOLERANCE
 ) -> ImageScore:
@@ -84,10 +97,16 @@ def score_image(
     """
     if not tolerance >= 0:
         raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
-    count_err = None if prediction.count is None else int(prediction.count) - int(truth.count)
+    # Defence in depth: adapters already refuse these, but a non-finite, negative or fractional
+    # value must never pass (abs(nan) > tolerance is False).
+    count_ok = _is_count(prediction.count)
+    area_ok = _is_area(prediction.area)
+    count_err = int(prediction.count) - int(truth.count) if count_ok else None
     rel, kind = (None, "relative")
-    if prediction.status == "ok" and prediction.area is not None:
+    if prediction.status == "ok" and area_ok:
         rel, kind = area_error(prediction.area, truth.area)
+        if not math.isfinite(rel):
+            rel = None
     if prediction.status == "ok" and prediction.marker_ids is None:
         ids_ok = None
     else:

@@ -1,7 +1,7 @@
 """Typed records of an evaluation: what a pipeline predicted, per-image results, summary, report.
 
 Every record converts to and from the JSON of ``report.json`` (schema ``arenabench.report/1``,
-keys as in the project's design contract; extra keys are only ever added, never renamed).
+keys as in docs/formats.md; extra keys are only ever added, never renamed).
 """
 
 from __future__ import annotations
@@ -12,8 +12,12 @@ from typing import Any
 REPORT_SCHEMA = "arenabench.report/1"
 
 #: Pipeline statuses. ``ok`` and ``markers_not_found`` come from the pipeline itself; the
-#: other three are assigned by the harness when the pipeline did not produce a usable answer.
-STATUSES: tuple[str, ...] = ("ok", "markers_not_found", "crash", "timeout", "bad_output")
+#: others are assigned by the harness when the pipeline did not produce a usable answer
+#: (``limit``: an external command failed after hitting a run limit other than the timeout,
+#: i.e. memory, processes or file size; the message says which).
+STATUSES: tuple[str, ...] = (
+    "ok", "markers_not_found", "crash", "timeout", "limit", "bad_output",
+)  # fmt: skip
 
 #: Failure categories, in the order reports list them.
 CATEGORIES: tuple[str, ...] = (
@@ -22,8 +26,12 @@ CATEGORIES: tuple[str, ...] = (
     "area_off",
     "crash",
     "timeout",
+    "limit",
     "bad_output",
 )
+
+#: Pixel spaces a pipeline's obstacle polygons may be given in.
+OBSTACLE_SPACES: tuple[str, ...] = ("frame", "image")
 
 #: Longest stdout/stderr tail kept per image (characters).
 TAIL_CHARS = 2000
@@ -46,7 +54,7 @@ class Truth:
     count : int
         Number of obstacles in the frame.
     area : float
-        Reference area in frame px (``visible_px`` or ``footprint_px``).
+        Reference area in frame px (``visible_px``, ``footprint_px`` or ``contour_px``).
     marker_ids : tuple of int
         Ids of the markers fully in view.
     """
@@ -74,6 +82,13 @@ class Prediction:
         Tails of the pipeline's output streams (external commands; tracebacks in-process).
     latency_ms : float
         Wall time of the pipeline call in milliseconds.
+    obstacles : tuple of polygons or None
+        What the pipeline found, for drawing: one polygon (tuple of (x, y)) per obstacle, in
+        ``obstacles_space`` px, simplified to within about 2 px; ``None`` when not reported.
+    obstacles_space : {"frame", "image"}
+        Whether ``obstacles`` are in rectified frame px or input image px.
+    homography : 3 x 3 tuple or None
+        The pipeline's input image px -> frame px homography, when it reports one.
     """
 
     status: str
@@ -84,10 +99,40 @@ class Prediction:
     stdout: str = ""
     stderr: str = ""
     latency_ms: float = 0.0
+    obstacles: tuple[tuple[tuple[float, float], ...], ...] | None = None
+    obstacles_space: str = "frame"
+    homography: tuple[tuple[float, float, float], ...] | None = None
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
             raise ValueError(f"status must be one of {STATUSES}, got {self.status!r}")
+        if self.obstacles_space not in OBSTACLE_SPACES:
+            raise ValueError(
+                f"obstacles_space must be one of {OBSTACLE_SPACES}, got {self.obstacles_space!r}"
+            )
+
+    def drawing_dict(self) -> dict[str, Any]:
+        """The drawing fields as JSON (empty when the pipeline reported no polygons)."""
+        out: dict[str, Any] = {}
+        if self.obstacles is not None:
+            out["obstacles"] = [[[x, y] for x, y in poly] for poly in self.obstacles]
+            out["obstacles_space"] = self.obstacles_space
+        if self.homography is not None:
+            out["homography"] = [list(row) for row in self.homography]
+        return out
+
+
+def drawing_from_json(pred: dict[str, Any]) -> dict[str, Any]:
+    """``Prediction`` keyword arguments from the drawing fields of a ``pred`` record."""
+    out: dict[str, Any] = {}
+    if pred.get("obstacles") is not None:
+        out["obstacles"] = tuple(
+            tuple((float(x), float(y)) for x, y in poly) for poly in pred["obstacles"]
+        )
+        out["obstacles_space"] = str(pred.get("obstacles_space", "frame"))
+    if pred.get("homography") is not None:
+        out["homography"] = tuple(tuple(float(v) for v in row) for row in pred["homography"])
+    return out
 
 
 @dataclass(frozen=True)
@@ -95,7 +140,7 @@ class ImageScore:
     """Metrics of one image (output of :func:`arenabench.eval.metrics.score_image`).
 
     ``area_err_kind`` is ``"relative"`` normally and ``"absolute_px"`` when the ground-truth
-    area is 0 (``area_rel_err`` then holds the absolute error in px, per the design contract).
+    area is 0 (``area_rel_err`` then holds the absolute error in px; docs/ground-truth.md).
     """
 
     passed: bool
@@ -150,6 +195,7 @@ class ImageResult:
                 "count": p.count,
                 "area": p.area,
                 "marker_ids": None if p.marker_ids is None else list(p.marker_ids),
+                **p.drawing_dict(),
             },
             "area_rel_err": s.area_rel_err,
             "area_err_kind": s.area_err_kind,
@@ -163,7 +209,7 @@ class ImageResult:
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> ImageResult:
-        """Inverse of :meth:`to_dict` (tolerates the minimal keys of the design example)."""
+        """Inverse of :meth:`to_dict` (tolerates a minimal entry: id, pass, gt, pred)."""
         gt, pred = d.get("gt", {}), d.get("pred", {})
         ids = pred.get("marker_ids")
         prediction = Prediction(
@@ -175,6 +221,7 @@ class ImageResult:
             stdout=d.get("stdout_tail", ""),
             stderr=d.get("stderr_tail", ""),
             latency_ms=float(d.get("latency_ms") or 0.0),
+            **drawing_from_json(pred),
         )
         truth = Truth(
             count=int(gt.get("count", 0)),
@@ -260,7 +307,11 @@ class Summary:
 
 @dataclass(frozen=True)
 class Report:
-    """A whole evaluation: settings, summary, per-image results and the parameter breakdown."""
+    """A whole evaluation: settings, summary, per-image results and the parameter breakdown.
+
+    ``complete`` is ``False`` for a run stopped early (SIGINT/SIGTERM); its summary then
+    covers the ``n_done`` images evaluated before the stop.
+    """
 
     pipeline: str
     dataset: str
@@ -270,6 +321,13 @@ class Report:
     images: tuple[ImageResult, ...]
     breakdown: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     schema: str = REPORT_SCHEMA
+    complete: bool = True
+    n_done: int | None = None
+
+    @property
+    def images_done(self) -> int:
+        """Images evaluated (``n_done``, or every image of a complete report)."""
+        return len(self.images) if self.n_done is None else self.n_done
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form (``report.json``)."""
@@ -279,6 +337,8 @@ class Report:
             "dataset": self.dataset,
             "area_reference": self.area_reference,
             "tolerance": self.tolerance,
+            "complete": self.complete,
+            "n_done": self.images_done,
             "summary": self.summary.to_dict(),
             "breakdown": self.breakdown,
             "images": [r.to_dict() for r in self.images],
@@ -303,4 +363,6 @@ class Report:
             summary=Summary.from_dict(d["summary"]),
             images=tuple(ImageResult.from_dict(i) for i in d.get("images", [])),
             breakdown=dict(d.get("breakdown", {})),
+            complete=bool(d.get("complete", True)),
+            n_done=None if d.get("n_done") is None else int(d["n_done"]),
         )

@@ -4,7 +4,8 @@
 the values the runner enforces come from here, so a limit is declared in one place.
 
 This module holds the *declaration* (dataclass, defaults, parsing, argparse options); the
-enforcement lives in the command runner.
+enforcement lives in :mod:`arenabench.eval.external` (``CommandPipeline``), where a run that
+hits the memory, process or file-size limit gets the failure category ``limit``.
 """
 
 from __future__ import annotations
@@ -14,9 +15,9 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-#: How external commands are contained: ``auto`` uses bubblewrap when it is installed,
-#: ``bwrap`` requires it, ``none`` runs without namespaces (private directory, limits and
-#: process cleanup still apply).
+#: How external commands are contained: ``auto`` uses bubblewrap when it is installed and
+#: works (else ``none``, with a warning), ``bwrap`` requires it, ``none`` runs without
+#: namespaces (private directory, limits and process cleanup still apply).
 SANDBOX_MODES: tuple[str, ...] = ("auto", "bwrap", "none")
 
 _SIZE_RE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgGtT]?)(?:i?[bB])?\s*$")
@@ -58,7 +59,8 @@ class RunLimits:
     memory_bytes : int
         Address-space limit per process (``RLIMIT_AS``).
     max_procs : int
-        Processes the run may have at once.
+        Processes the run may have at once (a pids cgroup per run where the cgroup file
+        system is writable, else ``RLIMIT_NPROC``, which does not bind root).
     max_file_size : int
         Largest file the run may write (``RLIMIT_FSIZE``).
     max_output : int
@@ -101,6 +103,34 @@ class RunSettings:
     image_name: str | None = None
     env: Mapping[str, str] = field(default_factory=dict)
 
+    def __hash__(self) -> int:  # env is a dict: hash its items (settings key worker caches)
+        return hash((self.limits, self.sandbox, self.image_name, tuple(sorted(self.env.items()))))
+
+    def to_dict(self) -> dict[str, object]:
+        """JSON form (records of sweeps and gradings)."""
+        return {
+            "timeout_s": self.limits.timeout_s,
+            "memory_bytes": self.limits.memory_bytes,
+            "max_procs": self.limits.max_procs,
+            "max_file_size": self.limits.max_file_size,
+            "max_output": self.limits.max_output,
+            "sandbox": self.sandbox,
+            "image_name": self.image_name,
+            "env": dict(self.env),
+        }
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, object]) -> RunSettings:
+        """Inverse of :meth:`to_dict` (missing keys take their defaults)."""
+        names = ("timeout_s", "memory_bytes", "max_procs", "max_file_size", "max_output")
+        limits = RunLimits(**{k: d[k] for k in names if k in d})  # type: ignore[arg-type]
+        return cls(
+            limits=limits,
+            sandbox=str(d.get("sandbox", "auto")),
+            image_name=d.get("image_name"),  # type: ignore[arg-type]
+            env=dict(d.get("env") or {}),  # type: ignore[call-overload]
+        )
+
     def __post_init__(self) -> None:
         if self.sandbox not in SANDBOX_MODES:
             raise ValueError(f"sandbox must be one of {SANDBOX_MODES}, got {self.sandbox!r}")
@@ -136,8 +166,8 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
     )
     g.add_argument(
         "--sandbox", choices=SANDBOX_MODES, default="auto",
-        help="auto: bubblewrap when installed; bwrap: require it; none: no namespaces "
-        "(default: %(default)s)",
+        help="auto: bubblewrap when it works here (else a warning and none); bwrap: require "
+        "it; none: no namespaces (default: %(default)s)",
     )
     g.add_argument(
         "--image-name", default=None,

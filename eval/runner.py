@@ -21,6 +21,27 @@ from .metrics import DEFAULT_TOLERANCE, score_image, summarize
 from .pipelines import Pipeline, make_pipeline
 from .records import ImageResult, Prediction, Report
 
+
+class EvaluationInterrupted(Exception):
+    """SIGINT/SIGTERM stopped :func:`evaluate` (inside
+    :func:`arenabench.interrupts.stop_on_signals`): running pipelines were stopped.
+
+    Attributes
+    ----------
+    report : Report
+        The images finished before the signal (``complete=False``, ``n_done``).
+    signum, exit_code : int
+        The signal and ``128 + signum``.
+    """
+
+    def __init__(self, report: Report, signum: int) -> None:
+        from arenabench.interrupts import exit_code
+
+        self.report = report
+        self.signum = signum
+        self.exit_code = exit_code(signum)
+        super().__init__(f"interrupted after {report.images_done} images")
+
 EXECUTORS: tuple[str, ...] = ("thread", "process")
 
 _WORKER_PIPELINE: Pipeline | None = None
@@ -67,9 +88,13 @@ def build_report(
     dataset: str,
     area_reference: str = "visible",
     tolerance: float = DEFAULT_TOLERANCE,
+    complete: bool = True,
 ) -> Report:
-    """Summary and breakdown of scored images, as a :class:`Report`."""
+    """Summary and breakdown of scored images, as a :class:`Report` (``complete=False``: a
+    run stopped early, ``n_done`` is then the number of images given)."""
     return Report(
+        complete=complete,
+        n_done=len(results),
         pipeline=pipeline,
         dataset=dataset,
         area_reference=area_reference,
@@ -104,12 +129,14 @@ def evaluate(
         Parallel workers (default: the machine's cores).
     tolerance : float
         Largest passing ``|area_rel_err|``.
-    area_reference : {"visible", "footprint"}
-        Which GT area the prediction is compared with.
+    area_reference : {"visible", "footprint", "contour"}
+        Which GT area the prediction is compared with (``area.visible_px``,
+        ``area.footprint_px`` or ``area.contour_px``).
     executor : {"thread", "process"}
         Pool for in-process pipelines; external commands always use threads.
     progress : bool
-        Show a tqdm progress bar on stderr.
+        Show progress on stderr (:mod:`arenabench.progress`: a bar on a terminal, a few
+        plain lines otherwise).
     limit : int, optional
         Evaluate only the first ``limit`` images.
 
@@ -117,7 +144,16 @@ def evaluate(
     -------
     Report
         Per-image results in dataset order, summary and breakdown.
+
+    Raises
+    ------
+    EvaluationInterrupted
+        When :class:`arenabench.interrupts.Interrupted` arrives while images run: running
+        external commands are killed (their processes and directories removed), queued
+        images dropped; the exception holds the partial report.
     """
+    from arenabench.interrupts import Interrupted
+
     if workers is not None and workers < 1:
         raise ValueError(f"workers must be >= 1, got {workers!r}")
     if area_reference not in AREA_REFERENCES:
@@ -130,6 +166,8 @@ def evaluate(
         raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
     data = dataset if isinstance(dataset, Dataset) else load_dataset(dataset, limit=limit)
     samples = data.samples[:limit] if limit else data.samples
+    for s in samples:  # a missing reference area is a data error, found before any work
+        s.truth(area_reference=area_reference)
     pipe = make_pipeline(pipeline)
     n_workers = min(workers or default_workers(), max(1, len(samples)))
     use_process = executor == "process" and pipe.in_process and isinstance(pipeline, str)
@@ -145,37 +183,49 @@ def evaluate(
     else:
         pool = ThreadPoolExecutor(max_workers=n_workers, thread_name_prefix="arenabench-eval")
         submit = lambda s: pool.submit(pipe.run, s.image_path)  # noqa: E731
-    from tqdm import tqdm
+    from arenabench.progress import progress as progress_bar
 
     preds: list[Prediction | None] = [None] * len(samples)
+    interrupted: Interrupted | None = None
     with (
         pool,
-        tqdm(
-            total=len(samples), desc=f"eval {pipe.name}"[:40], unit="img", disable=not progress
-        ) as bar,
+        progress_bar(len(samples), desc=f"eval {pipe.name}", enabled=progress) as bar,
     ):
-        futures = {submit(s): i for i, s in enumerate(samples)}
         from concurrent.futures import as_completed
 
-        for fut in as_completed(futures):
-            i = futures[fut]
-            try:
-                preds[i] = fut.result()
-            except Exception as exc:  # the harness never dies from a bad pipeline
-                preds[i] = Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
-            bar.update(1)
+        futures: dict[Any, int] = {}
+        try:
+            for i, s in enumerate(samples):
+                futures[submit(s)] = i
+            for fut in as_completed(futures):
+                i = futures[fut]
+                try:
+                    preds[i] = fut.result()
+                except Exception as exc:  # the harness never dies from a bad pipeline
+                    preds[i] = Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
+                bar.update(1)
+        except Interrupted as exc:
+            interrupted = exc
+            stop = getattr(pipe, "stop", None)
+            if callable(stop):
+                stop()
+            pool.shutdown(wait=True, cancel_futures=True)
     results = [
         _result(s, p, tolerance=tolerance, area_reference=area_reference)
         for s, p in zip(samples, preds, strict=True)
         if p is not None
     ]
-    return build_report(
+    report = build_report(
         results,
         pipeline=pipe.name,
         dataset=str(data.root),
         area_reference=area_reference,
         tolerance=tolerance,
+        complete=interrupted is None,
     )
+    if interrupted is not None:
+        raise EvaluationInterrupted(report, interrupted.signum)
+    return report
 
 
 def score(

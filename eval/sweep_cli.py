@@ -1,7 +1,8 @@
 """``arenabench sweep``: vary preset parameters, render and score every point in memory, find
 each parameter's breakdown point.
 
-Exit status: 0 done; 2 usage error (bad --vary, unknown parameter, bad options, no cluster).
+Exit status: 0 done; 2 usage error (bad --vary, unknown parameter, bad options, no cluster);
+130 / 143 stopped by SIGINT / SIGTERM (what finished is written, ``"complete": false``).
 """
 
 from __future__ import annotations
@@ -10,7 +11,12 @@ import argparse
 import sys
 from pathlib import Path
 
+from arenabench.clihelp import HelpFormatter
+from arenabench.interrupts import Interrupted, stop_on_signals
+
+from .dataset import AREA_REFERENCES
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
+from .run_limits import add_run_arguments, run_settings_from_args
 
 EPILOG = """\
 examples:
@@ -58,7 +64,7 @@ def build_parser() -> argparse.ArgumentParser:
         description="Robustness sweep: vary preset parameters over a grid (or at random), "
                     "render and score every point in memory, report breakdown points.",
         epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=HelpFormatter,
     )
     p.add_argument("--preset", default="eyrc",
                    help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
@@ -74,14 +80,16 @@ def build_parser() -> argparse.ArgumentParser:
                    help="different scenes at every point (default: the same base scenes)")
     p.add_argument("--pipeline", dest="pipes", action=_PipelineAction, metavar="NAME",
                    help=f"built-in ({', '.join(BUILTIN_PIPELINES)}) or 'pkg.module:function' "
-                        "(repeatable)")
+                        "(repeatable; modules are looked for in the current folder first)")
     p.add_argument("--cmd", dest="pipes", action=_PipelineAction, metavar="TEMPLATE",
                    help="external command, e.g. 'python3 map.py --image {image}' (repeatable)")
     p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
                    help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line")
-    p.add_argument("--timeout", type=float, default=60.0, help="seconds per image for --cmd")
     p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=("visible", "footprint"), default="visible")
+    p.add_argument("--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
+                   help="GT area the answer is compared with: visible (the silhouettes a "
+                        "camera-side segmentation sees), footprint (the boxes' floor area) or "
+                        "contour (what cv2.contourArea of the pixelated silhouettes gives)")
     p.add_argument("--threshold", type=float, default=0.9,
                    help="breakdown threshold on the pass rate's lower 95 %% bound (default 0.9)")
     p.add_argument("--breakdown-mode", choices=("marginal", "axis"), default="marginal",
@@ -99,6 +107,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run on an existing Dask distributed cluster")
     p.add_argument("--no-plots", action="store_true", help="skip plots and sweep.html")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_run_arguments(p)
     return p
 
 
@@ -114,20 +123,26 @@ def main(argv: list[str] | None = None) -> int:
         args = parser.parse_args(argv)
     except SystemExit as exc:  # argparse: --help (0) or usage error (2)
         return int(exc.code or 0)
+    from arenabench.fileio import OutputPathError, check_output_dir
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
+    from arenabench.limits import MAX_WORKERS
 
     from .sweep.grid import parse_varies
     from .sweep.outputs import KeptImageWriter, write_sweep
     from .sweep.records import PipelineSpec, SweepSpec
     from .sweep.runner import run_sweep
 
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        return _error(f"--out {args.out}: {exc}")
     if not args.vary:
         return _error("give at least one --vary KEY=SPEC")
     if not args.pipes:
         return _error("give --pipeline NAME|pkg.module:function and/or --cmd TEMPLATE")
-    if args.workers is not None and args.workers < 1:
-        return _error(f"--workers must be >= 1, got {args.workers}")
+    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
+        return _error(f"--workers must be in [1, {MAX_WORKERS}], got {args.workers}")
     if args.scheduler is not None and args.workers is not None:
         return _error("--workers and --scheduler exclude each other (the cluster's workers "
                       "do the work)")
@@ -138,14 +153,14 @@ def main(argv: list[str] | None = None) -> int:
         clash = sorted(set(overrides) & {a.key for a in axes})
         if clash:
             raise ValueError(f"--set {clash[0]}: also given with --vary")
+        settings = run_settings_from_args(args)
         pipelines = tuple(
-            PipelineSpec(kind, value, timeout_s=args.timeout, output=args.output)
+            PipelineSpec(kind, value, settings=settings, output=args.output)
             for kind, value in args.pipes
         )
-        if any(p.kind == "pipeline" and ":" in p.value for p in pipelines):
-            for p in pipelines:
-                if p.kind == "pipeline":
-                    p.build()  # import errors now, as one line, not in every worker
+        for p in pipelines:
+            if p.kind == "cmd" or ":" in p.value:
+                p.build()  # import errors, missing executables now, as one line
         spec = SweepSpec(
             preset=args.preset, axes=axes, pipelines=pipelines, per_point=args.per_point,
             seed=args.seed, random=args.random, overrides=overrides,
@@ -157,14 +172,29 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         return _error(str(exc))
     writer = KeptImageWriter(args.out)
-    try:
-        result = run_sweep(spec, workers=args.workers, scheduler=args.scheduler,
-                           progress=not args.no_progress, on_output=writer)
-    except (ValueError, SamplingError) as exc:
-        return _error(str(exc))
-    except OSError as exc:  # e.g. the scheduler cannot be reached
-        return _error(f"{type(exc).__name__}: {exc}")
-    written = write_sweep(result, args.out, plots=not args.no_plots)
+    with stop_on_signals() as stop:
+        try:
+            result = run_sweep(spec, workers=args.workers, scheduler=args.scheduler,
+                               progress=not args.no_progress, on_output=writer)
+        except (ValueError, SamplingError) as exc:
+            return _error(str(exc))
+        except OSError as exc:  # e.g. the scheduler cannot be reached
+            return _error(f"{type(exc).__name__}: {exc}")
+        except Interrupted as exc:  # before the first task or after the last one
+            print(f"arenabench sweep: {exc}; nothing written", file=sys.stderr)
+            return exc.exit_code
+        try:
+            with stop.deferred():  # a signal now waits until the outputs are written
+                written = write_sweep(result, args.out, plots=not args.no_plots)
+        except Interrupted:
+            pass
+    if not result.complete:
+        run = result.run
+        print(f"arenabench sweep: interrupted by {run['interrupted']}: {run['samples_done']} "
+              f"of {run['samples']} samples done ({run['points_done']} of "
+              f"{len(result.points)} points complete); partial results written to "
+              f"{written['json'].parent}/ (\"complete\": false)", file=sys.stderr)
+        return stop.exit_code or 130
     run = result.run
     print(f"sweep: {len(result.points)} points x {spec.per_point} scenes x "
           f"{len(pipelines)} pipeline(s) in {run['seconds']:.1f} s "
@@ -175,7 +205,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  wrote {written['json'].parent}/ (sweep.json, sweep.csv, results.jsonl"
           f"{', plots/, sweep.html' if not args.no_plots else ''}"
           f"{f', {writer.written} images' if writer.written else ''})")
-    return 0
+    return stop.exit_code or 0  # a signal during the final writes: they were completed
 
 
 if __name__ == "__main__":  # pragma: no cover

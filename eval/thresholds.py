@@ -8,6 +8,7 @@ counts (``count_mae``, ``area_rel_err.median|p95|max``, ``latency_ms.median|p95`
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
@@ -46,7 +47,7 @@ class Threshold:
             actual = summary.pass_rate_ci95[0]
         else:
             actual = lookup(d, self.metric)
-        if actual is None:
+        if actual is None or not math.isfinite(actual):
             return f"{self.metric} is not available (no data) but a threshold {self.value:g} is set"
         if self.minimum and actual < self.value:
             return f"{self.metric} {actual:.4g} < {self.value:g}"
@@ -82,6 +83,8 @@ def parse_thresholds(specs: Iterable[str]) -> list[Threshold]:
                 raise ValueError(
                     f"--fail-under: value of {name!r} is not a number: {raw!r}"
                 ) from None
+            if not math.isfinite(value):
+                raise ValueError(f"--fail-under: value of {name!r} is not finite: {raw!r}")
             out.append(Threshold(metric=name, value=value, minimum=name in MINIMUMS))
     return out
 

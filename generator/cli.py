@@ -6,16 +6,20 @@ import argparse
 import os
 import sys
 
+from arenabench.clihelp import HelpFormatter
 from arenabench.generator.presets import preset_names
 
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``arenabench generate`` argument parser."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench generate",
         description="Render COUNT scenes of a preset into OUT (images/, gt/, manifest.jsonl, "
                     "dataset.json, coco.json). Re-running with the same arguments resumes or "
-                    "does nothing; different arguments are refused.",
+                    "does nothing; a larger --count with the same seed, preset and --set "
+                    "extends the set (the same files as generating the larger count at once); "
+                    "other changes are refused.",
     )
     p.add_argument("--preset", default="eyrc",
                    help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
@@ -33,22 +37,38 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run ``arenabench generate``; returns 0 on success, 2 on a usage or argument error."""
+    """Run ``arenabench generate``; returns 0 on success, 2 on a usage or argument error,
+    130 / 143 when stopped by SIGINT / SIGTERM (what finished is kept; re-running resumes)."""
     args = build_parser().parse_args(argv)
+    from arenabench.fileio import OutputPathError, check_output_dir
     from arenabench.generator.dataset import DatasetError, generate_dataset
     from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError
+    from arenabench.interrupts import Interrupted, exit_code, stop_on_signals
 
     try:
-        overrides = parse_overrides(args.overrides)
-        result = generate_dataset(
-            args.out, preset=args.preset, count=args.count, seed=args.seed,
-            overrides=overrides, workers=args.workers, progress=not args.no_progress,
-        )
-    except (DatasetError, SamplingError, ValueError) as exc:
-        print(f"arenabench generate: error: {exc}", file=sys.stderr)
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        print(f"arenabench generate: error: --out {args.out}: {exc}", file=sys.stderr)
         return 2
-    print(result.summary(), file=sys.stderr)
+    with stop_on_signals():
+        try:
+            overrides = parse_overrides(args.overrides)
+            result = generate_dataset(
+                args.out, preset=args.preset, count=args.count, seed=args.seed,
+                overrides=overrides, workers=args.workers, progress=not args.no_progress,
+            )
+        except (DatasetError, SamplingError, ValueError) as exc:
+            print(f"arenabench generate: error: {exc}", file=sys.stderr)
+            return 2
+        except Interrupted as exc:  # before or after the rendering loop
+            print(f"arenabench generate: {exc}; run the same command again to resume",
+                  file=sys.stderr)
+            return exc.exit_code
+    if result.interrupted is not None:
+        print(f"arenabench generate: {result.summary()}", file=sys.stderr)
+        return exit_code(result.interrupted)
+    print(result.summary())
     return 0
 
 

@@ -13,7 +13,12 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from arenabench.clihelp import HelpFormatter
 from arenabench.fileio import atomic_write_bytes
+from arenabench.limits import MAX_IMAGE_SIDE_PX, check_at_most
+
+#: Padding around a tile and height of its caption strip, in px.
+_PAD, _TEXT_H = 6, 22
 
 
 def tile_images(
@@ -48,12 +53,10 @@ def tile_images(
             f"images and captions must be non-empty and of equal length, got {len(images)} "
             f"and {len(captions)}"
         )
-    if columns < 1 or tile < 16:
-        raise ValueError(f"columns must be >= 1 and tile >= 16, got {columns} and {tile}")
-    pad, text_h = 6, 22
-    rows = -(-len(images) // columns)
+    width, height = sheet_size(len(images), columns=columns, tile=tile)
+    pad, text_h = _PAD, _TEXT_H
     cell_w, cell_h = tile + 2 * pad, tile + text_h + 2 * pad
-    sheet = np.full((rows * cell_h, columns * cell_w, 3), 255, np.uint8)
+    sheet = np.full((height, width, 3), 255, np.uint8)
     for k, (img, caption) in enumerate(zip(images, captions, strict=True)):
         h, w = img.shape[:2]
         scale = tile / max(h, w)
@@ -67,8 +70,31 @@ def tile_images(
     return sheet
 
 
+def sheet_size(count: int, *, columns: int, tile: int) -> tuple[int, int]:
+    """Width and height in px of a sheet of ``count`` tiles.
+
+    Raises
+    ------
+    ValueError
+        When ``count``, ``columns`` or ``tile`` are out of range, or the sheet would be wider
+        or taller than :data:`arenabench.limits.MAX_IMAGE_SIDE_PX`.
+    """
+    if count < 1:
+        raise ValueError(f"count must be >= 1, got {count}")
+    if columns < 1 or tile < 16:
+        raise ValueError(f"columns must be >= 1 and tile >= 16, got {columns} and {tile}")
+    check_at_most(tile, MAX_IMAGE_SIDE_PX, "tile")
+    rows = -(-count // columns)
+    width = columns * (tile + 2 * _PAD)
+    height = rows * (tile + _TEXT_H + 2 * _PAD)
+    check_at_most(width, MAX_IMAGE_SIDE_PX, f"sheet width ({columns} columns x tile {tile})")
+    check_at_most(height, MAX_IMAGE_SIDE_PX, f"sheet height ({rows} rows x tile {tile})")
+    return width, height
+
+
 def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
-                 overrides: dict | None = None, columns: int = 4, tile: int = 320) -> np.ndarray:
+                 overrides: dict | None = None, columns: int = 4, tile: int = 320,
+                 progress: bool = False) -> np.ndarray:
     """Render scenes ``0..count-1`` of ``preset`` with ``seed`` and tile them.
 
     Parameters
@@ -81,22 +107,25 @@ def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
         Parsed ``--set`` values.
     columns, tile : int, keyword-only
         Layout, see :func:`tile_images`.
+    progress : bool, keyword-only
+        Show progress on stderr (:mod:`arenabench.progress`).
 
     Returns
     -------
     numpy.ndarray
         The sheet, BGR uint8.
     """
-    if count < 1:
-        raise ValueError(f"count must be >= 1, got {count}")
+    sheet_size(count, columns=columns, tile=tile)  # refuse before rendering anything
     from arenabench import glplatform
 
     glplatform.configure()
     from arenabench.generator.render import Renderer
     from arenabench.generator.sample import make_sample
+    from arenabench.progress import progress as progress_bar
 
     images, captions = [], []
-    with Renderer() as renderer:
+    with Renderer() as renderer, progress_bar(count, desc="contact-sheet",
+                                              enabled=progress) as bar:
         for index in range(count):
             s = make_sample(preset, seed=seed, index=index, overrides=overrides,
                             renderer=renderer)
@@ -104,12 +133,14 @@ def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
             captions.append(
                 f"{s.id}  count {s.gt['count']}  area {s.gt['area']['visible_px']:.0f}"
             )
+            bar.update(1)
     return tile_images(images, captions, columns=columns, tile=tile)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench contact-sheet``; returns 0, or 2 on a usage error."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench contact-sheet",
         description="Render the first COUNT scenes of a preset and tile them into one image.",
     )
@@ -122,7 +153,9 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--tile", type=int, default=320, help="tile side in px (default 320)")
     p.add_argument("--out", type=Path, default=None,
                    help="output image (.jpg or .png; default contact-PRESET.jpg)")
+    p.add_argument("--no-progress", action="store_true", help="no progress output")
     args = p.parse_args(argv)
+    from arenabench.fileio import OutputPathError, check_output_file
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
 
@@ -132,10 +165,15 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     try:
+        check_output_file(out)
+    except OutputPathError as exc:
+        print(f"arenabench contact-sheet: error: --out {out}: {exc}", file=sys.stderr)
+        return 2
+    try:
         get_preset(args.preset)
         sheet = render_sheet(args.preset, count=args.count, seed=args.seed,
                              overrides=parse_overrides(args.overrides), columns=args.columns,
-                             tile=args.tile)
+                             tile=args.tile, progress=not args.no_progress)
     except (SamplingError, ValueError) as exc:
         print(f"arenabench contact-sheet: error: {exc}", file=sys.stderr)
         return 2

@@ -6,10 +6,17 @@ Layout of ``DIR``::
 
 Every file is written atomically. ``dataset.json`` is written first (``"complete": false``)
 with the run's arguments, so a re-run can tell an interrupted run of the same arguments
-(resumed: scenes whose image and GT exist are skipped) from a different one (refused); the
+(resumed: scenes whose image and GT exist are skipped) from a different one (refused; a
+larger ``count`` with otherwise equal arguments extends the set, since scenes are
+independent by index, and gives the same files as generating the larger count at once); the
 manifest and ``coco.json`` are written last, in id order, and ``dataset.json`` is rewritten
 with ``"complete": true``. Output is byte-identical for the same arguments whatever the
 number of workers (one spawned process per worker, one renderer each).
+
+Interrupted (SIGINT/SIGTERM inside :func:`arenabench.interrupts.stop_on_signals`), a run stops
+its workers, writes ``manifest.jsonl`` for the scenes finished so far and ``dataset.json``
+with ``"complete": false`` and ``"finished"``, and returns; running it again resumes and ends
+with the same files as an uninterrupted run.
 """
 
 from __future__ import annotations
@@ -17,6 +24,7 @@ from __future__ import annotations
 import json
 import multiprocessing
 import os
+import shlex
 import sys
 import time
 from dataclasses import dataclass, field
@@ -29,16 +37,31 @@ from shapely.geometry import Polygon, box
 
 from arenabench import __version__
 from arenabench.fileio import (
+    LOCK_FILE,
+    FolderLockedError,
     atomic_write_bytes,
     atomic_write_json,
     atomic_write_text,
     dumps_json,
+    dumps_json_line,
+    is_temp_name,
+    lock_folder,
+    remove_temp_files,
+    rounded,
     sha256_bytes,
     sha256_file,
 )
-from arenabench.generator.groundtruth import rounded
 from arenabench.generator.presets import Value, format_value, get_preset, resolve
 from arenabench.generator.sample import GENERATOR_VERSION, make_sample, scene_id
+from arenabench.interrupts import (
+    Interrupted,
+    children_ignore_sigint,
+    init_worker_process,
+    signal_name,
+    stop_workers,
+    worker_task,
+)
+from arenabench.limits import MAX_DATASET_SCENES, MAX_WORKERS, check_at_most
 
 #: dataset.json schema id.
 DATASET_SCHEMA = "arenabench.dataset/1"
@@ -63,6 +86,7 @@ class DatasetArgs:
         get_preset(self.preset)
         if int(self.count) != self.count or self.count < 0:
             raise ValueError(f"count must be an integer >= 0, got {self.count!r}")
+        check_at_most(int(self.count), MAX_DATASET_SCENES, "count")
         if int(self.seed) != self.seed or self.seed < 0:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
         resolve(self.preset, self.overrides)
@@ -86,6 +110,12 @@ class DatasetResult:
         The dataset directory.
     rendered, skipped : int
         Scenes rendered now / found already on disk.
+    count : int
+        Scenes of the dataset.
+    interrupted : int or None
+        The signal that stopped the run (then only ``finished`` scenes are on disk).
+    finished : int
+        Scenes on disk when the run ended (``count`` unless interrupted).
     seconds : float
         Wall time.
     timings_ms : dict
@@ -98,9 +128,23 @@ class DatasetResult:
     skipped: int
     seconds: float
     timings_ms: dict[str, float] = field(default_factory=dict)
+    count: int = 0
+    interrupted: int | None = None
+    finished: int = 0
+
+    @property
+    def complete(self) -> bool:
+        """Whether every scene is on disk with the manifest and ``coco.json``."""
+        return self.interrupted is None
 
     def summary(self) -> str:
         """One line for the CLI."""
+        if self.interrupted is not None:
+            return (f"interrupted by {signal_name(self.interrupted)}: {self.finished} of "
+                    f"{self.count} images written to {self.out}; run the same command again "
+                    "to resume")
+        if not self.rendered:
+            return f"{self.out}: already complete: {self.skipped} images"
         rate = self.rendered / self.seconds if self.seconds > 0 and self.rendered else 0.0
         parts = [f"{self.rendered} rendered", f"{self.skipped} already present",
                  f"{self.seconds:.1f} s", f"{rate:.1f} images/s"]
@@ -115,7 +159,9 @@ class DatasetResult:
 _WORKER: dict[str, Any] = {}
 
 
-def _init_worker(lp_threads: int | None) -> None:
+def _init_worker(lp_threads: int | None, parent_pid: int | None = None) -> None:
+    if parent_pid is not None:  # a pool worker
+        init_worker_process(parent_pid=parent_pid)
     if lp_threads and "LP_NUM_THREADS" not in os.environ:
         os.environ["LP_NUM_THREADS"] = str(lp_threads)
     from arenabench.generator.render import Renderer
@@ -134,6 +180,11 @@ def _encode_png(rgb: np.ndarray) -> bytes:
 
 
 def _render_one(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
+    with worker_task():
+        return _render_task(task)
+
+
+def _render_task(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
     args_dict, out, index = task[1], Path(task[4]), task[3]
     renderer = _WORKER["renderer"]
     sample = make_sample(args_dict["preset"], seed=task[2], index=index,
@@ -141,13 +192,15 @@ def _render_one(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, An
     t1 = time.perf_counter()
     png = _encode_png(sample.rgb)
     t2 = time.perf_counter()
+    gt_bytes = dumps_json(sample.gt).encode("utf-8")
     atomic_write_bytes(out / "images" / f"{sample.id}.png", png)
-    atomic_write_text(out / "gt" / f"{sample.id}.json", dumps_json(sample.gt))
+    atomic_write_bytes(out / "gt" / f"{sample.id}.json", gt_bytes)
     t3 = time.perf_counter()
     if "gl" not in _WORKER:
         _WORKER["gl"] = renderer.gl_info()
     return {"id": sample.id, **sample.timings_ms, "encode": (t2 - t1) * 1000,
-            "write": (t3 - t2) * 1000, "gl": _WORKER["gl"]}
+            "write": (t3 - t2) * 1000, "gl": _WORKER["gl"],
+            "image_sha256": sha256_bytes(png), "gt_sha256": sha256_bytes(gt_bytes)}
 
 
 def _parse_stored(overrides: dict[str, str]) -> dict[str, Value]:
@@ -170,7 +223,7 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
     if not out.exists():
         return None
     if not meta_path.exists():
-        if any(out.iterdir()):
+        if any(p.name != LOCK_FILE and not is_temp_name(p.name) for p in out.iterdir()):
             raise DatasetError(f"{out} is not empty and holds no dataset.json: refusing to "
                                "write a dataset into it")
         return None
@@ -181,6 +234,13 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
         raise DatasetError(f"{meta_path} is unreadable ({exc}): refusing to overwrite") from exc
     new = args.to_dict()
     for key in ("preset", "count", "seed", "overrides", "generator_version"):
+        if key == "count" and isinstance(old.get(key), int) and new[key] > old[key]:
+            continue  # extending a set: scenes are independent by index
+        if key == "count" and isinstance(old.get(key), int) and new[key] < old[key]:
+            raise DatasetError(
+                f"{out} holds {old[key]} scenes and --count {new[key]} is smaller: a set can "
+                "grow (same seed, preset and --set) but not shrink (use another --out)"
+            )
         if old.get(key) != new[key]:
             name = {"overrides": "--set"}.get(key, f"--{key}")
             raise DatasetError(
@@ -236,7 +296,7 @@ def coco_from_gts(gts: list[dict[str, Any]]) -> dict[str, Any]:
 def _versions(gl: dict[str, str] | None) -> dict[str, str]:
     from arenabench import glplatform
 
-    glplatform.configure()  # importing pyrender imports OpenGL: choose the platform first
+    glplatform.configure()  # before OpenGL is first imported in this process
     import pyrender
 
     out = {"arenabench": __version__, "opencv": cv2.__version__, "numpy": np.__version__,
@@ -246,6 +306,13 @@ def _versions(gl: dict[str, str] | None) -> dict[str, str]:
     return out
 
 
+def _manifest_line(sid: str, image_sha256: str, gt_sha256: str) -> str:
+    return dumps_json_line({
+        "id": sid, "image": f"images/{sid}.png", "gt": f"gt/{sid}.json",
+        "image_sha256": image_sha256, "gt_sha256": gt_sha256,
+    })
+
+
 def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
     ids = [scene_id(i) for i in range(args.count)]
     lines, gts = [], []
@@ -253,17 +320,43 @@ def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
         gt_path, img_path = out / "gt" / f"{sid}.json", out / "images" / f"{sid}.png"
         gt_bytes = gt_path.read_bytes()
         gts.append(json.loads(gt_bytes))
-        lines.append(json.dumps({
-            "id": sid, "image": f"images/{sid}.png", "gt": f"gt/{sid}.json",
-            "image_sha256": sha256_file(img_path), "gt_sha256": sha256_bytes(gt_bytes),
-        }, sort_keys=True))
-    atomic_write_text(out / "manifest.jsonl", "".join(line + "\n" for line in lines))
+        lines.append(_manifest_line(sid, sha256_file(img_path), sha256_bytes(gt_bytes)))
+    atomic_write_text(out / "manifest.jsonl", "".join(lines))
     atomic_write_json(out / "coco.json", coco_from_gts(gts))
     _write_meta(out, args, complete=True, gl=gl)
 
 
+def _finish_partial(out: Path, args: DatasetArgs, results: list[dict[str, Any]]) -> int:
+    """After an interrupt: the manifest of the scenes on disk; returns how many there are.
+
+    Hashes come from this run's results, then from the manifest of an earlier interrupted
+    run; only scenes in neither (at most one per worker stopped mid-write) are read again.
+    """
+    known = {r["id"]: (r["image_sha256"], r["gt_sha256"]) for r in results}
+    old = out / "manifest.jsonl"
+    if old.is_file():
+        for line in old.read_text(encoding="utf-8").splitlines():
+            try:
+                entry = json.loads(line)
+                known.setdefault(entry["id"], (entry["image_sha256"], entry["gt_sha256"]))
+            except (ValueError, KeyError, TypeError):
+                continue
+    lines = []
+    for i in range(args.count):
+        sid = scene_id(i)
+        if not _present(out, sid):
+            continue
+        if sid not in known:
+            known[sid] = (sha256_file(out / "images" / f"{sid}.png"),
+                          sha256_file(out / "gt" / f"{sid}.json"))
+        lines.append(_manifest_line(sid, *known[sid]))
+    atomic_write_text(out / "manifest.jsonl", "".join(lines))
+    _write_meta(out, args, complete=False, finished=len(lines))
+    return len(lines)
+
+
 def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
-                gl: dict[str, str] | None = None) -> None:
+                gl: dict[str, str] | None = None, finished: int | None = None) -> None:
     params = resolve(args.preset, args.overrides)
     meta = {
         "schema": DATASET_SCHEMA, "args": args.to_dict(), "preset": args.preset,
@@ -276,6 +369,8 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
         "files": {"images": "images/", "gt": "gt/", "manifest": "manifest.jsonl",
                   "coco": "coco.json"},
     }
+    if finished is not None:  # an interrupted run: the manifest lists these scenes only
+        meta["finished"] = int(finished)
     atomic_write_json(out / "dataset.json", meta)
 
 
@@ -306,19 +401,48 @@ def generate_dataset(
     workers : int, keyword-only
         Rendering processes (1 = this process).
     progress : bool, keyword-only
-        Show a tqdm progress bar on stderr.
+        Show progress on stderr (:mod:`arenabench.progress`: a bar on a terminal, a few
+        plain lines otherwise).
 
     Returns
     -------
     DatasetResult
+        With ``interrupted`` set when a stop signal (see :mod:`arenabench.interrupts`) ended
+        the run early.
 
     Raises
     ------
     DatasetError
-        When ``out`` holds a dataset made with other arguments, or unrelated files.
+        When ``out`` holds a dataset made with other arguments, or unrelated files, or
+        another run is writing into it (an exclusive lock on ``out`` for the whole run;
+        the message names the holder's pid, host and command).
     ValueError
         For invalid arguments.
     """
+    if int(workers) != workers or workers < 1:
+        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    check_at_most(int(workers), MAX_WORKERS, "workers")
+    DatasetArgs(preset=preset, count=int(count), seed=int(seed),
+                overrides=dict(overrides or {}))  # refuse bad arguments before creating out
+    try:
+        with lock_folder(out, command=shlex.join(sys.argv)[:300]):
+            return _generate_locked(out, preset=preset, count=count, seed=seed,
+                                    overrides=overrides, workers=workers, progress=progress)
+    except FolderLockedError as exc:
+        raise DatasetError(f"{exc}; wait for it to finish or use another --out") from None
+
+
+def _generate_locked(
+    out: str | os.PathLike[str],
+    *,
+    preset: str,
+    count: int,
+    seed: int,
+    overrides: dict[str, Value] | None = None,
+    workers: int = 1,
+    progress: bool = True,
+) -> DatasetResult:
+    """:func:`generate_dataset` while holding the lock on ``out``."""
     if int(workers) != workers or workers < 1:
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     args = DatasetArgs(preset=preset, count=int(count), seed=int(seed),
@@ -326,13 +450,17 @@ def generate_dataset(
     root = Path(out)
     start = time.perf_counter()
     meta = _check_existing(root, args)
+    # ours (same arguments) or empty: files a killed run was writing are garbage
+    for folder in (root, root / "images", root / "gt"):
+        remove_temp_files(folder)
     todo = [i for i in range(args.count) if not _present(root, scene_id(i))]
     skipped = args.count - len(todo)
     if meta is not None and meta.get("complete") and not todo:
-        return DatasetResult(root, 0, skipped, time.perf_counter() - start)
+        return DatasetResult(root, 0, skipped, time.perf_counter() - start, count=args.count,
+                             finished=args.count)
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
-    if meta is None:
+    if meta is None or meta["args"].get("count") != args.count:
         _write_meta(root, args, complete=False)
     stored = args.to_dict()
     tasks = [("task", stored, args.seed, i, str(root)) for i in todo]
@@ -348,10 +476,21 @@ def generate_dataset(
             cores = os.cpu_count() or 1
             lp = max(1, cores // workers)
             ctx = multiprocessing.get_context("spawn")
-            with ctx.Pool(workers, initializer=_init_worker, initargs=(lp,)) as pool:
-                for res in pool.imap_unordered(_render_one, tasks, chunksize=1):
-                    results.append(res)
-                    bar.update(1)
+            with children_ignore_sigint():
+                pool = ctx.Pool(workers, initializer=_init_worker, initargs=(lp, os.getpid()))
+            with pool:
+                try:
+                    for res in pool.imap_unordered(_render_one, tasks, chunksize=1):
+                        results.append(res)
+                        bar.update(1)
+                except BaseException:
+                    stop_workers()  # before the pool's own terminate(), which waits on them
+                    raise
+    except Interrupted as exc:
+        bar.close()
+        finished = _finish_partial(root, args, results)
+        return DatasetResult(root, len(results), skipped, time.perf_counter() - start,
+                             count=args.count, interrupted=exc.signum, finished=finished)
     finally:
         bar.close()
     gl = results[0]["gl"] if results else (meta or {}).get("versions") or None
@@ -364,11 +503,11 @@ def generate_dataset(
     if results:
         for key in ("sample", "render", "gt", "encode", "write"):
             timings[key] = float(np.median([r[key] for r in results]))
-    return DatasetResult(root, len(results), skipped, time.perf_counter() - start, timings)
+    return DatasetResult(root, len(results), skipped, time.perf_counter() - start, timings,
+                         count=args.count, finished=args.count)
 
 
 def _progress(total: int, enabled: bool):
-    from tqdm import tqdm
+    from arenabench.progress import progress
 
-    return tqdm(total=total, unit="img", disable=not enabled or not sys.stderr.isatty(),
-                file=sys.stderr, dynamic_ncols=True)
+    return progress(total, desc="generate", enabled=enabled)

@@ -5,10 +5,13 @@ from __future__ import annotations
 import argparse
 import sys
 
+from arenabench.clihelp import HelpFormatter
+
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``arenabench fit`` argument parser."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench fit",
         description="Fit a scene (camera from the four markers, boxes, colours, lighting) to "
                     "IMAGE and write it as a scene file for 'arenabench render'. The arena is "
@@ -31,11 +34,21 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench fit``; returns 0 on success, 2 on bad input."""
     args = build_parser().parse_args(argv)
-    from arenabench.fileio import atomic_write_json, dumps_json
+    from arenabench.fileio import (
+        OutputPathError,
+        atomic_write_json,
+        check_output_file,
+        dumps_json,
+    )
     from arenabench.generator.fit import FitOptions, fit_scene
     from arenabench.generator.scene import ArenaSpec, MarkerSpec
     from arenabench.imageio import ImageLoadError, load_image
 
+    try:
+        check_output_file(args.out)
+    except OutputPathError as exc:
+        print(f"arenabench fit: error: --out {args.out}: {exc}", file=sys.stderr)
+        return 2
     try:
         image = load_image(args.image)
         if args.arena_side is None:
@@ -45,9 +58,14 @@ def main(argv: list[str] | None = None) -> int:
                                  markers=MarkerSpec(side_m=0.0669 * args.arena_side),
                                  fit_marker_side=True, fov_deg=None,
                                  refine_rounds=args.refine_rounds)
-        result = fit_scene(image, options=options)
     except (ImageLoadError, ValueError) as exc:
         print(f"arenabench fit: error: {exc}", file=sys.stderr)
+        return 2
+    try:
+        result = fit_scene(image, options=options)
+    except ValueError as exc:  # about the image's content: name the file
+        why = str(exc).removeprefix("image: ")
+        print(f"arenabench fit: error: {args.image}: {why}", file=sys.stderr)
         return 2
     atomic_write_json(args.out, result.scene.to_dict())
     summary = {"fov_deg": result.fov_deg, "reprojection_px": round(result.reprojection_px, 4),

@@ -1,10 +1,12 @@
-"""Analytic ground truth (DESIGN.md "Ground truth"): geometry only, never read from pixels.
+"""Analytic ground truth (docs/ground-truth.md): geometry only, never read from pixels.
 
 - Image -> frame homography ``H = world_to_frame @ inv(K [r1 r2 t])`` (floor plane z = 0).
 - Visible silhouette of a box: its vertices projected from the camera centre onto z = 0
   (floor vertices stay put), convex hull, clipped to the frame square.
 - ``count``: obstacles whose footprint overlaps the frame; ``components``: connected pieces of
   the union of visible silhouettes; areas are unions, in frame px.
+- ``area.contour_px``: what ``cv2.contourArea`` of the external contours of the pixelated
+  visible silhouettes gives (:func:`contour_area`).
 """
 
 from __future__ import annotations
@@ -16,6 +18,7 @@ import numpy as np
 import shapely
 from shapely.geometry import MultiPoint, Polygon, box
 
+from arenabench.fileio import rounded
 from arenabench.frame import CORNER_ORDER, FrameSpec
 from arenabench.generator import camera as cam
 from arenabench.generator.degrade import densify, distort_points
@@ -29,30 +32,10 @@ from arenabench.generator.layout import (
 )
 from arenabench.generator.scene import Scene
 
-#: Decimal places kept in ground-truth JSON (stable, byte-identical files).
-DECIMALS = 6
 #: Significant digits kept for matrices (homography, K, pose).
 SIGNIFICANT_DIGITS = 12
 #: A marker is in view when its corners lie this many px inside the image border.
 IN_VIEW_MARGIN_PX = 2.0
-
-
-def rounded(obj: Any, decimals: int = DECIMALS) -> Any:
-    """Round every float in a nested structure (numpy values become Python numbers)."""
-    if isinstance(obj, dict):
-        return {k: rounded(v, decimals) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [rounded(v, decimals) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return rounded(obj.tolist(), decimals)
-    if isinstance(obj, (bool, np.bool_)):
-        return bool(obj)
-    if isinstance(obj, (int, np.integer)):
-        return int(obj)
-    if isinstance(obj, (float, np.floating)):
-        value = round(float(obj), decimals)
-        return 0.0 if value == 0 else value
-    return obj
 
 
 def significant(a: np.ndarray, digits: int = SIGNIFICANT_DIGITS) -> list:
@@ -109,6 +92,43 @@ def visible_silhouette_world(scene: Scene, index: int) -> np.ndarray:
     return c[None, :2] + (v[:, :2] - c[None, :2]) * t[:, None]
 
 
+def _polygons(geom) -> list[Polygon]:
+    """The polygons of a (multi)polygon or collection; lines and points are dropped."""
+    if geom.is_empty:
+        return []
+    parts = getattr(geom, "geoms", [geom])
+    return [g for g in parts if g.geom_type == "Polygon" and not g.is_empty]
+
+
+def contour_area(geom) -> float:
+    """What ``cv2.contourArea`` summed over the external contours of ``geom`` gives once it is
+    pixelated in the frame (pixel (i, j) set when its centre (i, j) lies inside).
+
+    An external contour runs through the centres of the boundary pixels and fills holes. By
+    Pick's theorem its area is the pixel count less half the number of boundary pixels, less
+    one; the boundary pixels along an edge (dx, dy) number ``max(|dx|, |dy|)`` (one per column
+    or row, whichever is more), and a closed outline has about four fewer. So, per connected
+    piece: the area inside its outer ring, less half the ring's length in the max norm, plus 1.
+    Checked against rasterised ground truth in ``tests/test_groundtruth_contour.py``.
+
+    Parameters
+    ----------
+    geom : shapely geometry
+        Polygon or MultiPolygon in frame px.
+
+    Returns
+    -------
+    float
+        Frame px (each piece counts at least 0).
+    """
+    total = 0.0
+    for part in _polygons(geom):
+        ring = np.asarray(part.exterior.coords)
+        steps = float(np.abs(np.diff(ring, axis=0)).max(axis=1).sum())
+        total += max(Polygon(part.exterior).area - steps / 2 + 1.0, 0.0)
+    return total
+
+
 def _components(geom) -> int:
     if geom.is_empty:
         return 0
@@ -128,8 +148,9 @@ def compute_ground_truth(scene: Scene, *, frame: FrameSpec | None = None) -> dic
     Returns
     -------
     dict
-        Keys ``image_size``, ``scene``, ``count``, ``components``, ``area``, ``frame``,
-        ``homography``, ``camera``, ``markers``, ``obstacles`` as in DESIGN.md.
+        Keys ``image_size``, ``scene``, ``count``, ``components``, ``area`` (``visible_px``,
+        ``footprint_px``, ``contour_px``), ``frame``,
+        ``homography``, ``camera``, ``markers``, ``obstacles`` (docs/ground-truth.md).
     """
     frame = frame or FrameSpec()
     K = cam.intrinsics(scene.camera)
@@ -205,7 +226,8 @@ def compute_ground_truth(scene: Scene, *, frame: FrameSpec | None = None) -> dic
         "scene": scene.to_dict(),
         "count": count,
         "components": _components(vis_union),
-        "area": {"visible_px": vis_union.area, "footprint_px": fp_union.area},
+        "area": {"visible_px": vis_union.area, "footprint_px": fp_union.area,
+                 "contour_px": contour_area(vis_union)},
         "frame": frame.to_dict(),
         "markers": markers,
         "obstacles": obstacles,

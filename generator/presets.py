@@ -15,6 +15,8 @@ from pathlib import Path
 from typing import Any
 
 from arenabench.generator import competition_arena as comp
+from arenabench.limits import MAX_IMAGE_SIDE_PX
+from arenabench.suggest import did_you_mean
 
 #: A parameter value as stored in a preset: a fixed value or a (lo, hi) range.
 Value = Any
@@ -76,8 +78,8 @@ PARAMETERS: dict[str, ParamDef] = {
     "obstacles.edge_margin_m": ParamDef("float", "minimum distance to the frame edge (m)", 0,
                                         100),
     "obstacles.max_tries": ParamDef("int", "placement tries per box before failing", 1, 100000),
-    "camera.width": ParamDef("int", "image width (px)", 16, 16384),
-    "camera.height": ParamDef("int", "image height (px)", 16, 16384),
+    "camera.width": ParamDef("int", "image width (px)", 16, MAX_IMAGE_SIDE_PX),
+    "camera.height": ParamDef("int", "image height (px)", 16, MAX_IMAGE_SIDE_PX),
     "camera.fov_deg": ParamDef("float", "vertical field of view (deg)", 1, 170),
     "camera.altitude_m": ParamDef("float", "camera height above the floor (m)", 0.01, 10000),
     "camera.tilt_deg": ParamDef("float", "optical axis angle from the nadir (deg)", 0, 79),
@@ -96,7 +98,7 @@ PARAMETERS: dict[str, ParamDef] = {
                                      -360, 360),
     "background.gray": ParamDef("int", "grey level around the arena", 0, 255),
     **{
-        # Degradations and scene-side variations (issue 5): every one neutral by default.
+        # Degradations and scene-side variations: every one neutral by default.
         "camera.k1": ParamDef("float", "lens radial distortion k1 (0 = pinhole; < 0 barrel)",
                               -1, 1),
         "camera.k2": ParamDef("float", "lens radial distortion k2", -1, 1),
@@ -135,7 +137,7 @@ PARAMETERS: dict[str, ParamDef] = {
     },
 }
 
-#: Neutral values of the degradation / variation parameters (issue 5): a preset or mapping
+#: Neutral values of the degradation / variation parameters: a preset or mapping
 #: that lacks them gets these, which change nothing in the image.
 NEUTRAL: dict[str, Value] = {
     "camera.k1": 0.0, "camera.k2": 0.0, "camera.p1": 0.0, "camera.p2": 0.0, "camera.k3": 0.0,
@@ -200,7 +202,7 @@ _EYRC_JITTER: dict[str, Value] = {
     **NEUTRAL,
 }
 
-#: eyrc under what a real drone adds (issue 7): every draw stays in a range a flight camera
+#: eyrc under what a real drone adds: every draw stays in a range a flight camera
 #: plausibly sees; the reference pipeline's pass rate on it is a figure, not a tuning target.
 _EYRC_HARD: dict[str, Value] = {
     **_EYRC_JITTER,
@@ -329,7 +331,8 @@ def get_preset(name: str) -> dict[str, Value]:
         For an unknown name (the message lists the known ones).
     """
     if name not in PRESETS:
-        raise ValueError(f"unknown preset {name!r} (known: {', '.join(PRESETS)})")
+        raise ValueError(f"unknown preset {name!r}{did_you_mean(name, PRESETS)} "
+                         f"(known: {', '.join(PRESETS)})")
     return dict(PRESETS[name][1])
 
 
@@ -378,8 +381,9 @@ def validate_value(key: str, value: Value) -> Value:
         Naming the key and the value: unknown key, wrong type, out of bounds, bad range.
     """
     if key not in PARAMETERS:
-        raise ValueError(f"--set: unknown parameter {key!r} (list them: arenabench presets "
-                         "--params)")
+        raise ValueError(f"--set: unknown parameter {key!r}"
+                         f"{did_you_mean(key, [*PARAMETERS, *ALIASES])} (list them: "
+                         "arenabench presets --params)")
     spec = PARAMETERS[key]
     if spec.kind in ("float", "int"):
         if isinstance(value, (tuple, list)):

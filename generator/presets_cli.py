@@ -5,13 +5,15 @@ from __future__ import annotations
 import argparse
 import sys
 
+from arenabench.clihelp import HelpFormatter
 from arenabench.generator.presets import PARAMETERS, PRESETS, format_value
 
 
 def main(argv: list[str] | None = None) -> int:
     """List presets (default), show one (``--show NAME``) or list parameters (``--params``)."""
     p = argparse.ArgumentParser(prog="arenabench presets",
-                                description="List scene presets and their parameters.")
+                                description="List scene presets and their parameters.",
+                                formatter_class=HelpFormatter)
     g = p.add_mutually_exclusive_group()
     g.add_argument("--show", metavar="NAME", help="print every parameter of preset NAME")
     g.add_argument("--params", action="store_true", help="list every parameter with its help")

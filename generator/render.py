@@ -93,10 +93,6 @@ def _textured_quad(pyrender, corners_xy: np.ndarray, z: float, texture, factor: 
     return pyrender.Mesh([prim])
 
 
-def _node_key(node) -> str:
-    return node.name or ""
-
-
 def _fast_renderer_class(pyrender):
     """A ``pyrender.Renderer`` subclass with a leaner off-screen path (pyrender 0.1.45 internals).
 
@@ -105,7 +101,7 @@ def _fast_renderer_class(pyrender):
       set; SEG renders and ``antialias=False`` draw straight into the single-sample
       framebuffer (no resolve blit; SEG colours are exact);
     - the depth buffer is read back (and linearised) only when asked for;
-    - meshes are drawn in the fixed order of their node names (history-independent).
+    - meshes are drawn in a fixed order (:func:`_draw_order`), not pyrender's.
     """
     from OpenGL import GL
 
@@ -115,17 +111,6 @@ def _fast_renderer_class(pyrender):
         antialias = False
         want_depth = False
 
-        def _sorted_mesh_nodes(self, scene):
-            # pyrender orders nodes by their pose's distance from the camera; every node here
-            # but the marker sheets has the identity pose, so that leaves the order of a set
-            # (object ids: it changes with what was rendered before). Where two surfaces tie
-            # in depth (a box's bottom edge on the floor), MSAA samples then follow the draw
-            # order: draw in the fixed order of the nodes' names instead.
-            nodes = super()._sorted_mesh_nodes(scene)
-            solid = sorted((n for n in nodes if not n.mesh.is_transparent), key=_node_key)
-            clear = sorted((n for n in nodes if n.mesh.is_transparent), key=_node_key)
-            return solid + clear
-
         def _multisample(self, flags) -> bool:
             return self.antialias and not flags & flags_cls.SEG
 
@@ -133,6 +118,9 @@ def _fast_renderer_class(pyrender):
             super()._configure_forward_pass_viewport(flags)
             if flags & flags_cls.OFFSCREEN and not self._multisample(flags):
                 GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+
+        def _sorted_mesh_nodes(self, scene):
+            return _draw_order(scene.mesh_nodes)
 
         def _read_main_framebuffer(self, scene, flags):
             w, h = self._main_fb_dims
@@ -161,6 +149,31 @@ def _fast_renderer_class(pyrender):
             return color, depth
 
     return _LeanRenderer
+
+
+#: Draw ranks, front to back, in node names (``"<rank>:<index>"``): the first surface drawn
+#: wins a depth tie, so ties resolve the same way in every run (see :func:`_draw_order`).
+_RANK = {"obstacle": 0, "overlay": 1, "marker": 2, "floor": 3}
+
+
+def _node_name(kind: str, index: int) -> str:
+    """The name of the ``index``-th mesh node of ``kind``: its place in the draw order."""
+    return f"{_RANK[kind]}:{index:06d}"
+
+
+def _draw_order(nodes) -> list:
+    """Mesh nodes in a fixed draw order: opaque ones by name, then transparent ones by name.
+
+    pyrender sorts nodes by the distance of their origin to the camera, and nodes at the same
+    distance (floor, obstacles and overlays all sit at the world origin) by the iteration
+    order of a ``set``, which follows memory addresses and so changes from run to run. Where
+    two surfaces meet (a box side meeting the floor) their depths can tie in a pixel, and the
+    first one drawn wins it (``GL_LESS``): such a pixel flipped between box and floor colour
+    from one run to the next. Ordering by name makes every render of a scene the same.
+    """
+    nodes = sorted(nodes, key=lambda n: n.name or "")
+    return ([n for n in nodes if not n.mesh.is_transparent]
+            + [n for n in nodes if n.mesh.is_transparent])
 
 
 def box_mesh_arrays(obstacle: Obstacle, scene: Scene) -> tuple[np.ndarray, ...]:
@@ -306,7 +319,7 @@ class Renderer:
             self._floor_nodes = [
                 self._scene.add(_textured_quad(
                     pr, floor, 0.0, self._cached_texture(floor_texture(scene.arena)), f),
-                    name="0-floor")
+                    name=_node_name("floor", 0))
             ]
             self._floor_key = scene.arena
         # Marker sheets: one unit quad per marker, kept while the sheet images stay the same;
@@ -324,7 +337,7 @@ class Renderer:
             self._marker_nodes = [
                 self._scene.add(_textured_quad(pr, _UNIT_QUAD, 0.0,
                                                self._cached_texture(image), f),
-                                name=f"1-marker-{k}")
+                                name=_node_name("marker", k))
                 for k, (image, _) in enumerate(sheets)
             ]
             self._markers_key = key
@@ -345,11 +358,11 @@ class Renderer:
         for node in self._obstacle_nodes:
             self._scene.remove_node(node)
         self._obstacle_nodes = []
-        for i, ob in enumerate(scene.obstacles):
+        for k, ob in enumerate(scene.obstacles):
             pos, rgba, tris = box_mesh_arrays(ob, scene)
             prim = pr.Primitive(positions=pos, color_0=rgba, indices=tris, mode=4)
             self._obstacle_nodes.append(self._scene.add(pr.Mesh([prim]),
-                                                        name=f"3-obstacle-{i:06d}"))
+                                                        name=_node_name("obstacle", k)))
         for node in self._overlay_nodes:
             self._scene.remove_node(node)
         self._overlay_nodes = []
@@ -357,13 +370,15 @@ class Renderer:
         if patches is not None:
             prim = pr.Primitive(positions=patches[0], color_0=patches[1], indices=patches[2],
                                 mode=4)
-            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim]), name="2-patches"))
+            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim]),
+                                                       name=_node_name("overlay", 0)))
         shadow = shadow_mesh_arrays(scene)
         if shadow is not None:
             material = pr.MetallicRoughnessMaterial(alphaMode="BLEND", doubleSided=True)
             prim = pr.Primitive(positions=shadow[0], color_0=shadow[1], indices=shadow[2],
                                 mode=4, material=material)
-            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim]), name="4-shadow"))
+            self._overlay_nodes.append(self._scene.add(pr.Mesh([prim]),
+                                                       name=_node_name("overlay", 1)))
         if self._camera_node is not None:
             self._scene.remove_node(self._camera_node)
         K = cam.intrinsics(scene.camera)

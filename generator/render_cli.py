@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from arenabench.clihelp import HelpFormatter
 from arenabench.generator.scene import Scene
 
 #: Top-level keys of a scene file.
@@ -30,6 +31,8 @@ def load_scene(path: str | Path) -> Scene:
         On a missing or unreadable file, invalid JSON, an unknown field or an invalid value.
     """
     p = Path(path)
+    if p.exists() and not p.is_file():
+        raise ValueError(f"scene file {str(p)!r} is not a regular file")
     try:
         data = json.loads(p.read_text(encoding="utf-8"))
     except OSError as exc:
@@ -71,6 +74,7 @@ def render_scene_files(scene: Scene, out: str | Path, *, source: str = "scene") 
 def build_parser() -> argparse.ArgumentParser:
     """The ``arenabench render`` argument parser."""
     p = argparse.ArgumentParser(
+        formatter_class=HelpFormatter,
         prog="arenabench render",
         description="Render a scene file (JSON, e.g. from 'arenabench fit') with its ground "
                     "truth: DIR/images/000000.png and DIR/gt/000000.json.",
@@ -83,6 +87,13 @@ def build_parser() -> argparse.ArgumentParser:
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench render``; returns 0 on success, 2 on bad input."""
     args = build_parser().parse_args(argv)
+    from arenabench.fileio import OutputPathError, check_output_dir
+
+    try:
+        check_output_dir(args.out)
+    except OutputPathError as exc:
+        print(f"arenabench render: error: --out {args.out}: {exc}", file=sys.stderr)
+        return 2
     try:
         scene = load_scene(args.scene)
         image = render_scene_files(scene, args.out, source=Path(args.scene).stem)

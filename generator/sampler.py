@@ -19,10 +19,10 @@ from typing import Any
 import numpy as np
 from shapely.geometry import Polygon, box
 
+from arenabench.fileio import rounded
 from arenabench.generator import camera as cam
 from arenabench.generator.degrade import LENS_PARAMS, PARAM_NAMES, distort_points
 from arenabench.generator.distractors import occluder_patch, sample_patches
-from arenabench.generator.groundtruth import rounded
 from arenabench.generator.layout import box_footprint, marker_corners_world
 from arenabench.generator.presets import PARAMETERS, Value, resolve
 from arenabench.generator.scene import (
@@ -52,7 +52,7 @@ SCALAR_KEYS: tuple[str, ...] = (
     "background.gray",
 )
 _CAMERA_KEYS = tuple(k for k in SCALAR_KEYS if k.startswith("camera."))
-#: Degradation and scene-variation parameters (issue 5), drawn in this order from their own
+#: Degradation and scene-variation parameters, drawn in this order from their own
 #: generator (:func:`variation_rng`) so that presets without them draw exactly as before.
 VARIATION_KEYS: tuple[str, ...] = (
     *LENS_PARAMS,
@@ -294,6 +294,6 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
     scene = Scene(arena=arena, markers=markers, obstacles=obstacles, camera=camera,
                   lighting=lighting, background_rgb=(g, g, g), patches=patches)
     # Canonical form: the scene rendered is exactly the one written to the GT file (floats
-    # rounded to DECIMALS), so Scene.from_dict(gt["scene"]) re-renders the same image.
+    # rounded like the GT file), so Scene.from_dict(gt["scene"]) re-renders the same image.
     scene = Scene.from_dict(rounded(scene.to_dict()))
     return SampledScene(scene=scene, params=rounded(drawn), seed=int(seed), index=int(index))

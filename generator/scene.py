@@ -11,6 +11,7 @@ from dataclasses import asdict, dataclass, field
 from typing import Any
 
 from arenabench.generator import competition_arena as comp
+from arenabench.limits import MAX_IMAGE_SIDE_PX
 
 Rgb = tuple[int, int, int]
 
@@ -210,8 +211,11 @@ class CameraSpec:
         object.__setattr__(self, "dist", dist)
         for name in ("width", "height"):
             value = getattr(self, name)
-            if int(value) != value or value < 16:
-                raise ValueError(f"camera.{name} must be an integer >= 16, got {value!r}")
+            if int(value) != value or not 16 <= value <= MAX_IMAGE_SIDE_PX:
+                raise ValueError(
+                    f"camera.{name} must be an integer in [16, {MAX_IMAGE_SIDE_PX}] "
+                    f"(the largest image side arenabench renders), got {value!r}"
+                )
             object.__setattr__(self, name, int(value))
         if not 1.0 <= float(self.fov_deg) <= 170.0:
             raise ValueError(f"camera.fov_deg must be in [1, 170], got {self.fov_deg!r}")

@@ -6,11 +6,6 @@ import numpy as np
 
 from arenabench.generator.scene import LightingSpec
 
-#: Outward normals of a box's five visible faces: top, +x, -x, +y, -y (in the box frame).
-BOX_FACE_NORMALS = np.array(
-    [[0, 0, 1], [1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0]], dtype=np.float64
-)
-
 
 def shade_factors(normals: np.ndarray, lighting: LightingSpec) -> np.ndarray:
     """Brightness factor of surfaces with world ``normals`` (N, 3): ambient + sum I max(0, n.l).

@@ -32,6 +32,7 @@ def test_every_preset_resolves_and_hard_adds_real_degradations():
         assert isinstance(hard[key], tuple) and hard[key][1] > 0, key
 
 
+@pytest.mark.slow
 def test_cli_writes_a_sheet(tmp_path):
     out = tmp_path / "sheet.png"
     proc = subprocess.run(

@@ -32,7 +32,7 @@ def test_parser_accepts_total_area_and_spacing():
     [
         ("Obstacles: 2\n", "missing Area"),
         ("hello world\n", "unrecognised line: 'hello world'"),
-        ("Obstacles: 2.5\nArea: 3\n", "not a non-negative integer"),
+        ("Obstacles: 2.5\nArea: 3\n", "obstacle count is not an integer"),
         ("", "missing Obstacles and Area"),
     ],
 )
@@ -52,8 +52,8 @@ def test_atomic_write_leaves_no_temporaries(tmp_path):
 def test_atomic_write_failure_keeps_old_file(tmp_path):
     target = tmp_path / "x.json"
     atomic_write_json(target, {"ok": True})
-    with pytest.raises(ValueError):
-        atomic_write_json(target, {"bad": float("nan")})
+    with pytest.raises(TypeError):
+        atomic_write_json(target, {"bad": object()})
     assert json.loads(target.read_text()) == {"ok": True}
     assert [p.name for p in tmp_path.iterdir()] == ["x.json"]
 

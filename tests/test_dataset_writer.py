@@ -37,7 +37,7 @@ def one_worker(tmp_path_factory):
 
 def test_layout_manifest_and_metadata(one_worker):
     out, proc = one_worker
-    assert "4 rendered" in proc.stderr
+    assert "4 rendered" in proc.stdout and not proc.stderr  # the summary is output
     ids = [f"{i:06d}" for i in range(COUNT)]
     assert sorted(p.name for p in (out / "images").iterdir()) == [f"{i}.png" for i in ids]
     assert sorted(p.name for p in (out / "gt").iterdir()) == [f"{i}.json" for i in ids]
@@ -65,6 +65,7 @@ def test_layout_manifest_and_metadata(one_worker):
     assert img.shape == (1000, 1000, 3)
 
 
+@pytest.mark.slow
 def test_two_workers_write_byte_identical_files(one_worker, tmp_path):
     out, _ = one_worker
     proc = _generate(tmp_path / "two", "--workers", "2")
@@ -72,11 +73,13 @@ def test_two_workers_write_byte_identical_files(one_worker, tmp_path):
     assert _files(tmp_path / "two") == _files(out)
 
 
+@pytest.mark.slow
 def test_rerun_does_nothing_and_interrupted_run_resumes(one_worker, tmp_path):
     out, _ = one_worker
     reference = _files(out)
     proc = _generate(out)
-    assert proc.returncode == 0 and "0 rendered" in proc.stderr
+    assert proc.returncode == 0 and f"already complete: {COUNT} images" in proc.stdout
+    assert "images/s" not in proc.stdout
     assert _files(out) == reference
     # simulate an interrupted run: an image, a GT file and the final files are missing
     copy = tmp_path / "copy"
@@ -91,7 +94,7 @@ def test_rerun_does_nothing_and_interrupted_run_resumes(one_worker, tmp_path):
     (copy / "dataset.json").write_text(json.dumps(meta))
     proc = _generate(copy)
     assert proc.returncode == 0, proc.stderr
-    assert "2 rendered" in proc.stderr and "2 already present" in proc.stderr
+    assert "2 rendered" in proc.stdout and "2 already present" in proc.stdout
     assert _files(copy) == reference
 
 
@@ -99,8 +102,10 @@ def test_rerun_does_nothing_and_interrupted_run_resumes(one_worker, tmp_path):
     ("extra", "kwargs", "needle"),
     [
         ((), {"seed": 8}, "--seed"),
-        ((), {"count": 5}, "--count"),
+        ((), {"count": 3}, "--count 3 is smaller"),
         (("--set", "obstacles.count=2"), {}, "--set"),
+        (("--preset", "eyrc-hard"), {}, "--preset"),
+        (("--preset", "eyrc-hard"), {"count": 6}, "--preset"),
     ],
 )
 def test_different_arguments_are_refused(one_worker, extra, kwargs, needle):
@@ -108,9 +113,22 @@ def test_different_arguments_are_refused(one_worker, extra, kwargs, needle):
     before = _files(out)
     proc = _generate(out, *extra, **kwargs)
     assert proc.returncode == 2
-    assert needle in proc.stderr and "different arguments" in proc.stderr
+    assert needle in proc.stderr
+    assert "different arguments" in proc.stderr or "smaller" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1
     assert _files(out) == before
+
+
+def test_larger_count_extends_the_set_byte_identically(one_worker, tmp_path):
+    """Extending a set with the same seed gives the files of the larger count at once."""
+    out, _ = one_worker
+    grown = tmp_path / "grown"
+    proc = _generate(grown, count=2)
+    assert proc.returncode == 0, proc.stderr
+    proc = _generate(grown, count=COUNT)
+    assert proc.returncode == 0, proc.stderr
+    assert "2 rendered" in proc.stdout and "2 already present" in proc.stdout
+    assert _files(grown) == _files(out)
 
 
 @pytest.mark.parametrize(

@@ -45,6 +45,7 @@ def _per_image(report):
     ]
 
 
+@pytest.mark.slow
 def test_reference_same_in_process_by_command_and_by_callable(eyrc, tmp_path, monkeypatch):
     # "python" on PATH must be this interpreter (the venv's), as it is for a user in the venv
     monkeypatch.setenv("PATH", f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
@@ -73,11 +74,22 @@ def test_reference_same_in_process_by_command_and_by_callable(eyrc, tmp_path, mo
     assert "camera.tilt_deg" not in reports["builtin"].breakdown
 
 
+@pytest.mark.slow
 def test_demo_ends_with_the_report_and_its_path(tmp_path, capsys):
-    assert demo_main(["--out", str(tmp_path / "demo"), "--count", "4", "--workers", "2"]) == 0
+    example = Path(__file__).parent / "data" / "task1c_image.jpg"
+    assert demo_main(["--out", str(tmp_path / "demo"), "--count", "4", "--workers", "2",
+                      "--example", str(example)]) == 0
     out = capsys.readouterr().out.strip().splitlines()
     html = tmp_path / "demo" / "report-reference" / "report.html"
     assert out[-1] == f"open the HTML report: {html.resolve()}"
+    # a short story: the example in three lines, the set, the score table, the report
+    assert len(out) < 25
+    assert out[0].startswith("1. the reference pipeline on ")
+    assert out[1].strip().startswith("markers [80, 85, 90, 95], 2 obstacles, area ")
+    assert out[2].strip() == f"competition output: {tmp_path / 'demo' / 'obstacles.txt'}"
+    assert out[3].startswith("2. generated 4 eyrc images")
+    assert out[4].startswith("3. reference: pass rate")
+    assert not any(line.lstrip().startswith(("{", '"')) for line in out)  # no JSON dump
     assert html.is_file() and (html.parent / "junit.xml").is_file()
     assert any("pass rate" in line for line in out)
     # a second run reuses the dataset

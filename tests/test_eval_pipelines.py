@@ -9,15 +9,15 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import toy_arena
 
 from arenabench.eval.cli import main as eval_main
 from arenabench.eval.pipelines import CallablePipeline, CommandPipeline
 from arenabench.eval.records import Prediction
+from arenabench.eval.run_limits import RunLimits, RunSettings
 from arenabench.eval.runner import evaluate
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
-sys.path.insert(0, str(PIPES))
-import toy_arena  # noqa: E402
 
 PY = sys.executable
 
@@ -42,6 +42,7 @@ def _per_image(report):
     ]
 
 
+@pytest.mark.slow
 def test_callable_command_and_json_line_give_identical_results(toy):
     by_spec = evaluate("toy_arena:detect", toy, workers=2)
     by_function = evaluate(toy_arena.detect, toy, workers=2)
@@ -62,6 +63,7 @@ def test_callable_command_and_json_line_give_identical_results(toy):
     assert all(r.prediction.latency_ms > 0 for r in by_cmd.images)
 
 
+@pytest.mark.slow
 def test_process_pool_matches_thread_pool(toy):
     threads = evaluate("toy_arena:detect", toy, workers=2, executor="thread")
     procs = evaluate("toy_arena:detect", toy, workers=2, executor="process")
@@ -95,23 +97,25 @@ def test_crashing_command_is_a_crash_with_its_stderr(toy, tmp_path, capsys):
     assert "deliberate crash in the test pipeline" in first.stderr
 
 
-def _alive(pid: int) -> bool:
-    try:
-        state = Path(f"/proc/{pid}/stat").read_text().split(")")[-1].split()[0]
-    except FileNotFoundError:
-        return False
-    return state not in ("Z", "X")
-
-
+@pytest.mark.slow
 def test_hanging_command_times_out_and_its_children_are_killed(toy, tmp_path):
+    from hostile_util import processes_with
+
+    marker = f"hang-marker-{os.getpid()}"
     report = evaluate(
-        CommandPipeline(f"{PY} {PIPES / 'hang.py'}", timeout_s=1.5), toy, workers=3, limit=3
+        CommandPipeline(
+            f"{PY} {PIPES / 'hang.py'} --marker {marker}",
+            settings=RunSettings(limits=RunLimits(timeout_s=1.5)),
+        ),
+        toy,
+        workers=3,
+        limit=3,
     )
     assert [r.category for r in report.images] == ["timeout"] * 3
     for r in report.images:
         assert "timed out after 1.5 s" in r.prediction.message
-        pid = int(re.search(r"child-pid (\d+)", r.prediction.stdout).group(1))
-        assert not _alive(pid), f"child {pid} of the hanging pipeline survived"
+        assert re.search(r"child-pid (\d+)", r.prediction.stdout)
+    assert processes_with(marker) == [], "a child of the hanging pipeline survived"
     assert report.summary.failures["timeout"] == 3
 
 
@@ -127,19 +131,24 @@ def test_missing_obstacles_file_and_missing_executable(toy):
     silent = evaluate(CommandPipeline(f"{PY} -c pass"), toy, limit=1)
     assert silent.images[0].category == "bad_output"
     assert "obstacles.txt was not written" in silent.images[0].prediction.message
-    absent = evaluate(CommandPipeline("/nonexistent/pipeline --image {image}"), toy, limit=1)
-    assert absent.images[0].category == "crash"
-    assert "cannot start command" in absent.images[0].prediction.message
+    with pytest.raises(ValueError, match="executable '/nonexistent/pipeline' does not exist"):
+        CommandPipeline("/nonexistent/pipeline --image {image}")
+    with pytest.raises(ValueError, match="executable 'no-such-tool-xyz' not found on PATH"):
+        CommandPipeline("no-such-tool-xyz --image {image}")
 
 
-def test_eight_parallel_commands_never_share_a_working_directory(toy):
+@pytest.mark.slow
+def test_eight_parallel_commands_never_share_a_working_directory(toy, tmp_path, monkeypatch):
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))
     report = evaluate(
         CommandPipeline(f"{PY} {PIPES / 'isolation.py'} --image {{image}}"), toy, workers=8
     )
     assert report.summary.pass_rate == 1.0, [r.prediction.stderr for r in report.images]
-    cwds = {re.search(r"cwd (\S+)", r.prediction.stdout).group(1) for r in report.images}
+    cwds = {re.search(r"cwd \S+ (\S+)", r.prediction.stdout).group(1) for r in report.images}
     assert len(cwds) == 8
-    assert not any(os.path.exists(c) for c in cwds), "temporary working dirs must be removed"
+    assert list(tmp_path.iterdir()) == [], "the runs' private directories must be removed"
 
 
 def test_markers_not_found_from_exit_status_3(tmp_path):
@@ -177,11 +186,13 @@ def test_in_process_failures_never_escape(toy):
 
 def test_adapter_arguments_are_validated():
     with pytest.raises(ValueError, match="timeout_s"):
-        CommandPipeline("x {image}", timeout_s=0)
+        RunLimits(timeout_s=0)
     with pytest.raises(ValueError, match="output"):
-        CommandPipeline("x {image}", output="xml")
+        CommandPipeline(f"{PY} {{image}}", output="xml")
     with pytest.raises(ValueError, match="template"):
         CommandPipeline("x 'unclosed")
+    with pytest.raises(TypeError):
+        CommandPipeline(f"{PY} {{image}}", RunSettings())  # settings is keyword-only
     with pytest.raises(ValueError, match=r"pkg\.module:function"):
         CallablePipeline("no_colon")
     with pytest.raises(ValueError, match="cannot import"):

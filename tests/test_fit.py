@@ -19,7 +19,7 @@ ROOT = Path(__file__).resolve().parent.parent
 IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
 SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
 
-#: Acceptance thresholds of issue 7.
+#: Acceptance thresholds: the shipped fit must look like the real image.
 MIN_SSIM = 0.95
 MAX_MAD = 6.0
 MAX_AREA_REL = 0.01
@@ -63,6 +63,7 @@ def test_similarity_basics():
         ssim(a, a[:32])
 
 
+@pytest.mark.slow
 def test_shipped_scene_render_matches_real_image(tmp_path, real, real_detection):
     proc = _cli("render", str(SCENE), "--out", str(tmp_path))
     assert proc.returncode == 0, proc.stderr
@@ -75,6 +76,7 @@ def test_shipped_scene_render_matches_real_image(tmp_path, real, real_detection)
     assert gt["area"]["visible_px"] == pytest.approx(real_detection.area, rel=0.02)
 
 
+@pytest.mark.slow
 def test_fit_cli_end_to_end(tmp_path, real, real_detection):
     out = tmp_path / "scene.json"
     proc = _cli("fit", str(IMAGE), "--out", str(out), "--report")
@@ -129,6 +131,7 @@ def test_fit_cli_missing_image(tmp_path):
     assert not (tmp_path / "s.json").exists()
 
 
+@pytest.mark.slow
 def test_fit_recovers_a_known_scene():
     """Round trip on a render with a different camera and boxes: the fit finds them again."""
     from dataclasses import replace

@@ -6,6 +6,8 @@ measured pass rate is printed (run with ``-s`` to see it) and kept in the assert
 
 from __future__ import annotations
 
+import pytest
+
 from arenabench.generator.render import Renderer
 from arenabench.generator.sample import make_sample
 from arenabench.pipeline import DetectConfig, detect
@@ -15,6 +17,7 @@ SEED = 2024
 TOLERANCE = 0.05
 
 
+@pytest.mark.slow
 def test_reference_pipeline_passes_on_95_percent_of_eyrc_scenes():
     config = DetectConfig()
     passed, failures = 0, []

@@ -35,6 +35,7 @@ def cli_run(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_writes_every_output_file(cli_run, capsys):
     out = cli_run
     for name in ("sweep.json", "sweep.csv", "results.jsonl", "sweep.html",
@@ -76,8 +77,12 @@ def test_writes_every_output_file(cli_run, capsys):
     page = (out / "sweep.html").read_text()
     assert page.count("data:image/png;base64,") == 2
     assert "Breakdown points" in page and 'src="http' not in page
+    # a 100 % point is never red (small n: amber, with the colours explained)
+    assert 'class="fail">100.0 %' not in page and "100.0 %</td>" in page
+    assert "amber</span> = the pass rate clears it" in page
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_identical_results(cli_run):
     distributed = pytest.importorskip("distributed")
     local = [json.loads(line) for line in (cli_run / "results.jsonl").read_text().splitlines()]
@@ -96,6 +101,7 @@ def test_dask_local_cluster_gives_identical_results(cli_run):
     assert _comparable(inline.images) == _comparable(local)
 
 
+@pytest.mark.slow
 def test_command_pipeline_sees_the_same_images(tmp_path, monkeypatch):
     monkeypatch.setenv("PATH", f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
     out = tmp_path / "cmd"
@@ -147,6 +153,7 @@ def test_no_pipeline_is_a_usage_error(tmp_path, capsys):
     assert "give --pipeline" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_random_sweep_two_parameters_heat_map_and_kept_failures(tmp_path):
     out = tmp_path / "random"
     argv = ["--vary", "camera.tilt_deg=0:30", "--vary", "lighting.intensity=0.45:0.05",
@@ -168,6 +175,7 @@ def test_random_sweep_two_parameters_heat_map_and_kept_failures(tmp_path):
     assert all((r["image"] != "") == (not r["pass"]) for r in rows)
 
 
+@pytest.mark.slow
 def test_load_sweep_round_trips_the_files(cli_run, tmp_path):
     from arenabench.eval.sweep.outputs import load_sweep, write_sweep
 

@@ -1,6 +1,7 @@
 """``report.html``: one self-contained page (no external resources, no scripts): summary,
-plots of area error and count confusion, pass rate by scene parameter, and the worst cases as
-thumbnails with the ground-truth polygons drawn and the pipeline's numbers beside them."""
+plots of area error and count confusion, pass rate by scene parameter, and the failures as
+thumbnails: the image with the ground-truth outlines and what the pipeline found drawn in two
+colours, the rectified frame beside it, and the pipeline's numbers."""
 
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ from arenabench.fileio import atomic_write_text
 
 from ..breakdown import importance
 from ..dataset import Dataset, DatasetError, load_dataset
-from ..records import ImageResult, Report
+from ..records import ImageResult, Prediction, Report
 from .summary_rows import fmt, summary_rows
 
 CSS = """
@@ -30,13 +31,35 @@ text-align:left;font-size:.9em}th{background:#f3f3f3}.pass{color:#176d2c}.fail{c
 .cases{display:flex;flex-wrap:wrap;gap:12px}.case{border:1px solid #ccc;padding:6px;
 width:380px;font-size:.85em}.case img{width:100%}pre{white-space:pre-wrap;max-height:10em;
 overflow:auto;background:#f7f7f7;padding:4px;font-size:.8em}.bar{background:#b00020;height:8px}
+.case.wide{width:780px}.pair{display:flex;gap:6px}.pair img{width:50%}
+.swatch{display:inline-block;width:1.6em;height:.5em;margin:0 .3em;vertical-align:middle}
 """
+
+#: Outline colours of the thumbnails (BGR for OpenCV, hex for the legend).
+GT_BGR, GT_HEX = (0, 200, 0), "#00c800"
+PRED_BGR, PRED_HEX = (255, 0, 255), "#ff00ff"
+MARKER_BGR, MARKER_HEX = (255, 120, 0), "#0078ff"
 
 
 def _png_data_uri(fig: Any) -> str:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=90, bbox_inches="tight")
     return "data:image/png;base64," + base64.b64encode(buf.getvalue()).decode("ascii")
+
+
+def histogram_range(errors: Sequence[float], tolerance: float) -> tuple[float, int]:
+    """Half-width of the area-error histogram's axis, chosen from the data, and how many
+    errors lie beyond it (drawn in the end bins).
+
+    The axis spans the largest |error| (at least twice the tolerance so the tolerance lines
+    show; at most 1, beyond which errors are clipped).
+    """
+    floor = max(2.0 * tolerance, 1e-3)
+    if not errors:
+        return floor, 0
+    biggest = float(np.max(np.abs(errors)))
+    lim = min(1.0, max(floor, biggest * 1.05))
+    return lim, int(np.sum(np.abs(errors) > lim))
 
 
 def _figures(report: Report) -> list[tuple[str, str]]:
@@ -53,11 +76,20 @@ def _figures(report: Report) -> list[tuple[str, str]]:
     ]
     fig = Figure(figsize=(6, 3.6))
     ax = fig.add_subplot()
+    lim, n_out = histogram_range(rels, report.tolerance)
     if rels:
-        ax.hist(np.clip(rels, -1.0, 1.0), bins=min(40, max(5, len(rels))), color="#4c72b0")
+        values = np.clip(rels, -lim, lim)
+        edges = np.histogram_bin_edges(values, bins="auto", range=(-lim, lim))
+        bins = int(np.clip(len(edges) - 1, 10, 60))
+        ax.hist(values, bins=bins, range=(-lim, lim), color="#4c72b0", edgecolor="white",
+                linewidth=0.5)
+    ax.set_xlim(-lim, lim)
     for x in (-report.tolerance, report.tolerance):
         ax.axvline(x, color="#b00020", linestyle="--", linewidth=1)
-    ax.set_xlabel("signed area relative error (clipped to [-1, 1])")
+    label = "signed area relative error"
+    if n_out:
+        label += f" ({n_out} image(s) beyond +-{lim:g} counted in the end bins)"
+    ax.set_xlabel(label)
     ax.set_ylabel("images")
     ax.set_title("Area error (dashed: tolerance)")
     out.append(("Area error histogram", _png_data_uri(fig)))
@@ -111,45 +143,130 @@ def _figures(report: Report) -> list[tuple[str, str]]:
 
 
 def worst_cases(images: Sequence[ImageResult], *, limit: int = 12) -> list[ImageResult]:
-    """Failing images first (largest area error first within), then the passing images with
-    the largest ``|area_rel_err|``."""
+    """The failing images, largest area error first (failures without a relative area error,
+    e.g. crashes, first of all); empty when every image passed."""
 
     def err(r: ImageResult) -> float:
         e = r.score.area_rel_err
         return abs(e) if e is not None and r.score.area_err_kind == "relative" else float("inf")
 
-    ranked = sorted(
-        images,
-        key=lambda r: (r.passed, -err(r) if not r.passed else -abs(r.score.area_rel_err or 0.0)),
+    return sorted((r for r in images if not r.passed), key=lambda r: -err(r))[:limit]
+
+
+def _frame_to_image(h: np.ndarray | None) -> np.ndarray | None:
+    if h is None:
+        return None
+    try:
+        return np.linalg.inv(h)
+    except np.linalg.LinAlgError:
+        return None
+
+
+def _homography(pred: Prediction | None, gt: dict[str, Any] | None) -> np.ndarray | None:
+    """Input image px -> frame px: the pipeline's own, else the ground truth's."""
+    for h in (None if pred is None else pred.homography, (gt or {}).get("homography")):
+        if h is not None:
+            m = np.asarray(h, dtype=np.float64)
+            if m.shape == (3, 3) and np.isfinite(m).all():
+                return m
+    return None
+
+
+def _map(points: Any, h: np.ndarray) -> np.ndarray:
+    import cv2
+
+    pts = np.asarray(points, dtype=np.float64).reshape(-1, 1, 2)
+    return cv2.perspectiveTransform(pts, h).reshape(-1, 2)
+
+
+def _predicted_polygons(pred: Prediction | None, h: np.ndarray | None, *,
+                        space: str) -> list[np.ndarray]:
+    """The pipeline's polygons in ``space`` ("image" or "frame") px."""
+    if pred is None or not pred.obstacles:
+        return []
+    polys = [np.asarray(p, dtype=np.float64) for p in pred.obstacles]
+    if pred.obstacles_space == space:
+        return polys
+    m = h if space == "frame" else _frame_to_image(h)
+    return [] if m is None else [_map(p, m) for p in polys]
+
+
+def _small(image: np.ndarray, width: int) -> tuple[np.ndarray, float]:
+    import cv2
+
+    scale = width / image.shape[1]
+    small = cv2.resize(
+        image, (width, max(1, round(image.shape[0] * scale))), interpolation=cv2.INTER_AREA
     )
-    return ranked[:limit]
+    return small, scale
 
 
-def thumbnail(image_path: str, gt: dict[str, Any] | None, *, width: int = 380) -> str | None:
-    """JPEG data URI of the image with GT obstacle polygons (green) and marker outlines (blue),
+def _encode(small: np.ndarray) -> str | None:
+    import cv2
+
+    params = [cv2.IMWRITE_JPEG_QUALITY, 90]
+    if hasattr(cv2, "IMWRITE_JPEG_SAMPLING_FACTOR"):  # full-resolution colour: crisp outlines
+        params += [cv2.IMWRITE_JPEG_SAMPLING_FACTOR, cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444]
+    ok, buf = cv2.imencode(".jpg", small, params)
+    if not ok:  # pragma: no cover
+        return None
+    return "data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii")
+
+
+def _outline(image: np.ndarray, polys: Sequence[Any], colour: tuple[int, int, int],
+             thick: int, scale: float) -> None:
+    """Draw closed polygons given in full-size px on the scaled-down ``image``."""
+    import cv2
+
+    for poly in polys:
+        pts = np.asarray(poly, dtype=np.float64)
+        if pts.ndim == 2 and pts.shape[0] >= 3 and pts.shape[1] == 2 and np.isfinite(pts).all():
+            fixed = np.round(pts * scale * 16).astype(np.int32)  # 4 fractional bits
+            cv2.polylines(image, [fixed], True, colour, thick, cv2.LINE_AA, shift=4)
+
+
+def thumbnail(image_path: str, gt: dict[str, Any] | None, *, width: int = 380,
+              pred: Prediction | None = None) -> str | None:
+    """JPEG data URI of the image with the GT obstacle outlines (wide, green), the markers
+    (blue) and the pipeline's obstacles (narrow, magenta, on top; when it reported polygons),
     or ``None`` when the image cannot be read."""
     import cv2
 
     image = cv2.imread(image_path, cv2.IMREAD_COLOR)
     if image is None:
         return None
-    scale = width / image.shape[1]
-    thick = max(1, round(2 / scale))
-    for marker in (gt or {}).get("markers", []):
-        pts = np.asarray(marker.get("corners_px", []), dtype=np.float64)
-        if pts.shape == (4, 2):
-            cv2.polylines(image, [np.round(pts).astype(np.int32)], True, (255, 120, 0), thick)
-    for obs in (gt or {}).get("obstacles", []):
-        pts = np.asarray(obs.get("image_polygon_px", []), dtype=np.float64)
-        if pts.ndim == 2 and pts.shape[0] >= 3 and pts.shape[1] == 2:
-            cv2.polylines(image, [np.round(pts).astype(np.int32)], True, (0, 200, 0), thick)
-    small = cv2.resize(
-        image, (width, max(1, round(image.shape[0] * scale))), interpolation=cv2.INTER_AREA
-    )
-    ok, buf = cv2.imencode(".jpg", small, [cv2.IMWRITE_JPEG_QUALITY, 80])
-    if not ok:  # pragma: no cover
+    small, scale = _small(image, width)
+    markers = [m.get("corners_px", []) for m in (gt or {}).get("markers", [])]
+    _outline(small, markers, MARKER_BGR, 2, scale)
+    # GT wide, the pipeline's outline narrow on top: both stay visible where they agree
+    _outline(small, [o.get("image_polygon_px", []) for o in (gt or {}).get("obstacles", [])],
+             GT_BGR, 5, scale)
+    h = _homography(pred, gt)
+    _outline(small, _predicted_polygons(pred, h, space="image"), PRED_BGR, 2, scale)
+    return _encode(small)
+
+
+def frame_thumbnail(image_path: str, gt: dict[str, Any] | None, *, width: int = 380,
+                    pred: Prediction | None = None, area_key: str = "visible_frame_px"
+                    ) -> str | None:
+    """JPEG data URI of the image rectified to the frame (the pipeline's homography, else the
+    ground truth's) with the GT frame polygons (green) and the pipeline's (magenta); ``None``
+    when there is no homography or the image cannot be read."""
+    import cv2
+
+    h = _homography(pred, gt)
+    image = cv2.imread(image_path, cv2.IMREAD_COLOR)
+    if h is None or image is None:
         return None
-    return "data:image/jpeg;base64," + base64.b64encode(buf.tobytes()).decode("ascii")
+    size = (gt or {}).get("frame", {}).get("size") or [1000, 1000]
+    fw, fh = int(size[0]), int(size[1])
+    if not (16 <= fw <= 8000 and 16 <= fh <= 8000):
+        return None
+    small, scale = _small(cv2.warpPerspective(image, h, (fw, fh)), width)
+    _outline(small, [o.get(area_key, []) for o in (gt or {}).get("obstacles", [])], GT_BGR, 5,
+             scale)
+    _outline(small, _predicted_polygons(pred, h, space="frame"), PRED_BGR, 2, scale)
+    return _encode(small)
 
 
 def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int = 12) -> str:
@@ -182,20 +299,38 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
     ]
     parts.append("</div>")
     cases = worst_cases(report.images, limit=max_cases)
-    if cases:
+    n_failed = s.n - s.n_passed
+    parts.append("<h2>Failures</h2>")
+    if not cases:
+        parts.append("<p>No failures: every image passed.</p>")
+    else:
+        shown = f"the {len(cases)} worst of {n_failed}" if n_failed > len(cases) else "all"
         parts.append(
-            "<h2>Worst cases</h2><p>Green: ground-truth obstacle outlines; blue: "
-            'markers.</p><div class="cases">'
+            f"<p>{n_failed} image(s) failed; {shown} below, largest area error first. "
+            f'Outlines: <span class="swatch" style="background:{GT_HEX}"></span>ground truth, '
+            f'<span class="swatch" style="background:{PRED_HEX}"></span>what the pipeline '
+            f'found (when it reports polygons), <span class="swatch" '
+            f'style="background:{MARKER_HEX}"></span>markers. Right: the image rectified to '
+            "the frame (the pipeline's homography, else the ground truth's).</p>"
+            '<div class="cases">'
+        )
+        area_key = (
+            "footprint_frame_px" if report.area_reference == "footprint" else "visible_frame_px"
         )
         for r in cases:
             p = r.prediction
-            uri = thumbnail(r.image, gts.get(r.id))
-            verdict = "PASS" if r.passed else f"FAIL: {r.category}"
-            parts.append('<div class="case">')
-            parts.append(
-                f'<b class="{"pass" if r.passed else "fail"}">{e(r.id)} - {e(verdict)}</b>'
-            )
-            if uri:
+            gt = gts.get(r.id)
+            uri = thumbnail(r.image, gt, pred=p)
+            frame_uri = frame_thumbnail(r.image, gt, pred=p, area_key=area_key)
+            verdict = f"FAIL: {r.category}"
+            parts.append(f'<div class="case{" wide" if frame_uri else ""}">')
+            parts.append(f'<b class="fail">{e(r.id)} - {e(verdict)}</b>')
+            if uri and frame_uri:
+                parts.append(
+                    f'<div class="pair"><img alt="image {e(r.id)}" src="{uri}">'
+                    f'<img alt="frame {e(r.id)}" src="{frame_uri}"></div>'
+                )
+            elif uri:
                 parts.append(f'<img alt="image {e(r.id)}" src="{uri}">')
             parts.append(
                 "<table><tr><th></th><th>GT</th><th>pipeline</th></tr>"
@@ -210,7 +345,7 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
             if p.message:
                 parts.append(f"<div>{e(p.message)}</div>")
             for label, text in (("stdout", p.stdout), ("stderr", p.stderr)):
-                if text and not r.passed:
+                if text:
                     parts.append(f"<div>{label} (tail):</div><pre>{e(text[-1500:])}</pre>")
             parts.append("</div>")
         parts.append("</div>")

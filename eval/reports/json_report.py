@@ -24,6 +24,8 @@ def read_json(path: str | os.PathLike[str]) -> Report:
     ValueError
         When the file is not JSON or not an ``arenabench.report/1`` report (names the file).
     """
+    if Path(path).exists() and not Path(path).is_file():
+        raise ValueError(f"{path}: not a regular file (a folder, pipe or device)")
     try:
         data = json.loads(Path(path).read_text(encoding="utf-8"))
         return Report.from_dict(data)

@@ -18,6 +18,19 @@ def _value(v: object) -> str:
     return "none (fails at the first value)" if v is None else format_value(v)
 
 
+#: Extra style of the sweep page: the "clears the threshold, interval does not" colour.
+SWEEP_CSS = ".unsure{color:#9a6700}"
+
+
+def point_class(n: int, pass_rate: float, lower: float, threshold: float) -> str:
+    """CSS class of a point's pass rate: ``pass`` (rate and its Wilson lower bound clear
+    ``threshold``), ``unsure`` (only the rate does) or ``fail`` (the rate does not, or no
+    scenes)."""
+    if not n or pass_rate < threshold:
+        return "fail"
+    return "pass" if lower >= threshold else "unsure"
+
+
 def sweep_page(result: SweepResult, figures: list[tuple[str, str, bytes]]) -> str:
     """The page as text.
 
@@ -34,7 +47,8 @@ def sweep_page(result: SweepResult, figures: list[tuple[str, str, bytes]]) -> st
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
         '<link rel="icon" href="data:,">',
-        f"<title>arenabench sweep: {e(spec.preset)}</title><style>{CSS}</style></head><body>",
+        f"<title>arenabench sweep: {e(spec.preset)}</title>"
+        f"<style>{CSS}{SWEEP_CSS}</style></head><body>",
         f"<h1>arenabench sweep: preset {e(spec.preset)}</h1>",
         "<table>",
         *(f"<tr><th>{e(k)}</th><td>{e(str(v))}</td></tr>" for k, v in (
@@ -68,6 +82,13 @@ def sweep_page(result: SweepResult, figures: list[tuple[str, str, bytes]]) -> st
         parts.append(f'<img alt="{e(title)}" title="{e(title)}" src="{uri}">')
     parts.append("</div><h2>Points</h2>")
     parts.append(
+        f'<p>Pass rate colour: <span class="pass">green</span> = the point clears the '
+        f"threshold ({spec.threshold:g}) and so does the lower end of its 95 % interval; "
+        f'<span class="unsure">amber</span> = the pass rate clears it but the interval\'s '
+        f"lower end does not (too few scenes to be sure; breakdown points need the lower end); "
+        f'<span class="fail">red</span> = the pass rate is below the threshold.</p>'
+    )
+    parts.append(
         "<table><tr><th>#</th><th>parameters</th><th>pipeline</th><th>n</th>"
         "<th>pass rate</th><th>95 % CI</th><th>count exact</th><th>|area err| median</th>"
         "<th>|area err| p95</th><th>failures</th><th>skipped</th></tr>"
@@ -76,7 +97,7 @@ def sweep_page(result: SweepResult, figures: list[tuple[str, str, bytes]]) -> st
         s = ps.summary
         lo, hi = s.pass_rate_ci95
         fails = ", ".join(f"{c} {v}" for c, v in s.failures.items() if v) or "-"
-        cls = "pass" if s.n and lo >= spec.threshold else "fail"
+        cls = point_class(s.n, s.pass_rate, lo, spec.threshold)
         parts.append(
             f"<tr><td>{ps.index}</td><td>{e(point_label(ps.params))}</td>"
             f"<td>{e(ps.pipeline)}</td><td>{s.n}</td>"

@@ -19,7 +19,12 @@ import os
 from pathlib import Path
 from typing import Any
 
-from arenabench.fileio import atomic_write_bytes, atomic_write_text, dumps_json
+from arenabench.fileio import (
+    atomic_write_bytes,
+    atomic_write_text,
+    dumps_json,
+    dumps_json_line,
+)
 from arenabench.generator.presets import format_value
 
 from ..records import CATEGORIES
@@ -64,7 +69,7 @@ def sweep_csv(result: SweepResult) -> str:
 
 def results_jsonl(result: SweepResult) -> str:
     """``results.jsonl`` text (sorted by point, scene, pipeline order)."""
-    return "".join(json.dumps(row, sort_keys=True, allow_nan=False) + "\n" for row in result.images)
+    return "".join(dumps_json_line(row) for row in result.images)
 
 
 class KeptImageWriter:
@@ -131,6 +136,7 @@ def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
     """
     from arenabench.generator.presets import parse_overrides
 
+    from ..run_limits import RunSettings
     from .grid import parse_vary
     from .records import SWEEP_SCHEMA, PipelineSpec, PointSummary, SweepSpec
 
@@ -144,7 +150,9 @@ def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
         axes=tuple(parse_vary(f"{a['key']}={a['spec']}") for a in doc["vary"]),
         pipelines=tuple(
             PipelineSpec("cmd" if p["kind"] == "cmd" else "pipeline", p["name"],
-                         timeout_s=p.get("timeout_s", 60.0), output=p.get("output", "obstacles"))
+                         settings=RunSettings.from_dict(
+                             p.get("run") or {"timeout_s": p.get("timeout_s", 60.0)}),
+                         output=p.get("output", "obstacles"))
             for p in doc["pipelines"]
         ),
         per_point=doc["per_point"], seed=doc["seed"], random=doc.get("random"),

@@ -3,15 +3,19 @@
 
 from __future__ import annotations
 
+import math
 import os
 from dataclasses import dataclass, field
 from typing import Any
 
 from arenabench.generator.presets import Value, format_value
+from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 
+from ..dataset import AREA_REFERENCES
 from ..metrics import DEFAULT_TOLERANCE
 from ..pipelines import BUILTIN_PIPELINES, OUTPUT_MODES, CommandPipeline, Pipeline, make_pipeline
 from ..records import ImageResult, Summary
+from ..run_limits import RunSettings
 from .grid import Axis
 
 SWEEP_SCHEMA = "arenabench.sweep/1"
@@ -35,8 +39,9 @@ class PipelineSpec:
         template for :class:`~arenabench.eval.pipelines.CommandPipeline`.
     value : str
         The name, spec or template.
-    timeout_s : float
-        Per-image limit of a command.
+    settings : RunSettings
+        How a command runs: limits (``settings.limits.timeout_s`` per image), sandbox,
+        image name, environment.
     output : {"obstacles", "json"}
         How a command answers.
     base_dir : str
@@ -45,7 +50,7 @@ class PipelineSpec:
 
     kind: str
     value: str
-    timeout_s: float = 60.0
+    settings: RunSettings = field(default_factory=RunSettings)
     output: str = "obstacles"
     base_dir: str = field(default_factory=os.getcwd)
 
@@ -78,7 +83,7 @@ class PipelineSpec:
         """The adapter (:func:`~arenabench.eval.pipelines.make_pipeline` or a command)."""
         if self.kind == "cmd":
             return CommandPipeline(
-                self.value, timeout_s=self.timeout_s, output=self.output, base_dir=self.base_dir
+                self.value, settings=self.settings, output=self.output, base_dir=self.base_dir
             )
         return make_pipeline(self.value)
 
@@ -106,8 +111,8 @@ class SweepSpec:
         Fixed ``--set`` values applied at every point (the varied keys win).
     tolerance : float
         Largest passing ``|area_rel_err|``.
-    area_reference : {"visible", "footprint"}
-        GT area scored against.
+    area_reference : {"visible", "footprint", "contour"}
+        GT area scored against (:data:`arenabench.eval.dataset.AREA_REFERENCES`).
     threshold : float
         Breakdown threshold on the pass rate's lower 95 % bound.
     breakdown_mode : {"marginal", "axis"}
@@ -139,6 +144,15 @@ class SweepSpec:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
         if self.random is not None and (int(self.random) != self.random or self.random < 1):
             raise ValueError(f"random must be an integer >= 1, got {self.random!r}")
+        check_at_most(int(self.per_point), MAX_SWEEP_SCENES, "per_point")
+        if self.random is not None:
+            check_at_most(int(self.random), MAX_SWEEP_SCENES, "random (points)")
+        # counted, not listed: a grid of several long axes can have 10**12 points
+        n_points = self.random if self.random is not None else math.prod(
+            len(a.values) for a in self.axes
+        )
+        check_at_most(int(n_points) * int(self.per_point), MAX_SWEEP_SCENES,
+                      f"scenes ({n_points} points x {self.per_point} per point)")
         if not self.pipelines:
             raise ValueError("pipelines must not be empty")
         names = [p.name for p in self.pipelines]
@@ -146,10 +160,9 @@ class SweepSpec:
             raise ValueError(f"pipelines must have distinct names, got {names!r}")
         if not self.tolerance >= 0:
             raise ValueError(f"tolerance must be >= 0, got {self.tolerance!r}")
-        if self.area_reference not in ("visible", "footprint"):
-            raise ValueError(
-                f"area_reference must be 'visible' or 'footprint', got {self.area_reference!r}"
-            )
+        if self.area_reference not in AREA_REFERENCES:
+            raise ValueError(f"area_reference must be one of {tuple(AREA_REFERENCES)}, "
+                             f"got {self.area_reference!r}")
         if not 0 <= self.threshold <= 1:
             raise ValueError(f"threshold must be in [0, 1], got {self.threshold!r}")
         if self.breakdown_mode not in BREAKDOWN_MODES:
@@ -173,9 +186,9 @@ class SweepSpec:
             "vary": [a.to_dict() for a in self.axes],
             "set": {k: format_value(v) for k, v in sorted(self.overrides.items())},
             "pipelines": [
-                {"name": p.name, "kind": p.kind, **({"timeout_s": p.timeout_s,
-                                                      "output": p.output}
-                                                     if p.kind == "cmd" else {})}
+                {"name": p.name, "kind": p.kind,
+                 **({"output": p.output, "run": p.settings.to_dict()}
+                    if p.kind == "cmd" else {})}
                 for p in self.pipelines
             ],
             "tolerance": self.tolerance,
@@ -273,7 +286,9 @@ class SweepResult:
     breakdown : dict
         ``{pipeline: {parameter: value or None}}``.
     run : dict
-        How it ran (executor, workers, seconds); not part of the results proper.
+        How it ran (executor, workers, seconds; ``complete``, ``samples_done``,
+        ``points_done`` and, when stopped by a signal, ``interrupted``); not part of the
+        results proper.
     """
 
     spec: SweepSpec
@@ -282,6 +297,11 @@ class SweepResult:
     images: tuple[dict[str, Any], ...]
     breakdown: dict[str, dict[str, Any]]
     run: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def complete(self) -> bool:
+        """False when a stop signal ended the sweep early (``run`` says how far it got)."""
+        return bool(self.run.get("complete", True))
 
     def image_results(self, pipeline: str) -> list[ImageResult]:
         """Per-image results of one pipeline as harness records."""
@@ -293,6 +313,7 @@ class SweepResult:
             "schema": SWEEP_SCHEMA,
             **self.spec.to_dict(),
             "n_points": len(self.points),
+            "complete": self.complete,
             "points": [s.to_dict() for s in self.summaries],
             "breakdown": self.breakdown,
             "run": dict(self.run),

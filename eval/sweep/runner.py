@@ -10,19 +10,29 @@ Random points come from ``default_rng(SeedSequence([seed, 2]))``.
 
 Results never depend on the executor or the number of workers: every task is a pure
 function of its description, and results are sorted by (point, scene) before aggregation.
+
+A stop signal (:class:`arenabench.interrupts.Interrupted`, raised inside
+:func:`arenabench.interrupts.stop_on_signals`) stops the workers (local processes are ended,
+Dask futures cancelled) and :func:`run_sweep` returns what finished, marked incomplete.
 """
 
 from __future__ import annotations
 
 import multiprocessing
+import os
 import time
 from collections.abc import Callable, Iterator
-from concurrent.futures import ProcessPoolExecutor, as_completed
 from typing import Any
 
 import numpy as np
 
 from arenabench.generator.presets import resolve
+from arenabench.interrupts import (
+    Interrupted,
+    children_ignore_sigint,
+    signal_name,
+    stop_workers,
+)
 
 from ..metrics import summarize
 from ..records import ImageResult
@@ -76,15 +86,14 @@ def _local_pool(tasks: list[SweepTask], workers: int) -> Iterator[dict[str, Any]
     cores = default_workers()
     lp = max(1, cores // workers)
     ctx = multiprocessing.get_context("spawn")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=ctx, initializer=init_worker,
-                             initargs=(lp,)) as pool:
-        futures = [pool.submit(run_task, t) for t in tasks]
+    with children_ignore_sigint():
+        pool = ctx.Pool(workers, initializer=init_worker, initargs=(lp, os.getpid()))
+    with pool:
         try:
-            for fut in as_completed(futures):
-                yield fut.result()
-        finally:
-            for fut in futures:
-                fut.cancel()
+            yield from pool.imap_unordered(run_task, tasks, chunksize=1)
+        except BaseException:  # interrupted, closed early or a task failed
+            stop_workers()  # before the pool's own terminate(), which waits on them
+            raise
 
 
 def _dask(tasks: list[SweepTask], scheduler: Any) -> Iterator[dict[str, Any]]:
@@ -167,6 +176,14 @@ def aggregate(
     return tuple(summaries), rows, breakdown
 
 
+def _points_done(outputs: list[dict[str, Any]], n_points: int, per_point: int) -> int:
+    """How many points have all their scenes done."""
+    done = [0] * n_points
+    for o in outputs:
+        done[o["point"]] += 1
+    return sum(1 for d in done if d == per_point)
+
+
 def run_sweep(
     spec: SweepSpec,
     *,
@@ -185,29 +202,39 @@ def run_sweep(
     scheduler : str or distributed.Client, optional, keyword-only
         Run on an existing Dask cluster instead.
     progress : bool, keyword-only
-        tqdm bar over samples on stderr.
+        Progress over samples on stderr (:mod:`arenabench.progress`: a bar on a terminal,
+        a few plain lines otherwise).
     on_output : callable, optional, keyword-only
         Called with each task's raw result as it arrives (e.g. to write kept images).
 
     Returns
     -------
     SweepResult
+        Of every task; or, stopped by a signal (:class:`arenabench.interrupts.Interrupted`),
+        of the tasks done by then, with ``complete`` false.
     """
-    from tqdm import tqdm
+    from arenabench.progress import progress as progress_bar
 
     start = time.perf_counter()
     points = sweep_points(spec)
     tasks = sweep_tasks(spec, points)
     outputs: list[dict[str, Any]] = []
     timings: dict[str, list[float]] = {}
-    with tqdm(total=len(tasks), desc="sweep", unit="img", disable=not progress) as bar:
-        for out in execute(tasks, workers=workers, scheduler=scheduler):
-            if on_output is not None:
-                on_output(out)
-            for k, v in out.get("timings_ms", {}).items():
-                timings.setdefault(k, []).append(v)
-            outputs.append({k: v for k, v in out.items() if k not in ("png", "gt")})
-            bar.update(1)
+    interrupted: int | None = None
+    with progress_bar(len(tasks), desc="sweep", enabled=progress) as bar:
+        results = execute(tasks, workers=workers, scheduler=scheduler)
+        try:
+            for out in results:
+                if on_output is not None:
+                    on_output(out)
+                for k, v in out.get("timings_ms", {}).items():
+                    timings.setdefault(k, []).append(v)
+                outputs.append({k: v for k, v in out.items() if k not in ("png", "gt")})
+                bar.update(1)
+        except Interrupted as exc:
+            interrupted = exc.signum
+        finally:
+            results.close()  # stops the workers if the loop did not finish
     summaries, rows, breakdown = aggregate(spec, points, outputs)
     seconds = time.perf_counter() - start
     run = {
@@ -217,8 +244,13 @@ def run_sweep(
         "samples": len(tasks),
         "skipped": sum(1 for o in outputs if o["error"] is not None),
         "seconds": round(seconds, 3),
-        "samples_per_s": round(len(tasks) / seconds, 3) if seconds > 0 else None,
+        "samples_per_s": round(len(outputs) / seconds, 3) if seconds > 0 else None,
         "median_ms": {k: round(float(np.median(v)), 3) for k, v in sorted(timings.items())},
+        "complete": interrupted is None,
+        "samples_done": len(outputs),
+        "points_done": _points_done(outputs, len(points), spec.per_point),
     }
+    if interrupted is not None:
+        run["interrupted"] = signal_name(interrupted)
     return SweepResult(spec=spec, points=tuple(points), summaries=summaries, images=rows,
                        breakdown=breakdown, run=run)

@@ -17,6 +17,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from arenabench.interrupts import init_worker_process, worker_task
+
 from ..dataset import Sample as ScoredSample
 from ..records import Prediction
 from ..runner import _result as score_result
@@ -27,7 +29,7 @@ _PIPELINES: dict[PipelineSpec, Any] = {}
 _PIPELINES_LOCK = threading.Lock()
 
 
-def init_worker(lp_threads: int | None = None) -> None:
+def init_worker(lp_threads: int | None = None, parent_pid: int | None = None) -> None:
     """Process-pool initializer: cap llvmpipe's threads, pick the GL platform, create the
     renderer (so the first task does not pay for it).
 
@@ -35,7 +37,12 @@ def init_worker(lp_threads: int | None = None) -> None:
     ----------
     lp_threads : int, optional
         ``LP_NUM_THREADS`` for Mesa llvmpipe (unless already set).
+    parent_pid : int, optional
+        The parent's pid: the worker then stops with its parent and on SIGTERM
+        (:func:`arenabench.interrupts.init_worker_process`).
     """
+    if parent_pid is not None:
+        init_worker_process(parent_pid=parent_pid)
     if lp_threads and "LP_NUM_THREADS" not in os.environ:
         os.environ["LP_NUM_THREADS"] = str(int(lp_threads))
     worker_renderer()
@@ -92,6 +99,8 @@ def _predict(spec: PipelineSpec, bgr: Any, png: list[bytes], tmp: list[str]) -> 
 def run_task(task: SweepTask) -> dict[str, Any]:
     """Render, run every pipeline and score one (point, scene).
 
+    In a local worker process, a SIGTERM ends the task (and its commands) and the process.
+
     Parameters
     ----------
     task : SweepTask
@@ -105,6 +114,11 @@ def run_task(task: SweepTask) -> dict[str, Any]:
         generated (then ``results`` is empty); ``png``/``gt`` are set only when the image is
         kept (``keep="all"``, or ``"failures"`` and some pipeline failed).
     """
+    with worker_task():
+        return _run_task(task)
+
+
+def _run_task(task: SweepTask) -> dict[str, Any]:
     from arenabench.generator.sample import make_sample
     from arenabench.generator.sampler import SamplingError
 

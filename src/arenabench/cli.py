@@ -3,12 +3,19 @@
 Each sub-command lives in its own module exposing ``main(argv: list[str] | None) -> int``;
 the module is imported only when its command runs, so ``arenabench detect`` never loads
 the renderer and the pipeline package stays free of generator imports.
+
+Every command exits quietly when whoever reads its output goes away
+(``arenabench detect --json ... | head -1``): see :func:`run`.
 """
 
 from __future__ import annotations
 
 import importlib
+import os
 import sys
+from collections.abc import Callable
+
+from arenabench.suggest import did_you_mean
 
 #: command name -> (module, one-line description)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -25,21 +32,46 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("arenabench.eval.demo", "generate a small eyrc set, score the reference pipeline"),
 }
 
+#: Exit status when the reader of stdout went away (128 + SIGPIPE, as a shell reports it).
+EXIT_BROKEN_PIPE = 141
+EXIT_USAGE = 2
+
 
 def _usage() -> str:
     width = max(len(name) for name in COMMANDS)
-    lines = ["usage: arenabench COMMAND [options]", "", "commands:"]
+    lines = ["usage: arenabench [--version] [--help] COMMAND [options]", "", "commands:"]
     lines += [f"  {name:<{width}}  {desc}" for name, (_, desc) in COMMANDS.items()]
-    lines += ["", "Run 'arenabench COMMAND --help' for a command's options."]
+    lines += [
+        "",
+        "options:",
+        "  -h, --help     this list ('arenabench help COMMAND' = 'arenabench COMMAND --help')",
+        "  -V, --version  print the version and exit",
+        "",
+        "Run 'arenabench COMMAND --help' for a command's options.",
+    ]
     return "\n".join(lines)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Dispatch ``arenabench COMMAND ...`` to the command's module and return its exit status."""
-    args = list(sys.argv[1:] if argv is None else argv)
-    if not args or args[0] in {"-h", "--help", "help"}:
+def _unknown(name: str) -> int:
+    hint = did_you_mean(name, COMMANDS)
+    print(f"arenabench: error: unknown command {name!r}{hint}\n\n{_usage()}", file=sys.stderr)
+    return EXIT_USAGE
+
+
+def _dispatch(args: list[str]) -> int:
+    if not args:
+        print(_usage(), file=sys.stderr)
+        return EXIT_USAGE
+    if args[0] in {"-h", "--help"}:
         print(_usage())
         return 0
+    if args[0] == "help":
+        if len(args) == 1:
+            print(_usage())
+            return 0
+        if args[1] not in COMMANDS:
+            return _unknown(args[1])
+        args = [args[1], "--help"]
     if args[0] in {"-V", "--version"}:
         from arenabench import __version__
 
@@ -47,10 +79,46 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     name, rest = args[0], args[1:]
     if name not in COMMANDS:
-        print(f"arenabench: unknown command {name!r}\n\n{_usage()}", file=sys.stderr)
-        return 2
+        return _unknown(name)
     module = importlib.import_module(COMMANDS[name][0])
     return int(module.main(rest) or 0)
+
+
+def run(entry: Callable[[], int | None]) -> int:
+    """Call a command's ``entry()`` and return its exit status, quietly giving up when the
+    reader of stdout has gone away (a closed pipe): no traceback, exit status 141.
+
+    Parameters
+    ----------
+    entry : callable
+        The command, called with no arguments.
+
+    Returns
+    -------
+    int
+    """
+    try:
+        rc = int(entry() or 0)
+        sys.stdout.flush()
+        return rc
+    except BrokenPipeError:
+        # Python flushes stdout again at exit: point it at /dev/null so that flush is silent.
+        try:
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+        except (OSError, ValueError):
+            pass
+        return EXIT_BROKEN_PIPE
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Dispatch ``arenabench COMMAND ...`` to the command's module and return its exit status.
+
+    No command prints the usage on stderr and returns 2; ``help COMMAND`` is
+    ``COMMAND --help``; an unknown command gets a "did you mean" hint.
+    """
+    args = list(sys.argv[1:] if argv is None else argv)
+    return run(lambda: _dispatch(args))
 
 
 if __name__ == "__main__":  # pragma: no cover

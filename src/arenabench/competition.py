@@ -9,13 +9,17 @@ Format (the key of the last line is ``Area:`` or ``Total Area:`` depending on th
 
 from __future__ import annotations
 
+import math
+import numbers
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 OBSTACLES_FILE = "obstacles.txt"
 
-_NUMBER = r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?"
+# Also matches nan / inf spellings, so that they are refused by name rather than as "unrecognised".
+_NUMBER = r"[-+]?(?:(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?|nan|inf(?:inity)?)"
 _RE_IDS = re.compile(r"^\s*aruco\s*ids?\s*:\s*\[?([^\]]*)\]?\s*$", re.IGNORECASE)
 _RE_COUNT = re.compile(rf"^\s*obstacles\s*:\s*({_NUMBER})\s*$", re.IGNORECASE)
 _RE_AREA = re.compile(rf"^\s*(?:total\s+)?area\s*:\s*({_NUMBER})\s*$", re.IGNORECASE)
@@ -32,6 +36,82 @@ class CompetitionOutput:
     count: int
     area: float
     marker_ids: list[int] = field(default_factory=list)
+
+
+#: Largest count accepted: beyond 2**53 an integer has no exact float (nor JSON) value.
+MAX_COUNT = 2**53
+
+
+def _refuse(name: str, problem: str, value: Any, shown: str | None) -> OutputFormatError:
+    if shown is not None:
+        quoted = shown
+    elif isinstance(value, int) and abs(value) > MAX_COUNT:
+        quoted = f"an integer of {value.bit_length()} bits"  # repr may refuse huge ints
+    else:
+        try:
+            quoted = repr(value)[:100]
+        except Exception:
+            quoted = f"<unprintable {type(value).__name__}>"
+    return OutputFormatError(f"{name} {problem}: {quoted}")
+
+
+def check_count(value: Any, *, name: str = "count", shown: str | None = None) -> int:
+    """An obstacle count as a Python ``int``, or :class:`OutputFormatError`.
+
+    Accepted: a non-negative integer, or a float with an integral, finite value (``2.0``).
+    Refused: booleans, strings, fractions, NaN, infinities and negative values.
+
+    Parameters
+    ----------
+    value : Any
+        What a pipeline reported.
+    name : str
+        Field name used in the message.
+    shown : str, optional
+        Text quoted in the message (default: ``repr(value)``).
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise _refuse(name, "is not an integer", value, shown)
+    if isinstance(value, numbers.Integral):
+        number = int(value)
+    else:
+        as_float = float(value)
+        if not math.isfinite(as_float):
+            raise _refuse(name, "is not a finite number", value, shown)
+        if as_float != int(as_float):
+            raise _refuse(name, "is not an integer", value, shown)
+        number = int(as_float)
+    if number < 0:
+        raise _refuse(name, "is negative", value, shown)
+    if number > MAX_COUNT:
+        raise _refuse(name, f"is larger than {MAX_COUNT}", value, shown)
+    return number
+
+
+def check_area(value: Any, *, name: str = "area", shown: str | None = None) -> float:
+    """An obstacle area (frame px) as a finite, non-negative ``float``, or
+    :class:`OutputFormatError` (booleans, strings, NaN, infinities, negative values).
+
+    Parameters
+    ----------
+    value : Any
+        What a pipeline reported.
+    name : str
+        Field name used in the message.
+    shown : str, optional
+        Text quoted in the message (default: ``repr(value)``).
+    """
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise _refuse(name, "is not a number", value, shown)
+    try:
+        number = float(value)
+    except OverflowError:  # a Python int beyond the float range
+        raise _refuse(name, "is not a finite number", value, shown) from None
+    if not math.isfinite(number):
+        raise _refuse(name, "is not a finite number", value, shown)
+    if number < 0:
+        raise _refuse(name, "is negative", value, shown)
+    return number + 0.0  # -0.0 becomes 0.0
 
 
 def format_obstacles_txt(marker_ids: Sequence[int], count: int, area: float) -> str:
@@ -59,7 +139,8 @@ def parse_obstacles_txt(text: str) -> CompetitionOutput:
     Raises
     ------
     OutputFormatError
-        When the count or area line is missing or malformed; the message quotes the text.
+        When the count or area line is missing or malformed, or a value is not finite,
+        negative, or (for the count) not an integer; the message quotes the text.
     """
     ids: list[int] = []
     count: int | None = None
@@ -75,12 +156,9 @@ def parse_obstacles_txt(text: str) -> CompetitionOutput:
             except ValueError:
                 raise OutputFormatError(f"bad marker id list: {raw!r}") from None
         elif m := _RE_COUNT.match(line):
-            value = float(m.group(1))
-            if value != int(value) or value < 0:
-                raise OutputFormatError(f"obstacle count is not a non-negative integer: {raw!r}")
-            count = int(value)
+            count = check_count(float(m.group(1)), name="obstacle count", shown=repr(raw.strip()))
         elif m := _RE_AREA.match(line):
-            area = float(m.group(1))
+            area = check_area(float(m.group(1)), shown=repr(raw.strip()))
         else:
             raise OutputFormatError(f"unrecognised line: {raw!r}")
     if count is None or area is None:

@@ -1,8 +1,14 @@
 """``arenabench detect`` (also ``python -m arenabench.detect``): competition-compatible I/O.
 
 Runs the pipeline on ``--image PATH`` and writes ``obstacles.txt`` in the competition's exact
-format to the working directory (or ``--output FILE``); ``--json`` also prints the full
-Detection on stdout. Drops into any place a team's ``map.py --image PATH`` would run.
+format to the working directory (or ``--output FILE``; ``-`` is standard output, and an
+existing device or FIFO such as ``/dev/stdout`` is written through, never replaced);
+``--json`` also prints the Detection on stdout as one compact JSON line (``--indent N`` for
+people, ``--contours`` to include the obstacle contours). Drops into any place a team's
+``map.py --image PATH`` would run.
+
+stdout carries only the ``--json`` line (or the competition output with ``--output -``); one
+human line on stderr says where ``obstacles.txt`` went and what it holds.
 
 Exit status: 0 ok; 2 bad input or usage (one line on stderr, ``arenabench detect: error:
 ...``); 3 markers not found (``obstacles.txt`` is still written, with the ids found, count 0
@@ -14,8 +20,9 @@ from __future__ import annotations
 import argparse
 import sys
 
+from arenabench.clihelp import HelpFormatter
 from arenabench.competition import OBSTACLES_FILE, format_obstacles_txt
-from arenabench.fileio import atomic_write_text
+from arenabench.fileio import OutputPathError, check_output_file, write_output_text
 from arenabench.frame import FrameSpec
 
 PROG = "arenabench detect"
@@ -34,14 +41,22 @@ class _Parser(argparse.ArgumentParser):
 def build_parser() -> argparse.ArgumentParser:
     """The command's argument parser."""
     p = _Parser(
+        formatter_class=HelpFormatter,
         prog=PROG,
         description="Detect the arena markers and obstacles in one overhead image and write "
         "obstacles.txt in the competition's format.",
     )
     p.add_argument("--image", required=True, help="input image (PNG, JPEG, ...)")
     p.add_argument("--output", default=OBSTACLES_FILE, metavar="FILE",
-                   help="where to write the competition output (default: ./obstacles.txt)")
-    p.add_argument("--json", action="store_true", help="also print the full Detection as JSON")
+                   help="where to write the competition output (default: ./obstacles.txt; "
+                        "'-' is standard output)")
+    p.add_argument("--json", action="store_true",
+                   help="also print the Detection on stdout as one compact JSON line (what "
+                        "'arenabench eval --output json' reads)")
+    p.add_argument("--indent", type=int, default=None, metavar="N",
+                   help="with --json: indent the JSON by N spaces (default: one line)")
+    p.add_argument("--contours", action="store_true",
+                   help="with --json: include each obstacle's contour points (frame px)")
     p.add_argument("--profile", choices=("reference", "seed"), default="reference",
                    help="reference (default): the sound method; seed: as published")
     p.add_argument("--threshold", type=int, default=70,
@@ -75,6 +90,9 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:  # --help
         return int(exc.code or 0)
 
+    if args.indent is not None and args.indent < 0:
+        return _error(f"--indent must be >= 0, got {args.indent}")
+
     from arenabench.imageio import ImageLoadError, load_image
     from arenabench.pipeline import DetectConfig, detect
 
@@ -89,6 +107,11 @@ def main(argv: list[str] | None = None) -> int:
         )
     except ValueError as exc:
         return _error(str(exc))
+    if args.output != "-":
+        try:
+            check_output_file(args.output, allow_special=True)
+        except OutputPathError as exc:
+            return _error(f"--output {args.output}: {exc}")
     try:
         image = load_image(args.image)
     except ImageLoadError as exc:
@@ -99,11 +122,13 @@ def main(argv: list[str] | None = None) -> int:
         return _error(str(exc))
     text = format_obstacles_txt(result.marker_ids, result.count, result.total_area)
     try:
-        atomic_write_text(args.output, text)
+        write_output_text(args.output, text)
     except OSError as exc:
         return _error(f"cannot write {args.output}: {exc.strerror or exc}")
     if args.json:
-        print(result.to_json())
+        print(result.to_json(indent=args.indent, contours=args.contours), flush=True)
+    print(f"{PROG}: wrote {args.output}: marker ids {list(result.marker_ids)}, "
+          f"{result.count} obstacles, area {result.total_area:.1f} px^2", file=sys.stderr)
     if not result.ok:
         print(f"{PROG}: markers not found: {result.message}", file=sys.stderr)
         return EXIT_MARKERS
@@ -111,4 +136,6 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    raise SystemExit(main())
+    from arenabench.cli import run
+
+    raise SystemExit(run(main))

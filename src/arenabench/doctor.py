@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from arenabench import glplatform
+from arenabench.clihelp import HelpFormatter
 
 PROG = "arenabench doctor"
 OPENCV_FIX = (
@@ -256,7 +257,11 @@ def run_checks(*, context: bool = True, timeout: float = 60.0) -> DoctorReport:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench doctor``; 0 when all checks pass, 1 otherwise, 2 on bad options."""
-    parser = argparse.ArgumentParser(prog=PROG, description=__doc__.splitlines()[0])
+    parser = argparse.ArgumentParser(
+        prog=PROG, formatter_class=HelpFormatter,
+        description="Is this machine ready to detect (OpenCV) and to render (pyrender)? "
+        "Checks Python, OpenCV with aruco, pyrender and an off-screen OpenGL context; exit "
+        "status 0 when every check passes, 1 otherwise.")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     parser.add_argument("--timeout", type=float, default=60.0,
                         help="seconds allowed for creating the OpenGL context (default 60)")

@@ -1,6 +1,6 @@
 """The rectified frame: the 1000 x 1000 top-down view every part of the project agrees on.
 
-Conventions (see README "Coordinates"):
+Conventions (defined in docs/ground-truth.md, "Coordinate systems"):
 
 - World: metres, floor plane z = 0, z up; the arena is a square of side L centred at the
   origin; north is +y, east is +x.
@@ -17,6 +17,8 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
+
+from arenabench.limits import MAX_IMAGE_SIDE_PX
 
 #: Corner names in frame order.
 CORNER_ORDER: tuple[str, ...] = ("nw", "ne", "se", "sw")
@@ -43,8 +45,10 @@ class FrameSpec:
     corners: CornerConvention = "inner"
 
     def __post_init__(self) -> None:
-        if int(self.size) != self.size or self.size < 16:
-            raise ValueError(f"frame size must be an integer >= 16, got {self.size!r}")
+        if int(self.size) != self.size or not 16 <= self.size <= MAX_IMAGE_SIDE_PX:
+            raise ValueError(
+                f"frame size must be an integer in [16, {MAX_IMAGE_SIDE_PX}], got {self.size!r}"
+            )
         if self.corners not in ("inner", "outer"):
             raise ValueError(f"frame corners must be 'inner' or 'outer', got {self.corners!r}")
 
@@ -56,8 +60,3 @@ class FrameSpec:
     def to_dict(self) -> dict:
         """JSON form used in ground truth: ``{"size": [S, S], "corners": ...}``."""
         return {"size": [int(self.size), int(self.size)], "corners": self.corners}
-
-
-def world_to_frame_scale(dx_m: float, dy_m: float, size: int = 1000) -> tuple[float, float]:
-    """Pixels per metre along x and y for reference corners ``dx_m`` x ``dy_m`` metres apart."""
-    return size / dx_m, size / dy_m

@@ -104,7 +104,8 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
     Raises
     ------
     ImageLoadError
-        Missing file, directory, unreadable, empty, truncated or not an image.
+        Missing file, directory, not a regular file (FIFO, device), unreadable, empty,
+        truncated or not an image.
     """
     p = Path(path)
     name = str(p)
@@ -112,6 +113,8 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
         raise ImageLoadError(f"{name}: no such file")
     if p.is_dir():
         raise ImageLoadError(f"{name}: is a directory, not an image file")
+    if not p.is_file():  # a FIFO or a device would block or never end
+        raise ImageLoadError(f"{name}: not a regular file (a pipe, device or socket)")
     try:
         data = p.read_bytes()
     except OSError as exc:

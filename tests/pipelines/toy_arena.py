@@ -10,6 +10,7 @@ Run as a script it is a competition-style pipeline: ``toy_arena.py --image PATH`
 from __future__ import annotations
 
 import argparse
+import hashlib
 import json
 import sys
 from pathlib import Path
@@ -29,10 +30,7 @@ def draw_toy_arena(
 ) -> tuple[np.ndarray, dict]:
     """Draw one arena with tests/drawing.py; returns (BGR image, GT dict in the
     arenabench.gt/1 layout). ``gain`` scales the floor brightness."""
-    tests_dir = str(Path(__file__).resolve().parents[1])
-    if tests_dir not in sys.path:
-        sys.path.insert(0, tests_dir)
-    from drawing import Box, draw_arena
+    from drawing import Box, draw_arena  # tests/ is on sys.path (pytest's pythonpath option)
 
     boxes: list[Box] = []
     tries = 0
@@ -101,16 +99,19 @@ def write_toy_dataset(root: Path, *, n: int = 8, seed: int = 0) -> Path:
         ident = f"{i:06d}"
         image, gt = draw_toy_arena(rng, n_boxes=i % 4, gain=float(rng.uniform(0.7, 1.0)))
         gt.update({"id": ident, "image": f"images/{ident}.png", "seed": seed})
-        cv2.imwrite(str(root / "images" / f"{ident}.png"), image)
-        (root / "gt" / f"{ident}.json").write_text(json.dumps(gt))
+        ok, png = cv2.imencode(".png", image)
+        assert ok
+        gt_bytes = json.dumps(gt).encode("utf-8")
+        (root / "images" / f"{ident}.png").write_bytes(png.tobytes())
+        (root / "gt" / f"{ident}.json").write_bytes(gt_bytes)
         lines.append(
             json.dumps(
                 {
                     "id": ident,
                     "image": f"images/{ident}.png",
                     "gt": f"gt/{ident}.json",
-                    "image_sha256": "",
-                    "gt_sha256": "",
+                    "image_sha256": hashlib.sha256(png.tobytes()).hexdigest(),
+                    "gt_sha256": hashlib.sha256(gt_bytes).hexdigest(),
                 }
             )
         )

@@ -6,6 +6,8 @@ import json
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
+from arenabench.fileio import json_safe
+
 Status = Literal["ok", "markers_not_found"]
 
 #: Version tag written into :meth:`Detection.to_dict`.
@@ -34,10 +36,12 @@ class Obstacle:
     area: float
     pixel_area: int
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe form."""
-        return {"contour": _points(self.contour), "area": float(self.area),
-                "pixel_area": int(self.pixel_area)}
+    def to_dict(self, *, contour: bool = True) -> dict[str, Any]:
+        """JSON-safe form (without the ``contour`` points when ``contour`` is False)."""
+        out: dict[str, Any] = {"area": float(self.area), "pixel_area": int(self.pixel_area)}
+        if contour:
+            out["contour"] = _points(self.contour)
+        return out
 
 
 @dataclass(frozen=True)
@@ -108,8 +112,14 @@ class Detection:
         """Alias of ``total_area`` (the harness reads either)."""
         return self.total_area
 
-    def to_dict(self) -> dict[str, Any]:
-        """JSON-safe dict (marker ids as string keys in ``marker_corners``)."""
+    def to_dict(self, *, contours: bool = True) -> dict[str, Any]:
+        """JSON-safe dict (marker ids as string keys in ``marker_corners``).
+
+        Parameters
+        ----------
+        contours : bool, keyword-only
+            Include each obstacle's contour points (the bulk of the output).
+        """
         return {
             "schema": DETECTION_SCHEMA,
             "status": self.status,
@@ -124,16 +134,19 @@ class Detection:
             "frame": dict(self.frame),
             "count": int(self.count),
             "total_area": float(self.total_area),
-            "obstacles": [o.to_dict() for o in self.obstacles],
+            "obstacles": [o.to_dict(contour=contours) for o in self.obstacles],
             "image_size": [int(v) for v in self.image_size],
             "timings_ms": {k: float(v) for k, v in self.timings_ms.items()},
             "details": dict(self.details),
             "message": self.message,
         }
 
-    def to_json(self, *, indent: int | None = 2) -> str:
-        """JSON text of :meth:`to_dict` (sorted keys, no NaN)."""
-        return json.dumps(self.to_dict(), indent=indent, sort_keys=True, allow_nan=False)
+    def to_json(self, *, indent: int | None = 2, contours: bool = True) -> str:
+        """JSON text of :meth:`to_dict` (sorted keys; an undefined number is ``null``; one
+        line when ``indent`` is None)."""
+        separators = (",", ":") if indent is None else None
+        return json.dumps(json_safe(self.to_dict(contours=contours)), indent=indent,
+                          sort_keys=True, allow_nan=False, separators=separators)
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Detection:
@@ -151,7 +164,7 @@ class Detection:
             count=int(data["count"]),
             total_area=float(data["total_area"]),
             obstacles=[
-                Obstacle(contour=_points(o["contour"]), area=float(o["area"]),
+                Obstacle(contour=_points(o.get("contour", [])), area=float(o["area"]),
                          pixel_area=int(o["pixel_area"]))
                 for o in data["obstacles"]
             ],

@@ -1,0 +1,273 @@
+"""Stopping long commands cleanly on SIGINT (Ctrl-C) and SIGTERM.
+
+In the command's process::
+
+    with stop_on_signals() as stop:
+        try:
+            do_the_work()            # the first signal raises Interrupted here
+        except Interrupted:
+            pass                     # the work has unwound through its finally blocks
+        write_what_finished()
+    if stop.requested:
+        print("interrupted: 37 of 200 images written; ...")
+        return stop.exit_code        # 130 for SIGINT, 143 for SIGTERM
+
+The first SIGINT or SIGTERM raises :class:`Interrupted` in the main thread, wherever it is
+(waiting on a worker pool, rendering, running a subprocess), so the work unwinds through its
+``finally`` blocks: pools are shut down, subprocesses killed, temporary files removed.
+:class:`Interrupted` derives from ``BaseException``, so ``except Exception`` does not swallow
+it. ``with stop.deferred():`` holds it back while a block runs and raises it when the block
+ends. A second signal exits at once with the same status (the user insists). A signal ignored
+when the block is entered (``nohup``, a background job of a non-interactive shell) stays
+ignored. Exit statuses follow the shell's convention for a process ended by a signal:
+128 + the signal number.
+
+In worker processes (a ``multiprocessing`` pool's initializer): :func:`init_worker_process`
+makes the worker die with its parent (even one killed with SIGKILL; Linux), ignore SIGINT
+(Ctrl-C reaches the whole process group: the parent decides what happens) and, on SIGTERM,
+unwind the task at hand when it runs inside :func:`worker_task`, then exit. In the parent,
+workers started inside :func:`children_ignore_sigint` ignore SIGINT from their first
+instruction, and :func:`stop_workers` ends every ``multiprocessing`` child: SIGTERM, then
+SIGKILL after a grace period.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import multiprocessing
+import os
+import signal
+import sys
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
+
+#: The signals that stop a command.
+STOP_SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM)
+#: Seconds :func:`stop_workers` waits after SIGTERM before it sends SIGKILL.
+WORKER_GRACE_S = 3.0
+
+_PR_SET_PDEATHSIG = 1
+
+
+def exit_code(signum: int) -> int:
+    """The exit status of a command stopped by signal ``signum``: 128 + its number."""
+    return 128 + int(signum)
+
+
+def signal_name(signum: int) -> str:
+    """``"SIGINT"`` for 2, and so on."""
+    try:
+        return signal.Signals(signum).name
+    except ValueError:
+        return f"signal {signum}"
+
+
+class Interrupted(BaseException):
+    """Raised in the main thread by the first stop signal.
+
+    Attributes
+    ----------
+    signum : int
+        The signal received.
+    """
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(f"interrupted by {signal_name(signum)}")
+        self.signum = int(signum)
+
+    @property
+    def exit_code(self) -> int:
+        """130 for SIGINT, 143 for SIGTERM."""
+        return exit_code(self.signum)
+
+
+class StopRequest:
+    """What :func:`stop_on_signals` yields: whether, and by which signal, a stop was asked."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+        self._raised = False
+        self._deferring = 0
+
+    @property
+    def requested(self) -> bool:
+        """Whether a stop signal arrived."""
+        return self.signum is not None
+
+    @property
+    def exit_code(self) -> int | None:
+        """130 (SIGINT) or 143 (SIGTERM) once a signal arrived, else None."""
+        return None if self.signum is None else exit_code(self.signum)
+
+    @property
+    def signal_name(self) -> str | None:
+        """``"SIGINT"`` or ``"SIGTERM"`` once a signal arrived, else None."""
+        return None if self.signum is None else signal_name(self.signum)
+
+    def check(self) -> None:
+        """Raise :class:`Interrupted` if a stop was asked and not raised yet."""
+        if self.signum is not None and not self._raised:
+            self._raised = True
+            raise Interrupted(self.signum)
+
+    @contextmanager
+    def deferred(self) -> Iterator[None]:
+        """Hold a stop back while the block runs; raise :class:`Interrupted` when it ends."""
+        self._deferring += 1
+        try:
+            yield
+        finally:
+            self._deferring -= 1
+        if not self._deferring:
+            self.check()
+
+    def _handle(self, signum: int, frame) -> None:
+        if self.signum is not None:  # a second signal: leave now
+            os._exit(exit_code(signum))
+        self.signum = int(signum)
+        if not self._deferring:
+            self.check()
+
+
+@contextmanager
+def stop_on_signals(signals: tuple[int, ...] = STOP_SIGNALS) -> Iterator[StopRequest]:
+    """Turn ``signals`` into :class:`Interrupted` (the first) and an immediate exit (the next).
+
+    Must be entered in the main thread. The previous handlers are restored on exit.
+
+    Parameters
+    ----------
+    signals : tuple of int
+        Default SIGINT and SIGTERM.
+
+    Yields
+    ------
+    StopRequest
+    """
+    if threading.current_thread() is not threading.main_thread():
+        raise RuntimeError("stop_on_signals must be entered in the main thread")
+    stop = StopRequest()
+    previous = {}
+    for sig in signals:
+        old = signal.getsignal(sig)
+        if old is signal.SIG_IGN:
+            continue
+        previous[sig] = old
+        signal.signal(sig, stop._handle)
+    try:
+        yield stop
+    finally:
+        for sig, old in previous.items():
+            signal.signal(sig, old)
+
+
+# ----------------------------------------------------------------------------- workers
+
+_IN_WORKER = False
+_IN_TASK = False
+
+
+def _die_with_parent(parent_pid: int | None) -> None:
+    if sys.platform.startswith("linux"):
+        try:
+            libc = ctypes.CDLL(None, use_errno=True)
+            libc.prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+        except (OSError, AttributeError):  # pragma: no cover - no prctl
+            pass
+    if parent_pid is not None and os.getppid() != parent_pid:  # the parent is already gone
+        os._exit(exit_code(signal.SIGTERM))
+
+
+def _worker_sigterm(signum: int, frame) -> None:
+    if _IN_TASK:
+        raise Interrupted(signum)
+    os._exit(exit_code(signum))
+
+
+def init_worker_process(*, parent_pid: int | None = None) -> None:
+    """Call first in a worker process's initializer.
+
+    The worker gets SIGTERM when its parent dies (``PR_SET_PDEATHSIG`` on Linux, so even a
+    parent killed with SIGKILL leaves no worker behind), ignores SIGINT, and on SIGTERM
+    unwinds the task running inside :func:`worker_task` (killing its subprocesses, removing
+    temporary files) and exits, or exits at once when idle.
+
+    Parameters
+    ----------
+    parent_pid : int, optional, keyword-only
+        The parent's pid (``os.getpid()`` in the parent): a worker whose parent died before
+        this call exits at once.
+    """
+    global _IN_WORKER
+    _die_with_parent(parent_pid)
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _worker_sigterm)
+    _IN_WORKER = True
+
+
+@contextmanager
+def worker_task() -> Iterator[None]:
+    """Run one task of a worker set up by :func:`init_worker_process` (elsewhere: no effect).
+
+    A SIGTERM during the task raises :class:`Interrupted` in it; once the task has unwound,
+    the worker exits with status 143.
+    """
+    global _IN_TASK
+    if not _IN_WORKER:
+        yield
+        return
+    _IN_TASK = True
+    try:
+        yield
+    except Interrupted as exc:
+        os._exit(exc.exit_code)
+    finally:
+        _IN_TASK = False
+
+
+@contextmanager
+def children_ignore_sigint() -> Iterator[None]:
+    """Start worker processes inside this block: they begin life ignoring SIGINT.
+
+    A Ctrl-C reaches every process of the terminal's process group; a worker still importing
+    its modules (before :func:`init_worker_process` runs) would print a KeyboardInterrupt
+    traceback. An ignored signal stays ignored across ``exec``, so workers started here never
+    see it. In this process SIGINT is ignored only while the block runs (milliseconds: the
+    workers are started, not waited for). No effect outside the main thread.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = signal.signal(signal.SIGINT, signal.SIG_IGN)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+
+
+def stop_workers(*, grace_s: float = WORKER_GRACE_S) -> int:
+    """End every live ``multiprocessing`` child of this process: SIGTERM, then SIGKILL.
+
+    Parameters
+    ----------
+    grace_s : float, keyword-only
+        Seconds to wait for the children to exit after SIGTERM.
+
+    Returns
+    -------
+    int
+        How many children were running.
+    """
+    children = multiprocessing.active_children()
+    for child in children:
+        child.terminate()
+    deadline = time.monotonic() + grace_s
+    for child in children:
+        child.join(max(0.0, deadline - time.monotonic()))
+    for child in children:
+        if child.is_alive():
+            child.kill()
+            child.join(1.0)
+    return len(children)

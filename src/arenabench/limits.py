@@ -1,0 +1,39 @@
+"""Largest sizes arenabench accepts, declared once.
+
+A request beyond one of these is refused up front with a one-line error naming the limit,
+instead of allocating (or looping) until memory or the GL driver gives out.
+"""
+
+from __future__ import annotations
+
+#: Largest image side in px: camera width/height of a scene, the rectified frame
+#: (``detect --frame-size``), contact-sheet tiles and the whole sheet. Off-screen GL
+#: renderbuffers are commonly limited to 8192 or 16384 px; a 8192 x 8192 BGR image is 192 MiB.
+MAX_IMAGE_SIDE_PX = 8192
+
+#: Most scenes in one dataset (``generate --count``): scene ids have six digits.
+MAX_DATASET_SCENES = 1_000_000
+
+#: Most local worker processes or threads (``--workers``) of generate, sweep and eval.
+MAX_WORKERS = 256
+
+#: Most scenes rendered by one sweep: points x scenes per point (``sweep --per-point``,
+#: ``--random`` and the grid of ``--vary`` axes).
+MAX_SWEEP_SCENES = 1_000_000
+
+
+def check_at_most(value: int, limit: int, what: str) -> None:
+    """Raise ``ValueError("<what> = <value> exceeds the limit of <limit>")`` when
+    ``value > limit``.
+
+    Parameters
+    ----------
+    value : int
+        The requested size.
+    limit : int
+        One of this module's maxima.
+    what : str
+        Names the option or parameter (``"--count"``, ``"camera.width"``).
+    """
+    if value > limit:
+        raise ValueError(f"{what} = {value} exceeds the limit of {limit}")

@@ -1,0 +1,134 @@
+"""The one progress rule of every command (generate, eval, sweep, contact-sheet, bench, ...).
+
+On a terminal (stderr is a TTY) a tqdm bar; otherwise (logs, CI, pipes) a few plain lines on
+stderr, one each time another 10 % is done (at most one per 2 s) or 10 s have passed, and
+one at the end; nothing at all when disabled (``--no-progress``). Use :func:`progress` as a
+context manager::
+
+    with progress(len(tasks), desc="generate", unit="img", enabled=show) as bar:
+        for task in tasks:
+            ...
+            bar.update(1)
+"""
+
+from __future__ import annotations
+
+import sys
+import time
+from typing import Any, TextIO
+
+#: Plain-line mode: a line each time this fraction of the work is done ...
+PLAIN_STEP_FRACTION = 0.10
+#: ... or this many seconds have passed since the last line ...
+PLAIN_STEP_SECONDS = 10.0
+#: ... but never sooner than this after the last line (a short run prints little).
+PLAIN_MIN_SECONDS = 2.0
+
+
+class _Closing:
+    def __enter__(self) -> Any:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:  # pragma: no cover - overridden
+        pass
+
+
+class _Silent(_Closing):
+    def update(self, n: int = 1) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
+
+
+class PlainProgress(_Closing):
+    """Progress as plain lines (``desc: 40/100 (40 %), 12.3 s``) for non-terminal stderr.
+
+    Parameters
+    ----------
+    total : int
+        Units of work.
+    desc, unit : str, keyword-only
+        What is counted (``"generate"``, ``"img"``).
+    file : text stream, keyword-only
+        Where lines go (default ``sys.stderr``).
+    clock : callable, keyword-only
+        Seconds now (default :func:`time.monotonic`).
+    """
+
+    def __init__(self, total: int, *, desc: str, unit: str, file: TextIO | None = None,
+                 clock: Any = time.monotonic) -> None:
+        self.total, self.desc, self.unit = max(0, int(total)), desc, unit
+        self.file = file if file is not None else sys.stderr
+        self.clock = clock
+        self.n = 0
+        self._start = self._last_time = clock()
+        self._last_n = 0
+        self._closed = False
+
+    def _line(self) -> None:
+        pct = f" ({100 * self.n / self.total:.0f} %)" if self.total else ""
+        seconds = self.clock() - self._start
+        print(f"{self.desc}: {self.n}/{self.total} {self.unit}{pct}, {seconds:.1f} s",
+              file=self.file, flush=True)
+        self._last_n, self._last_time = self.n, self.clock()
+
+    def update(self, n: int = 1) -> None:
+        """Count ``n`` more units; print a line when a step is reached."""
+        self.n += n
+        step = max(1, round(self.total * PLAIN_STEP_FRACTION))
+        if self.n >= self.total:
+            return  # the final line comes from close()
+        since = self.clock() - self._last_time
+        if since >= PLAIN_STEP_SECONDS or (
+            self.n - self._last_n >= step and since >= PLAIN_MIN_SECONDS
+        ):
+            self._line()
+
+    def close(self) -> None:
+        """Print the final line (once)."""
+        if not self._closed:
+            self._closed = True
+            self._line()
+
+
+def progress(total: int, *, desc: str, unit: str = "img", enabled: bool = True,
+             file: TextIO | None = None) -> Any:
+    """A progress object with ``update(n)`` and ``close()``, usable in ``with``: a tqdm bar,
+    plain lines or nothing.
+
+    Parameters
+    ----------
+    total : int
+        Units of work.
+    desc : str, keyword-only
+        Label (the command's name, e.g. ``"eval reference"``).
+    unit : str, keyword-only
+        Unit counted (default ``"img"``).
+    enabled : bool, keyword-only
+        False: no output at all.
+    file : text stream, keyword-only
+        Default ``sys.stderr``; the bar is drawn only when it is a terminal.
+
+    Returns
+    -------
+    tqdm.tqdm or PlainProgress or a silent stand-in
+    """
+    stream = file if file is not None else sys.stderr
+    if not enabled or total <= 0:
+        return _Silent()
+    if _isatty(stream):
+        from tqdm import tqdm
+
+        return tqdm(total=total, desc=desc[:40], unit=unit, file=stream, dynamic_ncols=True)
+    return PlainProgress(total, desc=desc, unit=unit, file=stream)
+
+
+def _isatty(stream: TextIO) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):
+        return False

@@ -1,0 +1,14 @@
+"""Prints $MB megabytes to stdout (1 MiB at a time), then answers."""
+
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from common import answer
+
+line = ("y" * 1023 + "\n") * 1024
+for _ in range(int(os.environ.get("MB", "100"))):
+    sys.stdout.write(line)
+sys.stdout.write("the end\n")
+sys.stdout.flush()
+answer()

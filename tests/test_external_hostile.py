@@ -1,0 +1,348 @@
+"""Hostile external pipelines (tests/pipelines/hostile/), run for real: every one contained and
+categorised, the run finishing, nothing left behind. With bubblewrap (real bwrap) where it
+works here, and with ``--sandbox none`` for what must hold without it."""
+
+import json
+import os
+import signal
+import socket
+import subprocess
+import sys
+import tempfile
+import threading
+from pathlib import Path
+
+import pytest
+
+from arenabench.eval.external import bwrap_problem, pids_cgroup_parent
+from arenabench.eval.pipelines import CommandPipeline
+from arenabench.eval.run_limits import RunLimits, RunSettings
+from arenabench.eval.runner import evaluate
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from hostile_util import processes_with, wait_for
+
+PIPES = Path(__file__).resolve().parent / "pipelines"
+HOSTILE = PIPES / "hostile"
+sys.path.insert(0, str(PIPES))
+import toy_arena  # noqa: E402
+
+PY = sys.executable
+needs_bwrap = pytest.mark.skipif(bwrap_problem() is not None, reason=str(bwrap_problem()))
+SANDBOXES = [pytest.param("bwrap", marks=needs_bwrap), "none"]
+
+
+@pytest.fixture(scope="module")
+def toy(tmp_path_factory):
+    return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("toy") / "toy set", n=4, seed=5)
+
+
+@pytest.fixture()
+def run_tmp(tmp_path, monkeypatch):
+    """Private directories of the runs go here (checked empty afterwards)."""
+    d = tmp_path / "runs"
+    d.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(d))
+    yield d
+    assert list(d.iterdir()) == [], "a run's directory was left behind"
+
+
+def _pipe(script, sandbox, *, env=None, **limits):
+    settings = RunSettings(
+        limits=RunLimits(**{"timeout_s": 30.0, **limits}), sandbox=sandbox, env=env or {}
+    )
+    return CommandPipeline(f"{PY} {HOSTILE / script} --image {{image}}", settings=settings)
+
+
+def _one(script, sandbox, toy, **kw):
+    report = evaluate(_pipe(script, sandbox, **kw), toy, workers=2, limit=2)
+    return report.images
+
+
+@needs_bwrap
+def test_snooping_finds_no_dataset_under_bwrap(toy, run_tmp):
+    images = _one("snoop.py", "bwrap", toy, env={"TARGET": str(toy)})
+    for r in images:
+        seen = json.loads(r.prediction.stdout.strip().splitlines()[-1])
+        assert seen["found"] == [], seen["found"]
+        assert seen["cwd"] == "/sandbox" and seen["cwd_files"] == ["image.png"]
+        assert seen["argv"][-1] == "/sandbox/image.png"
+        assert seen["target"] == ["<No such file or directory>"]
+        assert seen["suspicious"] == []
+        assert r.prediction.status == "ok"
+
+
+@needs_bwrap
+def test_a_submission_under_tmp_runs_and_still_sees_no_dataset(toy, run_tmp, tmp_path):
+    import shutil
+
+    team = tmp_path / "team folder"
+    team.mkdir()
+    for name in ("snoop.py", "common.py"):
+        shutil.copy(HOSTILE / name, team / name)
+    pipe = CommandPipeline(
+        f"{PY} snoop.py --image {{image}}", settings=RunSettings(sandbox="bwrap",
+                                                                  env={"TARGET": str(toy)}),
+        base_dir=str(team),
+    )
+    for r in evaluate(pipe, toy, workers=2, limit=2).images:
+        assert r.prediction.status == "ok", (r.prediction.message, r.prediction.stderr)
+        seen = json.loads(r.prediction.stdout.strip().splitlines()[-1])
+        assert seen["found"] == [] and seen["suspicious"] == []
+        assert seen["target"] == ["<No such file or directory>"]
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_private_directory_and_scrubbed_environment(sandbox, toy, run_tmp, monkeypatch):
+    monkeypatch.setenv("SECRET_TOKEN", "s3cr3t")
+    pipe = CommandPipeline(
+        f"{PY} {HOSTILE / 'snoop.py'} --image {{image}}",
+        settings=RunSettings(sandbox=sandbox, image_name="frame.png", env={"EXTRA": "1"}),
+    )
+    for r in evaluate(pipe, toy, workers=2, limit=2).images:
+        seen = json.loads(r.prediction.stdout.strip().splitlines()[-1])
+        assert set(seen["env"]) <= {"PATH", "HOME", "LANG", "LC_ALL", "TMPDIR", "EXTRA", "PWD"}
+        assert seen["env"]["EXTRA"] == "1" and seen["env"]["HOME"] == seen["cwd"]
+        assert seen["cwd_files"] == ["frame.png"]
+        assert os.path.basename(seen["argv"][-1]) == "frame.png"
+        assert str(toy) not in json.dumps([seen["argv"], seen["env"]])
+
+
+@needs_bwrap
+def test_loopback_connection_fails_under_bwrap(toy, run_tmp):
+    server = socket.socket()
+    server.bind(("127.0.0.1", 0))
+    server.listen(4)
+    server.settimeout(0.5)
+    port = server.getsockname()[1]
+    try:
+        images = _one("network.py", "bwrap", toy, env={"PORT": str(port)})
+        with pytest.raises(TimeoutError):
+            server.accept()
+    finally:
+        server.close()
+    for r in images:
+        assert r.category == "crash"
+        assert "connect failed" in r.prediction.stderr
+
+
+@needs_bwrap
+def test_writes_outside_the_private_directory_fail_under_bwrap(toy, run_tmp, tmp_path):
+    target = tmp_path / "outside.txt"
+    images = _one("escape_write.py", "bwrap", toy, env={"TARGET": str(target)})
+    assert not target.exists()
+    assert not (HOSTILE / "escaped.txt").exists()
+    for r in images:
+        assert "WROTE" not in r.prediction.stdout
+        assert r.prediction.stdout.count("refused") == 3
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_detached_daemons_are_gone_and_do_not_hold_the_run(sandbox, toy, run_tmp):
+    marker = f"daemon-marker-{os.getpid()}-{sandbox}"
+    images = _one("daemon.py", sandbox, toy, env={"MARKER": marker})
+    for r in images:
+        # they hold stdout open, yet the run ends with its main process
+        assert r.prediction.status == "ok", r.prediction.message
+        assert r.prediction.latency_ms < 30_000
+        assert "answered" in r.prediction.stdout
+    assert processes_with(marker) == []
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_memory_past_the_limit_is_a_limit(sandbox, toy, run_tmp):
+    images = _one("memory.py", sandbox, toy, env={"MB": "1024"}, memory_bytes=256 * 1024**2)
+    for r in images:
+        assert r.category == "limit", (r.prediction.message, r.prediction.stderr)
+        assert r.prediction.message.startswith("memory limit (--memory-limit 256M)")
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_fork_bomb_past_max_procs_is_a_limit(sandbox, toy, run_tmp):
+    if pids_cgroup_parent() is None and os.getuid() == 0:
+        pytest.skip("root without a writable pids cgroup: --max-procs is not enforceable")
+    marker = str(HOSTILE / "forkbomb.py")
+    images = _one("forkbomb.py", sandbox, toy, max_procs=16)
+    for r in images:
+        assert r.category == "limit", (r.prediction.message, r.prediction.stderr)
+        assert r.prediction.message.startswith("process limit (--max-procs 16)")
+        assert "forked 500" not in r.prediction.stdout
+    assert processes_with(marker) == []
+    # the machine still forks
+    assert subprocess.run(["true"]).returncode == 0
+
+
+def _rss_mb() -> float:
+    for line in Path("/proc/self/status").read_text().splitlines():
+        if line.startswith("VmRSS:"):
+            return float(line.split()[1]) / 1024
+    raise AssertionError("no VmRSS")
+
+
+@pytest.mark.slow
+def test_100_mb_of_stdout_keeps_a_bounded_tail_and_flat_memory(toy, run_tmp):
+    peak = [_rss_mb()]
+    base = peak[0]
+    done = threading.Event()
+
+    def sample():
+        while not done.is_set():
+            peak[0] = max(peak[0], _rss_mb())
+            done.wait(0.02)
+
+    t = threading.Thread(target=sample)
+    t.start()
+    try:
+        images = _one("bigprint.py", "auto", toy, env={"MB": "100"}, max_output=64 * 1024)
+    finally:
+        done.set()
+        t.join()
+    for r in images:
+        assert r.prediction.status == "ok", r.prediction.message
+        assert r.prediction.stdout.endswith("the end\n")
+        assert len(r.prediction.stdout) <= 2100
+    assert peak[0] - base < 40, f"harness RSS grew by {peak[0] - base:.0f} MB"
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_file_size_limit_and_oversized_answer(sandbox, toy, run_tmp):
+    big = _one("bigfile.py", sandbox, toy, env={"MB": "64"}, max_file_size=8 * 1024**2)
+    for r in big:
+        assert r.category == "limit", (r.prediction.message, r.prediction.stderr)
+        assert r.prediction.message.startswith("file size limit (--max-file-size 8M)")
+    huge_answer = _one("bigfile.py", sandbox, toy, env={"MB": "2", "NAME": "obstacles.txt"})
+    for r in huge_answer:
+        assert r.category == "bad_output"
+        assert "more than the 65536 allowed" in r.prediction.message
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_sigxfsz_of_a_native_writer_is_a_limit(sandbox, toy, run_tmp):
+    settings = RunSettings(limits=RunLimits(max_file_size=1024**2), sandbox=sandbox)
+    pipe = CommandPipeline("dd if=/dev/zero of=big.bin bs=64k count=64", settings=settings)
+    for r in evaluate(pipe, toy, workers=2, limit=2).images:
+        assert r.category == "limit", (r.prediction.message, r.prediction.stderr)
+        assert r.prediction.message.startswith("file size limit (--max-file-size 1M)")
+
+
+def _eval_cmd(toy, out, tmpdir, *, hang, marker, workers=1, sandbox="auto"):
+    env = {**os.environ, "TMPDIR": str(tmpdir)}
+    argv = [
+        PY, "-m", "arenabench", "eval", str(toy), "--cmd",
+        f"{PY} {HOSTILE / 'hang_on.py'} --image {{image}}", "--env", f"HANG={hang}",
+        "--env", f"MARKER={marker}", "--workers", str(workers), "--no-progress",
+        "--formats", "json", "--out", str(out), "--timeout", "120", "--sandbox", sandbox,
+    ]  # fmt: skip
+    return subprocess.Popen(argv, env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+
+
+def _sha(path: Path) -> str:
+    import hashlib
+
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_signal_stops_eval_with_a_partial_report(signum, toy, tmp_path):
+    marker = f"signal-marker-{os.getpid()}-{int(signum)}"
+    children = f"{marker}:child"
+    second = sorted((toy / "images").iterdir())[1]
+    tmpdir = tmp_path / "tmp"
+    tmpdir.mkdir()
+    proc = _eval_cmd(toy, tmp_path / "out", tmpdir, hang=_sha(second), marker=marker)
+    try:
+        assert wait_for(lambda: processes_with(children), timeout=60), "the pipeline never hung"
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=15)
+    finally:
+        proc.kill()
+    assert proc.returncode == 128 + signum, err
+    assert b"Traceback" not in err
+    report = json.loads((tmp_path / "out" / "report.json").read_text())
+    assert report["complete"] is False and report["n_done"] == 1
+    assert [i["id"] for i in report["images"]] == ["000000"]
+    assert wait_for(lambda: not processes_with(children), timeout=5)
+    assert processes_with(str(HOSTILE / "hang_on.py")) == []
+    assert processes_with(str(tmpdir)) == []  # launchers
+    assert list(tmpdir.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_sigkill_of_the_harness_leaves_no_processes_or_directories(toy, tmp_path):
+    marker = f"sigkill-marker-{os.getpid()}"
+    children = f"{marker}:child"
+    tmpdir = tmp_path / "tmp"
+    tmpdir.mkdir()
+    proc = _eval_cmd(toy, tmp_path / "out", tmpdir, hang="all", marker=marker, workers=2)
+    try:
+        assert wait_for(lambda: len(processes_with(children)) >= 4, timeout=60)
+        proc.kill()
+        proc.wait()
+    finally:
+        proc.kill()
+    assert wait_for(lambda: not processes_with(children), timeout=10), processes_with(children)
+    assert wait_for(lambda: not processes_with(str(HOSTILE / "hang_on.py")), timeout=10)
+    assert wait_for(lambda: not processes_with(str(tmpdir)), timeout=10)  # launchers
+    assert wait_for(lambda: not list(tmpdir.iterdir()), timeout=10), list(tmpdir.iterdir())
+
+
+@pytest.mark.parametrize(
+    "cmd, message",
+    [
+        ("no-such-pipeline-xyz --image {image}", "'no-such-pipeline-xyz' not found on PATH"),
+        ("./missing/map.py --image {image}", "'./missing/map.py' does not exist"),
+    ],
+)
+def test_missing_executable_is_refused_up_front(cmd, message, toy, capsys):
+    from arenabench.eval.cli import main
+
+    assert main([str(toy), "--cmd", cmd, "--no-progress"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and message in err[0]
+
+
+def test_sandbox_bwrap_where_it_does_not_work_is_a_usage_error(toy, capsys, monkeypatch):
+    from arenabench.eval import external
+    from arenabench.eval.cli import main
+
+    monkeypatch.setenv("PATH", str(Path(PY).parent))  # no bwrap on this PATH
+    external.bwrap_problem.cache_clear()
+    try:
+        rc = main([str(toy), "--cmd", f"{PY} x.py {{image}}", "--sandbox", "bwrap"])
+    finally:
+        external.bwrap_problem.cache_clear()
+    assert rc == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "bubblewrap (bwrap) is not installed" in err[0]
+
+
+def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
+    toy, run_tmp, monkeypatch, capsys
+):
+    from arenabench.eval import external
+
+    monkeypatch.setenv("PATH", str(Path(PY).parent))  # no bwrap on this PATH
+    monkeypatch.setattr(external, "_warned_once", [])
+    external.bwrap_problem.cache_clear()
+    try:
+        pipes = [_pipe("snoop.py", "auto") for _ in range(3)]
+    finally:
+        external.bwrap_problem.cache_clear()
+    assert {p.sandbox for p in pipes} == {"none"}
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len([line for line in err if "WITHOUT a sandbox" in line]) == 1
+    seen = json.loads(pipes[0].run(sorted((toy / "images").iterdir())[0]).stdout.splitlines()[-1])
+    assert seen["cwd_files"] == ["image.png"] and seen["env"]["HOME"] == seen["cwd"]
+
+
+def test_limit_is_a_failure_category_everywhere(toy, run_tmp):
+    from arenabench.eval.records import CATEGORIES, STATUSES
+    from arenabench.eval.thresholds import check_thresholds, parse_thresholds
+
+    assert "limit" in CATEGORIES and "limit" in STATUSES
+    report = evaluate(_pipe("memory.py", "none", env={"MB": "1024"}, memory_bytes=256 * 1024**2),
+                      toy, workers=2, limit=2)
+    assert report.summary.failures["limit"] == 2
+    reasons = check_thresholds(report.summary, parse_thresholds(["failures.limit=0"]))
+    assert reasons == ["failures.limit 2 > 0 (maximum)"]

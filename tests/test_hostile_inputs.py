@@ -1,0 +1,481 @@
+"""Hostile inputs, each run as a real ``arenabench`` subprocess with a timeout: the answer is
+a clean one-line error (exit 2) or a correct failure verdict, never a traceback, a hang or a
+wrong success.
+
+Covers: non-finite / negative / fractional answers (bad_output), invalid GT values (dataset
+error naming file and field), JSON output that stays valid, ``--out`` paths that cannot be
+written, absurd sizes, ``detect`` on a FIFO and with ``--output -`` or a device, manifest
+SHA-256 verification (``--no-verify``), and the lock on ``generate``'s output folder.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import math
+import os
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from arenabench.fileio import LOCK_FILE, dumps_json, dumps_json_line, lock_folder
+
+HERE = Path(__file__).resolve().parent
+PIPES = HERE / "pipelines"
+EXAMPLE = HERE / "data" / "task1c_image.jpg"
+sys.path.insert(0, str(PIPES))
+import liar  # noqa: E402
+import toy_arena  # noqa: E402
+
+TIMEOUT_S = 240
+
+
+def run(*argv: str, cwd: Path | None = None, timeout: float = TIMEOUT_S):
+    """``arenabench ARGV`` in a fresh interpreter; the test pipelines are importable."""
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(PIPES), os.environ.get(
+        "PYTHONPATH", "")]).rstrip(os.pathsep)}
+    return subprocess.run([sys.executable, "-m", "arenabench", *argv], capture_output=True,
+                          text=True, timeout=timeout, cwd=cwd, env=env)
+
+
+def assert_clean_error(proc, *needles: str, prog: str | None = None) -> str:
+    """Exit 2, one line on stderr (``arenabench <prog>: error: ...``), no traceback."""
+    err = proc.stderr.strip()
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert proc.returncode == 2, (proc.returncode, proc.stderr)
+    assert len(err.splitlines()) == 1, err
+    if prog:
+        assert err.startswith(f"arenabench {prog}: error: "), err
+    for needle in needles:
+        assert needle in err, (needle, err)
+    return err
+
+
+def strict_json(text: str):
+    """Parse JSON refusing NaN and infinities (what browsers and jq do)."""
+    def refuse(token):
+        raise ValueError(f"non-standard JSON constant {token}")
+
+    return json.loads(text, parse_constant=refuse)
+
+
+def rehash(root: Path) -> None:
+    """Rewrite the manifest's SHA-256 values after a test edited files on purpose."""
+    lines = []
+    for line in (root / "manifest.jsonl").read_text().splitlines():
+        entry = json.loads(line)
+        for key, field in (("image", "image_sha256"), ("gt", "gt_sha256")):
+            entry[field] = hashlib.sha256((root / entry[key]).read_bytes()).hexdigest()
+        lines.append(json.dumps(entry))
+    (root / "manifest.jsonl").write_text("\n".join(lines) + "\n")
+
+
+@pytest.fixture(scope="module")
+def toy(tmp_path_factory):
+    return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("hostile") / "toy", n=3, seed=2)
+
+
+# ------------------------------------------------------------------------- wrong scores
+
+
+@pytest.mark.parametrize("name", sorted(liar.ANSWERS))
+def test_impossible_answer_of_a_callable_is_bad_output(toy, tmp_path, name):
+    proc = run("eval", str(toy), "--pipeline", f"liar:{name}", "--out", str(tmp_path),
+               "--no-progress", "--formats", "json", "--fail-under", "pass_rate=0.01")
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert proc.returncode == 1, proc.stderr  # the threshold is missed: nothing passed
+    report = strict_json((tmp_path / "report.json").read_text())
+    assert report["summary"]["n_passed"] == 0
+    assert report["summary"]["failures"]["bad_output"] == 3
+    for image in report["images"]:
+        assert image["category"] == "bad_output"
+        assert image["pred"]["area"] is None or math.isfinite(image["pred"]["area"])
+
+
+@pytest.mark.parametrize(
+    ("args", "needle"),
+    [
+        (("--output", "json", "--json", '{"count": 1, "area": NaN}'), "area is not a finite"),
+        (("--output", "json", "--json", '{"count": 1, "area": 1e400}'), "area is not a finite"),
+        (("--output", "json", "--json", '{"count": true, "area": 5}'), "count is not an integer"),
+        (("--output", "json", "--json", '{"count": 1.5, "area": 5}'), "count is not an integer"),
+        (("--output", "json", "--json", '{"count": -2, "area": 5}'), "count is negative"),
+        (("--obstacles", "Obstacles: 1\\nArea: nan"), "area is not a finite number"),
+        (("--obstacles", "Obstacles: 1\\nTotal Area: -inf"), "area is not a finite number"),
+        (("--obstacles", "Obstacles: 1\\nArea: -3"), "area is negative"),
+        (("--obstacles", "Obstacles: 1e400\\nArea: 3"), "count is not a finite number"),
+    ],
+)
+def test_impossible_answer_of_a_command_is_bad_output(toy, tmp_path, args, needle):
+    output = ("--output", "json") if args[0] == "--output" else ()
+    script_args = " ".join(f"'{a}'" for a in args[len(output):])
+    cmd = f"{{python}} {PIPES / 'liar.py'} --image {{image}} {script_args}"
+    proc = run("eval", str(toy), "--cmd", cmd, *output, "--out", str(tmp_path),
+               "--no-progress", "--formats", "json", "--fail-under", "pass_rate=0.01")
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert proc.returncode == 1, proc.stderr
+    report = strict_json((tmp_path / "report.json").read_text())
+    assert [i["category"] for i in report["images"]] == ["bad_output"] * 3
+    assert needle in report["images"][0]["message"], report["images"][0]["message"]
+
+
+def test_score_never_passes_a_non_finite_value():
+    from arenabench.eval.metrics import score_image
+    from arenabench.eval.records import Prediction, Truth
+
+    truth = Truth(count=1, area=100.0, marker_ids=())
+    for count, area in ((1, float("nan")), (1, float("inf")), (1, -100.0), (1.5, 100.0),
+                        (float("nan"), 100.0), (True, 100.0)):
+        score = score_image(truth, Prediction(status="ok", count=count, area=area),
+                            tolerance=math.inf)
+        assert not score.passed and score.category == "bad_output", (count, area, score)
+
+
+@pytest.mark.parametrize(
+    ("edit", "message"),
+    [
+        (lambda g: g["area"].update(visible_px=float("nan")),
+         "area.visible_px: nan is not a finite number"),
+        (lambda g: g["area"].update(footprint_px=float("-inf")),
+         "area.footprint_px: -inf is not a finite number"),
+        (lambda g: g["area"].update(visible_px=-1.0),
+         "area.visible_px: -1.0 is less than the minimum of 0"),
+        (lambda g: g.update(count=True), "count: True is not of type 'integer'"),
+        (lambda g: g.update(count=1.5), "count: 1.5 is not of type 'integer'"),
+        (lambda g: g.update(count=float("inf")), "count: inf is not a finite number"),
+        (lambda g: g.update(count=-1), "count: -1 is less than the minimum of 0"),
+        (lambda g: g["markers"][0].update(id="80"), "markers[0].id: '80' is not of type"),
+        (lambda g: g.update(schema="arenabench.gt/0"), "schema: 'arenabench.gt/1' was expected"),
+    ],
+)
+def test_invalid_gt_value_is_a_dataset_error_naming_file_and_field(toy, tmp_path, edit,
+                                                                   message):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    gt_file = bad / "gt" / "000001.json"
+    gt = json.loads(gt_file.read_text())
+    edit(gt)
+    gt_file.write_text(json.dumps(gt))  # Python writes NaN / Infinity as a JSON extension
+    rehash(bad)
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress")
+    assert_clean_error(proc, f"gt/000001.json: {message}", prog="eval")
+
+
+def test_gt_count_1e400_is_refused(toy, tmp_path):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    gt_file = bad / "gt" / "000002.json"
+    text = gt_file.read_text()
+    gt_file.write_text(text.replace('"count": ', '"count": 1e400, "was": ', 1))
+    rehash(bad)
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress")
+    assert_clean_error(proc, "gt/000002.json: count: inf is not a finite number", prog="eval")
+
+
+def test_every_gt_the_generator_writes_validates():
+    from arenabench.generator.presets import preset_names
+    from arenabench.generator.render_cli import load_scene, scene_gt_record
+    from arenabench.generator.sample import gt_record
+    from arenabench.generator.sampler import sample_scene
+    from arenabench.schemas import GT_SCHEMA, gt_problem, gt_schema
+
+    assert gt_schema()["properties"]["schema"]["const"] == GT_SCHEMA
+    checked = 0
+    for preset in preset_names():
+        for index in range(8):
+            s = sample_scene(preset, seed=3, index=index)
+            gt = gt_record(s.scene, sid=f"{index:06d}", preset=preset, seed=3, index=index,
+                           params=s.params)
+            # as written to disk: canonical JSON, read back
+            assert gt_problem(json.loads(dumps_json(gt))) is None, (preset, index)
+            checked += 1
+    scenes = Path(__file__).resolve().parents[1] / "generator" / "scenes"
+    for path in sorted(scenes.glob("*.json")):
+        gt = scene_gt_record(load_scene(path), source=path.stem)
+        assert gt_problem(json.loads(dumps_json(gt))) is None, path
+        checked += 1
+    assert checked >= 8
+
+
+def test_json_helpers_write_null_for_undefined_numbers():
+    import numpy as np
+
+    obj = {"a": float("nan"), "b": [np.float64("inf"), np.float32(1.5), 2], "c": (np.int64(3),)}
+    assert strict_json(dumps_json(obj)) == {"a": None, "b": [None, 1.5, 2], "c": [3]}
+    assert strict_json(dumps_json_line(obj)) == {"a": None, "b": [None, 1.5, 2], "c": [3]}
+
+
+def test_no_json_is_written_outside_the_shared_helpers():
+    root = Path(__file__).resolve().parents[1]
+    offenders = [
+        f"{path.relative_to(root)}:{n}"
+        for folder in ("src", "eval", "generator")
+        for path in sorted((root / folder).rglob("*.py"))
+        for n, line in enumerate(path.read_text().splitlines(), 1)
+        if ("json.dumps(" in line or "json.dump(" in line)
+        and path.name not in ("fileio.py", "result.py", "doctor.py")
+    ]
+    assert not offenders, offenders
+
+
+def test_compare_reads_reports_with_undefined_numbers(toy, tmp_path):
+    a, b = tmp_path / "a", tmp_path / "b"
+    assert run("eval", str(toy), "--pipeline", "liar:nan_area", "--out", str(a),
+               "--no-progress", "--formats", "json").returncode == 0
+    assert run("eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(b),
+               "--no-progress", "--formats", "json").returncode == 0
+    proc = run("eval", "--compare", str(a / "report.json"), str(b / "report.json"))
+    assert proc.returncode == 0 and "Traceback" not in proc.stderr, proc.stderr
+    assert "pass_rate" in proc.stdout
+
+
+# -------------------------------------------------------------------- bad --out paths
+
+
+def _out_commands(toy: Path, tmp: Path) -> dict[str, tuple[str, ...]]:
+    """Each command with valid arguments up to --out (the last argument is replaced)."""
+    scene = Path(__file__).resolve().parents[1] / "generator" / "scenes" / "task1c_example.json"
+    return {
+        "eval": ("eval", str(toy), "--pipeline", "toy_arena:detect", "--no-progress", "--out"),
+        "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+                  "--per-point", "1", "--no-progress", "--out"),
+        "generate": ("generate", "--count", "1", "--no-progress", "--out"),
+        "contact-sheet": ("contact-sheet", "--count", "1", "--out"),
+        "fit": ("fit", str(EXAMPLE), "--out"),
+        "render": ("render", str(scene), "--out"),
+        "bench": ("bench", "--quick", "--out"),
+        "detect": ("detect", "--image", str(EXAMPLE), "--output"),
+    }
+
+
+@pytest.mark.parametrize("command", ["eval", "sweep", "generate", "contact-sheet", "fit",
+                                     "render", "bench", "detect"])
+@pytest.mark.parametrize("where", ["file", "under-file", "proc", "read-only"])
+def test_unwritable_out_is_refused_before_any_work(toy, tmp_path, command, where):
+    blocker = tmp_path / "blocker.jpg"
+    blocker.write_text("a file in the way\n")
+    target = {
+        "file": blocker, "under-file": blocker / "x.jpg", "proc": Path("/proc/arenabench.jpg"),
+        "read-only": Path("/sys/arenabench.jpg"),
+    }[where]
+    if where == "file" and command in ("contact-sheet", "fit", "detect"):
+        target = tmp_path / "folder.jpg"  # a file output where a folder is
+        target.mkdir()
+    argv = _out_commands(toy, tmp_path)[command]
+    flag = argv[-1]
+    proc = run(*argv, str(target), cwd=tmp_path, timeout=120)
+    assert_clean_error(proc, f"{flag} {target}: ", prog=command)
+    assert blocker.read_text() == "a file in the way\n"
+
+
+# ---------------------------------------------------------------------- absurd sizes
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (("generate", "--count", str(10**12)), "exceeds the limit of 1000000"),
+        (("generate", "--count", "1", "--set", "camera.width=200000"), "out of range [16, 8192]"),
+        (("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+          "--per-point", str(10**12)), "exceeds the limit of 1000000"),
+        (("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+          "--random", str(10**12)), "exceeds the limit of 1000000"),
+        (("sweep", "--vary", "camera.yaw_deg=0:99.99:0.01", "--vary",
+          "lighting.ambient=0:0.9999:0.0001", "--vary", "camera.roll_deg=0:9.999:0.001",
+          "--pipeline", "reference", "--per-point", "1"), "exceeds the limit of 1000000"),
+        (("contact-sheet", "--count", str(10**12)), "exceeds the limit of 8192"),
+        (("contact-sheet", "--tile", "200000"), "tile = 200000 exceeds the limit of 8192"),
+        (("detect", "--image", str(EXAMPLE), "--frame-size", "200000"), "[16, 8192]"),
+        (("generate", "--count", "1", "--workers", str(10**12)), "exceeds the limit of 256"),
+        (("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+          "--workers", str(10**12)), "in [1, 256]"),
+        (("eval", ".", "--pipeline", "reference", "--workers", str(10**12)), "in [1, 256]"),
+        (("eval", ".", "--pipeline", "reference", "--tolerance", "nan"), "finite number >= 0"),
+        (("eval", ".", "--pipeline", "reference", "--fail-under", "pass_rate=nan"),
+         "not finite"),
+    ],
+)
+def test_absurd_sizes_are_refused_at_once(tmp_path, argv, needle):
+    out = ("--out", str(tmp_path / ("o.jpg" if argv[0] == "contact-sheet" else "o")))
+    proc = run(*argv, *(out if argv[0] not in ("detect", "eval") else ()), cwd=tmp_path,
+               timeout=120)
+    assert_clean_error(proc, needle, prog=argv[0])
+    assert not (tmp_path / "o").exists() and not (tmp_path / "o.jpg").exists()
+
+
+def test_scene_file_wider_than_the_limit_is_refused(tmp_path):
+    scene_src = Path(__file__).resolve().parents[1] / "generator" / "scenes"
+    scene = json.loads((scene_src / "task1c_example.json").read_text())
+    scene["camera"]["width"] = 200000
+    path = tmp_path / "wide.json"
+    path.write_text(json.dumps(scene))
+    proc = run("render", str(path), "--out", str(tmp_path / "o"), timeout=120)
+    assert_clean_error(proc, "camera.width must be an integer in [16, 8192]", prog="render")
+
+
+# ---------------------------------------------------------------- detect: FIFO, devices
+
+
+def test_detect_on_a_fifo_is_refused_without_blocking(tmp_path):
+    fifo = tmp_path / "image.png"
+    os.mkfifo(fifo)
+    proc = run("detect", "--image", str(fifo), "--output", str(tmp_path / "o.txt"), timeout=60)
+    assert_clean_error(proc, "not a regular file", prog="detect")
+
+
+@pytest.mark.parametrize("command", ["compare", "render", "eval-gt"])
+def test_other_inputs_that_are_fifos_are_refused_without_blocking(toy, tmp_path, command):
+    import shutil
+
+    fifo = tmp_path / "input.json"
+    os.mkfifo(fifo)
+    if command == "compare":
+        proc = run("eval", "--compare", str(fifo), str(fifo), timeout=60)
+        assert_clean_error(proc, "not a regular file", prog="eval")
+    elif command == "render":
+        proc = run("render", str(fifo), "--out", str(tmp_path / "o"), timeout=60)
+        assert_clean_error(proc, "not a regular file", prog="render")
+    else:
+        bad = tmp_path / "bad"
+        shutil.copytree(toy, bad)
+        (bad / "gt" / "000001.json").unlink()
+        os.mkfifo(bad / "gt" / "000001.json")
+        proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", timeout=60)
+        assert_clean_error(proc, "gt/000001.json is not a regular file", prog="eval")
+
+
+def test_detect_output_dash_is_stdout(tmp_path):
+    proc = run("detect", "--image", str(EXAMPLE), "--output", "-", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("Aruco ID: [80, 85, 90, 95]\nObstacles: 2\n")
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("device", ["/dev/stdout", "/dev/null"])
+def test_detect_writes_through_devices_and_never_replaces_them(tmp_path, device):
+    before = os.lstat(device)
+    proc = run("detect", "--image", str(EXAMPLE), "--output", device, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    after = os.lstat(device)
+    assert (after.st_ino, stat.S_IFMT(after.st_mode)) == (before.st_ino,
+                                                          stat.S_IFMT(before.st_mode))
+    if device == "/dev/stdout":
+        assert "Obstacles: 2" in proc.stdout
+
+
+# ------------------------------------------------------------------ manifest hashes
+
+
+@pytest.mark.parametrize("damage", ["truncate", "swap", "gt"])
+def test_damaged_dataset_is_refused_and_no_verify_skips_the_check(toy, tmp_path, damage):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    img0, img1 = bad / "images" / "000000.png", bad / "images" / "000001.png"
+    if damage == "truncate":
+        img0.write_bytes(img0.read_bytes()[:200])
+        where = "images/000000.png"
+    elif damage == "swap":
+        a, b = img0.read_bytes(), img1.read_bytes()
+        img0.write_bytes(b)
+        img1.write_bytes(a)
+        where = "images/000000.png"
+    else:
+        gt = bad / "gt" / "000000.json"
+        gt.write_text(gt.read_text().replace('"count": ', '"count":  ', 1))
+        where = "gt/000000.json"
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress")
+    assert_clean_error(proc, f"{bad / where}: content does not match", prog="eval")
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+               "--no-verify")
+    assert "Traceback" not in proc.stderr and proc.returncode in (0, 1), proc.stderr
+
+
+def test_manifest_without_hashes_needs_no_verify(toy, tmp_path):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    rows = [json.loads(line) for line in (bad / "manifest.jsonl").read_text().splitlines()]
+    (bad / "manifest.jsonl").write_text(
+        "".join(json.dumps({k: v for k, v in r.items() if "sha" not in k}) + "\n" for r in rows)
+    )
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress")
+    assert_clean_error(proc, "'image_sha256' missing", "--no-verify", prog="eval")
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+               "--no-verify")
+    assert proc.returncode == 0, proc.stderr
+
+
+# -------------------------------------------------------------- generate: lock, temp files
+
+
+def test_second_generate_into_a_locked_folder_says_who_holds_it(tmp_path):
+    out = tmp_path / "ds"
+    with lock_folder(out, command="arenabench generate --seed 1 (test holder)"):
+        proc = run("generate", "--count", "1", "--seed", "2", "--out", str(out),
+                   "--no-progress", timeout=120)
+    err = assert_clean_error(proc, "is being written by another run", f"pid {os.getpid()}",
+                             "(test holder)", prog="generate")
+    assert "--out" in err
+    assert sorted(p.name for p in out.iterdir()) == []  # nothing written, lock released
+
+
+def test_resumed_generate_removes_stale_temp_files_and_leaves_no_lock(tmp_path):
+    out = tmp_path / "ds"
+    proc = run("generate", "--count", "1", "--seed", "4", "--out", str(out), "--no-progress",
+               timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert not (out / LOCK_FILE).exists()
+    # a killed run: dataset.json says incomplete, temp files lie around
+    meta = json.loads((out / "dataset.json").read_text())
+    meta["complete"] = False
+    (out / "dataset.json").write_text(json.dumps(meta))
+    stale = [out / "images" / ".000000.png.k1ll3d.tmp", out / "gt" / ".000000.json.x.tmp",
+             out / ".manifest.jsonl.y.tmp"]
+    for path in stale:
+        path.write_bytes(b"half written")
+    proc = run("generate", "--count", "1", "--seed", "4", "--out", str(out), "--no-progress",
+               timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert not any(p.exists() for p in stale)
+    assert json.loads((out / "dataset.json").read_text())["complete"] is True
+    assert not (out / LOCK_FILE).exists()
+
+
+def test_two_generate_runs_at_once_the_second_is_refused_then_the_first_resumes(tmp_path):
+    import signal
+    import time
+
+    out = tmp_path / "ds"
+    first = subprocess.Popen(
+        [sys.executable, "-m", "arenabench", "generate", "--count", "6", "--seed", "1",
+         "--workers", "1", "--out", str(out), "--no-progress"],
+        stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+    )
+    try:
+        deadline = time.monotonic() + 120
+        while not (out / LOCK_FILE).exists():
+            assert first.poll() is None and time.monotonic() < deadline, "no lock taken"
+            time.sleep(0.05)
+        second = run("generate", "--count", "6", "--seed", "2", "--out", str(out),
+                     "--no-progress", timeout=120)
+        assert_clean_error(second, "is being written by another run", f"pid {first.pid}",
+                           "--seed 1", prog="generate")
+    finally:
+        first.send_signal(signal.SIGKILL)  # a killed run: the kernel releases its lock
+        first.wait(timeout=60)
+    resumed = run("generate", "--count", "6", "--seed", "1", "--workers", "1", "--out",
+                  str(out), "--no-progress", timeout=300)
+    assert resumed.returncode == 0, resumed.stderr
+    seeds = {json.loads(p.read_text())["seed"] for p in (out / "gt").glob("*.json")}
+    assert seeds == {1} and len(list((out / "gt").glob("*.json"))) == 6
+    assert not [p for p in out.rglob(".*") if p.is_file()]  # no temp or lock file left

@@ -1,0 +1,261 @@
+"""SIGINT / SIGTERM stop ``arenabench generate`` and ``arenabench sweep`` cleanly.
+
+Real commands in subprocesses: each is signalled once it has done some work and must exit
+with 130 (SIGINT) or 143 (SIGTERM) within seconds, print one line and no traceback, leave
+valid partial outputs and no process behind (workers, external commands); an interrupted
+``generate`` resumes to files byte-identical to an uninterrupted run. A parent killed with
+SIGKILL takes its workers with it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from arenabench.fileio import sha256_file
+from arenabench.interrupts import Interrupted, stop_on_signals
+
+COUNT = 40
+SEED = 3
+#: Generous bound on how long a signalled command may take to exit (the machine is shared).
+STOP_S = 20.0
+
+
+def _arenabench(*args: str) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, "-m", "arenabench", *args],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _generate_args(out: Path, workers: int) -> list[str]:
+    return ["generate", "--preset", "eyrc", "--count", str(COUNT), "--seed", str(SEED),
+            "--out", str(out), "--workers", str(workers), "--no-progress"]
+
+
+def _wait_until(proc: subprocess.Popen, ready, timeout: float = 180.0) -> None:
+    deadline = time.monotonic() + timeout
+    while not ready():
+        assert proc.poll() is None, f"exited early ({proc.returncode}): {proc.communicate()}"
+        assert time.monotonic() < deadline, "the command made no progress"
+        time.sleep(0.05)
+
+
+def _count(folder: Path) -> int:
+    return len(list(folder.glob("*"))) if folder.is_dir() else 0
+
+
+def _descendants(pid: int) -> dict[int, str]:
+    """Live descendants of ``pid``: {pid: command line}."""
+    parents: dict[int, int] = {}
+    for entry in os.listdir("/proc"):
+        if entry.isdigit():
+            try:
+                stat = Path(f"/proc/{entry}/stat").read_text()
+            except OSError:
+                continue
+            fields = stat.rsplit(")", 1)[1].split()
+            if fields[0] != "Z":
+                parents[int(entry)] = int(fields[1])
+    found, frontier = {}, [pid]
+    while frontier:
+        parent = frontier.pop()
+        for child, ppid in parents.items():
+            if ppid == parent and child not in found:
+                found[child] = _cmdline(child)
+                frontier.append(child)
+    return found
+
+
+def _cmdline(pid: int) -> str:
+    try:
+        return Path(f"/proc/{pid}/cmdline").read_bytes().replace(b"\0", b" ").decode()
+    except OSError:
+        return ""
+
+
+def _still_alive(procs: dict[int, str], wait_s: float = 10.0) -> dict[int, str]:
+    """Those of ``procs`` (pid: command line) still running (not zombies) after ``wait_s``."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        alive = {}
+        for pid, cmd in procs.items():
+            try:
+                state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+            except OSError:
+                continue
+            if state != "Z" and _cmdline(pid) == cmd:
+                alive[pid] = cmd
+        if not alive or time.monotonic() > deadline:
+            return alive
+        time.sleep(0.1)
+
+
+def _stop(proc: subprocess.Popen, sig: int) -> tuple[int, str, float, dict[int, str]]:
+    """Signal ``proc``; its exit status, stderr, seconds to exit, descendants at the signal."""
+    kids = _descendants(proc.pid)
+    t0 = time.monotonic()
+    proc.send_signal(sig)
+    try:
+        _, err = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+    return proc.returncode, err, time.monotonic() - t0, kids
+
+
+def _files(root: Path) -> dict[str, bytes]:
+    return {str(p.relative_to(root)): p.read_bytes() for p in sorted(root.rglob("*"))
+            if p.is_file()}
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    out = tmp_path_factory.mktemp("gen") / "full"
+    proc = _arenabench(*_generate_args(out, 2))
+    _, err = proc.communicate(timeout=600)
+    assert proc.returncode == 0, err
+    return out
+
+
+def test_stop_on_signals_raises_once_and_defers():
+    with stop_on_signals() as stop:
+        with pytest.raises(Interrupted) as info:
+            os.kill(os.getpid(), signal.SIGTERM)
+            time.sleep(5)
+        assert info.value.exit_code == 143 and stop.exit_code == 143
+        stop.check()  # raised once only
+    with stop_on_signals() as stop:
+        with pytest.raises(Interrupted):
+            with stop.deferred():
+                os.kill(os.getpid(), signal.SIGINT)
+                time.sleep(0.2)
+                done = True  # the block ran to its end
+        assert done and stop.signal_name == "SIGINT" and stop.exit_code == 130
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("sig", "workers"), [(signal.SIGINT, 2), (signal.SIGTERM, 1)])
+def test_generate_stops_keeps_what_finished_and_resumes_byte_identical(
+        tmp_path, uninterrupted, sig, workers):
+    out = tmp_path / "ds"
+    proc = _arenabench(*_generate_args(out, workers))
+    _wait_until(proc, lambda: _count(out / "gt") >= 3)
+    rc, err, seconds, kids = _stop(proc, sig)
+    assert rc == 128 + sig, err
+    assert seconds < STOP_S
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "interrupted by" in lines[0], err
+    assert f"of {COUNT} images written" in lines[0] and "again to resume" in lines[0]
+    assert _still_alive(kids) == {}
+    # the partial dataset is consistent: the manifest lists exactly the scenes on disk
+    meta = json.loads((out / "dataset.json").read_text())
+    assert meta["complete"] is False
+    manifest = [json.loads(x) for x in (out / "manifest.jsonl").read_text().splitlines()]
+    on_disk = sorted(p.stem for p in (out / "gt").glob("*.json")
+                     if (out / "images" / f"{p.stem}.png").is_file())
+    assert [m["id"] for m in manifest] == on_disk and meta["finished"] == len(on_disk)
+    assert 3 <= len(on_disk) < COUNT and f"{len(on_disk)} of {COUNT}" in lines[0]
+    for m in manifest:
+        assert sha256_file(out / m["image"]) == m["image_sha256"]
+        assert sha256_file(out / m["gt"]) == m["gt_sha256"]
+    assert not [p for p in out.rglob("*") if p.name.endswith(".tmp")]
+    # running it again finishes the job: the same bytes as a run never interrupted
+    again = _arenabench(*_generate_args(out, 2))
+    _, err = again.communicate(timeout=600)
+    assert again.returncode == 0, err
+    assert _files(out) == _files(uninterrupted)
+
+
+@pytest.mark.slow
+def test_generate_workers_die_with_a_killed_parent(tmp_path):
+    out = tmp_path / "ds"
+    proc = _arenabench(*_generate_args(out, 2))
+    _wait_until(proc, lambda: _count(out / "gt") >= 2)
+    rc, _, _, kids = _stop(proc, signal.SIGKILL)
+    assert rc == -signal.SIGKILL
+    assert any("multiprocessing" in cmd for cmd in kids.values())
+    assert _still_alive(kids) == {}
+
+
+def _sweep_args(out: Path, workers: int, *pipes: str) -> list[str]:
+    return ["sweep", "--preset", "eyrc", "--vary", "camera.tilt_deg=0:20:10",
+            "--per-point", "20", "--seed", str(SEED), *pipes, "--out", str(out),
+            "--workers", str(workers), "--no-progress", "--no-plots"]
+
+
+@pytest.mark.slow
+def test_sweep_stops_and_writes_what_finished(tmp_path):
+    out = tmp_path / "sweep"
+    proc = _arenabench(*_sweep_args(out, 2, "--pipeline", "reference", "--keep-images"))
+    _wait_until(proc, lambda: _count(out / "gt") >= 3)
+    rc, err, seconds, kids = _stop(proc, signal.SIGINT)
+    assert rc == 130, err
+    assert seconds < STOP_S
+    assert "Traceback" not in err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and "interrupted by SIGINT" in lines[0], err
+    assert _still_alive(kids) == {}
+    doc = json.loads((out / "sweep.json").read_text())
+    assert doc["complete"] is False and doc["run"]["interrupted"] == "SIGINT"
+    done = doc["run"]["samples_done"]
+    assert 3 <= done < 60 and doc["run"]["samples"] == 60
+    assert f"{done} of 60 samples done" in lines[0]
+    rows = (out / "results.jsonl").read_text().splitlines()
+    assert len(rows) == done
+    assert sum(p["summary"]["n"] for p in doc["points"]) == done
+    assert (out / "sweep.csv").is_file()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("workers", [1, 2])
+def test_sweep_stop_ends_hanging_commands(tmp_path, workers):
+    out = tmp_path / "sweep"
+    tag = f"arenabench-test-hang-{os.getpid()}-{workers}"
+    cmd = f"{{python}} -c \"import time; time.sleep(300)\" {tag} {{image}}"
+    proc = _arenabench(*_sweep_args(out, workers, "--cmd", cmd))
+    _wait_until(proc, lambda: any(tag in c for c in _descendants(proc.pid).values()))
+    rc, err, seconds, kids = _stop(proc, signal.SIGTERM)
+    assert rc == 143, err
+    assert seconds < STOP_S
+    assert "Traceback" not in err and "interrupted by SIGTERM" in err
+    assert any(tag in c for c in kids.values())
+    assert _still_alive(kids) == {}
+    doc = json.loads((out / "sweep.json").read_text())
+    assert doc["complete"] is False and doc["run"]["samples_done"] == 0
+
+
+@pytest.mark.slow
+def test_sweep_on_a_dask_cluster_stops_and_cancels_its_tasks(tmp_path):
+    distributed = pytest.importorskip("distributed")
+    out = tmp_path / "sweep"
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster, \
+            distributed.Client(cluster.scheduler_address) as client:
+        args = _sweep_args(out, 1, "--pipeline", "reference", "--keep-images")
+        args[args.index("--workers"):args.index("--workers") + 2] = [
+            "--scheduler", cluster.scheduler_address]
+        proc = _arenabench(*args)
+        _wait_until(proc, lambda: _count(out / "gt") >= 2)
+        rc, err, seconds, _ = _stop(proc, signal.SIGINT)
+        assert rc == 130, err
+        assert seconds < STOP_S
+        assert "Traceback" not in err and "interrupted by SIGINT" in err
+        doc = json.loads((out / "sweep.json").read_text())
+        assert doc["complete"] is False and doc["run"]["samples_done"] >= 2
+
+        def tasks_left(dask_scheduler):
+            return len(dask_scheduler.tasks)
+
+        deadline = time.monotonic() + 30
+        while client.run_on_scheduler(tasks_left) and time.monotonic() < deadline:
+            time.sleep(0.2)
+        assert client.run_on_scheduler(tasks_left) == 0
+        assert len(client.scheduler_info()["workers"]) == 1  # the cluster's own workers stay
