@@ -6,7 +6,9 @@ geometry (square pixels, centred principal point), and turn the pose into a look
 (3) segment the boxes and fit each one's footprint and height so that its projected
 silhouette matches the image; (4) read the floor, background and box grey levels and set the
 lighting so that the baked shades give the observed top and side faces; (5) optionally refine
-a few scalars (floor margin, border width) by maximising SSIM against the image.
+a few scalars (floor margin, border width) by maximising SSIM against the image (procedural
+arenas only); (6) nudge the camera so that cv2.aruco finds the render's marker corners on the
+same pixels as the image's (same outline lengths, same detection order).
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import numpy as np
 
 from arenabench.frame import CORNER_ORDER
 from arenabench.generator import camera as cam
+from arenabench.generator import competition_arena as comp
 from arenabench.generator.layout import MARKER_Z, box_vertices, marker_corners_world
 from arenabench.generator.scene import (
     ArenaSpec,
@@ -39,7 +42,17 @@ class FitOptions:
     Parameters
     ----------
     arena, markers : ArenaSpec, MarkerSpec
-        Known arena geometry (the eyrc arena by default: 8 m, markers 0.48 m, rotated 180).
+        Known arena geometry. By default the competition's own arena texture
+        (:mod:`arenabench.generator.competition_arena`), whose printed markers fix the scale.
+    fit_marker_side : bool
+        Also fit the marker side (for an arena whose marker size is not known exactly).
+    match_detector_rounds : int
+        Rounds per step size of :func:`match_detector` (0 = skip it).
+    fov_deg : float or None
+        Known vertical field of view (default: the competition camera's, from its world
+        files); None searches ``fov_range_deg``. Under a near-nadir camera the markers barely
+        constrain it: on the competition example 60 and 66.5 deg fit equally well (RMS
+        reprojection 1.00 vs 0.98 px), so a known value is the better evidence.
     fov_range_deg : tuple of float
         Range of the field-of-view search.
     refine_rounds : int
@@ -48,9 +61,14 @@ class FitOptions:
         Smallest dark blob (px) taken as a box.
     """
 
-    arena: ArenaSpec = field(default_factory=lambda: ArenaSpec(logo_text="eyantra"))
-    markers: MarkerSpec = field(default_factory=MarkerSpec)
+    arena: ArenaSpec = field(default_factory=lambda: ArenaSpec(
+        side_m=comp.ARENA_SIDE_M, margin_m=comp.ARENA_MARGIN_M, texture=comp.TEXTURE_NAME,
+        border_width_m=0.0))
+    markers: MarkerSpec = field(default_factory=lambda: MarkerSpec(side_m=comp.MARKER_SIDE_M))
+    fit_marker_side: bool = False
+    fov_deg: float | None = comp.CAMERA_FOV_DEG
     fov_range_deg: tuple[float, float] = (20.0, 100.0)
+    match_detector_rounds: int = 3
     refine_rounds: int = 1
     min_box_px: int = 400
 
@@ -62,6 +80,11 @@ class FitOptions:
             )
         if self.refine_rounds < 0:
             raise ValueError(f"refine_rounds must be >= 0, got {self.refine_rounds!r}")
+        if self.fov_deg is not None and not 1.0 <= float(self.fov_deg) <= 170.0:
+            raise ValueError(f"fov_deg must be in [1, 170] or None, got {self.fov_deg!r}")
+        if self.match_detector_rounds < 0:
+            raise ValueError(f"match_detector_rounds must be >= 0, got "
+                             f"{self.match_detector_rounds!r}")
         if self.min_box_px < 1:
             raise ValueError(f"min_box_px must be >= 1, got {self.min_box_px!r}")
 
@@ -89,8 +112,13 @@ class FitResult:
     mad: float
 
 
-def detect_marker_corners(bgr: np.ndarray, markers: MarkerSpec) -> dict[str, np.ndarray]:
+def detect_marker_corners(bgr: np.ndarray, markers: MarkerSpec, *,
+                          refine: bool = True) -> dict[str, np.ndarray]:
     """Image corners (4, 2) of each arena corner's marker, cv2.aruco order, keyed nw..sw.
+
+    ``refine`` turns on cv2.aruco's sub-pixel corner refinement; without it the corners are
+    what ``cv2.aruco.ArucoDetector`` with default parameters (as competition scripts use it)
+    reports.
 
     Raises
     ------
@@ -100,7 +128,8 @@ def detect_marker_corners(bgr: np.ndarray, markers: MarkerSpec) -> dict[str, np.
     gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY) if bgr.ndim == 3 else bgr
     dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, markers.dictionary))
     params = cv2.aruco.DetectorParameters()
-    params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
+    if refine:
+        params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
     corners, ids, _ = cv2.aruco.ArucoDetector(dictionary, params).detectMarkers(gray)
     found = {} if ids is None else {
         int(i): c.reshape(4, 2) for i, c in zip(ids.ravel(), corners, strict=True)
@@ -141,17 +170,22 @@ def _pnp(world: np.ndarray, image: np.ndarray, K: np.ndarray) -> tuple[np.ndarra
 def camera_from_pose(
     pose: np.ndarray, *, fov_deg: float, width: int, height: int
 ) -> CameraSpec:
-    """A look-at :class:`CameraSpec` reproducing an OpenCV ``world_from_camera`` pose.
+    """An orbit-form :class:`CameraSpec` reproducing an OpenCV ``world_from_camera`` pose.
 
     Intrinsics: square pixels, centred principal point, vertical field of view ``fov_deg``.
-    The look-at point is where the optical axis meets the floor.
+    ``target_m`` is where the optical axis meets the floor, ``altitude_m`` the camera's
+    height, ``tilt_deg`` and ``yaw_deg`` the axis' angle from the nadir and its heading, and
+    ``roll_deg`` the rest of the rotation (the same parameters as the presets').
     """
     eye = pose[:3, 3]
-    axis = pose[:3, 2]
+    axis = pose[:3, 2] / np.linalg.norm(pose[:3, 2])
     look_at = eye + axis * (eye[2] / max(-axis[2], 1e-9))
+    tilt = math.degrees(math.acos(float(np.clip(-axis[2], -1.0, 1.0))))
+    yaw = math.degrees(math.atan2(-axis[0], axis[1])) if tilt > 1e-9 else 0.0
     base = CameraSpec(width=width, height=height, fov_deg=round(float(fov_deg), 6),
-                      eye_m=tuple(round(float(c), 6) for c in eye),
-                      look_at_m=tuple(round(float(c), 6) for c in look_at))
+                      altitude_m=round(float(eye[2]), 6), tilt_deg=round(tilt, 6),
+                      yaw_deg=round(yaw, 6),
+                      target_m=tuple(round(float(c), 6) for c in look_at[:2]))
     r0 = cam.world_from_camera(base)[:3, :3]
     m = r0.T @ pose[:3, :3]
     roll = math.degrees(math.atan2(m[1, 0], m[0, 0]))
@@ -161,8 +195,9 @@ def camera_from_pose(
 def fit_camera(
     corners: dict[str, np.ndarray], *, arena: ArenaSpec, markers: MarkerSpec,
     width: int, height: int, fov_range_deg: tuple[float, float] = (20.0, 100.0),
+    fov_deg: float | None = None,
 ) -> tuple[CameraSpec, float, float]:
-    """Fit intrinsics (fov) and pose to the 16 marker corners.
+    """Fit intrinsics (fov, unless ``fov_deg`` is given) and pose to the 16 marker corners.
 
     Returns
     -------
@@ -170,6 +205,11 @@ def fit_camera(
     """
     world = _world_points(arena, markers)
     image = np.vstack([corners[c] for c in CORNER_ORDER])
+    if fov_deg is not None:
+        pose, _ = _pnp(world, image, _intrinsics(fov_deg, width, height))
+        camera = camera_from_pose(pose, fov_deg=fov_deg, width=width, height=height)
+        proj = cam.project(world, cam.intrinsics(camera), cam.world_from_camera(camera))
+        return camera, fov_deg, float(np.sqrt(np.mean(np.sum((proj - image) ** 2, axis=1))))
 
     def err(fov: float) -> float:
         return _pnp(world, image, _intrinsics(fov, width, height))[1]
@@ -192,6 +232,70 @@ def fit_camera(
     proj = cam.project(world, cam.intrinsics(camera), cam.world_from_camera(camera))
     e = float(np.sqrt(np.mean(np.sum((proj - image) ** 2, axis=1))))
     return camera, fov, e
+
+
+#: Steps of :func:`match_detector`'s search, per orbit-camera parameter.
+_MATCH_STEPS = {"target_x": 0.0005, "target_y": 0.0005, "altitude_m": 0.002, "tilt_deg": 0.02,
+                "yaw_deg": 0.02, "roll_deg": 0.02, "fov_deg": 0.02}
+
+
+def _moved_camera(camera: CameraSpec, name: str, d: float) -> CameraSpec:
+    if name in ("target_x", "target_y"):
+        t = list(camera.target_m)
+        t[name == "target_y"] = round(t[name == "target_y"] + d, 6)
+        return replace(camera, target_m=tuple(t))
+    return replace(camera, **{name: round(getattr(camera, name) + d, 6)})
+
+
+def match_detector(
+    scene: Scene, image_bgr: np.ndarray, renderer, *, rounds: int = 3, fit_fov: bool = True,
+) -> tuple[Scene, int]:
+    """Nudge the camera until the detector finds the render's markers where it finds the image's.
+
+    ``cv2.aruco.ArucoDetector`` with default parameters (what competition scripts use) reports
+    whole-pixel corners from the thresholded outline, and it sorts markers by outline length;
+    a camera fitted to sub-pixel corners can leave a few corners one pixel off and swap two
+    markers of nearly equal size. A coordinate search over the orbit camera's parameters in
+    sub-pixel steps (the field of view too when ``fit_fov``) minimises the number of
+    differing corner pixels, ties broken by the mean absolute difference around the markers.
+
+    Returns
+    -------
+    (Scene, total corner difference in px, summed over the 16 corners' x and y)
+    """
+    want = detect_marker_corners(image_bgr, scene.markers, refine=False)
+    gray = cv2.cvtColor(image_bgr, cv2.COLOR_BGR2GRAY).astype(np.float64)
+    window = np.zeros(gray.shape, bool)
+    for quad in want.values():
+        x0, y0 = np.floor(quad.min(axis=0)).astype(int) - 4
+        x1, y1 = np.ceil(quad.max(axis=0)).astype(int) + 5
+        window[max(y0, 0):y1, max(x0, 0):x1] = True
+
+    def cost(candidate: Scene) -> float:
+        bgr = render_bgr(candidate, renderer)
+        try:
+            got = detect_marker_corners(bgr, candidate.markers, refine=False)
+        except ValueError:
+            return math.inf
+        pixels = sum(float(np.abs(want[k] - got[k]).sum()) for k in want)
+        patch = np.abs(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY)[window] - gray[window]).mean()
+        return pixels + float(patch) / 100.0
+
+    best = cost(scene)
+    for scale in (4.0, 1.0, 0.25):
+        for _ in range(rounds):
+            improved = False
+            for name, step in _MATCH_STEPS.items():
+                if name == "fov_deg" and not fit_fov:
+                    continue
+                for d in (-step * scale, step * scale):
+                    cand = replace(scene, camera=_moved_camera(scene.camera, name, d))
+                    c = cost(cand)
+                    if c < best:
+                        best, scene, improved = c, cand, True
+            if not improved or best < 1.0:
+                break
+    return scene, int(best)
 
 
 def fit_arena_camera(
@@ -301,7 +405,8 @@ def _side_faces(gray, ob: Obstacle, K, pose, side_mask) -> tuple:
         px = cam.project(quad, K, pose)
         m = np.zeros(gray.shape, np.uint8)
         cv2.fillPoly(m, [np.round(px).astype(np.int32)], 1)
-        m = cv2.erode(m, np.ones((3, 3), np.uint8)).astype(bool) & side_mask
+        # 5 x 5: a face seen nearly edge-on (a sliver a few px wide) is all edge pixels
+        m = cv2.erode(m, np.ones((5, 5), np.uint8)).astype(bool) & side_mask
         if m.sum() >= 30:
             out.append((tuple(float(c) for c in normal), float(np.median(gray[m]))))
     return tuple(out)
@@ -317,8 +422,13 @@ class BoxObservation:
     iou: float
 
 
+#: A pixel belongs to a box when it is this much darker than the floor (lit side faces can be
+#: only a little darker than the floor, so the margin stays small).
+DARK_MARGIN = 40
+
+
 def _dark_blobs(gray: np.ndarray, exclude: np.ndarray, min_px: int, floor: float) -> list:
-    dark = ((gray < floor - 40) & ~exclude).astype(np.uint8)
+    dark = ((gray < floor - DARK_MARGIN) & ~exclude).astype(np.uint8)
     dark = cv2.morphologyEx(dark, cv2.MORPH_OPEN, np.ones((5, 5), np.uint8))
     n, labels, stats, _ = cv2.connectedComponentsWithStats(dark, connectivity=8)
     return [labels == i for i in range(1, n) if stats[i, cv2.CC_STAT_AREA] >= min_px]
@@ -380,6 +490,10 @@ def fit_boxes(
     return out
 
 
+#: Weight of the light intensity in :func:`fit_lighting`'s least squares (a tie-breaker).
+LIGHT_PENALTY = 1e-4
+
+
 def fit_lighting(boxes: list[BoxObservation]) -> LightingSpec:
     """Ambient + one directional light whose baked shades give the observed face ratios.
 
@@ -402,7 +516,11 @@ def fit_lighting(boxes: list[BoxObservation]) -> LightingSpec:
             x = lam - math.sin(el)
             inten = (x @ (ratios - 1.0)) / max(x @ x, 1e-12)
             inten = float(np.clip(inten, 0.0, 1.0 / math.sin(el)))
-            res = float(np.sum((1.0 + inten * x - ratios) ** 2))
+            # the small penalty picks, among lights that fit the observed faces equally well,
+            # the weakest one: faces the image does not show (e.g. east and west when only
+            # south and north faces are seen) then keep the ambient shade instead of an
+            # arbitrary bright one
+            res = float(np.sum((1.0 + inten * x - ratios) ** 2)) + LIGHT_PENALTY * inten ** 2
             if best is None or res < best[0]:
                 best = (res, to_light, inten, el)
     _, to_light, inten, el = best
@@ -468,10 +586,17 @@ def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
     height, width = img.shape[:2]
     gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float64)
     corners = detect_marker_corners(img, options.markers)
-    markers, camera, fov, err = fit_arena_camera(
-        corners, arena=options.arena, markers=options.markers, width=width, height=height,
-        fov_range_deg=options.fov_range_deg,
-    )
+    if options.fit_marker_side:
+        markers, camera, fov, err = fit_arena_camera(
+            corners, arena=options.arena, markers=options.markers, width=width, height=height,
+            fov_range_deg=options.fov_range_deg,
+        )
+    else:
+        markers = options.markers
+        camera, fov, err = fit_camera(corners, arena=options.arena, markers=markers,
+                                      width=width, height=height,
+                                      fov_range_deg=options.fov_range_deg,
+                                      fov_deg=options.fov_deg)
     arena = options.arena
     probe = Scene(arena=arena, markers=markers, obstacles=(), camera=camera)
     inner = _floor_mask(probe, gray.shape, arena.side_m / 2 - markers.side_m - 0.1)
@@ -496,7 +621,9 @@ def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
         renderer = Renderer()
     try:
         best = score(scene, img, renderer)
-        for _ in range(options.refine_rounds):
+        # the competition texture fixes the margin and the border line: nothing to refine
+        rounds = 0 if arena.texture == comp.TEXTURE_NAME else options.refine_rounds
+        for _ in range(rounds):
             for field_name, steps in (("margin_m", (-0.1, -0.05, -0.025, 0.025, 0.05, 0.1)),
                                       ("border_width_m", (-0.005, 0.005))):
                 base = getattr(scene.arena, field_name)
@@ -508,6 +635,10 @@ def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
                     s = score(cand, img, renderer)
                     if s[0] > best[0]:
                         best, scene = s, cand
+        if options.match_detector_rounds:
+            scene, _ = match_detector(scene, img, renderer, rounds=options.match_detector_rounds,
+                                      fit_fov=options.fov_deg is None)
+            best = score(scene, img, renderer)
     finally:
         if own:
             renderer.close()

@@ -15,12 +15,15 @@ def build_parser() -> argparse.ArgumentParser:
         prog="arenabench fit",
         description="Fit a scene (camera from the four markers, boxes, colours, lighting) to "
                     "IMAGE and write it as a scene file for 'arenabench render'. The arena is "
-                    "the eyrc one (8 m, DICT_4X4_100 ids 80/85/90/95 rotated 180 deg); the "
-                    "marker size is fitted.",
+                    "the competition's own texture (3.33 m between the markers' outer corners, "
+                    "DICT_4X4_100 ids 80/85/90/95 rotated 180 deg, 0.2268 m); with "
+                    "--arena-side a procedural arena of that side, the marker size fitted.",
     )
     p.add_argument("image", help="overhead image of the arena (PNG/JPEG)")
     p.add_argument("--out", required=True, help="scene file to write (JSON)")
-    p.add_argument("--arena-side", type=float, default=8.0, help="border square side in m (8)")
+    p.add_argument("--arena-side", type=float, default=None,
+                   help="fit a procedural arena with this border square side in m instead of "
+                        "the competition texture")
     p.add_argument("--refine-rounds", type=int, default=1,
                    help="SSIM refinement rounds of the margin and border width (default 1)")
     p.add_argument("--report", action="store_true",
@@ -38,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
         dumps_json,
     )
     from arenabench.generator.fit import FitOptions, fit_scene
-    from arenabench.generator.scene import ArenaSpec
+    from arenabench.generator.scene import ArenaSpec, MarkerSpec
     from arenabench.imageio import ImageLoadError, load_image
 
     try:
@@ -48,8 +51,13 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     try:
         image = load_image(args.image)
-        options = FitOptions(arena=ArenaSpec(side_m=args.arena_side, logo_text="eyantra"),
-                             refine_rounds=args.refine_rounds)
+        if args.arena_side is None:
+            options = FitOptions(refine_rounds=args.refine_rounds)
+        else:
+            options = FitOptions(arena=ArenaSpec(side_m=args.arena_side, logo_text="eyantra"),
+                                 markers=MarkerSpec(side_m=0.0669 * args.arena_side),
+                                 fit_marker_side=True, fov_deg=None,
+                                 refine_rounds=args.refine_rounds)
     except (ImageLoadError, ValueError) as exc:
         print(f"arenabench fit: error: {exc}", file=sys.stderr)
         return 2

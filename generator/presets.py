@@ -8,9 +8,13 @@ anything else is refused with an error naming the key.
 
 from __future__ import annotations
 
+import json
+import math
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
+from arenabench.generator import competition_arena as comp
 from arenabench.limits import MAX_IMAGE_SIDE_PX
 from arenabench.suggest import did_you_mean
 
@@ -45,7 +49,8 @@ PARAMETERS: dict[str, ParamDef] = {
     "arena.side_m": ParamDef("float", "side of the border-line square (m)", 0.5, 1000),
     "arena.margin_m": ParamDef("float", "floor beyond the border line (m)", 0, 100),
     "arena.floor_rgb": ParamDef("rgb", "floor albedo R,G,B"),
-    "arena.texture": ParamDef("str", "floor texture", choices=("plain", "speckle", "concrete")),
+    "arena.texture": ParamDef("str", "floor texture (competition: the e-Yantra arena image)",
+                              choices=("plain", "speckle", "concrete", comp.TEXTURE_NAME)),
     "arena.texture_seed": ParamDef("int", "seed of the procedural floor texture", 0, 1_000_000),
     "arena.border_width_m": ParamDef("float", "border line width (m), 0 = none", 0, 1),
     "arena.border_rgb": ParamDef("rgb", "border line colour R,G,B"),
@@ -64,6 +69,8 @@ PARAMETERS: dict[str, ParamDef] = {
     "obstacles.width_m": ParamDef("float", "box width (m), per box", 0.01, 100),
     "obstacles.height_m": ParamDef("float", "box height (m), per box", 0.001, 100),
     "obstacles.yaw_deg": ParamDef("float", "box yaw (deg), per box", -360, 360),
+    "obstacles.yaw_step_deg": ParamDef("float", "round each box yaw to a multiple of this "
+                                       "(90 = axis-aligned; 0 = any yaw)", 0, 180),
     "obstacles.gray": ParamDef("int", "box albedo grey level, per box", 0, 255),
     "obstacles.palette": ParamDef("str", "box colours: grey boxes, or warehouse pallets and "
                                   "coloured crates", choices=("gray", "warehouse")),
@@ -143,7 +150,13 @@ NEUTRAL: dict[str, Value] = {
     "markers.occlusion": 0.0, "markers.occluded": 0,
 }
 
-_EYRC: dict[str, Value] = {
+#: Scene parameters added after the first presets (not degradations): a preset or mapping that
+#: lacks them gets these defaults, which keep its scenes as they were.
+LATER_DEFAULTS: dict[str, Value] = {"obstacles.yaw_step_deg": 0.0}
+
+#: The competition example's look, widened: a procedural 8 m arena, the camera, light, box greys
+#: and yaw jittered around the fitted example.
+_EYRC_JITTER: dict[str, Value] = {
     "arena.side_m": 8.0,
     "arena.margin_m": 0.45,
     "arena.floor_rgb": (250, 250, 250),
@@ -192,7 +205,7 @@ _EYRC: dict[str, Value] = {
 #: eyrc under what a real drone adds: every draw stays in a range a flight camera
 #: plausibly sees; the reference pipeline's pass rate on it is a figure, not a tuning target.
 _EYRC_HARD: dict[str, Value] = {
-    **_EYRC,
+    **_EYRC_JITTER,
     "camera.tilt_deg": (0.0, 15.0),
     "camera.altitude_m": (8.3, 10.5),
     "camera.yaw_deg": (-15.0, 15.0),
@@ -213,7 +226,7 @@ _EYRC_HARD: dict[str, Value] = {
 #: A marked arena on a real warehouse floor: concrete with stains and painted lane lines,
 #: wooden pallets and coloured crates, tape and paper clutter, a drone-like camera.
 _WAREHOUSE: dict[str, Value] = {
-    **_EYRC,
+    **_EYRC_JITTER,
     "arena.floor_rgb": (168, 166, 160),
     "arena.texture": "concrete",
     "arena.texture_seed": (0, 7),
@@ -239,18 +252,66 @@ _WAREHOUSE: dict[str, Value] = {
     "degrade.jpeg_quality": (70, 95),
 }
 
+
+#: The fitted competition example (camera, light, colours), shipped with the package.
+EXAMPLE_SCENE = Path(__file__).resolve().parent / "scenes" / "task1c_example.json"
+
+
+def _twin() -> dict[str, Value]:
+    """The hidden-test twin: the fitted example's camera, light, colours and arena held fixed
+    (read from :data:`EXAMPLE_SCENE`), one box grey, boxes axis-aligned; only the boxes' count,
+    position, size and height vary (README "The eyrc twin" gives the evidence for each range).
+    """
+    ex = json.loads(EXAMPLE_SCENE.read_text())
+    cam, light = ex["camera"], ex["lighting"]
+    d = light["directional"][0]["direction"]
+    grays = sorted({o["color_rgb"][0] for o in ex["obstacles"]})
+    return {
+        **_EYRC_JITTER,
+        "arena.side_m": comp.ARENA_SIDE_M,
+        "arena.margin_m": comp.ARENA_MARGIN_M,
+        "arena.floor_rgb": tuple(ex["arena"]["floor_rgb"]),
+        "arena.texture": comp.TEXTURE_NAME,
+        "arena.border_width_m": 0.0,
+        "arena.logo_text": "",
+        "markers.side_m": comp.MARKER_SIDE_M,
+        "obstacles.count": (1, 4),
+        "obstacles.length_m": (0.45, 1.0),
+        "obstacles.width_m": (0.28, 0.34),
+        "obstacles.height_m": (0.2, 0.35),
+        "obstacles.yaw_deg": (-45.0, 135.0),
+        "obstacles.yaw_step_deg": 90.0,
+        "obstacles.gray": grays[0] if len(grays) == 1 else (grays[0], grays[-1]),
+        "obstacles.min_gap_m": 0.15,
+        "obstacles.edge_margin_m": 0.12,
+        "camera.fov_deg": cam["fov_deg"],
+        "camera.altitude_m": cam["altitude_m"],
+        "camera.tilt_deg": cam["tilt_deg"],
+        "camera.yaw_deg": cam["yaw_deg"],
+        "camera.roll_deg": cam["roll_deg"],
+        "camera.target_x_m": cam["target_m"][0],
+        "camera.target_y_m": cam["target_m"][1],
+        "lighting.ambient": light["ambient"],
+        "lighting.intensity": light["directional"][0]["intensity"],
+        "lighting.elevation_deg": round(math.degrees(math.asin(-d[2])), 6),
+        "lighting.azimuth_deg": round(math.degrees(math.atan2(-d[1], -d[0])), 6),
+        "background.gray": ex["background_rgb"][0],
+    }
+
 #: Named presets: name -> (description, parameters).
 PRESETS: dict[str, tuple[str, dict[str, Value]]] = {
-    "eyrc": ("looks like the e-Yantra Task 1C example: near-nadir camera, 1-5 grey boxes, "
-             "markers 80/85/90/95 rotated 180 deg", _EYRC),
-    "eyrc-upright": ("eyrc with the markers printed upright (the published pipeline then "
-                     "warps to the outer corners)", {**_EYRC, "markers.rotation_deg": 0.0}),
-    "eyrc-oblique": ("eyrc seen obliquely: tilt 10-30 deg, any heading, higher camera",
-                     {**_EYRC, "camera.tilt_deg": (10.0, 30.0), "camera.yaw_deg": (-180.0, 180.0),
-                      "camera.altitude_m": (9.5, 11.0), "camera.target_x_m": (-0.3, 0.3),
-                      "camera.target_y_m": (-0.3, 0.3)}),
-    "eyrc-hard": ("eyrc as a real drone sees it: more tilt and altitude spread, varied light "
-                  "and shadows, sensor noise, blur, exposure, vignetting, JPEG", _EYRC_HARD),
+    "eyrc": ("the hidden-test twin: the competition's arena texture, the fitted example's "
+             "camera, light and box grey held fixed, 1-4 axis-aligned boxes", _twin()),
+    "eyrc-jitter": ("looks like the e-Yantra Task 1C example, widened: 8 m arena, camera, "
+                    "light, box greys and yaw jittered, 1-5 grey boxes", _EYRC_JITTER),
+    "eyrc-upright": ("eyrc-jitter with the markers printed upright (the published pipeline then "
+                     "warps to the outer corners)", {**_EYRC_JITTER, "markers.rotation_deg": 0.0}),
+    "eyrc-oblique": ("eyrc-jitter seen obliquely: tilt 10-30 deg, any heading, higher camera",
+                     {**_EYRC_JITTER, "camera.tilt_deg": (10.0, 30.0),
+                      "camera.yaw_deg": (-180.0, 180.0), "camera.altitude_m": (9.5, 11.0),
+                      "camera.target_x_m": (-0.3, 0.3), "camera.target_y_m": (-0.3, 0.3)}),
+    "eyrc-hard": ("eyrc-jitter as a real drone sees it: more tilt and altitude spread, varied "
+                  "light and shadows, sensor noise, blur, exposure, vignetting, JPEG", _EYRC_HARD),
     "warehouse": ("an arena marked on a warehouse floor: concrete with stains and painted lanes, "
                   "wooden pallets and coloured crates, tape and paper clutter", _WAREHOUSE),
 }
@@ -404,7 +465,7 @@ def resolve(preset: str | dict[str, Value], overrides: dict[str, Value] | None =
             ) -> dict[str, Value]:
     """Preset parameters with ``overrides`` applied, every value validated."""
     params = get_preset(preset) if isinstance(preset, str) else dict(preset)
-    params = {**NEUTRAL, **params}
+    params = {**NEUTRAL, **LATER_DEFAULTS, **params}
     for key, value in (overrides or {}).items():
         params[key] = value
     missing = sorted(set(PARAMETERS) - set(params))
@@ -420,9 +481,9 @@ def format_value(value: Value) -> str:
     if isinstance(value, tuple) and len(value) == 2 and all(
         isinstance(v, (int, float)) for v in value
     ):
-        return f"{value[0]:g}:{value[1]:g}"
+        return f"{value[0]:.10g}:{value[1]:.10g}"
     if isinstance(value, tuple):
         return ",".join(str(v) for v in value)
     if isinstance(value, float):
-        return f"{value:g}"
+        return f"{value:.10g}"
     return str(value)

@@ -4,7 +4,8 @@ One :class:`Renderer` per process holds one ``pyrender.OffscreenRenderer`` and o
 scene, reused across scenes: the floor and marker nodes are cached by their description and
 only obstacle nodes and the camera change. Renders use ``RenderFlags.FLAT`` with Lambertian
 shading baked into colours (:mod:`arenabench.generator.shading`), about 3x faster than lit mode
-on Mesa llvmpipe. Instance masks come from ``RenderFlags.SEG`` (exact, no MSAA), on request.
+on Mesa llvmpipe, and 4x MSAA on the colour pass (anti-aliased box edges). Instance masks come
+from ``RenderFlags.SEG`` (exact, no MSAA), on request.
 """
 
 from __future__ import annotations
@@ -18,6 +19,7 @@ import numpy as np
 from arenabench import glplatform
 from arenabench.frame import CORNER_ORDER
 from arenabench.generator import camera as cam
+from arenabench.generator import competition_arena as comp
 from arenabench.generator.degrade import distort_image, has_distortion, lens_canvas
 from arenabench.generator.distractors import patch_mesh_arrays
 from arenabench.generator.layout import (
@@ -94,8 +96,10 @@ def _textured_quad(pyrender, corners_xy: np.ndarray, z: float, texture, factor: 
 def _fast_renderer_class(pyrender):
     """A ``pyrender.Renderer`` subclass with a leaner off-screen path (pyrender 0.1.45 internals).
 
-    - ``antialias=False`` draws straight into the single-sample framebuffer (no 4x MSAA and no
-      resolve blit: about 2x faster on llvmpipe, edges stay crisp);
+    - colour renders draw into pyrender's 4x multisample framebuffer and resolve it (box edges
+      get coverage-blended pixels, as the competition's renderer gives) when ``antialias`` is
+      set; SEG renders and ``antialias=False`` draw straight into the single-sample
+      framebuffer (no resolve blit; SEG colours are exact);
     - the depth buffer is read back (and linearised) only when asked for;
     - meshes are drawn in a fixed order (:func:`_draw_order`), not pyrender's.
     """
@@ -107,9 +111,12 @@ def _fast_renderer_class(pyrender):
         antialias = False
         want_depth = False
 
+        def _multisample(self, flags) -> bool:
+            return self.antialias and not flags & flags_cls.SEG
+
         def _configure_forward_pass_viewport(self, flags):
             super()._configure_forward_pass_viewport(flags)
-            if flags & flags_cls.OFFSCREEN and not self.antialias:
+            if flags & flags_cls.OFFSCREEN and not self._multisample(flags):
                 GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
 
         def _sorted_mesh_nodes(self, scene):
@@ -117,7 +124,7 @@ def _fast_renderer_class(pyrender):
 
         def _read_main_framebuffer(self, scene, flags):
             w, h = self._main_fb_dims
-            if self.antialias:
+            if self._multisample(flags):
                 GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
                 GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
                 GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_COLOR_BUFFER_BIT,
@@ -199,8 +206,10 @@ class Renderer:
     Parameters
     ----------
     antialias : bool, keyword-only
-        4x MSAA on colour renders (smoother box edges, about 2x slower on llvmpipe). Off by
-        default: marker and line edges are smooth anyway (mipmapped textures).
+        4x MSAA on colour renders (on by default): pixels that a box edge crosses get the
+        coverage-weighted blend of both sides, as in the competition's Gazebo images.
+        Textures (floor, markers) are filtered either way; ground truth, depth and instance
+        masks never depend on it.
 
     Examples
     --------
@@ -208,7 +217,7 @@ class Renderer:
     ...     out = r.render(scene, masks=True)
     """
 
-    def __init__(self, *, antialias: bool = False) -> None:
+    def __init__(self, *, antialias: bool = True) -> None:
         glplatform.configure()
         import pyrender
 
@@ -316,8 +325,11 @@ class Renderer:
         # Marker sheets: one unit quad per marker, kept while the sheet images stay the same;
         # a scene only moves and scales them (node pose), so drawn marker sizes cost nothing.
         mk = scene.markers
-        sheets = [marker_texture(mk.dictionary, marker_id, mk.side_m, mk.quiet_zone_m)
-                  for marker_id in mk.ids]
+        printed = scene.arena.texture == comp.TEXTURE_NAME and comp.markers_are_printed(
+            mk.dictionary, mk.ids, mk.side_m, mk.rotation_deg)
+        sheets = [] if printed else [
+            marker_texture(mk.dictionary, marker_id, mk.side_m, mk.quiet_zone_m)
+            for marker_id in mk.ids]
         key = tuple(id(image) for image, _ in sheets)
         if key != self._markers_key:
             for node in self._marker_nodes:
@@ -329,7 +341,8 @@ class Renderer:
                 for k, (image, _) in enumerate(sheets)
             ]
             self._markers_key = key
-        for node, corner, (_, pad) in zip(self._marker_nodes, CORNER_ORDER, sheets, strict=True):
+        for node, corner, (_, pad) in zip(self._marker_nodes, CORNER_ORDER[:len(sheets)], sheets,
+                                          strict=True):
             tl, tr, _, bl = marker_corners_world(scene.arena, mk, corner, pad_m=pad)
             pose = np.eye(4)
             pose[:2, 0], pose[:2, 1] = tr - tl, tl - bl  # unit u -> TL->TR, unit v -> BL->TL

@@ -180,6 +180,9 @@ def _place_obstacles(rng: np.random.Generator, p: dict[str, Any], count: int,
             draw(rng, p[k], integer=(k == "obstacles.gray")) for k in _BOX_KEYS
         )
         color = (gray, gray, gray)
+        step = p["obstacles.yaw_step_deg"]
+        if step > 0:  # e.g. 90: boxes axis-aligned, as the competition's world files place them
+            yaw = float(round(yaw / step) * step) % 180.0
         if p["obstacles.palette"] == "warehouse":  # extra draws only here: eyrc is unchanged
             length, width, height, color = _warehouse_load(rng, length, width, height)
         for _ in range(p["obstacles.max_tries"]):

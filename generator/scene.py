@@ -10,13 +10,14 @@ from __future__ import annotations
 from dataclasses import asdict, dataclass, field
 from typing import Any
 
+from arenabench.generator import competition_arena as comp
 from arenabench.limits import MAX_IMAGE_SIDE_PX
 
 Rgb = tuple[int, int, int]
 
 
-#: Procedural floor textures.
-FLOOR_TEXTURES = ("plain", "speckle", "concrete")
+#: Floor textures: procedural ones, and the competition's own arena image.
+FLOOR_TEXTURES = ("plain", "speckle", "concrete", comp.TEXTURE_NAME)
 
 
 def _rgb(value: Any, name: str) -> Rgb:
@@ -48,9 +49,12 @@ class ArenaSpec:
         Width of floor beyond the border line on every side.
     floor_rgb : tuple of int
         Floor albedo (0..255).
-    texture : {"plain", "speckle", "concrete"}
+    texture : {"plain", "speckle", "concrete", "competition"}
         Plain colour, a faint procedural speckle, or warehouse concrete (mottling, stains and
-        painted lane lines in the margin), seeded by ``texture_seed``.
+        painted lane lines in the margin), seeded by ``texture_seed``; or the competition's
+        own arena image (border line, markers 80/85/90/95 and logo printed on it, tinted by
+        ``floor_rgb``), which fixes ``side_m`` and ``margin_m`` to its geometry
+        (:mod:`arenabench.generator.competition_arena`).
     texture_seed : int
         Seed of the procedural texture.
     border_width_m : float
@@ -86,6 +90,15 @@ class ArenaSpec:
         if self.texture not in FLOOR_TEXTURES:
             raise ValueError(
                 f"arena.texture must be one of {', '.join(FLOOR_TEXTURES)}, got {self.texture!r}"
+            )
+        if self.texture == comp.TEXTURE_NAME and (
+            abs(self.side_m - comp.ARENA_SIDE_M) > 1e-9
+            or abs(self.margin_m - comp.ARENA_MARGIN_M) > 1e-9
+        ):
+            raise ValueError(
+                f"arena.texture={comp.TEXTURE_NAME} needs arena.side_m={comp.ARENA_SIDE_M:g} and "
+                f"arena.margin_m={comp.ARENA_MARGIN_M:g} (the texture's geometry), got "
+                f"{self.side_m:g} and {self.margin_m:g}"
             )
         if self.border_width_m < 0:
             raise ValueError(f"arena.border_width_m must be >= 0, got {self.border_width_m!r}")
@@ -222,6 +235,14 @@ class CameraSpec:
             object.__setattr__(self, "look_at_m", tuple(float(c) for c in self.look_at_m))
 
 
+#: The two ways of stating a camera's intrinsics: (the default form's fields, the explicit
+#: form's fields). A scene file holds one form only; the explicit one (``K``) wins when given.
+CAMERA_INTRINSIC_FIELDS: tuple[tuple[str, ...], tuple[str, ...]] = (("fov_deg",), ("K",))
+#: The same for the pose: (orbit form, look-at form).
+CAMERA_POSE_FIELDS: tuple[tuple[str, ...], tuple[str, ...]] = (
+    ("altitude_m", "tilt_deg", "yaw_deg", "target_m"), ("eye_m", "look_at_m"))
+
+
 @dataclass(frozen=True)
 class DirectionalLight:
     """A directional light: ``direction`` is where the light travels (towards the scene)."""
@@ -331,10 +352,31 @@ class Scene:
             p if isinstance(p, FloorPatch) else FloorPatch(**_tuplify(p)) for p in self.patches
         ))
         object.__setattr__(self, "background_rgb", _rgb(self.background_rgb, "background_rgb"))
+        mk = self.markers
+        if (self.arena.texture == comp.TEXTURE_NAME
+                and not comp.markers_are_printed(mk.dictionary, mk.ids, mk.side_m,
+                                                 mk.rotation_deg)
+                and mk.side_m + mk.quiet_zone_m < comp.MARKER_SIDE_M - 1e-9):
+            raise ValueError(
+                f"markers.side_m + markers.quiet_zone_m must be >= {comp.MARKER_SIDE_M:g} on "
+                f"arena.texture={comp.TEXTURE_NAME} (drawn markers must hide the printed ones), "
+                f"got {mk.side_m:g} + {mk.quiet_zone_m:g}"
+            )
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready nested dict (tuples become lists)."""
-        return _listify(asdict(self))
+        """JSON-ready nested dict (tuples become lists).
+
+        The camera is written one way only: ``K`` or ``fov_deg`` for the intrinsics, the
+        look-at pose (``eye_m``, ``look_at_m``) or the orbit pose (``altitude_m``,
+        ``tilt_deg``, ``yaw_deg``, ``target_m``), never both.
+        """
+        out = _listify(asdict(self))
+        camera = out["camera"]
+        for name in CAMERA_INTRINSIC_FIELDS[camera["K"] is None]:
+            del camera[name]
+        for name in CAMERA_POSE_FIELDS[camera["eye_m"] is None]:
+            del camera[name]
+        return out
 
     @classmethod
     def from_dict(cls, data: dict[str, Any]) -> Scene:
@@ -347,6 +389,14 @@ class Scene:
         """
         try:
             cam = dict(data["camera"])
+            for fields in (CAMERA_INTRINSIC_FIELDS, CAMERA_POSE_FIELDS):
+                given = [n for n in fields[1] if cam.get(n) is not None]
+                other = [n for n in fields[0] if n in cam]
+                if given and other:
+                    raise ValueError(
+                        f"invalid scene description: camera gives both {', '.join(given)} and "
+                        f"{', '.join(other)}; state it one way"
+                    )
             if cam.get("K") is not None:
                 cam["K"] = tuple(tuple(r) for r in cam["K"])
             lighting = _tuplify(dict(data.get("lighting", {})))

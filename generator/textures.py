@@ -11,6 +11,7 @@ import functools
 import cv2
 import numpy as np
 
+from arenabench.generator import competition_arena as comp
 from arenabench.generator.layout import floor_extent
 from arenabench.generator.scene import ArenaSpec
 
@@ -77,8 +78,19 @@ def _floor_texture(arena: ArenaSpec, texels: int) -> np.ndarray:
     centres = (np.arange(texels) + 0.5) / scale - e  # x of column centres; y = -x of rows
     x = centres[None, :]
     y = -centres[:, None]
-    img = np.empty((texels, texels, 3), np.uint8)
-    img[:] = arena.floor_rgb
+    if arena.texture == comp.TEXTURE_NAME:  # the printed arena, tinted by the floor colour
+        levels = np.arange(256, dtype=np.float64)[:, None] * np.asarray(arena.floor_rgb) / 255.0
+        lut = np.rint(levels).astype(np.uint8).reshape(256, 1, 3)
+        # halved by 2 x 2 averages: exactly the texture's first mip level, so the GPU samples
+        # the same levels below it as from the original (the arena spans about 1000 px, so
+        # renders use level 1-2 of the 2880-texel original anyway), for a quarter of the
+        # memory (the original would cost a rendering worker about 100 MB)
+        full = cv2.LUT(comp.texture_rgb(), lut)
+        img = cv2.resize(full, (full.shape[1] // 2, full.shape[0] // 2),
+                         interpolation=cv2.INTER_AREA)
+    else:
+        img = np.empty((texels, texels, 3), np.uint8)
+        img[:] = arena.floor_rgb
     if arena.texture == "speckle":
         rng = np.random.default_rng(arena.texture_seed)
         noise = rng.normal(0.0, 2.0, size=(texels // 4, texels // 4)).astype(np.float32)

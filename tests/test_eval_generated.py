@@ -69,7 +69,9 @@ def test_reference_same_in_process_by_command_and_by_callable(eyrc, tmp_path, mo
     summary = reports["builtin"].summary
     assert summary.pass_rate >= 0.8, summary
     assert summary.marker_id_accuracy == 1.0
-    assert set(reports["builtin"].breakdown) >= {"camera.tilt_deg", "obstacles.count"}
+    # the eyrc twin varies the boxes only: its camera is fixed, so no breakdown by it
+    assert "obstacles.count" in reports["builtin"].breakdown
+    assert "camera.tilt_deg" not in reports["builtin"].breakdown
 
 
 @pytest.mark.slow

@@ -1,19 +1,24 @@
-"""The eyrc preset's distribution contains the fitted competition example."""
+"""The eyrc preset is the twin of the fitted competition example: same camera, light, colours
+and arena; only the boxes vary, axis-aligned, with the example's boxes inside the ranges."""
 
 import json
 import math
 from pathlib import Path
 
+import cv2
 import pytest
 
+from arenabench.generator import Renderer, make_sample
+from arenabench.generator import competition_arena as comp
 from arenabench.generator.presets import PRESETS
 
 SCENE = Path(__file__).resolve().parents[1] / "generator" / "scenes" / "task1c_example.json"
+IMAGE = Path(__file__).resolve().parent / "data" / "task1c_image.jpg"
 
 
 def _inside(value, spec):
     lo, hi = spec if isinstance(spec, tuple) else (spec, spec)
-    return lo <= value <= hi
+    return lo - 1e-9 <= value <= hi + 1e-9
 
 
 @pytest.fixture(scope="module")
@@ -21,37 +26,60 @@ def example():
     return json.loads(SCENE.read_text())
 
 
-def test_example_camera_lighting_and_markers_are_in_range(example):
+def _detected_order(gray) -> list[int]:
+    detector = cv2.aruco.ArucoDetector(
+        cv2.aruco.getPredefinedDictionary(cv2.aruco.DICT_4X4_100),
+        cv2.aruco.DetectorParameters())
+    _, ids, _ = detector.detectMarkers(gray)
+    return [int(i) for i in ids.ravel()]
+
+
+def test_twin_holds_the_example_camera_light_and_arena_fixed(example):
     eyrc = PRESETS["eyrc"][1]
     cam = example["camera"]
-    eye, at = cam["eye_m"], cam["look_at_m"]
-    horizontal = math.hypot(at[0] - eye[0], at[1] - eye[1])
-    tilt = math.degrees(math.atan2(horizontal, eye[2] - at[2]))
     light = example["lighting"]["directional"][0]
-    elevation = math.degrees(math.asin(-light["direction"][2]))
-    checks = {
-        "camera.altitude_m": eye[2],
-        "camera.fov_deg": cam["fov_deg"],
-        "camera.tilt_deg": tilt,
-        "camera.roll_deg": cam["roll_deg"],
-        "camera.target_y_m": at[1],
-        "markers.side_m": example["markers"]["side_m"],
+    d = light["direction"]
+    fixed = {
+        "camera.altitude_m": cam["altitude_m"], "camera.fov_deg": cam["fov_deg"],
+        "camera.tilt_deg": cam["tilt_deg"], "camera.yaw_deg": cam["yaw_deg"],
+        "camera.roll_deg": cam["roll_deg"], "camera.target_x_m": cam["target_m"][0],
+        "camera.target_y_m": cam["target_m"][1],
         "lighting.ambient": example["lighting"]["ambient"],
         "lighting.intensity": light["intensity"],
-        "lighting.elevation_deg": elevation,
+        "lighting.elevation_deg": math.degrees(math.asin(-d[2])),
         "background.gray": example["background_rgb"][0],
+        "markers.side_m": example["markers"]["side_m"],
+        "arena.side_m": example["arena"]["side_m"],
+        "arena.margin_m": example["arena"]["margin_m"],
     }
-    outside = {k: (v, eyrc[k]) for k, v in checks.items() if not _inside(v, eyrc[k])}
-    assert not outside, outside
+    for key, value in fixed.items():
+        assert not isinstance(eyrc[key], tuple), key
+        assert eyrc[key] == pytest.approx(value, abs=1e-5), key
+    assert eyrc["arena.texture"] == example["arena"]["texture"] == comp.TEXTURE_NAME
     assert example["markers"]["ids"] == list(eyrc["markers.ids"])
     assert example["markers"]["rotation_deg"] == eyrc["markers.rotation_deg"]
 
 
-def test_example_boxes_are_in_range(example):
+def test_example_boxes_are_in_the_twin_ranges(example):
     eyrc = PRESETS["eyrc"][1]
     assert _inside(len(example["obstacles"]), eyrc["obstacles.count"])
+    assert eyrc["obstacles.yaw_step_deg"] == 90.0
     for box in example["obstacles"]:
         for field, key in (("length_m", "obstacles.length_m"), ("width_m", "obstacles.width_m"),
-                           ("height_m", "obstacles.height_m"), ("yaw_deg", "obstacles.yaw_deg")):
+                           ("height_m", "obstacles.height_m")):
             assert _inside(box[field], eyrc[key]), (field, box[field], eyrc[key])
+        assert abs(box["yaw_deg"]) < 0.5  # axis-aligned in the example too
         assert _inside(box["color_rgb"][0], eyrc["obstacles.gray"])
+
+
+def test_twin_scenes_keep_the_real_images_marker_order():
+    """cv2.aruco sorts markers by outline length: every twin scene must give the real order."""
+    real = _detected_order(cv2.imread(str(IMAGE), cv2.IMREAD_GRAYSCALE))
+    assert real == [90, 95, 85, 80]
+    yaws = set()
+    with Renderer() as renderer:
+        for index in range(200):
+            s = make_sample("eyrc", seed=0, index=index, renderer=renderer)
+            assert _detected_order(cv2.cvtColor(s.bgr, cv2.COLOR_BGR2GRAY)) == real, index
+            yaws.update(round(o["yaw_deg"], 6) for o in s.gt["obstacles"])
+    assert yaws == {0.0, 90.0}

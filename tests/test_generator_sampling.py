@@ -70,26 +70,26 @@ def test_format_value_round_trips_through_parse():
 
 
 def test_same_seed_and_index_give_the_same_scene_in_any_order():
-    a = [sample_scene("eyrc", seed=11, index=i).scene for i in range(6)]
-    b = [sample_scene("eyrc", seed=11, index=i).scene for i in reversed(range(6))][::-1]
+    a = [sample_scene("eyrc-jitter", seed=11, index=i).scene for i in range(6)]
+    b = [sample_scene("eyrc-jitter", seed=11, index=i).scene for i in reversed(range(6))][::-1]
     assert a == b
-    assert sample_scene("eyrc", seed=12, index=0).scene != a[0]
+    assert sample_scene("eyrc-jitter", seed=12, index=0).scene != a[0]
     assert len({s.obstacles for s in a}) == 6
 
 
 def test_override_of_one_parameter_leaves_other_draws_alone():
-    base = sample_scene("eyrc", seed=3, index=4)
-    tilted = sample_scene("eyrc", seed=3, index=4,
+    base = sample_scene("eyrc-jitter", seed=3, index=4)
+    tilted = sample_scene("eyrc-jitter", seed=3, index=4,
                           overrides=parse_overrides(["lighting.ambient=0.6"]))
     assert base.scene.obstacles == tilted.scene.obstacles
     assert base.params["camera.tilt_deg"] == tilted.params["camera.tilt_deg"]
     assert tilted.params["lighting.ambient"] == 0.6
 
 
-def test_eyrc_scenes_respect_the_preset():
+def test_eyrc_jitter_scenes_respect_the_preset():
     inner = reference_corners_world(*_arena_markers())[0, 0]  # x of the NW inner corner
     for i in range(30):
-        s = sample_scene("eyrc", seed=1, index=i)
+        s = sample_scene("eyrc-jitter", seed=1, index=i)
         sc = s.scene
         assert 1 <= len(sc.obstacles) <= 5
         assert s.params["obstacles.count"] == len(sc.obstacles)
@@ -103,7 +103,7 @@ def test_eyrc_scenes_respect_the_preset():
 
 
 def _arena_markers():
-    sc = sample_scene("eyrc", seed=0, index=0).scene
+    sc = sample_scene("eyrc-jitter", seed=0, index=0).scene
     return sc.arena, sc.markers
 
 
@@ -111,17 +111,17 @@ def test_impossible_placement_fails_naming_the_parameters():
     overrides = parse_overrides(["obstacles.count=40", "obstacles.length_m=2",
                                  "obstacles.width_m=2", "obstacles.max_tries=20"])
     with pytest.raises(SamplingError, match=r"obstacles\.count=40.*obstacles\.min_gap_m"):
-        sample_scene("eyrc", seed=0, index=0, overrides=overrides)
+        sample_scene("eyrc-jitter", seed=0, index=0, overrides=overrides)
 
 
 def test_unreachable_camera_fails_naming_the_parameters():
     overrides = parse_overrides(["camera.altitude_m=3", "camera.max_tries=5"])
     with pytest.raises(SamplingError, match=r"camera\.altitude_m"):
-        sample_scene("eyrc", seed=0, index=0, overrides=overrides)
+        sample_scene("eyrc-jitter", seed=0, index=0, overrides=overrides)
 
 
 def test_scene_json_round_trip():
-    sc = sample_scene("eyrc", seed=5, index=2).scene
+    sc = sample_scene("eyrc-jitter", seed=5, index=2).scene
     text = json.dumps(sc.to_dict())
     assert Scene.from_dict(json.loads(text)) == sc
 

@@ -1,6 +1,6 @@
 """Acceptance: analytic GT against independent oracles on clean renders.
 
-50 ``eyrc`` scenes with the camera tilted up to 30 degrees (any heading kept small, camera
+50 ``eyrc-jitter`` scenes with the camera tilted up to 30 degrees (any heading kept small, camera
 raised so the arena stays in view): cv2.aruco finds every marker and its corners agree with the
 GT corners (<= 0.5 px median, <= 1.5 px max); each obstacle's rendered instance mask, warped to
 the frame by the GT homography, has an area within 1 % of its GT visible area.
@@ -25,7 +25,7 @@ OVERRIDES = ["camera.tilt_deg=0:30", "camera.altitude_m=9:11"]
 def samples():
     overrides = parse_overrides(OVERRIDES)
     with Renderer() as r:
-        return [make_sample("eyrc", seed=2025, index=i, overrides=overrides, renderer=r,
+        return [make_sample("eyrc-jitter", seed=2025, index=i, overrides=overrides, renderer=r,
                             masks=True) for i in range(N_SCENES)]
 
 

@@ -35,7 +35,7 @@ def _detect(bgr, dictionary="DICT_4X4_100"):
 
 
 def test_render_outputs_and_eyrc_look(renderer):
-    s = make_sample("eyrc", seed=0, index=0, renderer=renderer, depth=True, masks=True)
+    s = make_sample("eyrc-jitter", seed=0, index=0, renderer=renderer, depth=True, masks=True)
     out = s.render
     assert out.rgb.shape == (1000, 1000, 3) and out.rgb.dtype == np.uint8
     assert out.depth.shape == (1000, 1000) and out.depth.dtype == np.float32
@@ -59,7 +59,7 @@ def test_render_outputs_and_eyrc_look(renderer):
 
 @pytest.mark.parametrize(("w", "h"), [(640, 480), (1920, 1080), (1000, 1000)])
 def test_other_image_sizes_keep_gt_corners_exact(renderer, w, h):
-    s = make_sample("eyrc", seed=4, index=1, renderer=renderer,
+    s = make_sample("eyrc-jitter", seed=4, index=1, renderer=renderer,
                     overrides=parse_overrides([f"camera.width={w}", f"camera.height={h}"]))
     assert s.rgb.shape == (h, w, 3)
     assert s.gt["image_size"] == [w, h]
@@ -72,7 +72,7 @@ def test_other_image_sizes_keep_gt_corners_exact(renderer, w, h):
 
 @pytest.mark.parametrize(("rotation", "inner"), [(180, True), (0, False)])
 def test_marker_orientation_decides_which_corner_is_zero(renderer, rotation, inner):
-    s = make_sample("eyrc", seed=2, index=0, renderer=renderer,
+    s = make_sample("eyrc-jitter", seed=2, index=0, renderer=renderer,
                     overrides=parse_overrides([f"markers.rotation_deg={rotation}"]))
     found = _detect(s.bgr)
     nw = found[80]
@@ -88,7 +88,7 @@ def test_marker_orientation_decides_which_corner_is_zero(renderer, rotation, inn
 def test_other_dictionary_and_ids_and_full_yaw(renderer):
     overrides = parse_overrides(["markers.dictionary=DICT_5X5_250", "markers.ids=1,7,42,200",
                                  "camera.yaw_deg=135", "camera.altitude_m=11"])
-    s = make_sample("eyrc", seed=9, index=0, renderer=renderer, overrides=overrides)
+    s = make_sample("eyrc-jitter", seed=9, index=0, renderer=renderer, overrides=overrides)
     found = _detect(s.bgr, "DICT_5X5_250")
     assert sorted(found) == [1, 7, 42, 200]
     for m in s.gt["markers"]:
@@ -97,7 +97,7 @@ def test_other_dictionary_and_ids_and_full_yaw(renderer):
 
 
 def test_renders_are_deterministic_across_cache_states(renderer):
-    scene = sample_scene("eyrc", seed=8, index=5).scene
+    scene = sample_scene("eyrc-jitter", seed=8, index=5).scene
     first = renderer.render(scene, masks=True)
     other = sample_scene("eyrc-upright", seed=1, index=1).scene
     renderer.render(other)
@@ -111,7 +111,7 @@ def test_box_vertices_land_where_the_camera_model_says(renderer):
     overrides = parse_overrides(["obstacles.count=1", "camera.tilt_deg=25",
                                  "obstacles.height_m=1.5", "camera.yaw_deg=60",
                                  "camera.altitude_m=11"])
-    s = make_sample("eyrc", seed=1, index=0, renderer=renderer, masks=True,
+    s = make_sample("eyrc-jitter", seed=1, index=0, renderer=renderer, masks=True,
                     overrides=overrides)
     poly = np.array(s.gt["obstacles"][0]["image_polygon_px"], dtype=np.float64)
     K = np.array(s.gt["camera"]["K"])
@@ -123,16 +123,16 @@ def test_box_vertices_land_where_the_camera_model_says(renderer):
 
 
 def test_gt_scene_re_renders_the_same_image(renderer):
-    s = make_sample("eyrc", seed=6, index=3, renderer=renderer)
+    s = make_sample("eyrc-jitter", seed=6, index=3, renderer=renderer)
     again = renderer.render(Scene.from_dict(json.loads(json.dumps(s.gt["scene"]))))
     assert again.rgb.tobytes() == s.rgb.tobytes()
 
 
 def test_antialiased_renders_keep_markers_and_masks_exact():
-    scene = sample_scene("eyrc", seed=3, index=0).scene
+    scene = sample_scene("eyrc-jitter", seed=3, index=0).scene
     with Renderer(antialias=True) as r:
         aa = r.render(scene, masks=True, depth=True)
-    with Renderer() as r:
+    with Renderer(antialias=False) as r:
         plain = r.render(scene, masks=True, depth=True)
     assert aa.instance_mask.tobytes() == plain.instance_mask.tobytes()
     close = np.isclose(aa.depth, plain.depth, rtol=1e-4)
@@ -147,7 +147,7 @@ def test_antialiased_renders_keep_markers_and_masks_exact():
 
 
 def test_closing_one_renderer_leaves_the_others_working(renderer):
-    scene = sample_scene("eyrc", seed=0, index=1).scene
+    scene = sample_scene("eyrc-jitter", seed=0, index=1).scene
     before = renderer.render(scene).rgb
     other = Renderer()
     other.render(scene)
@@ -163,10 +163,10 @@ def test_textured_floor_grid_and_degrade_hook(renderer):
     def noise(rgb, rng):
         return np.clip(rgb + rng.normal(0, 3, rgb.shape), 0, 255).astype(np.uint8)
 
-    clean = make_sample("eyrc", seed=5, index=0, renderer=renderer, overrides=overrides)
-    noisy = make_sample("eyrc", seed=5, index=0, renderer=renderer, overrides=overrides,
+    clean = make_sample("eyrc-jitter", seed=5, index=0, renderer=renderer, overrides=overrides)
+    noisy = make_sample("eyrc-jitter", seed=5, index=0, renderer=renderer, overrides=overrides,
                         degrade=noise)
-    again = make_sample("eyrc", seed=5, index=0, renderer=renderer, overrides=overrides,
+    again = make_sample("eyrc-jitter", seed=5, index=0, renderer=renderer, overrides=overrides,
                         degrade=noise)
     assert noisy.rgb.tobytes() == again.rgb.tobytes() != clean.rgb.tobytes()
     assert noisy.gt == clean.gt

@@ -32,7 +32,7 @@ def renderer():
 
 
 def _sample(renderer, sets, *, index=0, masks=False):
-    return make_sample("eyrc", seed=SEED, index=index, renderer=renderer, masks=masks,
+    return make_sample("eyrc-jitter", seed=SEED, index=index, renderer=renderer, masks=masks,
                        overrides=parse_overrides(sets))
 
 

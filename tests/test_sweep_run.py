@@ -28,7 +28,7 @@ def _comparable(rows):
 @pytest.fixture(scope="module")
 def cli_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("sweep") / "tilt"
-    argv = ["--preset", "eyrc", "--vary", VARY[0], "--per-point", str(PER_POINT),
+    argv = ["--preset", "eyrc-jitter", "--vary", VARY[0], "--per-point", str(PER_POINT),
             "--seed", str(SEED), "--pipeline", "seed", "--pipeline", "reference",
             "--out", str(out), "--workers", "2", "--no-progress"]
     assert sweep_main(argv) == 0
@@ -86,7 +86,7 @@ def test_writes_every_output_file(cli_run, capsys):
 def test_dask_local_cluster_gives_identical_results(cli_run):
     distributed = pytest.importorskip("distributed")
     local = [json.loads(line) for line in (cli_run / "results.jsonl").read_text().splitlines()]
-    spec = SweepSpec(preset="eyrc", axes=parse_varies(VARY), per_point=PER_POINT, seed=SEED,
+    spec = SweepSpec(preset="eyrc-jitter", axes=parse_varies(VARY), per_point=PER_POINT, seed=SEED,
                      pipelines=(PipelineSpec("pipeline", "seed"),
                                 PipelineSpec("pipeline", "reference")))
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True,

@@ -31,8 +31,8 @@ def test_warehouse_scenes_have_pallets_and_coloured_crates():
     assert any(s.scene.patches for s in scenes)  # tape / paper clutter
 
 
-def test_eyrc_draws_are_unchanged_by_the_warehouse_options():
+def test_eyrc_jitter_draws_are_unchanged_by_the_warehouse_options():
     # eyrc never draws a palette colour or a texture seed from the scene stream
-    s = sample_scene("eyrc", seed=3, index=4).scene
+    s = sample_scene("eyrc-jitter", seed=3, index=4).scene
     assert all(len(set(o.color_rgb)) == 1 for o in s.obstacles)
     assert s.arena.texture == "plain" and s.arena.texture_seed == 0

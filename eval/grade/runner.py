@@ -28,7 +28,7 @@ import threading
 from collections.abc import Callable, Generator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -111,7 +111,7 @@ class GradeOptions:
             "output": self.output,
             "tolerance": self.tolerance,
             "area_reference": self.area_reference,
-            "run": json.loads(json.dumps(asdict(self.settings), sort_keys=True)),
+            "run": self.settings.to_dict(),
             "arenabench": __version__,
         }
 
