@@ -17,7 +17,6 @@ import pytest
 
 from arenabench.eval.cli import main as eval_main
 from arenabench.generator.cli import main as generate_main
-from arenabench.generator.presets import preset_names
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 REAL = Path(__file__).resolve().parent / "data" / "task1c_image.jpg"
@@ -100,11 +99,7 @@ def twin_tallies():
                         pipelines=tuple(f"{s}:detect" for s in STYLES), references=("visible",))
 
 
-@pytest.mark.xfail(
-    "eyrc-jitter" not in preset_names(), strict=False,
-    reason="eyrc is not yet the hidden-test twin (camera, light, grey and marker order of the "
-           "real example held fixed); today's eyrc fails several competition styles",
-)
+@pytest.mark.slow
 @pytest.mark.parametrize("style", STYLES)
 def test_style_passes_the_twin_like_the_hidden_tests(style, twin_tallies):
     tally = twin_tallies[f"{style}:detect"]
