@@ -108,7 +108,7 @@ def test_six_teams_are_ranked_as_expected(graded, dataset):
     assert doc["schema"] == LEADERBOARD_SCHEMA
     assert doc["dataset"]["n"] == COUNT and len(doc["dataset"]["manifest_sha256"]) == 64
     assert doc["options"]["command"] == "python3 {submission}/map.py --image {image}"
-    assert doc["options"]["run"]["limits"]["timeout_s"] == float(TIMEOUT)
+    assert doc["options"]["run"]["timeout_s"] == float(TIMEOUT)
     teams = {t["team"]: t for t in doc["teams"]}
     assert set(teams) == set(TEAMS)
     assert [t["rank"] for t in doc["teams"]] == list(range(1, 7))
