@@ -283,7 +283,7 @@ def _twin() -> dict[str, Value]:
         "obstacles.yaw_step_deg": 90.0,
         "obstacles.gray": grays[0] if len(grays) == 1 else (grays[0], grays[-1]),
         "obstacles.min_gap_m": 0.15,
-        "obstacles.edge_margin_m": 0.12,
+        "obstacles.edge_margin_m": 0.16,
         "camera.fov_deg": cam["fov_deg"],
         "camera.altitude_m": cam["altitude_m"],
         "camera.tilt_deg": cam["tilt_deg"],
