@@ -48,6 +48,14 @@ def parse_size(text: str, *, name: str) -> int:
     return value
 
 
+def format_size(value: int) -> str:
+    """The shortest exact spelling :func:`parse_size` reads back (``2147483648`` -> ``"2G"``)."""
+    for suffix, unit in (("T", 1024**4), ("G", 1024**3), ("M", 1024**2), ("k", 1024)):
+        if value % unit == 0:
+            return f"{value // unit}{suffix}"
+    return str(value)
+
+
 @dataclass(frozen=True)
 class RunLimits:
     """Per-run limits on an external command.
@@ -149,7 +157,7 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
         help="wall-clock seconds per image (default: %(default)s)",
     )
     g.add_argument(
-        "--memory-limit", default="2G",
+        "--memory-limit", default=format_size(d.memory_bytes),
         help="address space per process, e.g. 2G, 512M (default: %(default)s)",
     )
     g.add_argument(
@@ -157,11 +165,11 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
         help="processes a run may have at once (default: %(default)s)",
     )
     g.add_argument(
-        "--max-file-size", default="64M",
+        "--max-file-size", default=format_size(d.max_file_size),
         help="largest file a run may write (default: %(default)s)",
     )
     g.add_argument(
-        "--max-output", default="1M",
+        "--max-output", default=format_size(d.max_output),
         help="bytes of stdout and of stderr kept per run, the tail (default: %(default)s)",
     )
     g.add_argument(
