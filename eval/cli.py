@@ -110,6 +110,23 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _warn_if_incomplete(root: Path) -> None:
+    """One warning line when ``dataset.json`` says an interrupted ``generate`` left the dataset
+    unfinished: the scores then cover only the scenes its manifest lists."""
+    import json
+
+    try:
+        meta = json.loads((root / "dataset.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return
+    if isinstance(meta, dict) and meta.get("complete") is False:
+        count = (meta.get("args") or {}).get("count", "?")
+        print(f"arenabench eval: warning: {root}/dataset.json: the dataset is incomplete "
+              f"({meta.get('finished', '?')} of {count} scenes; an interrupted generate): only "
+              "those are scored; run the same generate command again to finish it",
+              file=sys.stderr)
+
+
 def _usage_error(parser: argparse.ArgumentParser, message: str) -> int:
     print(f"arenabench eval: error: {message}", file=sys.stderr)
     return 2
@@ -190,6 +207,7 @@ def _main(argv: list[str] | None) -> int:
         dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify)
     except (DatasetError, ValueError) as exc:
         return _usage_error(parser, str(exc))
+    _warn_if_incomplete(Path(args.dataset))
     interrupted: EvaluationInterrupted | None = None
     try:
         report = evaluate(

@@ -225,3 +225,21 @@ def test_plugin_module_imports_cheaply():
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "[]"
+
+
+def test_an_interrupted_dataset_is_scored_with_a_warning(toy, tmp_path, capsys):
+    import shutil
+
+    partial = tmp_path / "partial"
+    shutil.copytree(toy, partial)
+    meta_path = partial / "dataset.json"
+    meta = json.loads(meta_path.read_text()) if meta_path.exists() else {"args": {"count": 20}}
+    meta.update(complete=False, finished=8)
+    meta.setdefault("args", {})["count"] = 20
+    meta_path.write_text(json.dumps(meta))
+    rc = arenabench_main(["eval", str(partial), "--pipeline", "toy_arena:detect",
+                          "--no-progress"])
+    err = capsys.readouterr().err
+    assert rc == 0
+    warning = [line for line in err.splitlines() if "warning" in line]
+    assert len(warning) == 1 and "incomplete (8 of 20 scenes" in warning[0], err
