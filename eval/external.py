@@ -391,7 +391,10 @@ class CommandPipeline:
         paths = {sys.prefix, sys.base_prefix, sys.exec_prefix, sys.base_exec_prefix,
                  str(Path(sys.executable).resolve().parent), *python_source_paths()}
         if self._executable:
-            paths.add(str(Path(self._executable).resolve().parent))
+            # the command's whole installation prefix (/opt/conda for /opt/conda/bin/python3,
+            # ~/.pyenv for a pyenv shim), since interpreters and shims need more than their bin/
+            folder = Path(self._executable).resolve().parent
+            paths.add(str(folder.parent if folder.name in ("bin", "sbin", "shims") else folder))
         roots = ("/", "/proc", "/dev", "/sys", "/tmp", "/run", "/var", "/home", "/root", "/mnt")
         for arg in self._resolved_args():
             if "{" in arg or not os.path.isabs(arg) or not os.path.exists(arg):

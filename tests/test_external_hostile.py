@@ -346,3 +346,23 @@ def test_limit_is_a_failure_category_everywhere(toy, run_tmp):
     assert report.summary.failures["limit"] == 2
     reasons = check_thresholds(report.summary, parse_thresholds(["failures.limit=0"]))
     assert reasons == ["failures.limit 2 > 0 (maximum)"]
+
+
+@needs_bwrap
+def test_a_command_on_path_sees_its_installation_prefix(toy, run_tmp, tmp_path, monkeypatch):
+    """Like a pyenv shim or a conda python: bin/TOOL needs files beside its bin/ folder."""
+    prefix = tmp_path / "prefix"
+    (prefix / "bin").mkdir(parents=True)
+    (prefix / "libexec").mkdir()
+    real = prefix / "libexec" / "tool-real"
+    real.write_text("#!/bin/sh\nprintf 'Aruco ID: [80, 85, 90, 95]\\nObstacles: 1\\n"
+                    "Area: 10.0\\n' > obstacles.txt\n")
+    shim = prefix / "bin" / "tool"
+    shim.write_text('#!/bin/sh\nexec "$(dirname "$0")/../libexec/tool-real" "$@"\n')
+    for f in (real, shim):
+        f.chmod(0o755)
+    monkeypatch.setenv("PATH", f"{prefix / 'bin'}{os.pathsep}{os.environ['PATH']}")
+    pipe = CommandPipeline("tool --image {image}", settings=RunSettings(sandbox="bwrap"))
+    for r in evaluate(pipe, toy, workers=2, limit=2).images:
+        assert r.prediction.status == "ok", (r.prediction.message, r.prediction.stderr)
+        assert (r.prediction.count, r.prediction.area) == (1, 10.0)
