@@ -59,6 +59,16 @@ def inner_corners_by_id(corners, ids) -> np.ndarray | None:
     return np.float32([by_id[i][k] for k, i in enumerate(ARENA_IDS)])
 
 
+
+def warp_by_id(image_bgr: np.ndarray, corners, ids, *, size: int = WIDTH) -> np.ndarray | None:
+    """The arena warped to ``size`` x ``size`` from :func:`inner_corners_by_id` (north-west
+    corner to (0, 0), clockwise); ``None`` unless all four markers were found."""
+    src = inner_corners_by_id(corners, ids)
+    if src is None:
+        return None
+    dst = np.float32([[0, 0], [size, 0], [size, size], [0, size]])
+    return cv2.warpPerspective(image_bgr, cv2.getPerspectiveTransform(src, dst), (size, size))
+
 def answer(count: int, area: float, marker_ids: list[int]) -> dict[str, Any]:
     """The result dict ``detect`` returns."""
     return {"status": "ok", "count": int(count), "area": float(area),

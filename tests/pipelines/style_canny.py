@@ -20,13 +20,12 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from competition_style import (
-    HEIGHT,
     WIDTH,
     answer,
     detect_markers,
-    inner_corners_by_id,
     main,
     not_found,
+    warp_by_id,
 )
 
 CANNY = (50, 100)
@@ -36,12 +35,9 @@ MIN_AREA = 100
 def detect(image_bgr: np.ndarray) -> dict:
     """Count obstacles and their total area (frame px) on a BGR image."""
     corners, ids = detect_markers(image_bgr)
-    src = inner_corners_by_id(corners, ids)
-    if src is None:
+    warped = warp_by_id(image_bgr, corners, ids, size=WIDTH)
+    if warped is None:
         return not_found(ids)
-    dst = np.float32([[0, 0], [WIDTH, 0], [WIDTH, HEIGHT], [0, HEIGHT]])
-    warped = cv2.warpPerspective(image_bgr, cv2.getPerspectiveTransform(src, dst),
-                                 (WIDTH, HEIGHT))
     gray = cv2.cvtColor(warped, cv2.COLOR_BGR2GRAY)
     blur = cv2.GaussianBlur(gray, (5, 5), 0)
     edges = cv2.Canny(blur, *CANNY)

@@ -20,7 +20,7 @@ import cv2
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from competition_style import WIDTH, answer, detect_markers, inner_corners_by_id, main, not_found
+from competition_style import WIDTH, answer, detect_markers, main, not_found, warp_by_id
 
 SIZE = 400
 SCALE = (WIDTH / SIZE) ** 2
@@ -31,11 +31,9 @@ MIN_AREA = 100 / SCALE
 def detect(image_bgr: np.ndarray) -> dict:
     """Count obstacles and their total area (1000 x 1000 frame px) on a BGR image."""
     corners, ids = detect_markers(image_bgr)
-    src = inner_corners_by_id(corners, ids)
-    if src is None:
+    warped = warp_by_id(image_bgr, corners, ids, size=SIZE)
+    if warped is None:
         return not_found(ids)
-    dst = np.float32([[0, 0], [SIZE, 0], [SIZE, SIZE], [0, SIZE]])
-    warped = cv2.warpPerspective(image_bgr, cv2.getPerspectiveTransform(src, dst), (SIZE, SIZE))
     gray = cv2.cvtColor(warped, cv2.COLOR_BGR2GRAY)
     blur = cv2.GaussianBlur(gray, (5, 5), 0)
     _, binary = cv2.threshold(blur, THRESHOLD, 255, cv2.THRESH_BINARY_INV)
