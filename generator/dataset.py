@@ -29,7 +29,6 @@ import multiprocessing
 import os
 import shlex
 import sys
-import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -56,21 +55,26 @@ from arenabench.fileio import (
     sha256_file,
 )
 from arenabench.generator.presets import Value, format_value, get_preset, resolve
-from arenabench.generator.sample import GENERATOR_VERSION, make_sample, scene_id
+from arenabench.generator.sample import (
+    GENERATOR_VERSION,
+    make_sample,
+    scene_id,
+    worker_gl_info,
+    worker_renderer,
+)
+from arenabench.imageio import PNG_COMPRESSION, encode_png
 from arenabench.interrupts import (
     Interrupted,
     children_ignore_sigint,
-    init_worker_process,
     signal_name,
     stop_workers,
     worker_task,
 )
 from arenabench.limits import MAX_DATASET_SCENES, MAX_WORKERS, check_at_most
+from arenabench.workers import init_worker, llvmpipe_threads
 
 #: dataset.json schema id.
 DATASET_SCHEMA = "arenabench.dataset/1"
-#: PNG compression level (1 = fast; the output is lossless whatever the level).
-PNG_COMPRESSION = 1
 
 
 class DatasetError(ValueError):
@@ -160,83 +164,75 @@ class DatasetResult:
 
 # ----------------------------------------------------------------------------- workers
 
-_WORKER: dict[str, Any] = {}
+@dataclass(frozen=True)
+class RenderTask:
+    """One scene to render, sent to a worker (picklable).
+
+    Attributes
+    ----------
+    args : dict
+        :meth:`DatasetArgs.to_dict` of the run.
+    seed, index : int
+        Run seed and scene index.
+    out : str
+        Dataset directory (local workers write the files there).
+    """
+
+    args: dict[str, Any]
+    seed: int
+    index: int
+    out: str
 
 
-def _init_worker(lp_threads: int | None, parent_pid: int | None = None) -> None:
-    if parent_pid is not None:  # a pool worker
-        init_worker_process(parent_pid=parent_pid)
-    if lp_threads and "LP_NUM_THREADS" not in os.environ:
-        os.environ["LP_NUM_THREADS"] = str(lp_threads)
-    from arenabench.generator.render import Renderer
-
-    _WORKER["renderer"] = Renderer()
+def _render(task: RenderTask):
+    return make_sample(task.args["preset"], seed=task.seed, index=task.index,
+                       overrides=_parse_stored(task.args["overrides"]),
+                       renderer=worker_renderer())
 
 
-def _encode_png(rgb: np.ndarray) -> bytes:
-    params = [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION]
-    if hasattr(cv2, "IMWRITE_PNG_FILTER"):  # OpenCV >= 4.11: no row filter, 2-3x faster
-        params += [cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE]
-    ok, buf = cv2.imencode(".png", cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), params)
-    if not ok:  # pragma: no cover - OpenCV failure
-        raise RuntimeError("PNG encoding failed")
-    return buf.tobytes()
+def render_task(task: RenderTask) -> dict[str, Any]:
+    """A local worker's unit: render, encode and write one scene's image and GT.
 
-
-def _render_one(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
+    Returns
+    -------
+    dict
+        ``id``, the timings in ms (``sample``, ``render``, ``gt``, ``encode``, ``write``),
+        ``gl`` (the worker's OpenGL strings), ``image_sha256`` and ``gt_sha256``.
+    """
     with worker_task():
-        return _render_task(task)
+        out = Path(task.out)
+        sample = _render(task)
+        t1 = time.perf_counter()
+        png = encode_png(sample.bgr)
+        t2 = time.perf_counter()
+        gt_bytes = dumps_json(sample.gt).encode("utf-8")
+        atomic_write_bytes(out / "images" / f"{sample.id}.png", png)
+        atomic_write_bytes(out / "gt" / f"{sample.id}.json", gt_bytes)
+        t3 = time.perf_counter()
+        return {"id": sample.id, **sample.timings_ms, "encode": (t2 - t1) * 1000,
+                "write": (t3 - t2) * 1000, "gl": worker_gl_info(),
+                "image_sha256": sha256_bytes(png), "gt_sha256": sha256_bytes(gt_bytes)}
 
 
-def _render_task(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
-    args_dict, out, index = task[1], Path(task[4]), task[3]
-    renderer = _WORKER["renderer"]
-    sample = make_sample(args_dict["preset"], seed=task[2], index=index,
-                         overrides=_parse_stored(args_dict["overrides"]), renderer=renderer)
-    t1 = time.perf_counter()
-    png = _encode_png(sample.rgb)
-    t2 = time.perf_counter()
-    gt_bytes = dumps_json(sample.gt).encode("utf-8")
-    atomic_write_bytes(out / "images" / f"{sample.id}.png", png)
-    atomic_write_bytes(out / "gt" / f"{sample.id}.json", gt_bytes)
-    t3 = time.perf_counter()
-    if "gl" not in _WORKER:
-        _WORKER["gl"] = renderer.gl_info()
-    return {"id": sample.id, **sample.timings_ms, "encode": (t2 - t1) * 1000,
-            "write": (t3 - t2) * 1000, "gl": _WORKER["gl"],
-            "image_sha256": sha256_bytes(png), "gt_sha256": sha256_bytes(gt_bytes)}
-
-
-_CLUSTER_LOCAL = threading.local()
-
-
-def _render_on_cluster(task: tuple[str, dict[str, Any], int, int, str]) -> dict[str, Any]:
-    """A Dask worker's unit: render and encode as :func:`_render_task`, but return the bytes
-    (``png_bytes``, ``gt_text``) for the client to write (:func:`_write_rendered`).
+def render_on_cluster(task: RenderTask) -> dict[str, Any]:
+    """A Dask worker's unit: render and encode as :func:`render_task`, but return the bytes
+    (``png_bytes``, ``gt_text``) for the client to write (:func:`write_rendered`).
 
     The renderer is created on first use, one per worker thread (an OpenGL context is current
-    in one thread only), and reused.
+    in one thread only; :func:`arenabench.generator.sample.worker_renderer`), and reused.
     """
-    renderer = getattr(_CLUSTER_LOCAL, "renderer", None)
-    if renderer is None:
-        from arenabench.generator.render import Renderer
-
-        renderer = _CLUSTER_LOCAL.renderer = Renderer()
-        _CLUSTER_LOCAL.gl = renderer.gl_info()
-    args_dict, index = task[1], task[3]
-    sample = make_sample(args_dict["preset"], seed=task[2], index=index,
-                         overrides=_parse_stored(args_dict["overrides"]), renderer=renderer)
+    sample = _render(task)
     t1 = time.perf_counter()
-    png = _encode_png(sample.rgb)
+    png = encode_png(sample.bgr)
     t2 = time.perf_counter()
     return {**sample.timings_ms, "id": sample.id, "png_bytes": png,
             "gt_text": dumps_json(sample.gt), "encode": (t2 - t1) * 1000,
-            "gl": _CLUSTER_LOCAL.gl}
+            "gl": worker_gl_info()}
 
 
-def _write_rendered(out: Path, res: dict[str, Any]) -> dict[str, Any]:
+def write_rendered(out: Path, res: dict[str, Any]) -> dict[str, Any]:
     """Write the files of a scene rendered on a cluster; returns the same record as
-    :func:`_render_task` (without the bytes)."""
+    :func:`render_task` (without the bytes)."""
     gt_bytes = res["gt_text"].encode("utf-8")
     t2 = time.perf_counter()
     atomic_write_bytes(out / "images" / f"{res['id']}.png", res["png_bytes"])
@@ -524,30 +520,28 @@ def _generate_locked(
     if meta is None or meta["args"].get("count") != args.count:
         _write_meta(root, args, complete=False)
     stored = args.to_dict()
-    tasks = [("task", stored, args.seed, i, str(root)) for i in todo]
+    tasks = [RenderTask(args=stored, seed=args.seed, index=i, out=str(root)) for i in todo]
     results: list[dict[str, Any]] = []
     bar = _progress(len(tasks), progress)
     try:
         if client is not None and tasks:
             from arenabench.cluster import cluster_map
 
-            for _, res in cluster_map(_render_on_cluster, tasks, client):
-                results.append(_write_rendered(root, res))
+            for _, res in cluster_map(render_on_cluster, tasks, client):
+                results.append(write_rendered(root, res))
                 bar.update(1)
         elif workers == 1 or len(tasks) <= 1:
-            _init_worker(None)
             for task in tasks:
-                results.append(_render_one(task))
+                results.append(render_task(task))
                 bar.update(1)
         else:
-            cores = os.cpu_count() or 1
-            lp = max(1, cores // workers)
+            lp = llvmpipe_threads(workers)
             ctx = multiprocessing.get_context("spawn")
             with children_ignore_sigint():
-                pool = ctx.Pool(workers, initializer=_init_worker, initargs=(lp, os.getpid()))
+                pool = ctx.Pool(workers, initializer=init_worker, initargs=(lp, os.getpid()))
             with pool:
                 try:
-                    for res in pool.imap_unordered(_render_one, tasks, chunksize=1):
+                    for res in pool.imap_unordered(render_task, tasks, chunksize=1):
                         results.append(res)
                         bar.update(1)
                 except BaseException:
@@ -562,8 +556,7 @@ def _generate_locked(
         bar.close()
     gl = results[0]["gl"] if results else (meta or {}).get("versions") or None
     if gl is None:
-        _init_worker(None)
-        gl = _WORKER["renderer"].gl_info()
+        gl = worker_gl_info()
     gl = {k: v for k, v in gl.items() if k.startswith("gl_")}
     _finish(root, args, gl)
     timings = {}

@@ -8,47 +8,14 @@ atomically. Scene files are :meth:`Scene.to_dict` JSON, e.g. the fitted
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
 
 from arenabench.clihelp import HelpFormatter
-from arenabench.generator.scene import Scene
+from arenabench.generator.scene import Scene, load_scene
 
-#: Top-level keys of a scene file.
-SCENE_KEYS = frozenset(
-    {"arena", "markers", "obstacles", "camera", "lighting", "background_rgb", "patches"}
-)
-
-
-def load_scene(path: str | Path) -> Scene:
-    """Read a scene file (JSON of :meth:`Scene.to_dict`).
-
-    Raises
-    ------
-    ValueError
-        On a missing or unreadable file, invalid JSON, an unknown field or an invalid value.
-    """
-    p = Path(path)
-    if p.exists() and not p.is_file():
-        raise ValueError(f"scene file {str(p)!r} is not a regular file")
-    try:
-        data = json.loads(p.read_text(encoding="utf-8"))
-    except OSError as exc:
-        raise ValueError(f"cannot read scene file {str(p)!r}: {exc.strerror or exc}") from None
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise ValueError(f"scene file {str(p)!r} is not valid JSON: {exc}") from None
-    if not isinstance(data, dict):
-        raise ValueError(f"scene file {str(p)!r} must hold a JSON object")
-    unknown = sorted(set(data) - SCENE_KEYS)
-    if unknown:
-        raise ValueError(f"scene file {str(p)!r}: unknown field(s) {', '.join(unknown)}")
-    try:
-        return Scene.from_dict(data)
-    except ValueError as exc:
-        raise ValueError(f"scene file {str(p)!r}: {exc}") from None
-
+__all__ = ["load_scene", "render_scene_files", "scene_gt_record"]
 
 def scene_gt_record(scene: Scene, *, sid: str = "000000", source: str = "scene") -> dict[str, Any]:
     """The GT record of a scene rendered on its own (same schema as dataset GT files)."""
@@ -59,14 +26,17 @@ def scene_gt_record(scene: Scene, *, sid: str = "000000", source: str = "scene")
 
 def render_scene_files(scene: Scene, out: str | Path, *, source: str = "scene") -> Path:
     """Render ``scene`` into ``out/images/000000.png`` + ``out/gt/000000.json``; returns the PNG."""
+    import cv2
+
     from arenabench.fileio import atomic_write_bytes, atomic_write_json
-    from arenabench.generator.dataset import _encode_png
     from arenabench.generator.render import Renderer
+    from arenabench.imageio import encode_png
 
     out = Path(out)
     with Renderer() as renderer:
         rgb = renderer.render(scene).rgb
-    image = atomic_write_bytes(out / "images" / "000000.png", _encode_png(rgb))
+    png = encode_png(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
+    image = atomic_write_bytes(out / "images" / "000000.png", png)
     atomic_write_json(out / "gt" / "000000.json", scene_gt_record(scene, source=source))
     return image
 

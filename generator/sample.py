@@ -23,6 +23,7 @@ from arenabench.generator.presets import Value
 from arenabench.generator.render import Renderer, RenderOutput
 from arenabench.generator.sampler import sample_scene
 from arenabench.schemas import GT_SCHEMA
+from arenabench.workers import thread_state
 
 #: Bumped whenever the same (preset, seed, index) would give different images or GT.
 #: 2: degradation / scene-variation parameters recorded in the GT's params and
@@ -63,6 +64,17 @@ class Sample:
     def bgr(self) -> np.ndarray:
         """The image in OpenCV's BGR order."""
         return cv2.cvtColor(self.render.rgb, cv2.COLOR_RGB2BGR)  # 30x faster than numpy
+
+
+def worker_renderer() -> Renderer:
+    """This thread's reused :class:`~arenabench.generator.render.Renderer`, created on first
+    use (:func:`arenabench.workers.thread_state`)."""
+    return thread_state("renderer", Renderer)
+
+
+def worker_gl_info() -> dict[str, str]:
+    """OpenGL vendor, renderer and version of :func:`worker_renderer` (asked once)."""
+    return thread_state("gl_info", lambda: worker_renderer().gl_info())
 
 
 def scene_id(index: int) -> str:

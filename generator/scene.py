@@ -7,7 +7,9 @@ are adapters over it.
 
 from __future__ import annotations
 
+import json
 from dataclasses import asdict, dataclass, field
+from pathlib import Path
 from typing import Any
 
 from arenabench.generator import competition_arena as comp
@@ -427,3 +429,37 @@ def _listify(obj: Any) -> Any:
 
 def _tuplify(d: dict[str, Any]) -> dict[str, Any]:
     return {k: tuple(v) if isinstance(v, list) else v for k, v in d.items()}
+
+
+#: Top-level keys of a scene file.
+SCENE_KEYS = frozenset(
+    {"arena", "markers", "obstacles", "camera", "lighting", "background_rgb", "patches"}
+)
+
+
+def load_scene(path: str | Path) -> Scene:
+    """Read a scene file (JSON of :meth:`Scene.to_dict`).
+
+    Raises
+    ------
+    ValueError
+        On a missing or unreadable file, invalid JSON, an unknown field or an invalid value.
+    """
+    p = Path(path)
+    if p.exists() and not p.is_file():
+        raise ValueError(f"scene file {str(p)!r} is not a regular file")
+    try:
+        data = json.loads(p.read_text(encoding="utf-8"))
+    except OSError as exc:
+        raise ValueError(f"cannot read scene file {str(p)!r}: {exc.strerror or exc}") from None
+    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
+        raise ValueError(f"scene file {str(p)!r} is not valid JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"scene file {str(p)!r} must hold a JSON object")
+    unknown = sorted(set(data) - SCENE_KEYS)
+    if unknown:
+        raise ValueError(f"scene file {str(p)!r}: unknown field(s) {', '.join(unknown)}")
+    try:
+        return Scene.from_dict(data)
+    except ValueError as exc:
+        raise ValueError(f"scene file {str(p)!r}: {exc}") from None

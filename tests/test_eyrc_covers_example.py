@@ -102,7 +102,7 @@ def test_twin_box_images_stay_inside_the_marker_frame():
 
 
 def _example_scene():
-    from arenabench.generator.render_cli import load_scene
+    from arenabench.generator.scene import load_scene
 
     return load_scene(SCENE)
 

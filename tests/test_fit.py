@@ -11,7 +11,7 @@ import cv2
 import numpy as np
 import pytest
 
-from arenabench.generator.render_cli import load_scene
+from arenabench.generator.scene import load_scene
 from arenabench.generator.similarity import mean_abs_diff, ssim
 from arenabench.pipeline import detect
 

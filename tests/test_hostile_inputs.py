@@ -181,9 +181,10 @@ def test_gt_count_1e400_is_refused(toy, tmp_path):
 
 def test_every_gt_the_generator_writes_validates():
     from arenabench.generator.presets import preset_names
-    from arenabench.generator.render_cli import load_scene, scene_gt_record
+    from arenabench.generator.render_cli import scene_gt_record
     from arenabench.generator.sample import gt_record
     from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.scene import load_scene
     from arenabench.schemas import GT_SCHEMA, gt_problem, gt_schema
 
     assert gt_schema()["properties"]["schema"]["const"] == GT_SCHEMA

@@ -12,7 +12,7 @@ from arenabench.generator import camera as cam
 from arenabench.generator.groundtruth import compute_ground_truth
 from arenabench.generator.layout import box_vertices
 from arenabench.generator.render import Renderer
-from arenabench.generator.render_cli import load_scene
+from arenabench.generator.scene import load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
 IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
