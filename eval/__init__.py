@@ -19,7 +19,7 @@ _EXPORTS: dict[str, str] = {
     "load_dataset": "dataset",
     "Dataset": "dataset",
     "DatasetError": "dataset",
-    "Sample": "dataset",
+    "DatasetItem": "dataset",
     "score_image": "metrics",
     "summarize": "metrics",
     "wilson_interval": "metrics",

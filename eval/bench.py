@@ -47,6 +47,8 @@ from typing import Any
 
 import numpy as np
 
+from arenabench.workers import init_worker, llvmpipe_threads, usable_cores
+
 #: bench.json schema id.
 BENCH_SCHEMA = "arenabench.bench/1"
 
@@ -159,56 +161,83 @@ def target_met(value: float | None, op: str, target: float) -> bool | None:
     return {">=": value >= target, "<=": value <= target, "<": value < target}[op]
 
 
-def usable_cores() -> int:
-    """Cores this process may run on."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
-
-
 # ----------------------------------------------------------------------------- workers
 
-_STATE: dict[str, Any] = {}
+@dataclass(frozen=True)
+class SceneTask:
+    """Scene ``index`` of ``preset`` with run ``seed`` (one unit of a bench pool)."""
+
+    preset: str
+    seed: int
+    index: int
 
 
-def _init_worker(lp_threads: int) -> None:
-    if "LP_NUM_THREADS" not in os.environ:
-        os.environ["LP_NUM_THREADS"] = str(lp_threads)
+@dataclass(frozen=True)
+class ImageTask:
+    """An image file and its GT file to run the reference pipeline on and score."""
+
+    image: str
+    gt: str
+
+
+@dataclass(frozen=True)
+class FloorTask:
+    """Scenes to render, then encode and write into ``out`` (the timed part)."""
+
+    preset: str
+    seed: int
+    indices: tuple[int, ...]
+    out: str
+
+
+@dataclass(frozen=True)
+class NaiveTask:
+    """One scene of the naive baseline, written into ``out``."""
+
+    preset: str
+    seed: int
+    index: int
+    out: str
+
+
+@dataclass(frozen=True)
+class RssTask:
+    """``renders`` consecutive renders of ``preset`` in one worker."""
+
+    preset: str
+    seed: int
+    renders: int
 
 
 def _renderer():
-    r = _STATE.get("renderer")
-    if r is None:
-        from arenabench.generator.render import Renderer
+    from arenabench.generator.sample import worker_renderer
 
-        r = _STATE["renderer"] = Renderer()
-    return r
+    return worker_renderer()
 
 
-def _warm(task: tuple[str, int, int]) -> int:
+def _warm(task: SceneTask) -> int:
     """Create this worker's renderer and render one scene (not timed)."""
     from arenabench.generator.sample import make_sample
 
-    make_sample(task[0], seed=task[1], index=task[2], renderer=_renderer())
+    make_sample(task.preset, seed=task.seed, index=task.index, renderer=_renderer())
     return os.getpid()
 
 
-def _memory_one(task: tuple[str, int, int]) -> float:
+def _memory_one(task: SceneTask) -> float:
     """Render one scene and compute its GT; returns the CPU seconds it took (all threads)."""
     from arenabench.generator.sample import make_sample
 
     c0 = time.process_time()
-    make_sample(task[0], seed=task[1], index=task[2], renderer=_renderer())
+    make_sample(task.preset, seed=task.seed, index=task.index, renderer=_renderer())
     return time.process_time() - c0
 
 
-def _pipeline_one(task: tuple[str, str]) -> tuple[bool, float]:
+def _pipeline_one(task: ImageTask) -> tuple[bool, float]:
     """Load one image file (decode included), run the reference pipeline, score it.
 
     Returns whether it passed and the CPU seconds it took.
     """
-    from arenabench.eval.dataset import Sample as EvalSample
+    from arenabench.eval.dataset import DatasetItem
     from arenabench.eval.metrics import score_image
     from arenabench.eval.pipelines import prediction_from_result
     from arenabench.imageio import load_image
@@ -216,29 +245,32 @@ def _pipeline_one(task: tuple[str, str]) -> tuple[bool, float]:
 
     c0 = time.process_time()
     t0 = time.perf_counter()
-    det = detect(load_image(task[0]))
+    det = detect(load_image(task.image))
     pred = prediction_from_result(det, latency_ms=(time.perf_counter() - t0) * 1e3)
-    gt = json.loads(Path(task[1]).read_text())
-    truth = EvalSample(id=gt["id"], image_path=Path(), gt_path=Path(), gt=gt).truth()
+    gt = json.loads(Path(task.gt).read_text())
+    truth = DatasetItem(id=gt["id"], image_path=Path(), gt_path=Path(), gt=gt).truth()
     return bool(score_image(truth, pred).passed), time.process_time() - c0
 
 
-def _floor_chunk(task: tuple[str, int, list[int], str]) -> tuple[int, float, float]:
+def _floor_chunk(task: FloorTask) -> tuple[int, float, float]:
     """Render the scenes (not timed), then time their PNG encode + atomic write."""
-    from arenabench.fileio import atomic_write_bytes
-    from arenabench.generator.dataset import _encode_png
-    from arenabench.generator.sample import make_sample
+    import cv2
 
-    preset, seed, indices, out = task
+    from arenabench.fileio import atomic_write_bytes
+    from arenabench.generator.sample import make_sample
+    from arenabench.imageio import encode_png
+
+    preset, seed, indices, out = task.preset, task.seed, task.indices, task.out
     images = [make_sample(preset, seed=seed, index=i, renderer=_renderer()).rgb
               for i in indices]
     c0, t0 = time.process_time(), time.perf_counter()
     for i, rgb in zip(indices, images, strict=True):
-        atomic_write_bytes(Path(out) / f"{i:06d}.png", _encode_png(rgb))
+        bgr = cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)  # as the dataset writer does
+        atomic_write_bytes(Path(out) / f"{i:06d}.png", encode_png(bgr))
     return len(indices), time.perf_counter() - t0, time.process_time() - c0
 
 
-def _naive_one(task: tuple[str, int, int, str]) -> int:
+def _naive_one(task: NaiveTask) -> int:
     """The naive baseline: a new renderer and scene per image, pyrender's lit default."""
     import cv2
 
@@ -255,7 +287,7 @@ def _naive_one(task: tuple[str, int, int, str]) -> int:
     from arenabench.generator.sampler import sample_scene
     from arenabench.generator.textures import floor_texture, marker_texture
 
-    preset, seed, index, out = task
+    preset, seed, index, out = task.preset, task.seed, task.index, task.out
     scene = sample_scene(preset, seed=seed, index=index).scene
     pr_scene = pyrender.Scene(bg_color=[*(np.asarray(scene.background_rgb) / 255.0), 1.0],
                               ambient_light=[0.3, 0.3, 0.3])
@@ -323,11 +355,11 @@ def _vm_status() -> dict[str, float]:
     return out
 
 
-def _rss_run(task: tuple[str, int, int]) -> dict[str, float]:
+def _rss_run(task: RssTask) -> dict[str, float]:
     """Render ``n`` consecutive scenes in this worker; RSS after warm-up, after, and peak."""
     from arenabench.generator.sampler import sample_scene
 
-    preset, seed, n = task
+    preset, seed, n = task.preset, task.seed, task.renders
     renderer = _renderer()
     warm = min(20, max(1, n // 10))
     for i in range(warm):
@@ -346,8 +378,7 @@ def _rss_run(task: tuple[str, int, int]) -> dict[str, float]:
 
 def _pool(workers: int):
     ctx = multiprocessing.get_context("spawn")
-    lp = max(1, usable_cores() // workers)
-    return ctx.Pool(workers, initializer=_init_worker, initargs=(lp,))
+    return ctx.Pool(workers, initializer=init_worker, initargs=(llvmpipe_threads(workers),))
 
 
 def _timed_map(pool, func: Callable, tasks: list, workers: int) -> tuple[float, list]:
@@ -369,7 +400,8 @@ def _cpu_seconds() -> float:
 
 def _warm_pool(pool, workers: int, cfg: BenchConfig) -> None:
     # one task per worker at a time: each worker builds its renderer before timing starts
-    pool.map(_warm, [(cfg.preset, cfg.seed, i) for i in range(2 * workers)], chunksize=1)
+    pool.map(_warm, [SceneTask(cfg.preset, cfg.seed, i) for i in range(2 * workers)],
+             chunksize=1)
 
 
 def _machine(gl: dict[str, str]) -> dict[str, Any]:
@@ -433,7 +465,7 @@ def run_bench(
                                     "median_ms_per_image": result.timings_ms}
         notify("generate_disk_ips", sec)
 
-        tasks = [(cfg.preset, cfg.seed, i) for i in range(cfg.count)]
+        tasks = [SceneTask(cfg.preset, cfg.seed, i) for i in range(cfg.count)]
         with _pool(workers) as pool:
             _warm_pool(pool, workers, cfg)
             # 2. generation in memory
@@ -447,7 +479,8 @@ def run_bench(
             floor_dir = scratch / "floor"
             floor_dir.mkdir()
             per = min(200, max(1, cfg.count // workers))
-            chunks = [(cfg.preset, cfg.seed, list(range(w * per, (w + 1) * per)), str(floor_dir))
+            chunks = [FloorTask(cfg.preset, cfg.seed, tuple(range(w * per, (w + 1) * per)),
+                                str(floor_dir))
                       for w in range(workers)]
             done = pool.map(_floor_chunk, chunks, chunksize=1)
             n_floor = sum(d[0] for d in done)
@@ -460,7 +493,8 @@ def run_bench(
 
             # 5. the reference pipeline from the image files of (1), decode included
             data = scratch / "dataset"
-            files = [(str(data / "images" / f"{i:06d}.png"), str(data / "gt" / f"{i:06d}.json"))
+            files = [ImageTask(str(data / "images" / f"{i:06d}.png"),
+                               str(data / "gt" / f"{i:06d}.json"))
                      for i in range(cfg.count)]
             t0 = time.perf_counter()
             outs = pool.map(_pipeline_one, files,
@@ -481,7 +515,7 @@ def run_bench(
         c0 = _cpu_seconds()
         with _pool(workers) as pool:
             pool.map(_import_pyrender, range(workers), chunksize=1)  # start, import
-            naive_tasks = [(cfg.preset, cfg.seed, i, str(naive_dir))
+            naive_tasks = [NaiveTask(cfg.preset, cfg.seed, i, str(naive_dir))
                            for i in range(cfg.naive_count)]
             sec, _ = _timed_map(pool, _naive_one, naive_tasks, workers)
             pool.close()
@@ -529,7 +563,7 @@ def run_bench(
 
         # 7. memory of one rendering worker over rss_renders consecutive renders
         with _pool(1) as pool:
-            rss = pool.apply(_rss_run, ((cfg.preset, cfg.seed, cfg.rss_renders),))
+            rss = pool.apply(_rss_run, (RssTask(cfg.preset, cfg.seed, cfg.rss_renders),))
         figures["worker_peak_rss_mb"] = rss["peak_rss_mb"]
         figures["worker_rss_growth_mb"] = max(0.0, rss["rss_after_mb"]
                                               - rss["rss_after_warmup_mb"])

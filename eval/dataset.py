@@ -25,7 +25,7 @@ class DatasetError(ValueError):
 
 
 @dataclass(frozen=True)
-class Sample:
+class DatasetItem:
     """One image of a dataset with its ground truth.
 
     Parameters
@@ -77,7 +77,7 @@ class Dataset:
     """A validated dataset."""
 
     root: Path
-    samples: tuple[Sample, ...]
+    samples: tuple[DatasetItem, ...]
 
     @property
     def name(self) -> str:
@@ -165,7 +165,7 @@ def load_dataset(
         raise DatasetError(f"{manifest}: not a regular file")
     if not manifest.is_file():
         raise DatasetError(f"{manifest}: missing (is {base} a dataset written by the generator?)")
-    samples: list[Sample] = []
+    samples: list[DatasetItem] = []
     seen: set[str] = set()
     for lineno, line in enumerate(manifest.read_text(encoding="utf-8").splitlines(), 1):
         if not line.strip():
@@ -228,7 +228,7 @@ def load_dataset(
             else flatten_numeric(gt.get("scene", {}))
         )
         samples.append(
-            Sample(id=entry["id"], image_path=image_path, gt_path=gt_path, gt=gt, params=flat)
+            DatasetItem(id=entry["id"], image_path=image_path, gt_path=gt_path, gt=gt, params=flat)
         )
         if limit is not None and len(samples) >= limit:
             break

@@ -85,7 +85,7 @@ def main(argv: list[str] | None = None) -> int:
     if (dataset_dir / "manifest.jsonl").is_file():
         print(f"{step}. reusing dataset {dataset_dir} ({args.count} eyrc images)")
     else:
-        from arenabench.generator.dataset import DatasetError, generate_dataset
+        from arenabench.generator.dataset import GenerateError, generate_dataset
         from arenabench.generator.sampler import SamplingError
 
         try:
@@ -94,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
                 workers=args.workers or _cores(),
                 progress=not args.no_progress,
             )
-        except (DatasetError, SamplingError, ValueError) as exc:
+        except (GenerateError, SamplingError, ValueError) as exc:
             print(f"arenabench demo: error: generation failed: {exc}", file=sys.stderr)
             return 2
         print(f"{step}. generated {result.rendered} eyrc images (seed {args.seed}) into "
@@ -122,9 +122,9 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _cores() -> int:
-    from .runner import default_workers
+    from arenabench.workers import usable_cores
 
-    return default_workers()
+    return usable_cores()
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -555,7 +555,7 @@ class CommandPipeline:
         return None
 
     def _interpret(self, result: dict, stdout: str, stderr: str, workdir: str) -> Prediction:
-        from .pipelines import _json_line, prediction_from_result
+        from .pipelines import last_json_line, prediction_from_result
 
         rc, latency = result["rc"], float(result["latency_ms"])
         keep = {"stdout": tail(stdout), "stderr": tail(stderr), "latency_ms": latency}
@@ -577,7 +577,7 @@ class CommandPipeline:
             )
         try:
             if self.output == "json":
-                parsed_json: Any = _json_line(stdout)
+                parsed_json: Any = last_json_line(stdout)
                 if rc == EXIT_MARKERS_NOT_FOUND and isinstance(parsed_json, dict):
                     parsed_json.setdefault("status", "markers_not_found")
                 pred = prediction_from_result(parsed_json, latency_ms=latency, stdout=stdout)

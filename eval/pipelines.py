@@ -39,7 +39,8 @@ from .records import Prediction, tail
 
 __all__ = [
     "BUILTIN_PIPELINES", "EXIT_MARKERS_NOT_FOUND", "OUTPUT_MODES", "BuiltinPipeline",
-    "CallablePipeline", "CommandPipeline", "Pipeline", "make_pipeline", "prediction_from_result",
+    "CallablePipeline", "CommandPipeline", "Pipeline", "last_json_line", "make_pipeline",
+    "prediction_from_result",
 ]  # fmt: skip
 
 BUILTIN_PIPELINES: tuple[str, ...] = ("reference", "seed")
@@ -351,7 +352,14 @@ class CallablePipeline:
         return call_on_image(self.func, image)
 
 
-def _json_line(stdout: str) -> Any:
+def last_json_line(stdout: str) -> Any:
+    """The last line of ``stdout`` that parses as a JSON object (a command's answer).
+
+    Raises
+    ------
+    OutputFormatError
+        When no line does.
+    """
     for line in reversed(stdout.strip().splitlines()):
         line = line.strip()
         if line.startswith("{"):

@@ -12,11 +12,14 @@ import multiprocessing
 import os
 from collections.abc import Callable, Sequence
 from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from arenabench.workers import process_state, usable_cores
+
 from .breakdown import breakdown
-from .dataset import AREA_REFERENCES, Dataset, Sample, load_dataset
+from .dataset import AREA_REFERENCES, Dataset, DatasetItem, load_dataset
 from .metrics import DEFAULT_TOLERANCE, score_image, summarize
 from .pipelines import Pipeline, make_pipeline
 from .records import ImageResult, Prediction, Report
@@ -44,30 +47,39 @@ class EvaluationInterrupted(Exception):
 
 EXECUTORS: tuple[str, ...] = ("thread", "process")
 
-_WORKER_PIPELINE: Pipeline | None = None
 
 
-def _init_worker(spec: str) -> None:
-    global _WORKER_PIPELINE
-    _WORKER_PIPELINE = make_pipeline(spec)
+@dataclass(frozen=True)
+class PipelineRun:
+    """One image for a process-pool worker: run the pipeline named ``spec`` on it.
+
+    Attributes
+    ----------
+    spec : str
+        ``"reference"``, ``"seed"`` or ``"pkg.module:function"`` (re-imported by the worker).
+    image_path : str
+        The image file.
+    """
+
+    spec: str
+    image_path: str
 
 
-def _run_in_worker(image_path: str) -> Prediction:
-    assert _WORKER_PIPELINE is not None
-    return _WORKER_PIPELINE.run(Path(image_path))
+def _worker_pipeline(spec: str) -> Pipeline:
+    """This process's pipeline for ``spec`` (built on first use)."""
+    return process_state(("eval-pipeline", spec), lambda: make_pipeline(spec))
 
 
-def default_workers() -> int:
-    """Number of usable CPU cores."""
-    try:
-        return max(1, len(os.sched_getaffinity(0)))
-    except AttributeError:  # pragma: no cover - not Linux
-        return max(1, os.cpu_count() or 1)
+def run_in_worker(task: PipelineRun) -> Prediction:
+    """A process-pool worker's unit: run the pipeline on one image."""
+    return _worker_pipeline(task.spec).run(Path(task.image_path))
 
 
-def _result(
-    sample: Sample, pred: Prediction, *, tolerance: float, area_reference: str
+def score_sample(
+    sample: DatasetItem, pred: Prediction, *, tolerance: float, area_reference: str
 ) -> ImageResult:
+    """Score one prediction against a dataset item's ground truth, as an
+    :class:`~arenabench.eval.records.ImageResult`."""
     truth = sample.truth(area_reference=area_reference)
     return ImageResult(
         id=sample.id,
@@ -169,17 +181,18 @@ def evaluate(
     for s in samples:  # a missing reference area is a data error, found before any work
         s.truth(area_reference=area_reference)
     pipe = make_pipeline(pipeline)
-    n_workers = min(workers or default_workers(), max(1, len(samples)))
+    n_workers = min(workers or usable_cores(), max(1, len(samples)))
     use_process = executor == "process" and pipe.in_process and isinstance(pipeline, str)
     pool: Executor
     if use_process:
         pool = ProcessPoolExecutor(
             max_workers=n_workers,
             mp_context=multiprocessing.get_context("spawn"),
-            initializer=_init_worker,
+            initializer=_worker_pipeline,
             initargs=(pipeline,),
         )
-        submit = lambda s: pool.submit(_run_in_worker, str(s.image_path))  # noqa: E731
+        submit = lambda s: pool.submit(  # noqa: E731
+            run_in_worker, PipelineRun(spec=pipeline, image_path=str(s.image_path)))
     else:
         pool = ThreadPoolExecutor(max_workers=n_workers, thread_name_prefix="arenabench-eval")
         submit = lambda s: pool.submit(pipe.run, s.image_path)  # noqa: E731
@@ -211,7 +224,7 @@ def evaluate(
                 stop()
             pool.shutdown(wait=True, cancel_futures=True)
     results = [
-        _result(s, p, tolerance=tolerance, area_reference=area_reference)
+        score_sample(s, p, tolerance=tolerance, area_reference=area_reference)
         for s, p in zip(samples, preds, strict=True)
         if p is not None
     ]

@@ -44,7 +44,7 @@ def main(argv: list[str] | None = None) -> int:
     130 / 143 when stopped by SIGINT / SIGTERM (what finished is kept; re-running resumes)."""
     args = build_parser().parse_args(argv)
     from arenabench.fileio import OutputPathError, check_output_dir
-    from arenabench.generator.dataset import DatasetError, generate_dataset
+    from arenabench.generator.dataset import GenerateError, generate_dataset
     from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError
     from arenabench.interrupts import Interrupted, exit_code, stop_on_signals
@@ -62,7 +62,7 @@ def main(argv: list[str] | None = None) -> int:
                 overrides=overrides, workers=args.workers, scheduler=args.scheduler,
                 progress=not args.no_progress,
             )
-        except (DatasetError, SamplingError, ValueError) as exc:
+        except (GenerateError, SamplingError, ValueError) as exc:
             print(f"arenabench generate: error: {exc}", file=sys.stderr)
             return 2
         except Interrupted as exc:  # before or after the rendering loop

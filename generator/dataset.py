@@ -77,7 +77,7 @@ from arenabench.workers import init_worker, llvmpipe_threads
 DATASET_SCHEMA = "arenabench.dataset/1"
 
 
-class DatasetError(ValueError):
+class GenerateError(ValueError):
     """The output directory cannot be used for this run (the message says why)."""
 
 
@@ -256,7 +256,7 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
 
     Raises
     ------
-    DatasetError
+    GenerateError
         When ``out`` holds something else (the message names the differing argument).
     """
     meta_path = out / "dataset.json"
@@ -264,26 +264,26 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
         return None
     if not meta_path.exists():
         if any(p.name != LOCK_FILE and not is_temp_name(p.name) for p in out.iterdir()):
-            raise DatasetError(f"{out} is not empty and holds no dataset.json: refusing to "
+            raise GenerateError(f"{out} is not empty and holds no dataset.json: refusing to "
                                "write a dataset into it")
         return None
     try:
         meta = json.loads(meta_path.read_text())
         old = meta["args"]
     except (ValueError, KeyError) as exc:
-        raise DatasetError(f"{meta_path} is unreadable ({exc}): refusing to overwrite") from exc
+        raise GenerateError(f"{meta_path} is unreadable ({exc}): refusing to overwrite") from exc
     new = args.to_dict()
     for key in ("preset", "count", "seed", "overrides", "generator_version"):
         if key == "count" and isinstance(old.get(key), int) and new[key] > old[key]:
             continue  # extending a set: scenes are independent by index
         if key == "count" and isinstance(old.get(key), int) and new[key] < old[key]:
-            raise DatasetError(
+            raise GenerateError(
                 f"{out} holds {old[key]} scenes and --count {new[key]} is smaller: a set can "
                 "grow (same seed, preset and --set) but not shrink (use another --out)"
             )
         if old.get(key) != new[key]:
             name = {"overrides": "--set"}.get(key, f"--{key}")
-            raise DatasetError(
+            raise GenerateError(
                 f"{out} was generated with different arguments: {name} was "
                 f"{old.get(key)!r}, now {new[key]!r} (use another --out)"
             )
@@ -458,7 +458,7 @@ def generate_dataset(
 
     Raises
     ------
-    DatasetError
+    GenerateError
         When ``out`` holds a dataset made with other arguments, or unrelated files, or
         another run is writing into it (an exclusive lock on ``out`` for the whole run;
         the message names the holder's pid, host and command).
@@ -481,7 +481,7 @@ def generate_dataset(
                                     overrides=overrides, workers=workers, client=client,
                                     progress=progress)
     except FolderLockedError as exc:
-        raise DatasetError(f"{exc}; wait for it to finish or use another --out") from None
+        raise GenerateError(f"{exc}; wait for it to finish or use another --out") from None
     finally:
         if client is not None and client is not scheduler:
             client.close()

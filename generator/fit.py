@@ -551,7 +551,7 @@ def render_bgr(scene: Scene, renderer) -> np.ndarray:
     return cv2.cvtColor(renderer.render(scene).rgb, cv2.COLOR_RGB2BGR)
 
 
-def score(scene: Scene, image_bgr: np.ndarray, renderer) -> tuple[float, float]:
+def fit_score(scene: Scene, image_bgr: np.ndarray, renderer) -> tuple[float, float]:
     """(SSIM, mean absolute difference) of ``scene``'s render vs the image, in grayscale."""
     bgr = render_bgr(scene, renderer)
     return ssim(bgr, image_bgr), mean_abs_diff(bgr, image_bgr)
@@ -620,7 +620,7 @@ def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
 
         renderer = Renderer()
     try:
-        best = score(scene, img, renderer)
+        best = fit_score(scene, img, renderer)
         # the competition texture fixes the margin and the border line: nothing to refine
         rounds = 0 if arena.texture == comp.TEXTURE_NAME else options.refine_rounds
         for _ in range(rounds):
@@ -632,13 +632,13 @@ def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
                     if value <= 0:
                         continue
                     cand = replace(scene, arena=replace(scene.arena, **{field_name: value}))
-                    s = score(cand, img, renderer)
+                    s = fit_score(cand, img, renderer)
                     if s[0] > best[0]:
                         best, scene = s, cand
         if options.match_detector_rounds:
             scene, _ = match_detector(scene, img, renderer, rounds=options.match_detector_rounds,
                                       fit_fov=options.fov_deg is None)
-            best = score(scene, img, renderer)
+            best = fit_score(scene, img, renderer)
     finally:
         if own:
             renderer.close()

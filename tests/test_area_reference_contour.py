@@ -13,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from arenabench.cli import main as arenabench_main
-from arenabench.eval.dataset import DatasetError, Sample, load_dataset
+from arenabench.eval.dataset import DatasetError, DatasetItem, load_dataset
 from arenabench.eval.sweep_cli import main as sweep_main
 from arenabench.generator.cli import main as generate_main
 
@@ -92,7 +92,7 @@ def test_negative_contour_px_makes_the_dataset_invalid(eyrc, tmp_path):
 
 
 def test_truth_without_contour_px_raises_naming_the_file():
-    sample = Sample(id="000000", image_path=Path("x.png"), gt_path=Path("gt/000000.json"),
+    sample = DatasetItem(id="000000", image_path=Path("x.png"), gt_path=Path("gt/000000.json"),
                     gt={"count": 1, "area": {"visible_px": 10.0, "footprint_px": 9.0}})
     with pytest.raises(DatasetError, match=r"gt/000000\.json: field 'area\.contour_px'"):
         sample.truth(area_reference="contour")

@@ -2,12 +2,12 @@
 
 from pathlib import Path
 
-from arenabench.eval.dataset import Sample
+from arenabench.eval.dataset import DatasetItem
 
 
 def _sample(markers):
     gt = {"count": 1, "area": {"visible_px": 10.0, "footprint_px": 9.0}, "markers": markers}
-    return Sample(id="000000", image_path=Path("x.png"), gt_path=Path("x.json"), gt=gt)
+    return DatasetItem(id="000000", image_path=Path("x.png"), gt_path=Path("x.json"), gt=gt)
 
 
 def test_occluded_marker_is_not_expected():

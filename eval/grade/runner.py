@@ -34,6 +34,7 @@ from typing import Any
 
 from arenabench import __version__
 from arenabench.fileio import atomic_write_json, dumps_json, sha256_bytes, sha256_file
+from arenabench.workers import init_worker, process_state, usable_cores
 
 from ..dataset import AREA_REFERENCES, Dataset, load_dataset
 from ..metrics import DEFAULT_TOLERANCE
@@ -41,7 +42,7 @@ from ..pipelines import OUTPUT_MODES, CommandPipeline
 from ..records import Prediction, Summary
 from ..reports import FORMATS, write_reports
 from ..run_limits import RunSettings
-from ..runner import _result, build_report, default_workers
+from ..runner import build_report, score_sample
 from .leaderboard import LeaderboardRow, leaderboard_dict, rank_rows
 from .submissions import SubmissionsError, Team, find_teams, submission_hash
 
@@ -276,7 +277,7 @@ def _execute(units: list[GradeUnit], *, workers: int | None,
         from arenabench.cluster import cluster_map
 
         return cluster_map(run_unit, units, scheduler)  # type: ignore[return-value]
-    n = min(workers or default_workers(), max(1, len(units)))
+    n = min(workers or usable_cores(), max(1, len(units)))
     return _threads(units, n)
 
 
@@ -424,7 +425,7 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
             emit(line)
 
     if report_workers is None:  # only the HTML report is worth other processes
-        report_workers = default_workers() if "html" in opts.formats else 1
+        report_workers = usable_cores() if "html" in opts.formats else 1
     finisher = _Finisher(report_workers, n_teams=len(todo))
     finishing: dict[Future, _FinishJob] = {}
 
@@ -488,14 +489,11 @@ class _FinishJob:
     expect_common: dict[str, str]
 
 
-_WORKER_DATASETS: dict[tuple[str, int], Dataset] = {}
-
-
 def _finish_in_worker(job: _FinishJob) -> dict[str, Any]:
-    key = (job.dataset_root, len(job.preds))  # the grade's images: the first n of the dataset
-    if key not in _WORKER_DATASETS:
-        _WORKER_DATASETS[key] = load_dataset(job.dataset_root, limit=len(job.preds))
-    return _finish_team(job, _WORKER_DATASETS[key])
+    # the grade's images: the first n of the dataset, loaded once per worker process
+    data = process_state(("grade-dataset", job.dataset_root, len(job.preds)),
+                         lambda: load_dataset(job.dataset_root, limit=len(job.preds)))
+    return _finish_team(job, data)
 
 
 class _Finisher:
@@ -510,11 +508,9 @@ class _Finisher:
             import multiprocessing
             from concurrent.futures import ProcessPoolExecutor
 
-            from arenabench.interrupts import init_worker_process
-
             self._pool = ProcessPoolExecutor(
                 max_workers=n, mp_context=multiprocessing.get_context("spawn"),
-                initializer=init_worker_process)
+                initializer=init_worker, initargs=(None, os.getpid()))
 
     def submit(self, job: _FinishJob, data: Dataset) -> Future:
         """Start writing ``job``'s reports (inline when there is no usable pool)."""
@@ -544,7 +540,7 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
     """Score one team's predictions, write its reports, then its state file (last)."""
     team, opts = job.team, job.opts
     results = [
-        _result(s, p, tolerance=opts.tolerance, area_reference=opts.area_reference)
+        score_sample(s, p, tolerance=opts.tolerance, area_reference=opts.area_reference)
         for s, p in zip(data.samples, job.preds, strict=True)
     ]
     report = build_report(results, pipeline=team.name, dataset=str(data.root),

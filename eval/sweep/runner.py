@@ -33,10 +33,10 @@ from arenabench.interrupts import (
     signal_name,
     stop_workers,
 )
+from arenabench.workers import llvmpipe_threads, usable_cores
 
 from ..metrics import summarize
 from ..records import ImageResult
-from ..runner import default_workers
 from .breakdown import axis_curve, breakdown_value
 from .grid import grid_points, random_points
 from .records import PointSummary, SweepResult, SweepSpec, SweepTask
@@ -83,8 +83,7 @@ def _inline(tasks: list[SweepTask]) -> Iterator[dict[str, Any]]:
 def _local_pool(tasks: list[SweepTask], workers: int) -> Iterator[dict[str, Any]]:
     from .task import init_worker, run_task
 
-    cores = default_workers()
-    lp = max(1, cores // workers)
+    lp = llvmpipe_threads(workers)
     ctx = multiprocessing.get_context("spawn")
     with children_ignore_sigint():
         pool = ctx.Pool(workers, initializer=init_worker, initargs=(lp, os.getpid()))
@@ -126,7 +125,7 @@ def execute(
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     if scheduler is not None:
         return _dask(tasks, scheduler)
-    n = min(workers or default_workers(), max(1, len(tasks)))
+    n = min(workers or usable_cores(), max(1, len(tasks)))
     return _inline(tasks) if n == 1 else _local_pool(tasks, n)
 
 
@@ -229,8 +228,8 @@ def run_sweep(
     seconds = time.perf_counter() - start
     run = {
         "executor": "dask" if scheduler is not None else (
-            "inline" if min(workers or default_workers(), len(tasks)) <= 1 else "process"),
-        "workers": workers or (None if scheduler is not None else default_workers()),
+            "inline" if min(workers or usable_cores(), len(tasks)) <= 1 else "process"),
+        "workers": workers or (None if scheduler is not None else usable_cores()),
         "samples": len(tasks),
         "skipped": sum(1 for o in outputs if o["error"] is not None),
         "seconds": round(seconds, 3),

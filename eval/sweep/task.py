@@ -1,81 +1,42 @@
 """The sweep's work unit, run in a worker: render one scene in memory, run every pipeline on it,
 score each answer, return small dicts.
 
-Worker state (one renderer, one adapter per pipeline) lives in this module and is created on
-first use, so the same :func:`run_task` serves local spawned processes and Dask workers. The
-renderer is per thread (an OpenGL context is current in one thread only); Dask workers should
+Worker state (one renderer per thread, one adapter per pipeline and process) lives in
+:mod:`arenabench.workers` and is created on first use, so the same :func:`run_task` serves
+local spawned processes and Dask workers. The renderer is per thread (an OpenGL context is
+current in one thread only); Dask workers should
 still run one thread each (``--nthreads 1``) since renders are CPU- or GPU-bound anyway.
 """
 
 from __future__ import annotations
 
-import os
 import shutil
 import tempfile
-import threading
 from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-from arenabench.interrupts import init_worker_process, worker_task
+from arenabench import workers
+from arenabench.imageio import encode_png
+from arenabench.interrupts import worker_task
 
-from ..dataset import Sample as ScoredSample
+from ..dataset import DatasetItem
 from ..records import Prediction
-from ..runner import _result as score_result
+from ..runner import score_sample
 from .records import PipelineSpec, SweepTask
-
-_LOCAL = threading.local()
-_PIPELINES: dict[PipelineSpec, Any] = {}
-_PIPELINES_LOCK = threading.Lock()
 
 
 def init_worker(lp_threads: int | None = None, parent_pid: int | None = None) -> None:
-    """Process-pool initializer: cap llvmpipe's threads, pick the GL platform, create the
-    renderer (so the first task does not pay for it).
+    """Process-pool initializer: :func:`arenabench.workers.init_worker`, then create the
+    renderer (so the first task does not pay for it)."""
+    from arenabench.generator.sample import worker_renderer
 
-    Parameters
-    ----------
-    lp_threads : int, optional
-        ``LP_NUM_THREADS`` for Mesa llvmpipe (unless already set).
-    parent_pid : int, optional
-        The parent's pid: the worker then stops with its parent and on SIGTERM
-        (:func:`arenabench.interrupts.init_worker_process`).
-    """
-    if parent_pid is not None:
-        init_worker_process(parent_pid=parent_pid)
-    if lp_threads and "LP_NUM_THREADS" not in os.environ:
-        os.environ["LP_NUM_THREADS"] = str(int(lp_threads))
+    workers.init_worker(lp_threads, parent_pid)
     worker_renderer()
 
 
-def worker_renderer() -> Any:
-    """This thread's :class:`~arenabench.generator.render.Renderer`, created on first use."""
-    renderer = getattr(_LOCAL, "renderer", None)
-    if renderer is None:
-        from arenabench import glplatform
-
-        glplatform.configure()
-        from arenabench.generator.render import Renderer
-
-        renderer = Renderer()
-        _LOCAL.renderer = renderer
-    return renderer
-
-
 def _pipeline(spec: PipelineSpec) -> Any:
-    with _PIPELINES_LOCK:
-        if spec not in _PIPELINES:
-            _PIPELINES[spec] = spec.build()
-        return _PIPELINES[spec]
-
-
-def _encode_png(bgr: Any) -> bytes:
-    import cv2
-
-    ok, buf = cv2.imencode(".png", bgr, [cv2.IMWRITE_PNG_COMPRESSION, 1])
-    if not ok:  # pragma: no cover - OpenCV failure
-        raise RuntimeError("PNG encoding failed")
-    return buf.tobytes()
+    return workers.process_state(("sweep-pipeline", spec), spec.build)
 
 
 def image_name(point: int, scene: int) -> str:
@@ -91,7 +52,7 @@ def _predict(spec: PipelineSpec, bgr: Any, png: list[bytes], tmp: list[str]) -> 
     if not tmp:
         tmp.append(tempfile.mkdtemp(prefix="arenabench-sweep-"))
         if not png:
-            png.append(_encode_png(bgr))
+            png.append(encode_png(bgr))
         Path(tmp[0], "image.png").write_bytes(png[0])
     return pipe.run(Path(tmp[0], "image.png"))
 
@@ -119,7 +80,7 @@ def run_task(task: SweepTask) -> dict[str, Any]:
 
 
 def _run_task(task: SweepTask) -> dict[str, Any]:
-    from arenabench.generator.sample import make_sample
+    from arenabench.generator.sample import make_sample, worker_renderer
     from arenabench.generator.sampler import SamplingError
 
     out: dict[str, Any] = {
@@ -139,7 +100,7 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
     flat = {k: float(v) for k, v in params.items()
             if isinstance(v, (int, float)) and not isinstance(v, bool)}
     name = image_name(task.point, task.scene)
-    scored = ScoredSample(id=name, image_path=Path("images", f"{name}.png"),
+    scored = DatasetItem(id=name, image_path=Path("images", f"{name}.png"),
                           gt_path=Path("gt", f"{name}.json"), gt=gt, params=flat)
     png: list[bytes] = []
     tmp: list[str] = []
@@ -147,7 +108,7 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
     try:
         for spec in task.pipelines:
             pred = _predict(spec, bgr, png, tmp)
-            result = score_result(scored, pred, tolerance=task.tolerance,
+            result = score_sample(scored, pred, tolerance=task.tolerance,
                                   area_reference=task.area_reference)
             any_failed |= not result.passed
             out["results"].append(result)
@@ -163,6 +124,6 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
                      "scene": task.scene, "index": task.index})
     out["results"] = rows
     if keep:
-        out["png"] = png[0] if png else _encode_png(bgr)
+        out["png"] = png[0] if png else encode_png(bgr)
         out["gt"] = gt
     return out

@@ -89,7 +89,7 @@ def score_preset(
     """
     if count < 1:
         raise ValueError(f"count must be >= 1, got {count!r}")
-    from arenabench.eval.dataset import Sample
+    from arenabench.eval.dataset import DatasetItem
     from arenabench.eval.metrics import score_image
     from arenabench.eval.pipelines import make_pipeline
     from arenabench.generator import Renderer, make_sample
@@ -105,7 +105,7 @@ def score_preset(
             except SamplingError:
                 continue
             bgr = sample.bgr
-            scored = Sample(id=sample.id, image_path=Path(f"{sample.id}.png"),
+            scored = DatasetItem(id=sample.id, image_path=Path(f"{sample.id}.png"),
                             gt_path=Path(f"{sample.id}.json"), gt=sample.gt)
             truths = {ref: scored.truth(area_reference=ref) for ref in references}
             for spec, pipe in pipes.items():
