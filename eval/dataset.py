@@ -9,6 +9,7 @@ from pathlib import Path
 from typing import Any
 
 from arenabench.fileio import sha256_bytes, sha256_file
+from arenabench.gtrecord import GroundTruth
 from arenabench.schemas import gt_problem
 
 from .records import Truth
@@ -36,8 +37,9 @@ class DatasetItem:
         Absolute path of the image.
     gt_path : pathlib.Path
         Absolute path of the GT JSON.
-    gt : dict
-        The parsed GT JSON.
+    gt : GroundTruth
+        The ground truth (a mapping in the GT file's JSON form is converted with
+        :meth:`GroundTruth.from_dict`).
     params : dict
         Flat scalar scene parameters with dotted keys (GT ``params``, or the numeric leaves
         of ``scene`` when ``params`` is absent).
@@ -46,8 +48,12 @@ class DatasetItem:
     id: str
     image_path: Path
     gt_path: Path
-    gt: dict[str, Any]
+    gt: GroundTruth
     params: dict[str, float] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.gt, GroundTruth):
+            object.__setattr__(self, "gt", GroundTruth.from_dict(self.gt))
 
     def truth(self, *, area_reference: str = "visible") -> Truth:
         """Ground truth to score against (area per ``area_reference``)."""
@@ -56,19 +62,18 @@ class DatasetItem:
                 f"area_reference must be one of {sorted(AREA_REFERENCES)}, got {area_reference!r}"
             )
         key = AREA_REFERENCES[area_reference]
-        if key not in self.gt["area"]:
+        area = getattr(self.gt.area, key, None)
+        if area is None:
+            area = self.gt.area.extra.get(key)
+        if area is None:
             raise _fail(self.gt_path, f"field 'area.{key}' is missing (written by an older "
                                       f"generator?): regenerate the dataset to score against "
                                       f"--area-reference {area_reference}")
         return Truth(
-            count=int(self.gt["count"]),
-            area=float(self.gt["area"][key]),
-            marker_ids=tuple(
-                int(m["id"])
-                for m in self.gt.get("markers", [])
-                # "visible" (in view and not occluded) when the GT has it, else "in_view"
-                if m.get("visible", m.get("in_view", True))
-            ),
+            count=int(self.gt.count),
+            area=float(area),
+            # "visible" (in view and not occluded) when the GT has it, else "in_view"
+            marker_ids=tuple(int(m.id) for m in self.gt.markers or () if m.expected),
         )
 
 
@@ -227,9 +232,9 @@ def load_dataset(
             if isinstance(params, dict)
             else flatten_numeric(gt.get("scene", {}))
         )
-        samples.append(
-            DatasetItem(id=entry["id"], image_path=image_path, gt_path=gt_path, gt=gt, params=flat)
-        )
+        record = GroundTruth.from_dict(gt)
+        samples.append(DatasetItem(id=entry["id"], image_path=image_path, gt_path=gt_path,
+                                   gt=record, params=flat))
         if limit is not None and len(samples) >= limit:
             break
     if not samples:

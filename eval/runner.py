@@ -87,8 +87,8 @@ def score_sample(
         truth=truth,
         prediction=pred,
         score=score_image(truth, pred, tolerance=tolerance),
-        gt_area_visible=float(sample.gt["area"]["visible_px"]),
-        gt_area_footprint=float(sample.gt["area"]["footprint_px"]),
+        gt_area_visible=float(sample.gt.area.visible_px),
+        gt_area_footprint=float(sample.gt.area.footprint_px),
         params=dict(sample.params),
     )
 

@@ -45,7 +45,6 @@ from arenabench.fileio import (
     atomic_write_bytes,
     atomic_write_json,
     atomic_write_text,
-    dumps_json,
     dumps_json_line,
     is_temp_name,
     lock_folder,
@@ -62,6 +61,7 @@ from arenabench.generator.sample import (
     worker_gl_info,
     worker_renderer,
 )
+from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import PNG_COMPRESSION, encode_png
 from arenabench.interrupts import (
     Interrupted,
@@ -205,7 +205,7 @@ def render_task(task: RenderTask) -> dict[str, Any]:
         t1 = time.perf_counter()
         png = encode_png(sample.bgr)
         t2 = time.perf_counter()
-        gt_bytes = dumps_json(sample.gt).encode("utf-8")
+        gt_bytes = sample.record.to_json().encode("utf-8")
         atomic_write_bytes(out / "images" / f"{sample.id}.png", png)
         atomic_write_bytes(out / "gt" / f"{sample.id}.json", gt_bytes)
         t3 = time.perf_counter()
@@ -226,7 +226,7 @@ def render_on_cluster(task: RenderTask) -> dict[str, Any]:
     png = encode_png(sample.bgr)
     t2 = time.perf_counter()
     return {**sample.timings_ms, "id": sample.id, "png_bytes": png,
-            "gt_text": dumps_json(sample.gt), "encode": (t2 - t1) * 1000,
+            "gt_text": sample.record.to_json(), "encode": (t2 - t1) * 1000,
             "gl": worker_gl_info()}
 
 
@@ -296,7 +296,7 @@ def _present(out: Path, sid: str) -> bool:
 
 # ----------------------------------------------------------------------------- outputs
 
-def coco_from_gts(gts: list[dict[str, Any]]) -> dict[str, Any]:
+def coco_from_gts(gts: list[GroundTruth]) -> dict[str, Any]:
     """COCO instances for a list of GT records (obstacles: category 1, markers: category 2).
 
     Polygons are the image-space polygons (convex hull of each box's projected vertices,
@@ -305,12 +305,12 @@ def coco_from_gts(gts: list[dict[str, Any]]) -> dict[str, Any]:
     """
     images, annotations = [], []
     for gt in gts:
-        image_id = int(gt["index"])
-        w, h = gt["image_size"]
-        images.append({"id": image_id, "file_name": gt["image"], "width": w, "height": h})
+        image_id = int(gt.index)
+        w, h = gt.image_size
+        images.append({"id": image_id, "file_name": gt.image, "width": w, "height": h})
         frame = box(0.0, 0.0, float(w), float(h))
-        polys = [(1, ob["image_polygon_px"]) for ob in gt["obstacles"]]
-        polys += [(2, m["corners_px"]) for m in gt["markers"]]
+        polys = [(1, ob.image_polygon_px) for ob in gt.obstacles]
+        polys += [(2, m.corners_px) for m in gt.markers]
         for category, pts in polys:
             if len(pts) < 3:
                 continue
@@ -359,7 +359,7 @@ def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
     for sid in ids:
         gt_path, img_path = out / "gt" / f"{sid}.json", out / "images" / f"{sid}.png"
         gt_bytes = gt_path.read_bytes()
-        gts.append(json.loads(gt_bytes))
+        gts.append(GroundTruth.from_dict(json.loads(gt_bytes)))
         lines.append(_manifest_line(sid, sha256_file(img_path), sha256_bytes(gt_bytes)))
     atomic_write_text(out / "manifest.jsonl", "".join(lines))
     atomic_write_json(out / "coco.json", coco_from_gts(gts))

@@ -10,6 +10,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import cv2
@@ -22,6 +23,7 @@ from arenabench.generator.groundtruth import compute_ground_truth
 from arenabench.generator.presets import Value
 from arenabench.generator.render import Renderer, RenderOutput
 from arenabench.generator.sampler import sample_scene
+from arenabench.gtrecord import GroundTruth
 from arenabench.schemas import GT_SCHEMA
 from arenabench.workers import thread_state
 
@@ -48,12 +50,17 @@ Degrade = Callable[[np.ndarray, np.random.Generator], np.ndarray]
 
 @dataclass
 class Sample:
-    """A rendered scene and its ground truth record (``gt`` is the GT file's content)."""
+    """A rendered scene and its ground truth (``record``; ``gt`` is the GT file's content)."""
 
     id: str
-    gt: dict[str, Any]
+    record: GroundTruth
     render: RenderOutput
     timings_ms: dict[str, float] = field(default_factory=dict)
+
+    @cached_property
+    def gt(self) -> dict[str, Any]:
+        """The GT file's content: ``record.to_dict()`` (computed once)."""
+        return self.record.to_dict()
 
     @property
     def rgb(self) -> np.ndarray:
@@ -148,7 +155,7 @@ def make_sample(
             out.rgb = np.ascontiguousarray(degrade(out.rgb, rng))
     t2 = time.perf_counter()
     sid = scene_id(index)
-    gt = gt_record(
+    record = ground_truth_record(
         sampled.scene, sid=sid, preset=preset_name or (preset if isinstance(preset, str)
                                                       else "custom"),
         seed=seed, index=index, params=rounded(sampled.params), overrides=overrides,
@@ -156,13 +163,21 @@ def make_sample(
     )
     t3 = time.perf_counter()
     timings = {"sample": (t1 - t0) * 1e3, "render": (t2 - t1) * 1e3, "gt": (t3 - t2) * 1e3}
-    return Sample(id=sid, gt=gt, render=out, timings_ms=timings)
+    return Sample(id=sid, record=record, render=out, timings_ms=timings)
 
 
-def gt_record(scene: Any, *, sid: str, preset: str, seed: int = 0, index: int = 0,
-              params: dict[str, Any] | None = None, overrides: dict[str, Value] | None = None,
-              frame: FrameSpec | None = None, image_ext: str = "png") -> dict[str, Any]:
-    """The GT file content (schema ``arenabench.gt/1``) of a scene rendered as image ``sid``.
+def gt_record(scene: Any, **options: Any) -> dict[str, Any]:
+    """The GT file content (schema ``arenabench.gt/1``) of a scene rendered as image ``sid``:
+    :func:`ground_truth_record`'s ``to_dict()`` (same options)."""
+    return ground_truth_record(scene, **options).to_dict()
+
+
+def ground_truth_record(
+    scene: Any, *, sid: str, preset: str, seed: int = 0, index: int = 0,
+    params: dict[str, Any] | None = None, overrides: dict[str, Value] | None = None,
+    frame: FrameSpec | None = None, image_ext: str = "png",
+) -> GroundTruth:
+    """The ground truth (schema ``arenabench.gt/1``) of a scene rendered as image ``sid``.
 
     Parameters
     ----------
@@ -180,8 +195,12 @@ def gt_record(scene: Any, *, sid: str, preset: str, seed: int = 0, index: int = 
         Rectified frame (default 1000 px, inner corners).
     image_ext : str, keyword-only
         Extension of the image path recorded in the GT.
+
+    Returns
+    -------
+    GroundTruth
     """
-    return {
+    return GroundTruth.from_dict({
         "schema": GT_SCHEMA,
         "id": sid,
         "image": f"images/{sid}.{image_ext}",
@@ -192,7 +211,7 @@ def gt_record(scene: Any, *, sid: str, preset: str, seed: int = 0, index: int = 
         "params": dict(params or {}),
         "overrides": {k: _jsonable(v) for k, v in sorted((overrides or {}).items())},
         **compute_ground_truth(scene, frame=frame),
-    }
+    })
 
 
 def _jsonable(value: Any) -> Any:

@@ -8,6 +8,7 @@ import hashlib
 import json
 import shutil
 import statistics
+from dataclasses import replace
 from pathlib import Path
 
 import pytest
@@ -96,7 +97,7 @@ def test_truth_without_contour_px_raises_naming_the_file():
                     gt={"count": 1, "area": {"visible_px": 10.0, "footprint_px": 9.0}})
     with pytest.raises(DatasetError, match=r"gt/000000\.json: field 'area\.contour_px'"):
         sample.truth(area_reference="contour")
-    sample.gt["area"]["contour_px"] = 8.5
+    sample = replace(sample, gt=replace(sample.gt, area=replace(sample.gt.area, contour_px=8.5)))
     assert sample.truth(area_reference="contour").area == 8.5
 
 

@@ -277,7 +277,7 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
             dataset = load_dataset(report.dataset)
         except (DatasetError, ValueError, OSError):
             dataset = None
-    gts = {s.id: s.gt for s in dataset.samples} if dataset is not None else {}
+    gts = {s.id: s.gt.to_dict() for s in dataset.samples} if dataset is not None else {}
     s = report.summary
     parts = [
         "<!DOCTYPE html>",

@@ -95,8 +95,8 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
         return out
     out["timings_ms"] = dict(sample.timings_ms)
     bgr = sample.bgr
-    gt = sample.gt
-    params = gt.get("params", {})
+    gt = sample.record
+    params = gt.params or {}
     flat = {k: float(v) for k, v in params.items()
             if isinstance(v, (int, float)) and not isinstance(v, bool)}
     name = image_name(task.point, task.scene)
@@ -125,5 +125,5 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
     out["results"] = rows
     if keep:
         out["png"] = png[0] if png else encode_png(bgr)
-        out["gt"] = gt
+        out["gt"] = gt.to_dict()
     return out
