@@ -88,3 +88,14 @@ def test_decode_image_from_bytes():
     assert img.shape == (1000, 1000, 3)
     with pytest.raises(ImageLoadError, match=r"^blob: "):
         decode_image(b"\x89PNG\r\n\x1a\nrubbish", name="blob")
+
+
+def test_encode_png_is_lossless_and_the_writers_one_encoder():
+    from arenabench.imageio import encode_png
+
+    rng = np.random.default_rng(0)
+    bgr = rng.integers(0, 256, (37, 53, 3), dtype=np.uint8)
+    png = encode_png(bgr)
+    assert png.startswith(b"\x89PNG")
+    assert np.array_equal(decode_image(png), bgr)
+    assert encode_png(bgr) == png
