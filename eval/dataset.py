@@ -226,13 +226,12 @@ def load_dataset(
         except RecursionError:
             raise _fail(shown_gt, "not JSON (nested too deeply)") from None
         validate_gt(gt, shown_gt)
-        params = gt.get("params")
-        flat = (
-            {k: float(v) for k, v in params.items() if isinstance(v, (int, float))}
-            if isinstance(params, dict)
-            else flatten_numeric(gt.get("scene", {}))
-        )
         record = GroundTruth.from_dict(gt)
+        flat = (
+            {k: float(v) for k, v in record.params.items() if isinstance(v, (int, float))}
+            if record.params is not None
+            else flatten_numeric(record.scene or {})
+        )
         samples.append(DatasetItem(id=entry["id"], image_path=image_path, gt_path=gt_path,
                                    gt=record, params=flat))
         if limit is not None and len(samples) >= limit:
