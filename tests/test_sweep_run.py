@@ -124,6 +124,10 @@ def test_command_pipeline_sees_the_same_images(tmp_path, monkeypatch):
     assert sorted(p.name for p in (out / "gt").iterdir()) == [
         "p0000_s000000.json", "p0000_s000001.json", "p0001_s000000.json", "p0001_s000001.json"]
     assert not (out / "sweep.html").exists()
+    from arenabench.imageio import encode_png, load_image
+
+    for png in (out / "images").glob("*.png"):  # encoded as the dataset writer does
+        assert encode_png(load_image(png)) == png.read_bytes()
 
 
 @pytest.mark.parametrize(

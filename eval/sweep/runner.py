@@ -81,12 +81,12 @@ def _inline(tasks: list[SweepTask]) -> Iterator[dict[str, Any]]:
 
 
 def _local_pool(tasks: list[SweepTask], workers: int) -> Iterator[dict[str, Any]]:
-    from .task import init_worker, run_task
+    from .task import init_sweep_worker, run_task
 
     lp = llvmpipe_threads(workers)
     ctx = multiprocessing.get_context("spawn")
     with children_ignore_sigint():
-        pool = ctx.Pool(workers, initializer=init_worker, initargs=(lp, os.getpid()))
+        pool = ctx.Pool(workers, initializer=init_sweep_worker, initargs=(lp, os.getpid()))
     with pool:
         try:
             yield from pool.imap_unordered(run_task, tasks, chunksize=1)

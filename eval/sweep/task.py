@@ -26,7 +26,7 @@ from ..runner import score_sample
 from .records import PipelineSpec, SweepTask
 
 
-def init_worker(lp_threads: int | None = None, parent_pid: int | None = None) -> None:
+def init_sweep_worker(lp_threads: int | None = None, parent_pid: int | None = None) -> None:
     """Process-pool initializer: :func:`arenabench.workers.init_worker`, then create the
     renderer (so the first task does not pay for it)."""
     from arenabench.generator.sample import worker_renderer
