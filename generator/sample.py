@@ -19,7 +19,7 @@ from arenabench.fileio import rounded
 from arenabench.frame import FrameSpec
 from arenabench.generator.degrade import Degradations, apply_degradations
 from arenabench.generator.groundtruth import compute_ground_truth
-from arenabench.generator.presets import Value
+from arenabench.generator.params import Range, Value
 from arenabench.generator.render import Renderer, RenderOutput
 from arenabench.generator.sampler import sample_scene
 from arenabench.schemas import GT_SCHEMA
@@ -184,4 +184,6 @@ def gt_record(scene: Any, *, sid: str, preset: str, seed: int = 0, index: int = 
 
 
 def _jsonable(value: Any) -> Any:
+    if isinstance(value, Range):
+        return [value.lo, value.hi]
     return list(value) if isinstance(value, tuple) else value

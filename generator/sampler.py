@@ -21,56 +21,34 @@ from shapely.geometry import Polygon, box
 
 from arenabench.fileio import rounded
 from arenabench.generator import camera as cam
-from arenabench.generator.degrade import LENS_PARAMS, PARAM_NAMES, distort_points
+from arenabench.generator.degrade import distort_points
 from arenabench.generator.distractors import occluder_patch, sample_patches
 from arenabench.generator.layout import box_footprint, marker_corners_world
-from arenabench.generator.presets import PARAMETERS, Value, resolve
+from arenabench.generator.params import PARAMETERS, PARAMS, Range, Value, assemble
+from arenabench.generator.presets import resolve
 from arenabench.generator.scene import (
     ArenaSpec,
     CameraSpec,
-    DirectionalLight,
     LightingSpec,
     MarkerSpec,
     Obstacle,
     Scene,
 )
 
+
+def _drawn_from(stream: str, *, draw: str = "scene") -> tuple[str, ...]:
+    return tuple(p.name for p in PARAMS if p.stream == stream and p.draw == draw)
+
+
 #: Scene-level scalar parameters drawn (in this order) for every scene.
-SCALAR_KEYS: tuple[str, ...] = (
-    "obstacles.count",
-    "camera.altitude_m",
-    "camera.tilt_deg",
-    "camera.yaw_deg",
-    "camera.roll_deg",
-    "camera.target_x_m",
-    "camera.target_y_m",
-    "camera.fov_deg",
-    "lighting.ambient",
-    "lighting.intensity",
-    "lighting.elevation_deg",
-    "lighting.azimuth_deg",
-    "background.gray",
-)
-_CAMERA_KEYS = tuple(k for k in SCALAR_KEYS if k.startswith("camera."))
+SCALAR_KEYS: tuple[str, ...] = _drawn_from("scene")
+#: Parameters drawn again with the camera when the markers are out of view.
+_CAMERA_KEYS = tuple(p.name for p in PARAMS if p.redraw)
 #: Degradation and scene-variation parameters, drawn in this order from their own
 #: generator (:func:`variation_rng`) so that presets without them draw exactly as before.
-VARIATION_KEYS: tuple[str, ...] = (
-    *LENS_PARAMS,
-    *PARAM_NAMES.values(),
-    "lighting.shadow_strength",
-    "lighting.spot_strength",
-    "lighting.spot_x_m",
-    "lighting.spot_y_m",
-    "lighting.spot_radius_m",
-    "distractors.tapes",
-    "distractors.papers",
-    "markers.occlusion",
-    "markers.occluded",
-)
-_INT_VARIATION_KEYS = ("degrade.jpeg_quality", "distractors.tapes", "distractors.papers",
-                       "markers.occluded")
-_BOX_KEYS = ("obstacles.length_m", "obstacles.width_m", "obstacles.height_m",
-             "obstacles.yaw_deg", "obstacles.gray")
+VARIATION_KEYS: tuple[str, ...] = _drawn_from("variation")
+#: Per-obstacle parameters, drawn (in this order) for each box.
+_BOX_KEYS = _drawn_from("scene", draw="box")
 
 
 class SamplingError(ValueError):
@@ -102,27 +80,21 @@ def variation_rng(seed: int, index: int) -> np.random.Generator:
 
 
 def draw(rng: np.random.Generator, value: Value, *, integer: bool = False) -> Any:
-    """Draw one value: a ``(lo, hi)`` range is uniform (integers inclusive), else fixed.
+    """Draw one value: a :class:`Range` is uniform (integers inclusive), else fixed.
 
     Always consumes exactly one uniform draw from ``rng``.
     """
     u = rng.random()
-    if not isinstance(value, tuple) or len(value) != 2:
+    if not isinstance(value, Range):
         return value
-    lo, hi = value
+    lo, hi = value.lo, value.hi
     if integer:
         return int(lo + min(math.floor(u * (hi - lo + 1)), hi - lo))
     return float(lo + u * (hi - lo))
 
 
-def _camera(p: dict[str, Any], drawn: dict[str, Any]) -> CameraSpec:
-    return CameraSpec(
-        width=p["camera.width"], height=p["camera.height"], fov_deg=drawn["camera.fov_deg"],
-        altitude_m=drawn["camera.altitude_m"], tilt_deg=drawn["camera.tilt_deg"],
-        yaw_deg=drawn["camera.yaw_deg"], roll_deg=drawn["camera.roll_deg"],
-        target_m=(drawn["camera.target_x_m"], drawn["camera.target_y_m"]),
-        dist=tuple(drawn.get(k, 0.0) for k in LENS_PARAMS),
-    )
+def _camera(values: dict[str, Any]) -> CameraSpec:
+    return CameraSpec(**assemble(values)["camera"])
 
 
 def markers_in_view(arena: ArenaSpec, markers: MarkerSpec, camera: CameraSpec,
@@ -177,7 +149,7 @@ def _place_obstacles(rng: np.random.Generator, p: dict[str, Any], count: int,
     shapes: list[Polygon] = []
     for i in range(count):
         length, width, height, yaw, gray = (
-            draw(rng, p[k], integer=(k == "obstacles.gray")) for k in _BOX_KEYS
+            draw(rng, p[k], integer=PARAMETERS[k].kind == "int") for k in _BOX_KEYS
         )
         color = (gray, gray, gray)
         step = p["obstacles.yaw_step_deg"]
@@ -229,43 +201,32 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
     """
     p = resolve(preset, overrides)
     rng = scene_rng(seed, index)
-    drawn = {k: draw(rng, p[k], integer=k in ("obstacles.count", "background.gray"))
-             for k in SCALAR_KEYS}
+    drawn = {k: draw(rng, p[k], integer=PARAMETERS[k].kind == "int") for k in SCALAR_KEYS}
     vrng = variation_rng(seed, index)
-    varied = {k: draw(vrng, p[k], integer=k in _INT_VARIATION_KEYS) for k in VARIATION_KEYS}
-    drawn.update(varied)
+    drawn.update({k: draw(vrng, p[k], integer=PARAMETERS[k].kind == "int")
+                  for k in VARIATION_KEYS})
     # Any other parameter given as a range (arena.side_m, markers.side_m, arena.texture_seed,
     # ...) is drawn from a stream of its own, in sorted key order, so that allowing ranges there
     # moved no draw of the streams above.
     erng = np.random.default_rng(np.random.SeedSequence([int(seed), int(index), 3]))
-    extra = {
+    drawn.update({
         key: draw(erng, p[key], integer=PARAMETERS[key].kind == "int")
         for key in sorted(p)
-        if key not in drawn and key not in _BOX_KEYS and isinstance(p[key], tuple)
-        and PARAMETERS[key].kind in ("float", "int")
-    }
-    drawn.update(extra)
-    p = {**p, **extra}
-    arena = ArenaSpec(
-        side_m=p["arena.side_m"], margin_m=p["arena.margin_m"], floor_rgb=p["arena.floor_rgb"],
-        texture=p["arena.texture"], texture_seed=p["arena.texture_seed"],
-        border_width_m=p["arena.border_width_m"],
-        border_rgb=p["arena.border_rgb"], grid_step_m=p["arena.grid_step_m"],
-        grid_rgb=p["arena.grid_rgb"], logo_text=p["arena.logo_text"],
-        logo_rgb=p["arena.logo_rgb"],
-    )
-    markers = MarkerSpec(
-        dictionary=p["markers.dictionary"], ids=p["markers.ids"], side_m=p["markers.side_m"],
-        rotation_deg=p["markers.rotation_deg"], quiet_zone_m=p["markers.quiet_zone_m"],
-    )
-    obstacles = _place_obstacles(rng, p, drawn["obstacles.count"], arena, markers)
-    camera = _camera(p, drawn)
+        if PARAMETERS[key].draw == "fixed" and isinstance(p[key], Range)
+    })
+    values = {**p, **drawn}
+    sections = assemble(values)
+    arena = ArenaSpec(**sections["arena"])
+    markers = MarkerSpec(**sections["markers"])
+    obstacles = _place_obstacles(rng, values, drawn["obstacles.count"], arena, markers)
+    camera = CameraSpec(**sections["camera"])
     if p["camera.markers_in_view"]:
         for _ in range(p["camera.max_tries"]):
             if markers_in_view(arena, markers, camera):
                 break
             drawn.update({k: draw(rng, p[k]) for k in _CAMERA_KEYS})
-            camera = _camera(p, drawn)
+            values.update(drawn)
+            camera = _camera(values)
         else:
             raise SamplingError(
                 "markers not in view after camera.max_tries="
@@ -276,14 +237,9 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
     el, az = math.radians(drawn["lighting.elevation_deg"]), math.radians(
         drawn["lighting.azimuth_deg"])
     direction = (-math.cos(el) * math.cos(az), -math.cos(el) * math.sin(az), -math.sin(el))
-    lighting = LightingSpec(
-        ambient=drawn["lighting.ambient"],
-        directional=(DirectionalLight(direction=direction, intensity=drawn["lighting.intensity"]),),
-        shadow_strength=drawn["lighting.shadow_strength"],
-        spot_strength=drawn["lighting.spot_strength"],
-        spot_xy_m=(drawn["lighting.spot_x_m"], drawn["lighting.spot_y_m"]),
-        spot_radius_m=drawn["lighting.spot_radius_m"],
-    )
+    light = sections["lighting"]
+    light["directional"][0]["direction"] = direction
+    lighting = LightingSpec(**light)
     patches = sample_patches(vrng, tapes=drawn["distractors.tapes"],
                              papers=drawn["distractors.papers"], arena=arena, markers=markers)
     occluder = occluder_patch(arena, markers, marker=drawn["markers.occluded"],
