@@ -94,8 +94,11 @@ class Param:
     draw : {"scene", "box", "fixed"}
         When it is drawn (see :data:`DRAWS`).
     stream : str
-        Name of the random stream its draws come from (see
-        :mod:`arenabench.generator.sampler`).
+        Name of the random stream its draws come from; empty = the parameter's own name.
+        Every stream is seeded by (seed, index, stream name) (see
+        :func:`arenabench.generator.sampler.stream_rng`), so adding, removing or reordering a
+        parameter moves no other draw. A renamed parameter keeps drawing what it drew by
+        naming its old stream here.
     redraw : bool
         Drawn again with the camera when the markers are not all in view.
     """
@@ -108,10 +111,12 @@ class Param:
     neutral: Value = None
     lands: str = ""
     draw: str = "fixed"
-    stream: str = "extra"
+    stream: str = ""
     redraw: bool = False
 
     def __post_init__(self) -> None:
+        if not self.stream:
+            object.__setattr__(self, "stream", self.name)
         if self.kind not in KINDS:
             raise ValueError(f"{self.name}: kind must be one of {', '.join(KINDS)}, "
                              f"got {self.kind!r}")
@@ -132,7 +137,7 @@ def _b(lo: float, hi: float) -> Range:
     return Range(lo, hi)
 
 
-#: Every parameter, in declaration order. Draws of one stream happen in this order.
+#: Every parameter, in declaration order (the order of ``arenabench presets --params``).
 PARAMS: tuple[Param, ...] = (
     Param("arena.side_m", "float", "side of the border-line square (m)", _b(0.5, 1000),
           lands="arena.side_m"),
@@ -159,20 +164,14 @@ PARAMS: tuple[Param, ...] = (
           _b(-360, 360), lands="markers.rotation_deg"),
     Param("markers.quiet_zone_m", "float", "white quiet zone around markers (m)", _b(0, 10),
           lands="markers.quiet_zone_m"),
-    Param("obstacles.count", "int", "number of boxes", _b(0, 50), draw="scene",
-          stream="scene"),
-    Param("obstacles.length_m", "float", "box length (m), per box", _b(0.01, 100), draw="box",
-          stream="scene"),
-    Param("obstacles.width_m", "float", "box width (m), per box", _b(0.01, 100), draw="box",
-          stream="scene"),
-    Param("obstacles.height_m", "float", "box height (m), per box", _b(0.001, 100), draw="box",
-          stream="scene"),
-    Param("obstacles.yaw_deg", "float", "box yaw (deg), per box", _b(-360, 360), draw="box",
-          stream="scene"),
+    Param("obstacles.count", "int", "number of boxes", _b(0, 50), draw="scene"),
+    Param("obstacles.length_m", "float", "box length (m), per box", _b(0.01, 100), draw="box"),
+    Param("obstacles.width_m", "float", "box width (m), per box", _b(0.01, 100), draw="box"),
+    Param("obstacles.height_m", "float", "box height (m), per box", _b(0.001, 100), draw="box"),
+    Param("obstacles.yaw_deg", "float", "box yaw (deg), per box", _b(-360, 360), draw="box"),
     Param("obstacles.yaw_step_deg", "float", "round each box yaw to a multiple of this "
           "(90 = axis-aligned; 0 = any yaw)", _b(0, 180), neutral=0.0),
-    Param("obstacles.gray", "int", "box albedo grey level, per box", _b(0, 255), draw="box",
-          stream="scene"),
+    Param("obstacles.gray", "int", "box albedo grey level, per box", _b(0, 255), draw="box"),
     Param("obstacles.palette", "str", "box colours: grey boxes, or warehouse pallets and "
           "coloured crates", choices=("gray", "warehouse")),
     Param("obstacles.min_gap_m", "float", "minimum gap between footprints (m)", _b(0, 100)),
@@ -184,88 +183,83 @@ PARAMS: tuple[Param, ...] = (
           lands="camera.width"),
     Param("camera.height", "int", "image height (px)", _b(16, MAX_IMAGE_SIDE_PX),
           lands="camera.height"),
+    Param("camera.fov_deg", "float", "vertical field of view (deg)", _b(1, 170),
+          lands="camera.fov_deg", draw="scene", redraw=True),
     Param("camera.altitude_m", "float", "camera height above the floor (m)", _b(0.01, 10000),
-          lands="camera.altitude_m", draw="scene", stream="scene", redraw=True),
+          lands="camera.altitude_m", draw="scene", redraw=True),
     Param("camera.tilt_deg", "float", "optical axis angle from the nadir (deg)", _b(0, 79),
-          lands="camera.tilt_deg", draw="scene", stream="scene", redraw=True),
+          lands="camera.tilt_deg", draw="scene", redraw=True),
     Param("camera.yaw_deg", "float", "camera heading, CCW from north-up (deg)", _b(-360, 360),
-          lands="camera.yaw_deg", draw="scene", stream="scene", redraw=True),
+          lands="camera.yaw_deg", draw="scene", redraw=True),
     Param("camera.roll_deg", "float", "rotation about the optical axis (deg)", _b(-180, 180),
-          lands="camera.roll_deg", draw="scene", stream="scene", redraw=True),
+          lands="camera.roll_deg", draw="scene", redraw=True),
     Param("camera.target_x_m", "float", "where the optical axis meets the floor, x (m)",
-          _b(-1000, 1000), lands="camera.target_m.0", draw="scene", stream="scene",
+          _b(-1000, 1000), lands="camera.target_m.0", draw="scene",
           redraw=True),
     Param("camera.target_y_m", "float", "where the optical axis meets the floor, y (m)",
-          _b(-1000, 1000), lands="camera.target_m.1", draw="scene", stream="scene",
+          _b(-1000, 1000), lands="camera.target_m.1", draw="scene",
           redraw=True),
-    Param("camera.fov_deg", "float", "vertical field of view (deg)", _b(1, 170),
-          lands="camera.fov_deg", draw="scene", stream="scene", redraw=True),
     Param("camera.markers_in_view", "bool", "redraw the camera until all markers are in view"),
     Param("camera.max_tries", "int", "camera draws before failing", _b(1, 100000)),
     Param("lighting.ambient", "float", "ambient light", _b(0, 2), lands="lighting.ambient",
-          draw="scene", stream="scene"),
+          draw="scene"),
     Param("lighting.intensity", "float", "directional light intensity", _b(0, 2),
-          lands="lighting.directional.0.intensity", draw="scene", stream="scene"),
+          lands="lighting.directional.0.intensity", draw="scene"),
     Param("lighting.elevation_deg", "float", "directional light elevation (deg)", _b(0, 90),
-          draw="scene", stream="scene"),
+          draw="scene"),
     Param("lighting.azimuth_deg", "float", "directional light azimuth, CCW from east (deg)",
-          _b(-360, 360), draw="scene", stream="scene"),
-    Param("background.gray", "int", "grey level around the arena", _b(0, 255), draw="scene",
-          stream="scene"),
+          _b(-360, 360), draw="scene"),
+    Param("background.gray", "int", "grey level around the arena", _b(0, 255), draw="scene"),
     # Degradations and scene-side variations: every one neutral by default.
     Param("camera.k1", "float", "lens radial distortion k1 (0 = pinhole; < 0 barrel)",
-          _b(-1, 1), neutral=0.0, lands="camera.dist.0", draw="scene", stream="variation"),
+          _b(-1, 1), neutral=0.0, lands="camera.dist.0", draw="scene"),
     Param("camera.k2", "float", "lens radial distortion k2", _b(-1, 1), neutral=0.0,
-          lands="camera.dist.1", draw="scene", stream="variation"),
+          lands="camera.dist.1", draw="scene"),
     Param("camera.p1", "float", "lens tangential distortion p1", _b(-0.1, 0.1), neutral=0.0,
-          lands="camera.dist.2", draw="scene", stream="variation"),
+          lands="camera.dist.2", draw="scene"),
     Param("camera.p2", "float", "lens tangential distortion p2", _b(-0.1, 0.1), neutral=0.0,
-          lands="camera.dist.3", draw="scene", stream="variation"),
+          lands="camera.dist.3", draw="scene"),
     Param("camera.k3", "float", "lens radial distortion k3", _b(-1, 1), neutral=0.0,
-          lands="camera.dist.4", draw="scene", stream="variation"),
+          lands="camera.dist.4", draw="scene"),
     Param("degrade.vignetting", "float", "corner darkening 0..1 (0 = none)", _b(0, 1),
-          neutral=0.0, lands="degrade.vignetting", draw="scene", stream="variation"),
+          neutral=0.0, lands="degrade.vignetting", draw="scene"),
     Param("degrade.exposure_ev", "float", "exposure change in stops (0 = none)", _b(-6, 6),
-          neutral=0.0, lands="degrade.exposure_ev", draw="scene", stream="variation"),
+          neutral=0.0, lands="degrade.exposure_ev", draw="scene"),
     Param("degrade.motion_blur_px", "float", "motion blur length in px (0 = none)", _b(0, 200),
-          neutral=0.0, lands="degrade.motion_blur_px", draw="scene", stream="variation"),
+          neutral=0.0, lands="degrade.motion_blur_px", draw="scene"),
     Param("degrade.motion_angle_deg", "float", "motion blur direction, CCW from +x (deg)",
-          _b(-360, 360), neutral=0.0, lands="degrade.motion_angle_deg", draw="scene",
-          stream="variation"),
+          _b(-360, 360), neutral=0.0, lands="degrade.motion_angle_deg", draw="scene"),
     Param("degrade.defocus_px", "float", "defocus (disc) blur radius in px (0 = none)",
-          _b(0, 100), neutral=0.0, lands="degrade.defocus_px", draw="scene",
-          stream="variation"),
+          _b(0, 100), neutral=0.0, lands="degrade.defocus_px", draw="scene"),
     Param("degrade.noise_sigma", "float", "Gaussian noise std in grey levels (0 = none)",
-          _b(0, 128), neutral=0.0, lands="degrade.noise_sigma", draw="scene",
-          stream="variation"),
+          _b(0, 128), neutral=0.0, lands="degrade.noise_sigma", draw="scene"),
     Param("degrade.poisson_photons", "float", "shot noise: photons at full scale "
           "(0 = none; fewer = noisier)", _b(0, 1e7), neutral=0.0,
-          lands="degrade.poisson_photons", draw="scene", stream="variation"),
+          lands="degrade.poisson_photons", draw="scene"),
     Param("degrade.gamma", "float", "display gamma, out = in^(1/gamma) (1 = none)",
-          _b(0.1, 10), neutral=1.0, lands="degrade.gamma", draw="scene", stream="variation"),
+          _b(0.1, 10), neutral=1.0, lands="degrade.gamma", draw="scene"),
     Param("degrade.jpeg_quality", "int", "JPEG round trip at this quality (0 = none)",
-          _b(0, 100), neutral=0, lands="degrade.jpeg_quality", draw="scene",
-          stream="variation"),
+          _b(0, 100), neutral=0, lands="degrade.jpeg_quality", draw="scene"),
     Param("lighting.shadow_strength", "float", "box shadows from the directional light, "
           "0..1 (0 = none)", _b(0, 1), neutral=0.0, lands="lighting.shadow_strength",
-          draw="scene", stream="variation"),
+          draw="scene"),
     Param("lighting.spot_strength", "float", "uneven light: darkening away from a spot, "
           "0..1 (0 = even)", _b(0, 1), neutral=0.0, lands="lighting.spot_strength",
-          draw="scene", stream="variation"),
+          draw="scene"),
     Param("lighting.spot_x_m", "float", "spot light centre x (m)", _b(-1000, 1000),
-          neutral=0.0, lands="lighting.spot_xy_m.0", draw="scene", stream="variation"),
+          neutral=0.0, lands="lighting.spot_xy_m.0", draw="scene"),
     Param("lighting.spot_y_m", "float", "spot light centre y (m)", _b(-1000, 1000),
-          neutral=0.0, lands="lighting.spot_xy_m.1", draw="scene", stream="variation"),
+          neutral=0.0, lands="lighting.spot_xy_m.1", draw="scene"),
     Param("lighting.spot_radius_m", "float", "spot light radius (m)", _b(0.01, 1000),
-          neutral=3.0, lands="lighting.spot_radius_m", draw="scene", stream="variation"),
+          neutral=3.0, lands="lighting.spot_radius_m", draw="scene"),
     Param("distractors.tapes", "int", "tape lines on the floor (not obstacles)", _b(0, 50),
-          neutral=0, draw="scene", stream="variation"),
+          neutral=0, draw="scene"),
     Param("distractors.papers", "int", "papers on the floor (not obstacles)", _b(0, 50),
-          neutral=0, draw="scene", stream="variation"),
+          neutral=0, draw="scene"),
     Param("markers.occlusion", "float", "fraction of one marker hidden by a flat "
-          "occluder (0 = none)", _b(0, 1), neutral=0.0, draw="scene", stream="variation"),
+          "occluder (0 = none)", _b(0, 1), neutral=0.0, draw="scene"),
     Param("markers.occluded", "int", "which marker is occluded: 0 NW, 1 NE, 2 SE, 3 SW",
-          _b(0, 3), neutral=0, draw="scene", stream="variation"),
+          _b(0, 3), neutral=0, draw="scene"),
 )
 
 #: Every parameter by name (declaration order).

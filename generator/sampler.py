@@ -1,18 +1,22 @@
 """Preset + seed + index -> Scene.
 
-Every random draw of scene ``index`` in a run with seed ``seed`` comes from one generator,
-``numpy.random.default_rng(SeedSequence([seed, index]))``, so a scene never depends on the
-number of workers or on which scenes came before. Scalar parameters are drawn first in a
-fixed order, one uniform draw each whether or not the parameter is a range, so overriding one
-parameter leaves the others' values unchanged; obstacle placement and camera redraws follow.
-The degradation and scene-variation parameters (:data:`VARIATION_KEYS`: lens, ``degrade.*``,
-shadows, spot light, distractors, occlusion) come from a second generator,
-:func:`variation_rng`, so adding them left every earlier scene's draws as they were.
+Every random draw of scene ``index`` in a run with seed ``seed`` comes from a **named stream**:
+stream ``name`` is ``numpy.random.default_rng(SeedSequence([seed, index, crc32(name)]))``
+(:func:`stream_rng`). Each parameter drawn has a stream of its own, named after it
+(:attr:`arenabench.generator.params.Param.stream`), so a scene never depends on the number of
+workers or on which scenes came before, and adding, removing, reordering or overriding a
+parameter moves no other parameter's draw. A range is drawn once per scene (a per-box
+parameter once per box, from the same stream); the camera parameters are drawn again, from
+their streams, while the markers are out of view. Draws that are not parameters have named
+streams too: obstacle placement (:data:`PLACEMENT_STREAM`), the warehouse loads (the
+``obstacles.palette`` stream), the floor distractors (:data:`PATCH_STREAM`) and the image noise
+(``degrade``, :func:`arenabench.generator.sample.degrade_rng`).
 """
 
 from __future__ import annotations
 
 import math
+import zlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,20 +39,14 @@ from arenabench.generator.scene import (
     Scene,
 )
 
-
-def _drawn_from(stream: str, *, draw: str = "scene") -> tuple[str, ...]:
-    return tuple(p.name for p in PARAMS if p.stream == stream and p.draw == draw)
-
-
-#: Scene-level scalar parameters drawn (in this order) for every scene.
-SCALAR_KEYS: tuple[str, ...] = _drawn_from("scene")
+#: Per-obstacle parameters (each box draws each of them once, from the parameter's stream).
+_BOX_KEYS = tuple(p.name for p in PARAMS if p.draw == "box")
 #: Parameters drawn again with the camera when the markers are out of view.
 _CAMERA_KEYS = tuple(p.name for p in PARAMS if p.redraw)
-#: Degradation and scene-variation parameters, drawn in this order from their own
-#: generator (:func:`variation_rng`) so that presets without them draw exactly as before.
-VARIATION_KEYS: tuple[str, ...] = _drawn_from("variation")
-#: Per-obstacle parameters, drawn (in this order) for each box.
-_BOX_KEYS = _drawn_from("scene", draw="box")
+#: Stream of the obstacle centres (placement tries).
+PLACEMENT_STREAM = "obstacles.placement"
+#: Stream of the tape and paper patches on the floor.
+PATCH_STREAM = "distractors.patches"
 
 
 class SamplingError(ValueError):
@@ -65,18 +63,50 @@ class SampledScene:
     index: int = 0
 
 
-def scene_rng(seed: int, index: int) -> np.random.Generator:
-    """The one random generator of scene ``index`` in a run with ``seed``."""
+def _check_seed(seed: int, index: int) -> None:
     if seed < 0 or index < 0:
         raise ValueError(f"seed and index must be >= 0, got seed={seed!r} index={index!r}")
-    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index)]))
 
 
-def variation_rng(seed: int, index: int) -> np.random.Generator:
-    """Generator of scene ``index``'s degradation and variation draws (independent stream)."""
-    if seed < 0 or index < 0:
-        raise ValueError(f"seed and index must be >= 0, got seed={seed!r} index={index!r}")
-    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index), 2]))
+def stream_rng(seed: int, index: int, name: str) -> np.random.Generator:
+    """The random stream ``name`` of scene ``index`` in a run with ``seed``.
+
+    Seeded by ``(seed, index, crc32(name))``: streams of different names are independent, and
+    a stream's draws depend on nothing but its name, the seed and the index.
+
+    Raises
+    ------
+    ValueError
+        For a negative seed or index, or an empty name.
+    """
+    _check_seed(seed, index)
+    if not name:
+        raise ValueError("stream name must not be empty")
+    key = zlib.crc32(name.encode("utf-8"))
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index), key]))
+
+
+class Streams:
+    """The named random streams of one scene, each created on first use (:func:`stream_rng`)."""
+
+    def __init__(self, seed: int, index: int) -> None:
+        self.seed, self.index = int(seed), int(index)
+        self._rngs: dict[str, np.random.Generator] = {}
+        _check_seed(self.seed, self.index)
+
+    def __call__(self, name: str) -> np.random.Generator:
+        """Stream ``name`` (the same generator, continuing, on every call)."""
+        if name not in self._rngs:
+            self._rngs[name] = stream_rng(self.seed, self.index, name)
+        return self._rngs[name]
+
+    def draw(self, key: str, value: Value) -> Any:
+        """Parameter ``key``'s next value: a :class:`Range` drawn from its stream, else
+        ``value`` itself (no draw)."""
+        if not isinstance(value, Range):
+            return value
+        spec = PARAMETERS[key]
+        return draw(self(spec.stream), value, integer=spec.kind == "int")
 
 
 def draw(rng: np.random.Generator, value: Value, *, integer: bool = False) -> Any:
@@ -135,7 +165,7 @@ def _warehouse_load(rng: np.random.Generator, length: float, width: float,
     return size[0], size[1], size[2], color
 
 
-def _place_obstacles(rng: np.random.Generator, p: dict[str, Any], count: int,
+def _place_obstacles(streams: Streams, p: dict[str, Any], count: int,
                      arena: ArenaSpec, markers: MarkerSpec) -> tuple[Obstacle, ...]:
     inner = arena.side_m / 2.0 - markers.side_m - p["obstacles.edge_margin_m"]
     if inner <= 0:
@@ -149,14 +179,16 @@ def _place_obstacles(rng: np.random.Generator, p: dict[str, Any], count: int,
     shapes: list[Polygon] = []
     for i in range(count):
         length, width, height, yaw, gray = (
-            draw(rng, p[k], integer=PARAMETERS[k].kind == "int") for k in _BOX_KEYS
+            streams.draw(k, p[k]) for k in _BOX_KEYS
         )
         color = (gray, gray, gray)
         step = p["obstacles.yaw_step_deg"]
         if step > 0:  # e.g. 90: boxes axis-aligned, as the competition's world files place them
             yaw = float(round(yaw / step) * step) % 180.0
         if p["obstacles.palette"] == "warehouse":  # extra draws only here: eyrc is unchanged
-            length, width, height, color = _warehouse_load(rng, length, width, height)
+            length, width, height, color = _warehouse_load(
+                streams(PARAMETERS["obstacles.palette"].stream), length, width, height)
+        rng = streams(PLACEMENT_STREAM)
         for _ in range(p["obstacles.max_tries"]):
             centre = (float(rng.uniform(-inner, inner)), float(rng.uniform(-inner, inner)))
             ob = Obstacle(center_m=centre, yaw_deg=yaw, length_m=length, width_m=width,
@@ -200,31 +232,24 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
         When obstacles or the camera cannot be placed within the bounded number of tries.
     """
     p = resolve(preset, overrides)
-    rng = scene_rng(seed, index)
-    drawn = {k: draw(rng, p[k], integer=PARAMETERS[k].kind == "int") for k in SCALAR_KEYS}
-    vrng = variation_rng(seed, index)
-    drawn.update({k: draw(vrng, p[k], integer=PARAMETERS[k].kind == "int")
-                  for k in VARIATION_KEYS})
-    # Any other parameter given as a range (arena.side_m, markers.side_m, arena.texture_seed,
-    # ...) is drawn from a stream of its own, in sorted key order, so that allowing ranges there
-    # moved no draw of the streams above.
-    erng = np.random.default_rng(np.random.SeedSequence([int(seed), int(index), 3]))
-    drawn.update({
-        key: draw(erng, p[key], integer=PARAMETERS[key].kind == "int")
-        for key in sorted(p)
-        if PARAMETERS[key].draw == "fixed" and isinstance(p[key], Range)
-    })
+    streams = Streams(seed, index)
+    # Drawn for every scene (and recorded in the GT): draw="scene" parameters, and any other
+    # parameter a preset or --set gives as a range (arena.side_m, markers.side_m, ...).
+    drawn = {
+        spec.name: streams.draw(spec.name, p[spec.name]) for spec in PARAMS
+        if spec.draw == "scene" or (spec.draw == "fixed" and isinstance(p[spec.name], Range))
+    }
     values = {**p, **drawn}
     sections = assemble(values)
     arena = ArenaSpec(**sections["arena"])
     markers = MarkerSpec(**sections["markers"])
-    obstacles = _place_obstacles(rng, values, drawn["obstacles.count"], arena, markers)
+    obstacles = _place_obstacles(streams, values, drawn["obstacles.count"], arena, markers)
     camera = CameraSpec(**sections["camera"])
     if p["camera.markers_in_view"]:
         for _ in range(p["camera.max_tries"]):
             if markers_in_view(arena, markers, camera):
                 break
-            drawn.update({k: draw(rng, p[k]) for k in _CAMERA_KEYS})
+            drawn.update({k: streams.draw(k, p[k]) for k in _CAMERA_KEYS})
             values.update(drawn)
             camera = _camera(values)
         else:
@@ -240,7 +265,7 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
     light = sections["lighting"]
     light["directional"][0]["direction"] = direction
     lighting = LightingSpec(**light)
-    patches = sample_patches(vrng, tapes=drawn["distractors.tapes"],
+    patches = sample_patches(streams(PATCH_STREAM), tapes=drawn["distractors.tapes"],
                              papers=drawn["distractors.papers"], arena=arena, markers=markers)
     occluder = occluder_patch(arena, markers, marker=drawn["markers.occluded"],
                               fraction=drawn["markers.occlusion"])

@@ -74,3 +74,24 @@ def test_every_value_lands_where_it_is_declared():
         assert node == (list(want) if isinstance(want, tuple) else want), p.name
     assert sections["camera"]["target_m"] == [values["camera.target_x_m"],
                                               values["camera.target_y_m"]]
+
+
+def test_draws_are_keyed_by_name():
+    from arenabench.generator.sampler import stream_rng
+
+    seed, index = 3, 4
+    s = sample_scene("eyrc-jitter", seed=seed, index=index)
+    lo, hi = 0.58, 0.62  # eyrc-jitter's lighting.ambient
+    u = stream_rng(seed, index, "lighting.ambient").random()
+    assert s.params["lighting.ambient"] == pytest.approx(lo + u * (hi - lo), abs=1e-6)
+    # turning other parameters into ranges (new draws, here before and after it in
+    # declaration order) moves no other draw
+    moved = sample_scene("eyrc-jitter", seed=seed, index=index, overrides={
+        "arena.texture_seed": Range(0, 9), "degrade.noise_sigma": Range(0.0, 5.0),
+        "lighting.spot_strength": Range(0.0, 0.5)})
+    for key, value in s.params.items():
+        if key not in ("degrade.noise_sigma", "lighting.spot_strength"):
+            assert moved.params[key] == value, key
+    assert moved.scene.obstacles == s.scene.obstacles
+    with pytest.raises(ValueError, match="seed"):
+        stream_rng(-1, 0, "x")
