@@ -178,14 +178,15 @@ def _place_obstacles(streams: Streams, p: dict[str, Any], count: int,
     placed: list[Obstacle] = []
     shapes: list[Polygon] = []
     for i in range(count):
-        length, width, height, yaw, gray = (
-            streams.draw(k, p[k]) for k in _BOX_KEYS
-        )
+        box_ = {k: streams.draw(k, p[k]) for k in _BOX_KEYS}
+        length, width, height = (box_[f"obstacles.{k}"] for k in ("length_m", "width_m",
+                                                                   "height_m"))
+        yaw, gray = box_["obstacles.yaw_deg"], box_["obstacles.gray"]
         color = (gray, gray, gray)
         step = p["obstacles.yaw_step_deg"]
         if step > 0:  # e.g. 90: boxes axis-aligned, as the competition's world files place them
             yaw = float(round(yaw / step) * step) % 180.0
-        if p["obstacles.palette"] == "warehouse":  # extra draws only here: eyrc is unchanged
+        if p["obstacles.palette"] == "warehouse":  # pallet or crate, from its own stream
             length, width, height, color = _warehouse_load(
                 streams(PARAMETERS["obstacles.palette"].stream), length, width, height)
         rng = streams(PLACEMENT_STREAM)
