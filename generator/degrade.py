@@ -27,21 +27,16 @@ from typing import Any
 import cv2
 import numpy as np
 
-#: Preset parameter name of each :class:`Degradations` field.
-PARAM_NAMES: dict[str, str] = {
-    "vignetting": "degrade.vignetting",
-    "exposure_ev": "degrade.exposure_ev",
-    "motion_blur_px": "degrade.motion_blur_px",
-    "motion_angle_deg": "degrade.motion_angle_deg",
-    "defocus_px": "degrade.defocus_px",
-    "noise_sigma": "degrade.noise_sigma",
-    "poisson_photons": "degrade.poisson_photons",
-    "gamma": "degrade.gamma",
-    "jpeg_quality": "degrade.jpeg_quality",
-}
+from arenabench.generator.params import lands_in
+
+#: Preset parameter name of each :class:`Degradations` field (declared in the registry).
+PARAM_NAMES: dict[str, str] = lands_in("degrade")
 
 #: Preset parameter names of the lens distortion coefficients, in OpenCV's order.
-LENS_PARAMS: tuple[str, ...] = ("camera.k1", "camera.k2", "camera.p1", "camera.p2", "camera.k3")
+LENS_PARAMS: tuple[str, ...] = tuple(
+    name for _, name in sorted((int(f.split(".")[1]), name)
+                               for f, name in lands_in("camera").items() if f.startswith("dist."))
+)
 
 #: Largest canvas (relative to the image side) rendered to cover a distorted image's sources.
 MAX_CANVAS_SCALE = 3.0

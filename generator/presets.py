@@ -1,8 +1,9 @@
 """Named scene presets as data, and ``--set key=value`` override parsing and validation.
 
-A preset maps dotted parameter names to a fixed value or a range. Ranges are written
-``"lo:hi"``: uniform over [lo, hi) for real parameters, over the integers lo..hi inclusive for
-integer ones. Every parameter is declared in :data:`PARAMETERS` with its kind and bounds;
+A preset maps dotted parameter names to a fixed value or a :class:`Range`. Ranges are written
+``"lo:hi"`` on the command line and ``[lo, hi]`` in JSON: uniform over [lo, hi) for real
+parameters, over the integers lo..hi inclusive for integer ones. Every parameter is declared
+once in :data:`arenabench.generator.params.PARAMS` with its kind, bounds and neutral value;
 anything else is refused with an error naming the key.
 """
 
@@ -10,149 +11,12 @@ from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from arenabench.generator import competition_arena as comp
-from arenabench.limits import MAX_IMAGE_SIDE_PX
+from arenabench.generator.params import DEFAULTS, NEUTRAL, PARAMETERS, Param, Range, Value
 from arenabench.suggest import did_you_mean
-
-#: A parameter value as stored in a preset: a fixed value or a (lo, hi) range.
-Value = Any
-
-
-@dataclass(frozen=True)
-class ParamDef:
-    """Declaration of one preset parameter.
-
-    Attributes
-    ----------
-    kind : {"float", "int", "str", "rgb", "ids", "bool"}
-        How values are parsed; only "float" and "int" accept ``lo:hi`` ranges.
-    lo, hi : float or None
-        Inclusive bounds for numbers.
-    help : str
-        One line for ``arenabench presets``.
-    choices : tuple of str
-        Allowed values for a "str" parameter (empty = any).
-    """
-
-    kind: str
-    help: str
-    lo: float | None = None
-    hi: float | None = None
-    choices: tuple[str, ...] = ()
-
-
-PARAMETERS: dict[str, ParamDef] = {
-    "arena.side_m": ParamDef("float", "side of the border-line square (m)", 0.5, 1000),
-    "arena.margin_m": ParamDef("float", "floor beyond the border line (m)", 0, 100),
-    "arena.floor_rgb": ParamDef("rgb", "floor albedo R,G,B"),
-    "arena.texture": ParamDef("str", "floor texture (competition: the e-Yantra arena image)",
-                              choices=("plain", "speckle", "concrete", comp.TEXTURE_NAME)),
-    "arena.texture_seed": ParamDef("int", "seed of the procedural floor texture", 0, 1_000_000),
-    "arena.border_width_m": ParamDef("float", "border line width (m), 0 = none", 0, 1),
-    "arena.border_rgb": ParamDef("rgb", "border line colour R,G,B"),
-    "arena.grid_step_m": ParamDef("float", "floor grid spacing (m), 0 = none", 0, 100),
-    "arena.grid_rgb": ParamDef("rgb", "floor grid colour R,G,B"),
-    "arena.logo_text": ParamDef("str", "text distractor in the south margin ('' = none)"),
-    "arena.logo_rgb": ParamDef("rgb", "text distractor colour R,G,B"),
-    "markers.dictionary": ParamDef("str", "cv2.aruco dictionary name"),
-    "markers.ids": ParamDef("ids", "marker ids NW,NE,SE,SW"),
-    "markers.side_m": ParamDef("float", "marker side (m)", 0.01, 100),
-    "markers.rotation_deg": ParamDef("float", "printed marker rotation (multiple of 90)", -360,
-                                     360),
-    "markers.quiet_zone_m": ParamDef("float", "white quiet zone around markers (m)", 0, 10),
-    "obstacles.count": ParamDef("int", "number of boxes", 0, 50),
-    "obstacles.length_m": ParamDef("float", "box length (m), per box", 0.01, 100),
-    "obstacles.width_m": ParamDef("float", "box width (m), per box", 0.01, 100),
-    "obstacles.height_m": ParamDef("float", "box height (m), per box", 0.001, 100),
-    "obstacles.yaw_deg": ParamDef("float", "box yaw (deg), per box", -360, 360),
-    "obstacles.yaw_step_deg": ParamDef("float", "round each box yaw to a multiple of this "
-                                       "(90 = axis-aligned; 0 = any yaw)", 0, 180),
-    "obstacles.gray": ParamDef("int", "box albedo grey level, per box", 0, 255),
-    "obstacles.palette": ParamDef("str", "box colours: grey boxes, or warehouse pallets and "
-                                  "coloured crates", choices=("gray", "warehouse")),
-    "obstacles.min_gap_m": ParamDef("float", "minimum gap between footprints (m)", 0, 100),
-    "obstacles.edge_margin_m": ParamDef("float", "minimum distance to the frame edge (m)", 0,
-                                        100),
-    "obstacles.max_tries": ParamDef("int", "placement tries per box before failing", 1, 100000),
-    "camera.width": ParamDef("int", "image width (px)", 16, MAX_IMAGE_SIDE_PX),
-    "camera.height": ParamDef("int", "image height (px)", 16, MAX_IMAGE_SIDE_PX),
-    "camera.fov_deg": ParamDef("float", "vertical field of view (deg)", 1, 170),
-    "camera.altitude_m": ParamDef("float", "camera height above the floor (m)", 0.01, 10000),
-    "camera.tilt_deg": ParamDef("float", "optical axis angle from the nadir (deg)", 0, 79),
-    "camera.yaw_deg": ParamDef("float", "camera heading, CCW from north-up (deg)", -360, 360),
-    "camera.roll_deg": ParamDef("float", "rotation about the optical axis (deg)", -180, 180),
-    "camera.target_x_m": ParamDef("float", "where the optical axis meets the floor, x (m)",
-                                  -1000, 1000),
-    "camera.target_y_m": ParamDef("float", "where the optical axis meets the floor, y (m)",
-                                  -1000, 1000),
-    "camera.markers_in_view": ParamDef("bool", "redraw the camera until all markers are in view"),
-    "camera.max_tries": ParamDef("int", "camera draws before failing", 1, 100000),
-    "lighting.ambient": ParamDef("float", "ambient light", 0, 2),
-    "lighting.intensity": ParamDef("float", "directional light intensity", 0, 2),
-    "lighting.elevation_deg": ParamDef("float", "directional light elevation (deg)", 0, 90),
-    "lighting.azimuth_deg": ParamDef("float", "directional light azimuth, CCW from east (deg)",
-                                     -360, 360),
-    "background.gray": ParamDef("int", "grey level around the arena", 0, 255),
-    **{
-        # Degradations and scene-side variations: every one neutral by default.
-        "camera.k1": ParamDef("float", "lens radial distortion k1 (0 = pinhole; < 0 barrel)",
-                              -1, 1),
-        "camera.k2": ParamDef("float", "lens radial distortion k2", -1, 1),
-        "camera.p1": ParamDef("float", "lens tangential distortion p1", -0.1, 0.1),
-        "camera.p2": ParamDef("float", "lens tangential distortion p2", -0.1, 0.1),
-        "camera.k3": ParamDef("float", "lens radial distortion k3", -1, 1),
-        "degrade.vignetting": ParamDef("float", "corner darkening 0..1 (0 = none)", 0, 1),
-        "degrade.exposure_ev": ParamDef("float", "exposure change in stops (0 = none)", -6, 6),
-        "degrade.motion_blur_px": ParamDef("float", "motion blur length in px (0 = none)", 0,
-                                           200),
-        "degrade.motion_angle_deg": ParamDef("float", "motion blur direction, CCW from +x (deg)",
-                                             -360, 360),
-        "degrade.defocus_px": ParamDef("float", "defocus (disc) blur radius in px (0 = none)", 0,
-                                       100),
-        "degrade.noise_sigma": ParamDef("float", "Gaussian noise std in grey levels (0 = none)",
-                                        0, 128),
-        "degrade.poisson_photons": ParamDef("float", "shot noise: photons at full scale "
-                                            "(0 = none; fewer = noisier)", 0, 1e7),
-        "degrade.gamma": ParamDef("float", "display gamma, out = in^(1/gamma) (1 = none)", 0.1,
-                                  10),
-        "degrade.jpeg_quality": ParamDef("int", "JPEG round trip at this quality (0 = none)", 0,
-                                         100),
-        "lighting.shadow_strength": ParamDef("float", "box shadows from the directional light, "
-                                             "0..1 (0 = none)", 0, 1),
-        "lighting.spot_strength": ParamDef("float", "uneven light: darkening away from a spot, "
-                                           "0..1 (0 = even)", 0, 1),
-        "lighting.spot_x_m": ParamDef("float", "spot light centre x (m)", -1000, 1000),
-        "lighting.spot_y_m": ParamDef("float", "spot light centre y (m)", -1000, 1000),
-        "lighting.spot_radius_m": ParamDef("float", "spot light radius (m)", 0.01, 1000),
-        "distractors.tapes": ParamDef("int", "tape lines on the floor (not obstacles)", 0, 50),
-        "distractors.papers": ParamDef("int", "papers on the floor (not obstacles)", 0, 50),
-        "markers.occlusion": ParamDef("float", "fraction of one marker hidden by a flat "
-                                      "occluder (0 = none)", 0, 1),
-        "markers.occluded": ParamDef("int", "which marker is occluded: 0 NW, 1 NE, 2 SE, 3 SW",
-                                     0, 3),
-    },
-}
-
-#: Neutral values of the degradation / variation parameters: a preset or mapping
-#: that lacks them gets these, which change nothing in the image.
-NEUTRAL: dict[str, Value] = {
-    "camera.k1": 0.0, "camera.k2": 0.0, "camera.p1": 0.0, "camera.p2": 0.0, "camera.k3": 0.0,
-    "degrade.vignetting": 0.0, "degrade.exposure_ev": 0.0, "degrade.motion_blur_px": 0.0,
-    "degrade.motion_angle_deg": 0.0, "degrade.defocus_px": 0.0, "degrade.noise_sigma": 0.0,
-    "degrade.poisson_photons": 0.0, "degrade.gamma": 1.0, "degrade.jpeg_quality": 0,
-    "lighting.shadow_strength": 0.0, "lighting.spot_strength": 0.0, "lighting.spot_x_m": 0.0,
-    "lighting.spot_y_m": 0.0, "lighting.spot_radius_m": 3.0,
-    "distractors.tapes": 0, "distractors.papers": 0,
-    "markers.occlusion": 0.0, "markers.occluded": 0,
-}
-
-#: Scene parameters added after the first presets (not degradations): a preset or mapping that
-#: lacks them gets these defaults, which keep its scenes as they were.
-LATER_DEFAULTS: dict[str, Value] = {"obstacles.yaw_step_deg": 0.0}
 
 #: The competition example's look, widened: a procedural 8 m arena, the camera, light, box greys
 #: and yaw jittered around the fitted example.
@@ -170,35 +34,35 @@ _EYRC_JITTER: dict[str, Value] = {
     "arena.logo_rgb": (220, 50, 50),
     "markers.dictionary": "DICT_4X4_100",
     "markers.ids": (80, 85, 90, 95),
-    "markers.side_m": (0.50, 0.56),
+    "markers.side_m": Range(0.50, 0.56),
     "markers.rotation_deg": 180.0,
     "markers.quiet_zone_m": 0.04,
-    "obstacles.count": (1, 5),
-    "obstacles.length_m": (0.7, 2.2),
-    "obstacles.width_m": (0.5, 1.2),
-    "obstacles.height_m": (0.2, 0.8),
-    "obstacles.yaw_deg": (-6.0, 6.0),
-    "obstacles.gray": (100, 140),
+    "obstacles.count": Range(1, 5),
+    "obstacles.length_m": Range(0.7, 2.2),
+    "obstacles.width_m": Range(0.5, 1.2),
+    "obstacles.height_m": Range(0.2, 0.8),
+    "obstacles.yaw_deg": Range(-6.0, 6.0),
+    "obstacles.gray": Range(100, 140),
     "obstacles.palette": "gray",
     "obstacles.min_gap_m": 0.3,
     "obstacles.edge_margin_m": 0.3,
     "obstacles.max_tries": 500,
     "camera.width": 1000,
     "camera.height": 1000,
-    "camera.fov_deg": (58.0, 68.0),
-    "camera.altitude_m": (7.8, 8.9),
-    "camera.tilt_deg": (0.0, 6.0),
-    "camera.yaw_deg": (-2.0, 2.0),
-    "camera.roll_deg": (-0.5, 0.5),
-    "camera.target_x_m": (-0.2, 0.2),
-    "camera.target_y_m": (-0.1, 0.7),
+    "camera.fov_deg": Range(58.0, 68.0),
+    "camera.altitude_m": Range(7.8, 8.9),
+    "camera.tilt_deg": Range(0.0, 6.0),
+    "camera.yaw_deg": Range(-2.0, 2.0),
+    "camera.roll_deg": Range(-0.5, 0.5),
+    "camera.target_x_m": Range(-0.2, 0.2),
+    "camera.target_y_m": Range(-0.1, 0.7),
     "camera.markers_in_view": True,
     "camera.max_tries": 100,
-    "lighting.ambient": (0.58, 0.62),
-    "lighting.intensity": (0.40, 0.50),
-    "lighting.elevation_deg": (55.0, 70.0),
-    "lighting.azimuth_deg": (0.0, 360.0),
-    "background.gray": (218, 232),
+    "lighting.ambient": Range(0.58, 0.62),
+    "lighting.intensity": Range(0.40, 0.50),
+    "lighting.elevation_deg": Range(55.0, 70.0),
+    "lighting.azimuth_deg": Range(0.0, 360.0),
+    "background.gray": Range(218, 232),
     **NEUTRAL,
 }
 
@@ -206,21 +70,21 @@ _EYRC_JITTER: dict[str, Value] = {
 #: plausibly sees; the reference pipeline's pass rate on it is a figure, not a tuning target.
 _EYRC_HARD: dict[str, Value] = {
     **_EYRC_JITTER,
-    "camera.tilt_deg": (0.0, 15.0),
-    "camera.altitude_m": (8.3, 10.5),
-    "camera.yaw_deg": (-15.0, 15.0),
-    "camera.roll_deg": (-2.0, 2.0),
-    "lighting.ambient": (0.45, 0.7),
-    "lighting.intensity": (0.3, 0.6),
-    "lighting.elevation_deg": (40.0, 80.0),
-    "lighting.shadow_strength": (0.0, 0.4),
-    "degrade.noise_sigma": (0.0, 6.0),
-    "degrade.motion_blur_px": (0.0, 2.0),
-    "degrade.motion_angle_deg": (0.0, 180.0),
-    "degrade.defocus_px": (0.0, 1.0),
-    "degrade.exposure_ev": (-0.5, 0.3),
-    "degrade.vignetting": (0.0, 0.3),
-    "degrade.jpeg_quality": (60, 95),
+    "camera.tilt_deg": Range(0.0, 15.0),
+    "camera.altitude_m": Range(8.3, 10.5),
+    "camera.yaw_deg": Range(-15.0, 15.0),
+    "camera.roll_deg": Range(-2.0, 2.0),
+    "lighting.ambient": Range(0.45, 0.7),
+    "lighting.intensity": Range(0.3, 0.6),
+    "lighting.elevation_deg": Range(40.0, 80.0),
+    "lighting.shadow_strength": Range(0.0, 0.4),
+    "degrade.noise_sigma": Range(0.0, 6.0),
+    "degrade.motion_blur_px": Range(0.0, 2.0),
+    "degrade.motion_angle_deg": Range(0.0, 180.0),
+    "degrade.defocus_px": Range(0.0, 1.0),
+    "degrade.exposure_ev": Range(-0.5, 0.3),
+    "degrade.vignetting": Range(0.0, 0.3),
+    "degrade.jpeg_quality": Range(60, 95),
 }
 
 #: A marked arena on a real warehouse floor: concrete with stains and painted lane lines,
@@ -229,27 +93,27 @@ _WAREHOUSE: dict[str, Value] = {
     **_EYRC_JITTER,
     "arena.floor_rgb": (168, 166, 160),
     "arena.texture": "concrete",
-    "arena.texture_seed": (0, 7),
+    "arena.texture_seed": Range(0, 7),
     "arena.margin_m": 1.2,
     "arena.border_rgb": (30, 30, 30),
     "arena.border_width_m": 0.03,
     "arena.logo_text": "",
-    "background.gray": (120, 150),
+    "background.gray": Range(120, 150),
     "obstacles.palette": "warehouse",
-    "obstacles.count": (1, 6),
-    "obstacles.height_m": (0.3, 0.9),
-    "obstacles.yaw_deg": (-30.0, 30.0),
-    "camera.altitude_m": (9.5, 11.0),
-    "camera.tilt_deg": (0.0, 12.0),
-    "camera.yaw_deg": (-20.0, 20.0),
-    "lighting.ambient": (0.5, 0.7),
-    "lighting.intensity": (0.3, 0.5),
-    "lighting.elevation_deg": (45.0, 85.0),
-    "lighting.shadow_strength": (0.0, 0.3),
-    "distractors.tapes": (0, 2),
-    "distractors.papers": (0, 3),
-    "degrade.noise_sigma": (0.0, 4.0),
-    "degrade.jpeg_quality": (70, 95),
+    "obstacles.count": Range(1, 6),
+    "obstacles.height_m": Range(0.3, 0.9),
+    "obstacles.yaw_deg": Range(-30.0, 30.0),
+    "camera.altitude_m": Range(9.5, 11.0),
+    "camera.tilt_deg": Range(0.0, 12.0),
+    "camera.yaw_deg": Range(-20.0, 20.0),
+    "lighting.ambient": Range(0.5, 0.7),
+    "lighting.intensity": Range(0.3, 0.5),
+    "lighting.elevation_deg": Range(45.0, 85.0),
+    "lighting.shadow_strength": Range(0.0, 0.3),
+    "distractors.tapes": Range(0, 2),
+    "distractors.papers": Range(0, 3),
+    "degrade.noise_sigma": Range(0.0, 4.0),
+    "degrade.jpeg_quality": Range(70, 95),
 }
 
 
@@ -275,13 +139,13 @@ def _twin() -> dict[str, Value]:
         "arena.border_width_m": 0.0,
         "arena.logo_text": "",
         "markers.side_m": comp.MARKER_SIDE_M,
-        "obstacles.count": (1, 4),
-        "obstacles.length_m": (0.45, 1.0),
-        "obstacles.width_m": (0.28, 0.34),
-        "obstacles.height_m": (0.2, 0.35),
-        "obstacles.yaw_deg": (-45.0, 135.0),
+        "obstacles.count": Range(1, 4),
+        "obstacles.length_m": Range(0.45, 1.0),
+        "obstacles.width_m": Range(0.28, 0.34),
+        "obstacles.height_m": Range(0.2, 0.35),
+        "obstacles.yaw_deg": Range(-45.0, 135.0),
         "obstacles.yaw_step_deg": 90.0,
-        "obstacles.gray": grays[0] if len(grays) == 1 else (grays[0], grays[-1]),
+        "obstacles.gray": grays[0] if len(grays) == 1 else Range(grays[0], grays[-1]),
         "obstacles.min_gap_m": 0.15,
         "obstacles.edge_margin_m": 0.16,
         "camera.fov_deg": cam["fov_deg"],
@@ -307,9 +171,11 @@ PRESETS: dict[str, tuple[str, dict[str, Value]]] = {
     "eyrc-upright": ("eyrc-jitter with the markers printed upright (the published pipeline then "
                      "warps to the outer corners)", {**_EYRC_JITTER, "markers.rotation_deg": 0.0}),
     "eyrc-oblique": ("eyrc-jitter seen obliquely: tilt 10-30 deg, any heading, higher camera",
-                     {**_EYRC_JITTER, "camera.tilt_deg": (10.0, 30.0),
-                      "camera.yaw_deg": (-180.0, 180.0), "camera.altitude_m": (9.5, 11.0),
-                      "camera.target_x_m": (-0.3, 0.3), "camera.target_y_m": (-0.3, 0.3)}),
+                     {**_EYRC_JITTER, "camera.tilt_deg": Range(10.0, 30.0),
+                      "camera.yaw_deg": Range(-180.0, 180.0),
+                      "camera.altitude_m": Range(9.5, 11.0),
+                      "camera.target_x_m": Range(-0.3, 0.3),
+                      "camera.target_y_m": Range(-0.3, 0.3)}),
     "eyrc-hard": ("eyrc-jitter as a real drone sees it: more tilt and altitude spread, varied "
                   "light and shadows, sensor noise, blur, exposure, vignetting, JPEG", _EYRC_HARD),
     "warehouse": ("an arena marked on a warehouse floor: concrete with stains and painted lanes, "
@@ -348,11 +214,15 @@ def _number(key: str, text: str, kind: str) -> float | int:
         raise ValueError(f"--set {key}: invalid {kind} value {text!r}") from None
 
 
-def _check_bounds(key: str, value: float, spec: ParamDef, raw: Any) -> None:
-    if (spec.lo is not None and value < spec.lo) or (spec.hi is not None and value > spec.hi):
-        raise ValueError(
-            f"--set {key}: value {raw!r} out of range [{spec.lo:g}, {spec.hi:g}]"
-        )
+def _check_bounds(key: str, value: float, spec: Param, raw: Any) -> None:
+    b = spec.bounds
+    if b is not None and not b.lo <= value <= b.hi:
+        raise ValueError(f"--set {key}: value {_shown(raw)} out of range [{b.lo:g}, {b.hi:g}]")
+
+
+def _shown(raw: Any) -> str:
+    """``raw`` as error messages show it (a range as ``(lo, hi)``, like the input tuple)."""
+    return repr((raw.lo, raw.hi)) if isinstance(raw, Range) else repr(raw)
 
 
 #: Short names accepted wherever a parameter is named (``--set``, ``--vary``); results and GT
@@ -375,6 +245,9 @@ def canonical_key(key: str) -> str:
 def validate_value(key: str, value: Value) -> Value:
     """Check and normalise a parameter value (fixed or range) for ``key``.
 
+    A range may be given as a :class:`Range` or as a two-item list or tuple (JSON); it is
+    returned as a :class:`Range` (a range with equal ends as that one value).
+
     Raises
     ------
     ValueError
@@ -385,16 +258,17 @@ def validate_value(key: str, value: Value) -> Value:
                          f"{did_you_mean(key, [*PARAMETERS, *ALIASES])} (list them: "
                          "arenabench presets --params)")
     spec = PARAMETERS[key]
-    if spec.kind in ("float", "int"):
-        if isinstance(value, (tuple, list)):
-            if len(value) != 2:
+    if spec.numeric:
+        if isinstance(value, (Range, tuple, list)):
+            ends = (value.lo, value.hi) if isinstance(value, Range) else tuple(value)
+            if len(ends) != 2:
                 raise ValueError(f"--set {key}: a range needs two ends, got {value!r}")
-            lo, hi = (_number(key, str(v), spec.kind) for v in value)
+            lo, hi = (_number(key, str(v), spec.kind) for v in ends)
             if lo > hi:
-                raise ValueError(f"--set {key}: empty range {value!r} (lo > hi)")
+                raise ValueError(f"--set {key}: empty range {_shown(value)} (lo > hi)")
             _check_bounds(key, lo, spec, value)
             _check_bounds(key, hi, spec, value)
-            return (lo, hi) if lo != hi else lo
+            return Range(lo, hi) if lo != hi else lo
         if isinstance(value, bool):
             raise ValueError(f"--set {key}: invalid {spec.kind} value {value!r}")
         number = _number(key, str(value), spec.kind)
@@ -446,7 +320,7 @@ def parse_override(text: str) -> tuple[str, Value]:
     if key not in PARAMETERS:
         validate_value(key, raw)
     spec = PARAMETERS[key]
-    if spec.kind in ("float", "int") and ":" in raw:
+    if spec.numeric and ":" in raw:
         lo, _, hi = raw.partition(":")
         return key, validate_value(key, (lo, hi))
     return key, validate_value(key, raw)
@@ -465,7 +339,7 @@ def resolve(preset: str | dict[str, Value], overrides: dict[str, Value] | None =
             ) -> dict[str, Value]:
     """Preset parameters with ``overrides`` applied, every value validated."""
     params = get_preset(preset) if isinstance(preset, str) else dict(preset)
-    params = {**NEUTRAL, **LATER_DEFAULTS, **params}
+    params = {**DEFAULTS, **params}
     for key, value in (overrides or {}).items():
         params[key] = value
     missing = sorted(set(PARAMETERS) - set(params))
@@ -478,10 +352,8 @@ def format_value(value: Value) -> str:
     """The ``--set`` spelling of a value."""
     if isinstance(value, bool):
         return "true" if value else "false"
-    if isinstance(value, tuple) and len(value) == 2 and all(
-        isinstance(v, (int, float)) for v in value
-    ):
-        return f"{value[0]:.10g}:{value[1]:.10g}"
+    if isinstance(value, Range):
+        return str(value)
     if isinstance(value, tuple):
         return ",".join(str(v) for v in value)
     if isinstance(value, float):

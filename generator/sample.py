@@ -20,9 +20,9 @@ from arenabench.fileio import rounded
 from arenabench.frame import FrameSpec
 from arenabench.generator.degrade import Degradations, apply_degradations
 from arenabench.generator.groundtruth import compute_ground_truth
-from arenabench.generator.presets import Value
+from arenabench.generator.params import Range, Value
 from arenabench.generator.render import Renderer, RenderOutput
-from arenabench.generator.sampler import sample_scene
+from arenabench.generator.sampler import sample_scene, stream_rng
 from arenabench.gtrecord import GroundTruth
 from arenabench.schemas import GT_SCHEMA
 from arenabench.workers import thread_state
@@ -42,7 +42,12 @@ from arenabench.workers import thread_state
 #: (obstacles, floor overlays, markers, floor): where a box side meets the floor their depths
 #: can tie in a pixel, and which one won used to depend on memory addresses, so 1-2 % of
 #: images differed in a pixel from run to run, on every preset.
-GENERATOR_VERSION = "4"
+#: 5: draws keyed by name: every parameter is drawn from a random stream of its own, seeded by
+#: (seed, index, crc32(name)), and so are obstacle placement, warehouse loads, floor patches and
+#: image noise (they were drawn in list order from three shared generators); every preset's
+#: sampled values, hence images and GT, differ. Parameters are declared once
+#: (generator/params.py).
+GENERATOR_VERSION = "5"
 
 #: A post-render hook: (rgb uint8 (H, W, 3), rng) -> rgb uint8 (H, W, 3).
 Degrade = Callable[[np.ndarray, np.random.Generator], np.ndarray]
@@ -89,9 +94,14 @@ def scene_id(index: int) -> str:
     return f"{int(index):06d}"
 
 
+#: Name of the random stream of the post-render degradations (noise).
+DEGRADE_STREAM = "degrade"
+
+
 def degrade_rng(seed: int, index: int) -> np.random.Generator:
-    """Random generator for post-render degradations, independent of the scene's draws."""
-    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index), 1]))
+    """Random generator for post-render degradations: the scene's stream
+    :data:`DEGRADE_STREAM`, independent of every parameter's draws."""
+    return stream_rng(seed, index, DEGRADE_STREAM)
 
 
 def make_sample(
@@ -215,4 +225,6 @@ def ground_truth_record(
 
 
 def _jsonable(value: Any) -> Any:
+    if isinstance(value, Range):
+        return [value.lo, value.hi]
     return list(value) if isinstance(value, tuple) else value

@@ -1,18 +1,22 @@
 """Preset + seed + index -> Scene.
 
-Every random draw of scene ``index`` in a run with seed ``seed`` comes from one generator,
-``numpy.random.default_rng(SeedSequence([seed, index]))``, so a scene never depends on the
-number of workers or on which scenes came before. Scalar parameters are drawn first in a
-fixed order, one uniform draw each whether or not the parameter is a range, so overriding one
-parameter leaves the others' values unchanged; obstacle placement and camera redraws follow.
-The degradation and scene-variation parameters (:data:`VARIATION_KEYS`: lens, ``degrade.*``,
-shadows, spot light, distractors, occlusion) come from a second generator,
-:func:`variation_rng`, so adding them left every earlier scene's draws as they were.
+Every random draw of scene ``index`` in a run with seed ``seed`` comes from a **named stream**:
+stream ``name`` is ``numpy.random.default_rng(SeedSequence([seed, index, crc32(name)]))``
+(:func:`stream_rng`). Each parameter drawn has a stream of its own, named after it
+(:attr:`arenabench.generator.params.Param.stream`), so a scene never depends on the number of
+workers or on which scenes came before, and adding, removing, reordering or overriding a
+parameter moves no other parameter's draw. A range is drawn once per scene (a per-box
+parameter once per box, from the same stream); the camera parameters are drawn again, from
+their streams, while the markers are out of view. Draws that are not parameters have named
+streams too: obstacle placement (:data:`PLACEMENT_STREAM`), the warehouse loads (the
+``obstacles.palette`` stream), the floor distractors (:data:`PATCH_STREAM`) and the image noise
+(``degrade``, :func:`arenabench.generator.sample.degrade_rng`).
 """
 
 from __future__ import annotations
 
 import math
+import zlib
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -21,56 +25,28 @@ from shapely.geometry import Polygon, box
 
 from arenabench.fileio import rounded
 from arenabench.generator import camera as cam
-from arenabench.generator.degrade import LENS_PARAMS, PARAM_NAMES, distort_points
+from arenabench.generator.degrade import distort_points
 from arenabench.generator.distractors import occluder_patch, sample_patches
 from arenabench.generator.layout import box_footprint, marker_corners_world
-from arenabench.generator.presets import PARAMETERS, Value, resolve
+from arenabench.generator.params import PARAMETERS, PARAMS, Range, Value, assemble
+from arenabench.generator.presets import resolve
 from arenabench.generator.scene import (
     ArenaSpec,
     CameraSpec,
-    DirectionalLight,
     LightingSpec,
     MarkerSpec,
     Obstacle,
     Scene,
 )
 
-#: Scene-level scalar parameters drawn (in this order) for every scene.
-SCALAR_KEYS: tuple[str, ...] = (
-    "obstacles.count",
-    "camera.altitude_m",
-    "camera.tilt_deg",
-    "camera.yaw_deg",
-    "camera.roll_deg",
-    "camera.target_x_m",
-    "camera.target_y_m",
-    "camera.fov_deg",
-    "lighting.ambient",
-    "lighting.intensity",
-    "lighting.elevation_deg",
-    "lighting.azimuth_deg",
-    "background.gray",
-)
-_CAMERA_KEYS = tuple(k for k in SCALAR_KEYS if k.startswith("camera."))
-#: Degradation and scene-variation parameters, drawn in this order from their own
-#: generator (:func:`variation_rng`) so that presets without them draw exactly as before.
-VARIATION_KEYS: tuple[str, ...] = (
-    *LENS_PARAMS,
-    *PARAM_NAMES.values(),
-    "lighting.shadow_strength",
-    "lighting.spot_strength",
-    "lighting.spot_x_m",
-    "lighting.spot_y_m",
-    "lighting.spot_radius_m",
-    "distractors.tapes",
-    "distractors.papers",
-    "markers.occlusion",
-    "markers.occluded",
-)
-_INT_VARIATION_KEYS = ("degrade.jpeg_quality", "distractors.tapes", "distractors.papers",
-                       "markers.occluded")
-_BOX_KEYS = ("obstacles.length_m", "obstacles.width_m", "obstacles.height_m",
-             "obstacles.yaw_deg", "obstacles.gray")
+#: Per-obstacle parameters (each box draws each of them once, from the parameter's stream).
+_BOX_KEYS = tuple(p.name for p in PARAMS if p.draw == "box")
+#: Parameters drawn again with the camera when the markers are out of view.
+_CAMERA_KEYS = tuple(p.name for p in PARAMS if p.redraw)
+#: Stream of the obstacle centres (placement tries).
+PLACEMENT_STREAM = "obstacles.placement"
+#: Stream of the tape and paper patches on the floor.
+PATCH_STREAM = "distractors.patches"
 
 
 class SamplingError(ValueError):
@@ -87,42 +63,68 @@ class SampledScene:
     index: int = 0
 
 
-def scene_rng(seed: int, index: int) -> np.random.Generator:
-    """The one random generator of scene ``index`` in a run with ``seed``."""
+def _check_seed(seed: int, index: int) -> None:
     if seed < 0 or index < 0:
         raise ValueError(f"seed and index must be >= 0, got seed={seed!r} index={index!r}")
-    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index)]))
 
 
-def variation_rng(seed: int, index: int) -> np.random.Generator:
-    """Generator of scene ``index``'s degradation and variation draws (independent stream)."""
-    if seed < 0 or index < 0:
-        raise ValueError(f"seed and index must be >= 0, got seed={seed!r} index={index!r}")
-    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index), 2]))
+def stream_rng(seed: int, index: int, name: str) -> np.random.Generator:
+    """The random stream ``name`` of scene ``index`` in a run with ``seed``.
+
+    Seeded by ``(seed, index, crc32(name))``: streams of different names are independent, and
+    a stream's draws depend on nothing but its name, the seed and the index.
+
+    Raises
+    ------
+    ValueError
+        For a negative seed or index, or an empty name.
+    """
+    _check_seed(seed, index)
+    if not name:
+        raise ValueError("stream name must not be empty")
+    key = zlib.crc32(name.encode("utf-8"))
+    return np.random.default_rng(np.random.SeedSequence([int(seed), int(index), key]))
+
+
+class Streams:
+    """The named random streams of one scene, each created on first use (:func:`stream_rng`)."""
+
+    def __init__(self, seed: int, index: int) -> None:
+        self.seed, self.index = int(seed), int(index)
+        self._rngs: dict[str, np.random.Generator] = {}
+        _check_seed(self.seed, self.index)
+
+    def __call__(self, name: str) -> np.random.Generator:
+        """Stream ``name`` (the same generator, continuing, on every call)."""
+        if name not in self._rngs:
+            self._rngs[name] = stream_rng(self.seed, self.index, name)
+        return self._rngs[name]
+
+    def draw(self, key: str, value: Value) -> Any:
+        """Parameter ``key``'s next value: a :class:`Range` drawn from its stream, else
+        ``value`` itself (no draw)."""
+        if not isinstance(value, Range):
+            return value
+        spec = PARAMETERS[key]
+        return draw(self(spec.stream), value, integer=spec.kind == "int")
 
 
 def draw(rng: np.random.Generator, value: Value, *, integer: bool = False) -> Any:
-    """Draw one value: a ``(lo, hi)`` range is uniform (integers inclusive), else fixed.
+    """Draw one value: a :class:`Range` is uniform (integers inclusive), else fixed.
 
     Always consumes exactly one uniform draw from ``rng``.
     """
     u = rng.random()
-    if not isinstance(value, tuple) or len(value) != 2:
+    if not isinstance(value, Range):
         return value
-    lo, hi = value
+    lo, hi = value.lo, value.hi
     if integer:
         return int(lo + min(math.floor(u * (hi - lo + 1)), hi - lo))
     return float(lo + u * (hi - lo))
 
 
-def _camera(p: dict[str, Any], drawn: dict[str, Any]) -> CameraSpec:
-    return CameraSpec(
-        width=p["camera.width"], height=p["camera.height"], fov_deg=drawn["camera.fov_deg"],
-        altitude_m=drawn["camera.altitude_m"], tilt_deg=drawn["camera.tilt_deg"],
-        yaw_deg=drawn["camera.yaw_deg"], roll_deg=drawn["camera.roll_deg"],
-        target_m=(drawn["camera.target_x_m"], drawn["camera.target_y_m"]),
-        dist=tuple(drawn.get(k, 0.0) for k in LENS_PARAMS),
-    )
+def _camera(values: dict[str, Any]) -> CameraSpec:
+    return CameraSpec(**assemble(values)["camera"])
 
 
 def markers_in_view(arena: ArenaSpec, markers: MarkerSpec, camera: CameraSpec,
@@ -163,7 +165,7 @@ def _warehouse_load(rng: np.random.Generator, length: float, width: float,
     return size[0], size[1], size[2], color
 
 
-def _place_obstacles(rng: np.random.Generator, p: dict[str, Any], count: int,
+def _place_obstacles(streams: Streams, p: dict[str, Any], count: int,
                      arena: ArenaSpec, markers: MarkerSpec) -> tuple[Obstacle, ...]:
     inner = arena.side_m / 2.0 - markers.side_m - p["obstacles.edge_margin_m"]
     if inner <= 0:
@@ -176,15 +178,18 @@ def _place_obstacles(rng: np.random.Generator, p: dict[str, Any], count: int,
     placed: list[Obstacle] = []
     shapes: list[Polygon] = []
     for i in range(count):
-        length, width, height, yaw, gray = (
-            draw(rng, p[k], integer=(k == "obstacles.gray")) for k in _BOX_KEYS
-        )
+        box_ = {k: streams.draw(k, p[k]) for k in _BOX_KEYS}
+        length, width, height = (box_[f"obstacles.{k}"] for k in ("length_m", "width_m",
+                                                                   "height_m"))
+        yaw, gray = box_["obstacles.yaw_deg"], box_["obstacles.gray"]
         color = (gray, gray, gray)
         step = p["obstacles.yaw_step_deg"]
         if step > 0:  # e.g. 90: boxes axis-aligned, as the competition's world files place them
             yaw = float(round(yaw / step) * step) % 180.0
-        if p["obstacles.palette"] == "warehouse":  # extra draws only here: eyrc is unchanged
-            length, width, height, color = _warehouse_load(rng, length, width, height)
+        if p["obstacles.palette"] == "warehouse":  # pallet or crate, from its own stream
+            length, width, height, color = _warehouse_load(
+                streams(PARAMETERS["obstacles.palette"].stream), length, width, height)
+        rng = streams(PLACEMENT_STREAM)
         for _ in range(p["obstacles.max_tries"]):
             centre = (float(rng.uniform(-inner, inner)), float(rng.uniform(-inner, inner)))
             ob = Obstacle(center_m=centre, yaw_deg=yaw, length_m=length, width_m=width,
@@ -228,44 +233,26 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
         When obstacles or the camera cannot be placed within the bounded number of tries.
     """
     p = resolve(preset, overrides)
-    rng = scene_rng(seed, index)
-    drawn = {k: draw(rng, p[k], integer=k in ("obstacles.count", "background.gray"))
-             for k in SCALAR_KEYS}
-    vrng = variation_rng(seed, index)
-    varied = {k: draw(vrng, p[k], integer=k in _INT_VARIATION_KEYS) for k in VARIATION_KEYS}
-    drawn.update(varied)
-    # Any other parameter given as a range (arena.side_m, markers.side_m, arena.texture_seed,
-    # ...) is drawn from a stream of its own, in sorted key order, so that allowing ranges there
-    # moved no draw of the streams above.
-    erng = np.random.default_rng(np.random.SeedSequence([int(seed), int(index), 3]))
-    extra = {
-        key: draw(erng, p[key], integer=PARAMETERS[key].kind == "int")
-        for key in sorted(p)
-        if key not in drawn and key not in _BOX_KEYS and isinstance(p[key], tuple)
-        and PARAMETERS[key].kind in ("float", "int")
+    streams = Streams(seed, index)
+    # Drawn for every scene (and recorded in the GT): draw="scene" parameters, and any other
+    # parameter a preset or --set gives as a range (arena.side_m, markers.side_m, ...).
+    drawn = {
+        spec.name: streams.draw(spec.name, p[spec.name]) for spec in PARAMS
+        if spec.draw == "scene" or (spec.draw == "fixed" and isinstance(p[spec.name], Range))
     }
-    drawn.update(extra)
-    p = {**p, **extra}
-    arena = ArenaSpec(
-        side_m=p["arena.side_m"], margin_m=p["arena.margin_m"], floor_rgb=p["arena.floor_rgb"],
-        texture=p["arena.texture"], texture_seed=p["arena.texture_seed"],
-        border_width_m=p["arena.border_width_m"],
-        border_rgb=p["arena.border_rgb"], grid_step_m=p["arena.grid_step_m"],
-        grid_rgb=p["arena.grid_rgb"], logo_text=p["arena.logo_text"],
-        logo_rgb=p["arena.logo_rgb"],
-    )
-    markers = MarkerSpec(
-        dictionary=p["markers.dictionary"], ids=p["markers.ids"], side_m=p["markers.side_m"],
-        rotation_deg=p["markers.rotation_deg"], quiet_zone_m=p["markers.quiet_zone_m"],
-    )
-    obstacles = _place_obstacles(rng, p, drawn["obstacles.count"], arena, markers)
-    camera = _camera(p, drawn)
+    values = {**p, **drawn}
+    sections = assemble(values)
+    arena = ArenaSpec(**sections["arena"])
+    markers = MarkerSpec(**sections["markers"])
+    obstacles = _place_obstacles(streams, values, drawn["obstacles.count"], arena, markers)
+    camera = CameraSpec(**sections["camera"])
     if p["camera.markers_in_view"]:
         for _ in range(p["camera.max_tries"]):
             if markers_in_view(arena, markers, camera):
                 break
-            drawn.update({k: draw(rng, p[k]) for k in _CAMERA_KEYS})
-            camera = _camera(p, drawn)
+            drawn.update({k: streams.draw(k, p[k]) for k in _CAMERA_KEYS})
+            values.update(drawn)
+            camera = _camera(values)
         else:
             raise SamplingError(
                 "markers not in view after camera.max_tries="
@@ -276,15 +263,10 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
     el, az = math.radians(drawn["lighting.elevation_deg"]), math.radians(
         drawn["lighting.azimuth_deg"])
     direction = (-math.cos(el) * math.cos(az), -math.cos(el) * math.sin(az), -math.sin(el))
-    lighting = LightingSpec(
-        ambient=drawn["lighting.ambient"],
-        directional=(DirectionalLight(direction=direction, intensity=drawn["lighting.intensity"]),),
-        shadow_strength=drawn["lighting.shadow_strength"],
-        spot_strength=drawn["lighting.spot_strength"],
-        spot_xy_m=(drawn["lighting.spot_x_m"], drawn["lighting.spot_y_m"]),
-        spot_radius_m=drawn["lighting.spot_radius_m"],
-    )
-    patches = sample_patches(vrng, tapes=drawn["distractors.tapes"],
+    light = sections["lighting"]
+    light["directional"][0]["direction"] = direction
+    lighting = LightingSpec(**light)
+    patches = sample_patches(streams(PATCH_STREAM), tapes=drawn["distractors.tapes"],
                              papers=drawn["distractors.papers"], arena=arena, markers=markers)
     occluder = occluder_patch(arena, markers, marker=drawn["markers.occluded"],
                               fraction=drawn["markers.occlusion"])

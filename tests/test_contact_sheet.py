@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from arenabench.generator.contact_sheet import tile_images
-from arenabench.generator.presets import PRESETS, resolve
+from arenabench.generator.presets import PRESETS, Range, resolve
 
 
 def test_tiles_keep_aspect_and_layout():
@@ -29,7 +29,7 @@ def test_every_preset_resolves_and_hard_adds_real_degradations():
     hard = PRESETS["eyrc-hard"][1]
     for key in ("degrade.noise_sigma", "degrade.jpeg_quality", "lighting.shadow_strength",
                 "degrade.motion_blur_px", "camera.tilt_deg"):
-        assert isinstance(hard[key], tuple) and hard[key][1] > 0, key
+        assert isinstance(hard[key], Range) and hard[key].hi > 0, key
 
 
 @pytest.mark.slow

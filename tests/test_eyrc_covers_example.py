@@ -10,14 +10,14 @@ import pytest
 
 from arenabench.generator import Renderer, make_sample
 from arenabench.generator import competition_arena as comp
-from arenabench.generator.presets import PRESETS
+from arenabench.generator.presets import PRESETS, Range
 
 SCENE = Path(__file__).resolve().parents[1] / "generator" / "scenes" / "task1c_example.json"
 IMAGE = Path(__file__).resolve().parent / "data" / "task1c_image.jpg"
 
 
 def _inside(value, spec):
-    lo, hi = spec if isinstance(spec, tuple) else (spec, spec)
+    lo, hi = (spec.lo, spec.hi) if isinstance(spec, Range) else (spec, spec)
     return lo - 1e-9 <= value <= hi + 1e-9
 
 
@@ -53,7 +53,7 @@ def test_twin_holds_the_example_camera_light_and_arena_fixed(example):
         "arena.margin_m": example["arena"]["margin_m"],
     }
     for key, value in fixed.items():
-        assert not isinstance(eyrc[key], tuple), key
+        assert not isinstance(eyrc[key], Range), key
         assert eyrc[key] == pytest.approx(value, abs=1e-5), key
     assert eyrc["arena.texture"] == example["arena"]["texture"] == comp.TEXTURE_NAME
     assert example["markers"]["ids"] == list(eyrc["markers.ids"])

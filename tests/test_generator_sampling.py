@@ -12,6 +12,7 @@ from arenabench.generator.layout import box_footprint, reference_corners_world
 from arenabench.generator.presets import (
     PARAMETERS,
     PRESETS,
+    Range,
     format_value,
     parse_override,
     parse_overrides,
@@ -30,9 +31,9 @@ def test_every_preset_declares_every_parameter():
 @pytest.mark.parametrize(
     ("text", "key", "value"),
     [
-        ("camera.tilt_deg=10:30", "camera.tilt_deg", (10.0, 30.0)),
+        ("camera.tilt_deg=10:30", "camera.tilt_deg", Range(10.0, 30.0)),
         ("obstacles.count=3", "obstacles.count", 3),
-        ("obstacles.count=1:5", "obstacles.count", (1, 5)),
+        ("obstacles.count=1:5", "obstacles.count", Range(1, 5)),
         ("markers.ids=1,2,3,4", "markers.ids", (1, 2, 3, 4)),
         ("arena.floor_rgb=200,210,220", "arena.floor_rgb", (200, 210, 220)),
         ("camera.markers_in_view=false", "camera.markers_in_view", False),

@@ -3,7 +3,7 @@
 import pytest
 
 from arenabench.eval.sweep.grid import parse_vary
-from arenabench.generator.presets import ALIASES, PARAMETERS, parse_override
+from arenabench.generator.presets import ALIASES, PARAMETERS, Range, parse_override
 
 
 def test_every_alias_points_at_a_real_parameter():
@@ -13,7 +13,7 @@ def test_every_alias_points_at_a_real_parameter():
 
 
 def test_set_and_vary_accept_the_alias_and_record_the_canonical_name():
-    assert parse_override("noise.sigma=0:5") == ("degrade.noise_sigma", (0.0, 5.0))
+    assert parse_override("noise.sigma=0:5") == ("degrade.noise_sigma", Range(0.0, 5.0))
     axis = parse_vary("noise.sigma=0,5,10")
     assert axis.key == "degrade.noise_sigma"
     assert list(axis.values) == [0.0, 5.0, 10.0]

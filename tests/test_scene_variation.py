@@ -232,8 +232,11 @@ def test_partly_occluded_marker_is_recorded(renderer, marker, fraction):
 
 
 def test_marker_cut_by_the_image_border_is_out_of_view(renderer):
+    # the whole camera fixed (no draw): the view spans x = 1 -+ 8 tan(31.5 deg) = -3.9..5.9 m,
+    # so the west markers (outer edge at x = -4 m) are cut by the image border
     s = _sample(renderer, ["camera.markers_in_view=false", "camera.target_x_m=1.0",
-                           "camera.target_y_m=0", "camera.altitude_m=8.0"])
+                           "camera.target_y_m=0", "camera.altitude_m=8.0", "camera.fov_deg=63",
+                           "camera.tilt_deg=0", "camera.yaw_deg=0", "camera.roll_deg=0"])
     by_corner = {m["corner"]: m for m in s.gt["markers"]}
     assert by_corner["ne"]["in_view"] and by_corner["ne"]["in_view_fraction"] == 1.0
     cut = by_corner["nw"]

@@ -25,6 +25,7 @@ import numpy as np
 
 from arenabench.generator.presets import (
     PARAMETERS,
+    Range,
     canonical_key,
     format_value,
     validate_value,
@@ -86,7 +87,7 @@ def _validated(key: str, spec: str, value: Any) -> Any:
         out = validate_value(key, value)
     except ValueError as exc:
         raise _fail(key, spec, str(exc).replace(f"--set {key}: ", "")) from None
-    if isinstance(out, tuple) and PARAMETERS[key].kind in ("float", "int"):
+    if isinstance(out, Range):
         raise _fail(key, spec, f"value {value!r} is a range, not a single value")
     return out
 
