@@ -274,66 +274,23 @@ def _naive_one(task: NaiveTask) -> int:
     """The naive baseline: a new renderer and scene per image, pyrender's lit default."""
     import cv2
 
-    from arenabench import glplatform
-
-    glplatform.configure()
-    import pyrender
-
-    from arenabench.frame import CORNER_ORDER
-    from arenabench.generator import camera as cam
+    from arenabench.fileio import atomic_write_text, dumps_json
     from arenabench.generator.groundtruth import compute_ground_truth
-    from arenabench.generator.layout import MARKER_Z, floor_extent, marker_corners_world
-    from arenabench.generator.render import _textured_quad, box_mesh_arrays
+    from arenabench.generator.render import NaiveRenderer
     from arenabench.generator.sampler import sample_scene
-    from arenabench.generator.textures import floor_texture, marker_texture
 
     preset, seed, index, out = task.preset, task.seed, task.index, task.out
     scene = sample_scene(preset, seed=seed, index=index).scene
-    pr_scene = pyrender.Scene(bg_color=[*(np.asarray(scene.background_rgb) / 255.0), 1.0],
-                              ambient_light=[0.3, 0.3, 0.3])
-    e = floor_extent(scene.arena)
-    floor = np.array([[-e, e], [e, e], [e, -e], [-e, -e]])
-    pr_scene.add(_textured_quad(pyrender, floor, 0.0, floor_texture(scene.arena), 1.0))
-    mk = scene.markers
-    for corner, marker_id in zip(CORNER_ORDER, mk.ids, strict=True):
-        image, pad = marker_texture(mk.dictionary, marker_id, mk.side_m, mk.quiet_zone_m)
-        sheet = marker_corners_world(scene.arena, mk, corner, pad_m=pad)
-        pr_scene.add(_textured_quad(pyrender, sheet, MARKER_Z, image, 1.0))
-    for ob in scene.obstacles:
-        pos, _, tris = box_mesh_arrays(ob, scene)
-        material = pyrender.MetallicRoughnessMaterial(
-            baseColorFactor=[*(np.asarray(ob.color_rgb) / 255.0), 1.0],
-            metallicFactor=0.0, roughnessFactor=1.0)
-        pr_scene.add(pyrender.Mesh([pyrender.Primitive(positions=pos, indices=tris, mode=4,
-                                                       material=material)]))
-    K = cam.intrinsics(scene.camera)
-    pose = cam.world_from_camera(scene.camera)
-    fx, fy, cx, cy = cam.gl_intrinsics(K)
-    pr_scene.add(pyrender.IntrinsicsCamera(fx, fy, cx, cy, znear=0.05, zfar=1000.0),
-                 pose=cam.gl_pose(pose))
-    light_pose = np.eye(4)
-    pr_scene.add(pyrender.DirectionalLight(color=np.ones(3), intensity=3.0), pose=light_pose)
-    renderer = pyrender.OffscreenRenderer(scene.camera.width, scene.camera.height)
-    try:
-        # lit (default) shading; both sides drawn, as the generator's quads need
-        color, _ = renderer.render(pr_scene, flags=pyrender.RenderFlags.SKIP_CULL_FACES)
-    finally:
-        renderer.delete()
+    with NaiveRenderer() as renderer:
+        rgb = renderer.render(scene).rgb
     gt = compute_ground_truth(scene)
-    from arenabench.fileio import atomic_write_text, dumps_json
-
-    cv2.imwrite(str(Path(out) / f"{index:06d}.png"), np.ascontiguousarray(color[:, :, ::-1]))
+    cv2.imwrite(str(Path(out) / f"{index:06d}.png"), np.ascontiguousarray(rgb[:, :, ::-1]))
     atomic_write_text(Path(out) / f"{index:06d}.json", dumps_json(gt))
     return index
 
 
 def _import_pyrender(_: int) -> int:
-    from arenabench import glplatform
-
-    glplatform.configure()
-    import pyrender  # noqa: F401
-
-    from arenabench.generator import render  # noqa: F401
+    from arenabench.generator import pyrender_compat, render  # noqa: F401
 
     return os.getpid()
 

@@ -21,7 +21,6 @@ from shapely.geometry import MultiPoint, Polygon, box
 from arenabench.fileio import rounded
 from arenabench.frame import CORNER_ORDER, FrameSpec
 from arenabench.generator import camera as cam
-from arenabench.generator.degrade import densify, distort_points
 from arenabench.generator.distractors import occluded_fractions
 from arenabench.generator.layout import (
     MARKER_Z,
@@ -30,6 +29,7 @@ from arenabench.generator.layout import (
     marker_corners_world,
     world_to_frame,
 )
+from arenabench.generator.lens import densify, distort_points
 from arenabench.generator.scene import Scene
 
 #: Significant digits kept for matrices (homography, K, pose).

@@ -1,16 +1,25 @@
-"""Off-screen rendering: a pyrender adapter over :class:`~arenabench.generator.scene.Scene`.
+"""Off-screen rendering: the pyrender adapters of the renderer interface
+(:class:`~arenabench.generator.renderer_api.SceneRenderer`).
 
-One :class:`Renderer` per process holds one ``pyrender.OffscreenRenderer`` and one pyrender
+:class:`Renderer` is the generator's renderer. One per process holds one off-screen pyrender
+renderer (:class:`~arenabench.generator.pyrender_compat.LeanOffscreen`) and one pyrender
 scene, reused across scenes: the floor and marker nodes are cached by their description and
-only obstacle nodes and the camera change. Renders use ``RenderFlags.FLAT`` with Lambertian
-shading baked into colours (:mod:`arenabench.generator.shading`), about 3x faster than lit mode
-on Mesa llvmpipe, and 4x MSAA on the colour pass (anti-aliased box edges). Instance masks come
-from ``RenderFlags.SEG`` (exact, no MSAA), on request.
+only obstacle nodes and the camera change. Each render pass is a method: the colour pass
+(:meth:`Renderer._colour_pass`) uses ``RenderFlags.FLAT`` with Lambertian shading baked into
+colours (:mod:`arenabench.generator.shading`), about 3x faster than lit mode on Mesa llvmpipe,
+and 4x MSAA (anti-aliased box edges); the mask pass (:meth:`Renderer._mask_pass`) gives
+instance masks from ``RenderFlags.SEG`` (exact, no MSAA), on request.
+
+:class:`NaiveRenderer` is the bench's baseline: a new pyrender renderer and scene per image,
+pyrender's default lit shading, public pyrender API only.
+
+pyrender is imported through :mod:`arenabench.generator.pyrender_compat` (pinned release,
+private API), when the first renderer is created.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import replace
 from typing import Any
 
 import cv2
@@ -20,7 +29,6 @@ from arenabench import glplatform
 from arenabench.frame import CORNER_ORDER
 from arenabench.generator import camera as cam
 from arenabench.generator import competition_arena as comp
-from arenabench.generator.degrade import distort_image, has_distortion, lens_canvas
 from arenabench.generator.distractors import patch_mesh_arrays
 from arenabench.generator.layout import (
     MARKER_Z,
@@ -28,37 +36,16 @@ from arenabench.generator.layout import (
     floor_extent,
     marker_corners_world,
 )
+from arenabench.generator.lens import distort_image, has_distortion, lens_canvas
 from arenabench.generator.lights import apply_spot_light, shadow_mesh_arrays
+from arenabench.generator.renderer_api import RenderOutput, SceneRenderer
 from arenabench.generator.scene import Obstacle, Scene
 from arenabench.generator.shading import floor_factor, shade_factors
 from arenabench.generator.textures import floor_texture, marker_texture
 
-# pyrender's Mesh.bounds still uses np.infty, removed in NumPy 2 (mmatl/pyrender#288).
-if not hasattr(np, "infty"):
-    setattr(np, "infty", np.inf)  # noqa: B010
-
 _GL_LINEAR = 9729
 _GL_LINEAR_MIPMAP_NEAREST = 9985  # bilinear in the nearest mip level: ~20 % faster than trilinear
 _GL_CLAMP_TO_EDGE = 33071
-
-
-@dataclass
-class RenderOutput:
-    """What one render gives back.
-
-    Attributes
-    ----------
-    rgb : numpy.ndarray
-        (H, W, 3) uint8, RGB order.
-    depth : numpy.ndarray or None
-        (H, W) float32 distance along the optical axis in metres, 0 where nothing was hit.
-    instance_mask : numpy.ndarray or None
-        (H, W) uint8: 0 for no obstacle, ``i + 1`` where obstacle ``i`` is the nearest surface.
-    """
-
-    rgb: np.ndarray
-    depth: np.ndarray | None = None
-    instance_mask: np.ndarray | None = None
 
 
 #: Texture TL, TR, BR, BL corners of a unit sheet, placed by its node's pose (v points from
@@ -93,87 +80,15 @@ def _textured_quad(pyrender, corners_xy: np.ndarray, z: float, texture, factor: 
     return pyrender.Mesh([prim])
 
 
-def _fast_renderer_class(pyrender):
-    """A ``pyrender.Renderer`` subclass with a leaner off-screen path (pyrender 0.1.45 internals).
-
-    - colour renders draw into pyrender's 4x multisample framebuffer and resolve it (box edges
-      get coverage-blended pixels, as the competition's renderer gives) when ``antialias`` is
-      set; SEG renders and ``antialias=False`` draw straight into the single-sample
-      framebuffer (no resolve blit; SEG colours are exact);
-    - the depth buffer is read back (and linearised) only when asked for;
-    - meshes are drawn in a fixed order (:func:`_draw_order`), not pyrender's.
-    """
-    from OpenGL import GL
-
-    flags_cls = pyrender.RenderFlags
-
-    class _LeanRenderer(pyrender.renderer.Renderer):
-        antialias = False
-        want_depth = False
-
-        def _multisample(self, flags) -> bool:
-            return self.antialias and not flags & flags_cls.SEG
-
-        def _configure_forward_pass_viewport(self, flags):
-            super()._configure_forward_pass_viewport(flags)
-            if flags & flags_cls.OFFSCREEN and not self._multisample(flags):
-                GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
-
-        def _sorted_mesh_nodes(self, scene):
-            return _draw_order(scene.mesh_nodes)
-
-        def _read_main_framebuffer(self, scene, flags):
-            w, h = self._main_fb_dims
-            if self._multisample(flags):
-                GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
-                GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
-                GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_COLOR_BUFFER_BIT,
-                                     GL.GL_LINEAR)
-                if self.want_depth:
-                    GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_DEPTH_BUFFER_BIT,
-                                         GL.GL_NEAREST)
-            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
-            GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
-            depth = None
-            if self.want_depth:
-                raw = GL.glReadPixels(0, 0, w, h, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
-                d = np.frombuffer(raw, dtype=np.float32).reshape(h, w)[::-1]
-                cam_ = scene.main_camera_node.camera
-                n, f = cam_.znear, cam_.zfar
-                hit = d < 1.0
-                ndc = 2.0 * d - 1.0
-                depth = np.where(hit, 2.0 * n * f / (f + n - ndc * (f - n)), 0.0)
-                depth = depth.astype(np.float32)
-            raw = GL.glReadPixels(0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
-            color = np.frombuffer(raw, dtype=np.uint8).reshape(h, w, 3)[::-1]
-            return color, depth
-
-    return _LeanRenderer
-
-
 #: Draw ranks, front to back, in node names (``"<rank>:<index>"``): the first surface drawn
-#: wins a depth tie, so ties resolve the same way in every run (see :func:`_draw_order`).
+#: wins a depth tie, so ties resolve the same way in every run (see
+#: :func:`arenabench.generator.pyrender_compat.draw_order`).
 _RANK = {"obstacle": 0, "overlay": 1, "marker": 2, "floor": 3}
 
 
 def _node_name(kind: str, index: int) -> str:
     """The name of the ``index``-th mesh node of ``kind``: its place in the draw order."""
     return f"{_RANK[kind]}:{index:06d}"
-
-
-def _draw_order(nodes) -> list:
-    """Mesh nodes in a fixed draw order: opaque ones by name, then transparent ones by name.
-
-    pyrender sorts nodes by the distance of their origin to the camera, and nodes at the same
-    distance (floor, obstacles and overlays all sit at the world origin) by the iteration
-    order of a ``set``, which follows memory addresses and so changes from run to run. Where
-    two surfaces meet (a box side meeting the floor) their depths can tie in a pixel, and the
-    first one drawn wins it (``GL_LESS``): such a pixel flipped between box and floor colour
-    from one run to the next. Ordering by name makes every render of a scene the same.
-    """
-    nodes = sorted(nodes, key=lambda n: n.name or "")
-    return ([n for n in nodes if not n.mesh.is_transparent]
-            + [n for n in nodes if n.mesh.is_transparent])
 
 
 def box_mesh_arrays(obstacle: Obstacle, scene: Scene) -> tuple[np.ndarray, ...]:
@@ -200,8 +115,8 @@ def box_mesh_arrays(obstacle: Obstacle, scene: Scene) -> tuple[np.ndarray, ...]:
     return positions, rgba, tris
 
 
-class Renderer:
-    """Reusable off-screen renderer (one per process; not thread-safe).
+class Renderer(SceneRenderer):
+    """The generator's pyrender renderer, reused across scenes (one per process; not thread-safe).
 
     Parameters
     ----------
@@ -211,6 +126,12 @@ class Renderer:
         Textures (floor, markers) are filtered either way; ground truth, depth and instance
         masks never depend on it.
 
+    Raises
+    ------
+    ImportError
+        When the installed pyrender is not the pinned release
+        (:data:`arenabench.generator.pyrender_compat.PYRENDER_VERSION`).
+
     Examples
     --------
     >>> with Renderer() as r:                       # doctest: +SKIP
@@ -218,15 +139,14 @@ class Renderer:
     """
 
     def __init__(self, *, antialias: bool = True) -> None:
-        glplatform.configure()
-        import pyrender
+        from arenabench.generator import pyrender_compat
 
-        self._pr = pyrender
+        self._compat = pyrender_compat
+        self._pr = pyrender_compat.pyrender
         self.antialias = bool(antialias)
-        self._lean_cls = _fast_renderer_class(pyrender)
-        self._renderer = None
+        self._offscreen: pyrender_compat.LeanOffscreen | None = None
         self._size: tuple[int, int] | None = None
-        self._scene = pyrender.Scene(bg_color=[1.0, 1.0, 1.0, 1.0], ambient_light=[1, 1, 1])
+        self._scene = self._pr.Scene(bg_color=[1.0, 1.0, 1.0, 1.0], ambient_light=[1, 1, 1])
         # floor node keyed by the arena; marker nodes by (arena, markers): a scene that changes
         # only the markers (e.g. a drawn markers.side_m) keeps the big floor texture uploaded
         self._floor_key = None
@@ -241,61 +161,23 @@ class Renderer:
         self._overlay_nodes: list = []
         self._camera_node = None
 
-    def __enter__(self) -> Renderer:
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()
-
     def close(self) -> None:
-        """Release this renderer's GL objects and context.
-
-        pyrender's EGL clean-up calls ``eglTerminate`` on the display, which every context of
-        the process shares: other renderers would break. Here only this context is destroyed.
-        """
-        off, self._renderer = self._renderer, None
-        if off is None:
-            return
-        platform = off._platform
-        if type(platform).__name__ != "EGLPlatform":
-            off.delete()
-            return
-        from OpenGL import EGL
-
-        platform.make_current()
-        off._renderer.delete()
-        EGL.eglMakeCurrent(platform._egl_display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE,
-                           EGL.EGL_NO_CONTEXT)
-        if platform._egl_context is not None:
-            EGL.eglDestroyContext(platform._egl_display, platform._egl_context)
-            platform._egl_context = None
-        platform._egl_display = None  # so that the platform's __del__ skips eglTerminate
-        off._renderer = None
-        off._platform = None
+        """Release this renderer's GL objects and context; other renderers keep working."""
+        off, self._offscreen = self._offscreen, None
+        if off is not None:
+            off.close()
 
     def gl_info(self) -> dict[str, str]:
         """OpenGL renderer and version strings (e.g. Mesa llvmpipe or the NVIDIA driver)."""
         self._ensure_renderer(*(self._size or (64, 64)))
-        from OpenGL import GL
-
-        self._renderer._platform.make_current()
-
-        def text(name: int) -> str:
-            value = GL.glGetString(name)
-            return value.decode("ascii", "replace") if value else ""
-
-        return {"gl_renderer": text(GL.GL_RENDERER), "gl_version": text(GL.GL_VERSION),
-                "gl_platform": glplatform.configure()}
+        self._offscreen.make_current()
+        return _gl_strings()
 
     def _ensure_renderer(self, width: int, height: int) -> None:
-        if self._renderer is None:
-            self._renderer = self._pr.OffscreenRenderer(width, height)
-            # swap in the lean renderer before it allocates anything on the GPU
-            self._renderer._renderer = self._lean_cls(width, height)
-            self._renderer._renderer.antialias = self.antialias
+        if self._offscreen is None:
+            self._offscreen = self._compat.LeanOffscreen(width, height)
         elif self._size != (width, height):
-            self._renderer.viewport_width = width
-            self._renderer.viewport_height = height
+            self._offscreen.resize(width, height)
         self._size = (width, height)
 
     def _cached_texture(self, image: np.ndarray):
@@ -395,7 +277,7 @@ class Renderer:
         """Render ``scene``.
 
         A camera with lens distortion is rendered as a larger pinhole canvas and resampled
-        (:func:`arenabench.generator.degrade.lens_canvas`); depth and masks follow the same
+        (:func:`arenabench.generator.lens.lens_canvas`); depth and masks follow the same
         map (nearest neighbour).
 
         Parameters
@@ -429,22 +311,118 @@ class Renderer:
         return self._render_pinhole(scene, depth=depth, masks=masks)
 
     def _render_pinhole(self, scene: Scene, *, depth: bool, masks: bool) -> RenderOutput:
-        pr = self._pr
         self._ensure_renderer(scene.camera.width, scene.camera.height)
         self._update_static(scene)
         self._update_dynamic(scene)
-        flags = pr.RenderFlags.FLAT | pr.RenderFlags.SKIP_CULL_FACES
-        self._renderer._renderer.want_depth = depth
-        color, z = self._renderer.render(self._scene, flags=flags)
-        self._renderer._renderer.want_depth = False
-        out = RenderOutput(rgb=apply_spot_light(np.ascontiguousarray(color[:, :, :3]), scene))
+        rgb, z = self._colour_pass(depth=depth)
+        out = RenderOutput(rgb=apply_spot_light(rgb, scene))
         if depth:
             out.depth = z
         if masks:
-            if len(self._obstacle_nodes) > 255:
-                raise ValueError("instance masks support at most 255 obstacles")
-            seg_map = {n: (i + 1, 0, 0) for i, n in enumerate(self._obstacle_nodes)}
-            seg_flags = pr.RenderFlags.SEG | pr.RenderFlags.SKIP_CULL_FACES
-            seg, _ = self._renderer.render(self._scene, flags=seg_flags, seg_node_map=seg_map)
-            out.instance_mask = np.ascontiguousarray(seg[:, :, 0])
+            out.instance_mask = self._mask_pass()
         return out
+
+    # Render passes: each draws the pyrender scene prepared by _update_static/_update_dynamic.
+
+    def _colour_pass(self, *, depth: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """(H, W, 3) uint8 colour, flat shaded, 4x MSAA when :attr:`antialias` is set; and the
+        (H, W) float32 depth map when ``depth`` is set (else None)."""
+        flags = self._pr.RenderFlags.FLAT | self._pr.RenderFlags.SKIP_CULL_FACES
+        color, z = self._offscreen.render(self._scene, flags, antialias=self.antialias,
+                                          want_depth=depth)
+        return np.ascontiguousarray(color[:, :, :3]), z
+
+    def _mask_pass(self) -> np.ndarray:
+        """(H, W) uint8 instance mask: ``i + 1`` where obstacle ``i`` is nearest (exact SEG)."""
+        if len(self._obstacle_nodes) > 255:
+            raise ValueError("instance masks support at most 255 obstacles")
+        seg_map = {n: (i + 1, 0, 0) for i, n in enumerate(self._obstacle_nodes)}
+        seg_flags = self._pr.RenderFlags.SEG | self._pr.RenderFlags.SKIP_CULL_FACES
+        seg, _ = self._offscreen.render(self._scene, seg_flags, seg_node_map=seg_map)
+        return np.ascontiguousarray(seg[:, :, 0])
+
+
+class NaiveRenderer(SceneRenderer):
+    """The bench's naive baseline: a new pyrender renderer and scene for every image.
+
+    pyrender's default lit shading (4x MSAA) under a directional light, public pyrender API
+    only: what a first attempt at the generator would do. It draws the floor, the marker
+    sheets and the obstacles through a pinhole camera (no lens distortion, floor patches,
+    shadows or spot light) and gives colour only.
+
+    Notes
+    -----
+    Each render ends with pyrender's own clean-up, which terminates the process's EGL
+    display: run it in a process of its own, apart from :class:`Renderer`.
+    """
+
+    def __init__(self) -> None:
+        from arenabench.generator import pyrender_compat
+
+        self._pr = pyrender_compat.pyrender
+
+    def close(self) -> None:
+        """Nothing to release: every render releases its own renderer."""
+
+    def gl_info(self) -> dict[str, str]:
+        """OpenGL renderer and version strings of a fresh pyrender context."""
+        off = self._pr.OffscreenRenderer(64, 64)  # its context is current once created
+        try:
+            return _gl_strings()
+        finally:
+            off.delete()
+
+    def render(self, scene: Scene, *, depth: bool = False, masks: bool = False) -> RenderOutput:
+        """Render ``scene`` (colour only).
+
+        Raises
+        ------
+        ValueError
+            When ``depth`` or ``masks`` is asked for.
+        """
+        for name, wanted in (("depth", depth), ("masks", masks)):
+            if wanted:
+                raise ValueError(f"{name}: the naive baseline renders colour only")
+        pr = self._pr
+        pr_scene = pr.Scene(bg_color=[*(np.asarray(scene.background_rgb) / 255.0), 1.0],
+                            ambient_light=[0.3, 0.3, 0.3])
+        e = floor_extent(scene.arena)
+        floor = np.array([[-e, e], [e, e], [e, -e], [-e, -e]])
+        pr_scene.add(_textured_quad(pr, floor, 0.0, floor_texture(scene.arena), 1.0))
+        mk = scene.markers
+        for corner, marker_id in zip(CORNER_ORDER, mk.ids, strict=True):
+            image, pad = marker_texture(mk.dictionary, marker_id, mk.side_m, mk.quiet_zone_m)
+            sheet = marker_corners_world(scene.arena, mk, corner, pad_m=pad)
+            pr_scene.add(_textured_quad(pr, sheet, MARKER_Z, image, 1.0))
+        for ob in scene.obstacles:
+            pos, _, tris = box_mesh_arrays(ob, scene)
+            material = pr.MetallicRoughnessMaterial(
+                baseColorFactor=[*(np.asarray(ob.color_rgb) / 255.0), 1.0],
+                metallicFactor=0.0, roughnessFactor=1.0)
+            pr_scene.add(pr.Mesh([pr.Primitive(positions=pos, indices=tris, mode=4,
+                                               material=material)]))
+        K = cam.intrinsics(scene.camera)
+        pose = cam.world_from_camera(scene.camera)
+        fx, fy, cx, cy = cam.gl_intrinsics(K)
+        pr_scene.add(pr.IntrinsicsCamera(fx, fy, cx, cy, znear=0.05, zfar=1000.0),
+                     pose=cam.gl_pose(pose))
+        pr_scene.add(pr.DirectionalLight(color=np.ones(3), intensity=3.0), pose=np.eye(4))
+        renderer = pr.OffscreenRenderer(scene.camera.width, scene.camera.height)
+        try:
+            # lit (default) shading; both sides drawn, as the generator's quads need
+            color, _ = renderer.render(pr_scene, flags=pr.RenderFlags.SKIP_CULL_FACES)
+        finally:
+            renderer.delete()
+        return RenderOutput(rgb=color)
+
+
+def _gl_strings() -> dict[str, str]:
+    """``gl_renderer``, ``gl_version`` (of the current GL context) and ``gl_platform``."""
+    from OpenGL import GL
+
+    def text(name: int) -> str:
+        value = GL.glGetString(name)
+        return value.decode("ascii", "replace") if value else ""
+
+    return {"gl_renderer": text(GL.GL_RENDERER), "gl_version": text(GL.GL_VERSION),
+            "gl_platform": glplatform.configure()}

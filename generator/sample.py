@@ -2,7 +2,8 @@
 
 ``render -> RGB array -> [degrade] -> encode``: :func:`make_sample` returns the RGB array
 (after the optional ``degrade`` hook) and the GT record; writers encode it. Streaming sweeps
-use this directly with one :class:`~arenabench.generator.render.Renderer` per process.
+use this directly with one :class:`~arenabench.generator.render.Renderer` per process
+(any :class:`~arenabench.generator.renderer_api.SceneRenderer` will do).
 """
 
 from __future__ import annotations
@@ -21,7 +22,8 @@ from arenabench.frame import FrameSpec
 from arenabench.generator.degrade import Degradations, apply_degradations
 from arenabench.generator.groundtruth import compute_ground_truth
 from arenabench.generator.params import Range, Value
-from arenabench.generator.render import Renderer, RenderOutput
+from arenabench.generator.render import Renderer
+from arenabench.generator.renderer_api import RenderOutput, SceneRenderer
 from arenabench.generator.sampler import sample_scene, stream_rng
 from arenabench.gtrecord import GroundTruth
 from arenabench.schemas import GT_SCHEMA
@@ -110,7 +112,7 @@ def make_sample(
     seed: int,
     index: int,
     overrides: dict[str, Value] | None = None,
-    renderer: Renderer | None = None,
+    renderer: SceneRenderer | None = None,
     preset_name: str | None = None,
     depth: bool = False,
     masks: bool = False,
@@ -128,8 +130,9 @@ def make_sample(
         Run seed and scene index.
     overrides : dict, keyword-only
         Parsed ``--set`` values.
-    renderer : Renderer, keyword-only
-        Reused renderer; a temporary one is created (slow) when omitted.
+    renderer : SceneRenderer, keyword-only
+        Reused renderer; a temporary :class:`~arenabench.generator.render.Renderer` is
+        created (slow) when omitted.
     preset_name : str, keyword-only
         Name recorded in the GT when ``preset`` is a mapping.
     depth, masks : bool, keyword-only

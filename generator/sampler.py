@@ -25,9 +25,9 @@ from shapely.geometry import Polygon, box
 
 from arenabench.fileio import rounded
 from arenabench.generator import camera as cam
-from arenabench.generator.degrade import distort_points
 from arenabench.generator.distractors import occluder_patch, sample_patches
 from arenabench.generator.layout import box_footprint, marker_corners_world
+from arenabench.generator.lens import distort_points
 from arenabench.generator.params import PARAMETERS, PARAMS, Range, Value, assemble
 from arenabench.generator.presets import resolve
 from arenabench.generator.scene import (

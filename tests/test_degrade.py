@@ -1,4 +1,5 @@
-"""Photometric degradations and the lens model (arenabench.generator.degrade), on real renders.
+"""Photometric degradations (arenabench.generator.degrade) and the lens model
+(arenabench.generator.lens), on real renders.
 
 Each degradation at its neutral value leaves the image byte-identical; a strong value changes
 it the intended way. The lens helpers are checked against OpenCV's own model.
@@ -10,15 +11,8 @@ import cv2
 import numpy as np
 import pytest
 
-from arenabench.generator.degrade import (
-    Degradations,
-    apply_degradations,
-    densify,
-    distort_points,
-    lens_canvas,
-    standard_normal,
-    undistort_points,
-)
+from arenabench.generator.degrade import Degradations, apply_degradations, standard_normal
+from arenabench.generator.lens import densify, distort_points, lens_canvas, undistort_points
 from arenabench.generator.presets import NEUTRAL, PARAMETERS, parse_overrides, resolve
 from arenabench.generator.render import Renderer
 from arenabench.generator.sample import degrade_rng, make_sample

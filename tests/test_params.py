@@ -6,7 +6,8 @@ import dataclasses
 
 import pytest
 
-from arenabench.generator.degrade import LENS_PARAMS, PARAM_NAMES, Degradations
+from arenabench.generator.degrade import PARAM_NAMES, Degradations
+from arenabench.generator.lens import LENS_PARAMS
 from arenabench.generator.params import NEUTRAL, PARAMETERS, PARAMS, Param, Range, assemble
 from arenabench.generator.presets import format_value, parse_override, resolve, validate_value
 from arenabench.generator.sampler import sample_scene

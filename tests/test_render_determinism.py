@@ -14,7 +14,7 @@ import sys
 import numpy as np
 import pytest
 
-from arenabench.generator.render import Renderer, _draw_order
+from arenabench.generator.render import Renderer
 from arenabench.generator.sampler import sample_scene
 
 PRESETS = ("eyrc-oblique", "eyrc-hard")
@@ -24,7 +24,7 @@ SEED = 4
 #: Renders the same scenes in a fresh process and prints their hashes as JSON.
 _CHILD = """
 import hashlib, json, sys
-from arenabench.generator.render import Renderer, _draw_order
+from arenabench.generator.render import Renderer
 from arenabench.generator.sampler import sample_scene
 presets, count, seed = json.loads(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 with Renderer() as r:
@@ -58,7 +58,7 @@ def test_tilted_presets_render_byte_identical_in_one_process_and_across_processe
 
 
 def test_draw_order_is_by_name_with_transparent_meshes_last():
-    import pyrender
+    from arenabench.generator.pyrender_compat import draw_order, pyrender
 
     def node(name, transparent=False):
         rgba = np.tile([0.0, 0.0, 0.0, 0.5 if transparent else 1.0], (3, 1)).astype(np.float32)
@@ -69,5 +69,5 @@ def test_draw_order_is_by_name_with_transparent_meshes_last():
     nodes = [node("3:000000"), node("1:000001", transparent=True), node("0:000001"),
              node("2:000000"), node("0:000000"), node("1:000000")]
     for order in (nodes, nodes[::-1], set(nodes)):
-        assert [n.name for n in _draw_order(order)] == [
+        assert [n.name for n in draw_order(order)] == [
             "0:000000", "0:000001", "1:000000", "2:000000", "3:000000", "1:000001"]

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from arenabench.generator.degrade import undistort_points
 from arenabench.generator.distractors import patch_corners
 from arenabench.generator.layout import marker_square
+from arenabench.generator.lens import undistort_points
 from arenabench.generator.lights import shadow_alpha
 from arenabench.generator.presets import parse_overrides
 from arenabench.generator.render import Renderer

@@ -23,6 +23,8 @@ from arenabench import glplatform
 from arenabench.clihelp import HelpFormatter
 
 PROG = "arenabench doctor"
+#: How to install the pinned pyrender release.
+PYRENDER_FIX = f"pip install 'pyrender=={glplatform.PYRENDER_VERSION}'"
 OPENCV_FIX = (
     "pip uninstall -y opencv-python opencv-python-headless opencv-contrib-python && "
     "pip install 'opencv-contrib-python-headless>=4.8'"
@@ -166,10 +168,15 @@ def check_opencv() -> list[Check]:
 
 
 def check_pyrender() -> Check:
-    """pyrender installed (not imported here: importing it would fix the GL platform)."""
+    """pyrender installed, the pinned release (not imported here: importing it would fix the
+    GL platform)."""
     if importlib.util.find_spec("pyrender") is None:
-        return Check("pyrender", False, "not installed", "pip install 'pyrender>=0.1.45'")
-    return Check("pyrender", True, _version("pyrender") or "installed")
+        return Check("pyrender", False, "not installed", PYRENDER_FIX)
+    version = _version("pyrender")
+    if version is not None and version != glplatform.PYRENDER_VERSION:
+        return Check("pyrender", False, f"{version} installed; arenabench needs "
+                     f"{glplatform.PYRENDER_VERSION} exactly", PYRENDER_FIX)
+    return Check("pyrender", True, version or "installed")
 
 
 def check_gl_platform() -> tuple[Check, str | None]:
@@ -251,7 +258,7 @@ def run_checks(*, context: bool = True, timeout: float = 60.0) -> DoctorReport:
             checks.append(check_offscreen_context(platform, timeout=timeout))
         else:
             checks.append(Check("offscreen context", False, "skipped: pyrender missing",
-                                "pip install 'pyrender>=0.1.45'"))
+                                PYRENDER_FIX))
     return DoctorReport(checks)
 
 

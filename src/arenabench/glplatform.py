@@ -23,6 +23,9 @@ EGL_PACKAGES = ("libegl1", "libegl-mesa0", "libgl1-mesa-dri")
 OSMESA_PACKAGES = ("libosmesa6",)
 #: PyOpenGL release that has working OSMesa bindings (pyrender pins 3.1.0, which lacks some).
 OSMESA_PYOPENGL = "PyOpenGL==3.1.7"
+#: The one pyrender release the renderer supports (pinned exactly in pyproject.toml): the
+#: generator uses its private API (arenabench.generator.pyrender_compat checks it on import).
+PYRENDER_VERSION = "0.1.45"
 
 
 class GLPlatformError(RuntimeError):

@@ -1,0 +1,200 @@
+"""Every use of pyrender's private API, for exactly one pyrender release.
+
+The generator's renderer (:class:`arenabench.generator.render.Renderer`) relies on pyrender
+internals that may change in any release: it subclasses ``pyrender.renderer.Renderer``
+(overriding ``_configure_forward_pass_viewport``, ``_sorted_mesh_nodes`` and
+``_read_main_framebuffer``), swaps it into ``OffscreenRenderer._renderer`` and, on close, tears
+the EGL context down through the platform's ``_egl_*`` attributes. It also restores
+``np.infty`` (removed in NumPy 2), which pyrender's ``Mesh.bounds`` still uses. All of that is
+here, behind :class:`LeanOffscreen`, and holds only for the pinned release
+(:data:`arenabench.glplatform.PYRENDER_VERSION`): importing this module chooses the OpenGL
+platform (:func:`arenabench.glplatform.configure`), imports pyrender and raises
+:class:`ImportError` when another release is installed.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from arenabench import glplatform
+from arenabench.glplatform import PYRENDER_VERSION
+
+__all__ = ["PYRENDER_VERSION", "LeanOffscreen", "check_version", "draw_order", "pyrender"]
+
+
+def check_version(version: str) -> None:
+    """Raise unless ``version`` is :data:`PYRENDER_VERSION`.
+
+    Raises
+    ------
+    ImportError
+        Naming both versions and how to install the pinned one.
+    """
+    if version != PYRENDER_VERSION:
+        raise ImportError(
+            f"arenabench needs pyrender {PYRENDER_VERSION} exactly (its renderer uses that "
+            f"release's internals), but pyrender {version} is installed; install the pinned "
+            f"release with: pip install 'pyrender=={PYRENDER_VERSION}'"
+        )
+
+
+def _import_pyrender():
+    glplatform.configure()  # before the first import of pyrender / OpenGL
+    import pyrender
+
+    check_version(str(getattr(pyrender, "__version__", "unknown")))
+    return pyrender
+
+
+pyrender = _import_pyrender()
+
+from OpenGL import GL  # noqa: E402  (after glplatform.configure, as pyrender)
+
+# pyrender's Mesh.bounds still uses np.infty, removed in NumPy 2 (mmatl/pyrender#288).
+if not hasattr(np, "infty"):
+    setattr(np, "infty", np.inf)  # noqa: B010
+
+
+def draw_order(nodes) -> list:
+    """Mesh nodes in a fixed draw order: opaque ones by name, then transparent ones by name.
+
+    pyrender sorts nodes by the distance of their origin to the camera, and nodes at the same
+    distance (floor, obstacles and overlays all sit at the world origin) by the iteration
+    order of a ``set``, which follows memory addresses and so changes from run to run. Where
+    two surfaces meet (a box side meeting the floor) their depths can tie in a pixel, and the
+    first one drawn wins it (``GL_LESS``): such a pixel flipped between box and floor colour
+    from one run to the next. Ordering by name makes every render of a scene the same.
+    """
+    nodes = sorted(nodes, key=lambda n: n.name or "")
+    return ([n for n in nodes if not n.mesh.is_transparent]
+            + [n for n in nodes if n.mesh.is_transparent])
+
+
+class _LeanRenderer(pyrender.renderer.Renderer):
+    """A ``pyrender.Renderer`` with a leaner off-screen path.
+
+    - colour renders draw into pyrender's 4x multisample framebuffer and resolve it (box edges
+      get coverage-blended pixels, as the competition's renderer gives) when ``antialias`` is
+      set; SEG renders and ``antialias=False`` draw straight into the single-sample
+      framebuffer (no resolve blit; SEG colours are exact);
+    - the depth buffer is read back (and linearised) only when ``want_depth`` is set;
+    - meshes are drawn in a fixed order (:func:`draw_order`), not pyrender's.
+    """
+
+    antialias = False
+    want_depth = False
+
+    def _multisample(self, flags) -> bool:
+        return self.antialias and not flags & pyrender.RenderFlags.SEG
+
+    def _configure_forward_pass_viewport(self, flags):
+        super()._configure_forward_pass_viewport(flags)
+        if flags & pyrender.RenderFlags.OFFSCREEN and not self._multisample(flags):
+            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+
+    def _sorted_mesh_nodes(self, scene):
+        return draw_order(scene.mesh_nodes)
+
+    def _read_main_framebuffer(self, scene, flags):
+        w, h = self._main_fb_dims
+        if self._multisample(flags):
+            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
+            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+            GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_COLOR_BUFFER_BIT,
+                                 GL.GL_LINEAR)
+            if self.want_depth:
+                GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_DEPTH_BUFFER_BIT,
+                                     GL.GL_NEAREST)
+        GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
+        GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
+        depth = None
+        if self.want_depth:
+            raw = GL.glReadPixels(0, 0, w, h, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
+            d = np.frombuffer(raw, dtype=np.float32).reshape(h, w)[::-1]
+            cam_ = scene.main_camera_node.camera
+            n, f = cam_.znear, cam_.zfar
+            hit = d < 1.0
+            ndc = 2.0 * d - 1.0
+            depth = np.where(hit, 2.0 * n * f / (f + n - ndc * (f - n)), 0.0)
+            depth = depth.astype(np.float32)
+        raw = GL.glReadPixels(0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
+        color = np.frombuffer(raw, dtype=np.uint8).reshape(h, w, 3)[::-1]
+        return color, depth
+
+
+class LeanOffscreen:
+    """A ``pyrender.OffscreenRenderer`` that draws with the lean renderer (one GL context).
+
+    Parameters
+    ----------
+    width, height : int
+        Initial viewport size in px (:meth:`resize` changes it).
+    """
+
+    def __init__(self, width: int, height: int) -> None:
+        self._off: Any = pyrender.OffscreenRenderer(width, height)
+        # swap in the lean renderer before it allocates anything on the GPU
+        self._off._renderer = _LeanRenderer(width, height)
+
+    def resize(self, width: int, height: int) -> None:
+        """Draw the next renders at ``width`` x ``height`` px."""
+        self._off.viewport_width = width
+        self._off.viewport_height = height
+
+    def render(self, scene, flags: int, *, antialias: bool = False, want_depth: bool = False,
+               seg_node_map: dict | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+        """Draw a pyrender ``scene`` with ``flags``; (colour, linear depth or None).
+
+        Parameters
+        ----------
+        scene : pyrender.Scene
+            What to draw.
+        flags : int
+            ``pyrender.RenderFlags`` (``OFFSCREEN`` is added by pyrender).
+        antialias : bool, keyword-only
+            Draw a colour render into the 4x multisample framebuffer and resolve it (SEG
+            renders never are).
+        want_depth : bool, keyword-only
+            Also read back the depth buffer, linearised to metres along the optical axis.
+        seg_node_map : dict, keyword-only
+            Node -> colour of a SEG render.
+        """
+        lean = self._off._renderer
+        lean.antialias = antialias
+        lean.want_depth = want_depth
+        try:
+            return self._off.render(scene, flags=flags, seg_node_map=seg_node_map)
+        finally:
+            lean.want_depth = False
+
+    def make_current(self) -> None:
+        """Make this renderer's GL context current in the calling thread."""
+        self._off._platform.make_current()
+
+    def close(self) -> None:
+        """Release this renderer's GL objects and context (idempotent).
+
+        pyrender's EGL clean-up calls ``eglTerminate`` on the display, which every context of
+        the process shares: other renderers would break. Here only this context is destroyed.
+        """
+        off, self._off = self._off, None
+        if off is None:
+            return
+        platform = off._platform
+        if type(platform).__name__ != "EGLPlatform":
+            off.delete()
+            return
+        from OpenGL import EGL
+
+        platform.make_current()
+        off._renderer.delete()
+        EGL.eglMakeCurrent(platform._egl_display, EGL.EGL_NO_SURFACE, EGL.EGL_NO_SURFACE,
+                           EGL.EGL_NO_CONTEXT)
+        if platform._egl_context is not None:
+            EGL.eglDestroyContext(platform._egl_display, platform._egl_context)
+            platform._egl_context = None
+        platform._egl_display = None  # so that the platform's __del__ skips eglTerminate
+        off._renderer = None
+        off._platform = None
