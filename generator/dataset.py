@@ -53,6 +53,7 @@ from arenabench.fileio import (
     sha256_bytes,
     sha256_file,
 )
+from arenabench.generator.edges import EDGE_MODEL
 from arenabench.generator.presets import Value, format_value, get_preset, resolve
 from arenabench.generator.sample import (
     GENERATOR_VERSION,
@@ -404,7 +405,7 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
         "count": int(args.count), "complete": complete,
         "params": {k: format_value(v) for k, v in sorted(params.items())},
         "versions": _versions(gl) if complete else {},
-        "render": {"mode": "flat, Lambertian shading baked", "antialias": False,
+        "render": {"mode": "flat, Lambertian shading baked", "edges": EDGE_MODEL,
                    "image_format": "png", "png_compression": PNG_COMPRESSION},
         "files": {"images": "images/", "gt": "gt/", "manifest": "manifest.jsonl",
                   "coco": "coco.json"},

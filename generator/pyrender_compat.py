@@ -75,52 +75,87 @@ def draw_order(nodes) -> list:
 class _LeanRenderer(pyrender.renderer.Renderer):
     """A ``pyrender.Renderer`` with a leaner off-screen path.
 
-    - colour renders draw into pyrender's 4x multisample framebuffer and resolve it (box edges
-      get coverage-blended pixels, as the competition's renderer gives) when ``antialias`` is
-      set; SEG renders and ``antialias=False`` draw straight into the single-sample
-      framebuffer (no resolve blit; SEG colours are exact);
+    - one single-sample framebuffer (pyrender also allocates a 4x multisample one and resolves
+      it on every read: 32 MB and a blit per render that the generator does not use; its
+      edges come from two offset renders, :mod:`arenabench.generator.edges`);
+    - ``region`` (x0, y0, x1, y1), when set, limits drawing (scissor) and the read-back to
+      that pixel box (image rows top-down, end-exclusive);
     - the depth buffer is read back (and linearised) only when ``want_depth`` is set;
     - meshes are drawn in a fixed order (:func:`draw_order`), not pyrender's.
     """
 
-    antialias = False
     want_depth = False
+    region: tuple[int, int, int, int] | None = None
 
-    def _multisample(self, flags) -> bool:
-        return self.antialias and not flags & pyrender.RenderFlags.SEG
+    def _configure_main_framebuffer(self):
+        w, h = self.viewport_width, self.viewport_height
+        if self._main_fb is not None and self._main_fb_dims != (w, h):
+            self._delete_main_framebuffer()
+        if self._main_fb is None:
+            self._main_cb, self._main_db = GL.glGenRenderbuffers(2)
+            GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_cb)
+            GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, GL.GL_RGBA, w, h)
+            GL.glBindRenderbuffer(GL.GL_RENDERBUFFER, self._main_db)
+            GL.glRenderbufferStorage(GL.GL_RENDERBUFFER, GL.GL_DEPTH_COMPONENT24, w, h)
+            self._main_fb = GL.glGenFramebuffers(1)
+            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+            GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_COLOR_ATTACHMENT0,
+                                         GL.GL_RENDERBUFFER, self._main_cb)
+            GL.glFramebufferRenderbuffer(GL.GL_DRAW_FRAMEBUFFER, GL.GL_DEPTH_ATTACHMENT,
+                                         GL.GL_RENDERBUFFER, self._main_db)
+            self._main_fb_dims = (w, h)
+
+    def _delete_main_framebuffer(self):
+        if self._main_fb is not None:
+            GL.glDeleteFramebuffers(1, [self._main_fb])
+        for rb in (self._main_cb, self._main_db):
+            if rb is not None:
+                GL.glDeleteRenderbuffers(1, [rb])
+        self._main_fb = self._main_cb = self._main_db = None
+        self._main_fb_ms = self._main_cb_ms = self._main_db_ms = None
+        self._main_fb_dims = (None, None)
 
     def _configure_forward_pass_viewport(self, flags):
-        super()._configure_forward_pass_viewport(flags)
-        if flags & pyrender.RenderFlags.OFFSCREEN and not self._multisample(flags):
+        # pyrender's own, drawing into the single-sample framebuffer
+        if flags & pyrender.RenderFlags.OFFSCREEN:
+            self._configure_main_framebuffer()
             GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
+        else:
+            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, 0)
+        GL.glViewport(0, 0, self.viewport_width, self.viewport_height)
+        GL.glEnable(GL.GL_DEPTH_TEST)
+        GL.glDepthMask(GL.GL_TRUE)
+        GL.glDepthFunc(GL.GL_LESS)
+        GL.glDepthRange(0.0, 1.0)
+        if self.region is not None:  # before pyrender's glClear, which the scissor limits
+            x0, y0, x1, y1 = self.region
+            GL.glEnable(GL.GL_SCISSOR_TEST)
+            GL.glScissor(x0, self.viewport_height - y1, x1 - x0, y1 - y0)
+        else:
+            GL.glDisable(GL.GL_SCISSOR_TEST)
 
     def _sorted_mesh_nodes(self, scene):
         return draw_order(scene.mesh_nodes)
 
     def _read_main_framebuffer(self, scene, flags):
         w, h = self._main_fb_dims
-        if self._multisample(flags):
-            GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb_ms)
-            GL.glBindFramebuffer(GL.GL_DRAW_FRAMEBUFFER, self._main_fb)
-            GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_COLOR_BUFFER_BIT,
-                                 GL.GL_LINEAR)
-            if self.want_depth:
-                GL.glBlitFramebuffer(0, 0, w, h, 0, 0, w, h, GL.GL_DEPTH_BUFFER_BIT,
-                                     GL.GL_NEAREST)
+        x0, y0, x1, y1 = self.region if self.region is not None else (0, 0, w, h)
         GL.glBindFramebuffer(GL.GL_READ_FRAMEBUFFER, self._main_fb)
         GL.glPixelStorei(GL.GL_PACK_ALIGNMENT, 1)
         depth = None
         if self.want_depth:
-            raw = GL.glReadPixels(0, 0, w, h, GL.GL_DEPTH_COMPONENT, GL.GL_FLOAT)
-            d = np.frombuffer(raw, dtype=np.float32).reshape(h, w)[::-1]
+            raw = GL.glReadPixels(x0, h - y1, x1 - x0, y1 - y0, GL.GL_DEPTH_COMPONENT,
+                                  GL.GL_FLOAT)
+            d = np.frombuffer(raw, dtype=np.float32).reshape(y1 - y0, x1 - x0)[::-1]
             cam_ = scene.main_camera_node.camera
             n, f = cam_.znear, cam_.zfar
             hit = d < 1.0
             ndc = 2.0 * d - 1.0
             depth = np.where(hit, 2.0 * n * f / (f + n - ndc * (f - n)), 0.0)
             depth = depth.astype(np.float32)
-        raw = GL.glReadPixels(0, 0, w, h, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
-        color = np.frombuffer(raw, dtype=np.uint8).reshape(h, w, 3)[::-1]
+        raw = GL.glReadPixels(x0, h - y1, x1 - x0, y1 - y0, GL.GL_RGB, GL.GL_UNSIGNED_BYTE)
+        color = np.frombuffer(raw, dtype=np.uint8).reshape(y1 - y0, x1 - x0, 3)[::-1]
+        GL.glDisable(GL.GL_SCISSOR_TEST)
         return color, depth
 
 
@@ -143,8 +178,10 @@ class LeanOffscreen:
         self._off.viewport_width = width
         self._off.viewport_height = height
 
-    def render(self, scene, flags: int, *, antialias: bool = False, want_depth: bool = False,
-               seg_node_map: dict | None = None) -> tuple[np.ndarray, np.ndarray | None]:
+    def render(self, scene, flags: int, *, want_depth: bool = False,
+               seg_node_map: dict | None = None,
+               region: tuple[int, int, int, int] | None = None,
+               ) -> tuple[np.ndarray, np.ndarray | None]:
         """Draw a pyrender ``scene`` with ``flags``; (colour, linear depth or None).
 
         Parameters
@@ -153,21 +190,28 @@ class LeanOffscreen:
             What to draw.
         flags : int
             ``pyrender.RenderFlags`` (``OFFSCREEN`` is added by pyrender).
-        antialias : bool, keyword-only
-            Draw a colour render into the 4x multisample framebuffer and resolve it (SEG
-            renders never are).
         want_depth : bool, keyword-only
             Also read back the depth buffer, linearised to metres along the optical axis.
         seg_node_map : dict, keyword-only
             Node -> colour of a SEG render.
+        region : tuple of int, keyword-only
+            ``(x0, y0, x1, y1)``: draw and read back only this pixel box (rows top-down,
+            end-exclusive); the arrays returned are the box's size. Pixels inside come out
+            exactly as in a full render.
         """
         lean = self._off._renderer
-        lean.antialias = antialias
+        if region is not None:
+            x0, y0, x1, y1 = region
+            w, h = self._off.viewport_width, self._off.viewport_height
+            if not (0 <= x0 < x1 <= w and 0 <= y0 < y1 <= h):
+                raise ValueError(f"region {region} is not a non-empty box inside {w} x {h}")
         lean.want_depth = want_depth
+        lean.region = region
         try:
             return self._off.render(scene, flags=flags, seg_node_map=seg_node_map)
         finally:
             lean.want_depth = False
+            lean.region = None
 
     def make_current(self) -> None:
         """Make this renderer's GL context current in the calling thread."""

@@ -7,8 +7,11 @@ scene, reused across scenes: the floor and marker nodes are cached by their desc
 only obstacle nodes and the camera change. Each render pass is a method: the colour pass
 (:meth:`Renderer._colour_pass`) uses ``RenderFlags.FLAT`` with Lambertian shading baked into
 colours (:mod:`arenabench.generator.shading`), about 3x faster than lit mode on Mesa llvmpipe,
-and 4x MSAA (anti-aliased box edges); the mask pass (:meth:`Renderer._mask_pass`) gives
-instance masks from ``RenderFlags.SEG`` (exact, no MSAA), on request.
+a centre sample per pixel, and two offset samples of the obstacles' region for their edges,
+as the competition's renderer draws them (:mod:`arenabench.generator.edges`); floor, markers
+and background are drawn once and reused while consecutive scenes share them (the static
+layer, see :meth:`Renderer._static_layer`); the mask pass (:meth:`Renderer._mask_pass`) gives
+instance masks from ``RenderFlags.SEG`` (exact, one sample), on request.
 
 :class:`NaiveRenderer` is the bench's baseline: a new pyrender renderer and scene per image,
 pyrender's default lit shading, public pyrender API only.
@@ -30,6 +33,7 @@ from arenabench.frame import CORNER_ORDER
 from arenabench.generator import camera as cam
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.distractors import patch_mesh_arrays
+from arenabench.generator.edges import EDGE_SAMPLES, obstacle_region, resolve_two_samples
 from arenabench.generator.layout import (
     MARKER_Z,
     box_footprint,
@@ -121,10 +125,11 @@ class Renderer(SceneRenderer):
     Parameters
     ----------
     antialias : bool, keyword-only
-        4x MSAA on colour renders (on by default): pixels that a box edge crosses get the
-        coverage-weighted blend of both sides, as in the competition's Gazebo images.
-        Textures (floor, markers) are filtered either way; ground truth, depth and instance
-        masks never depend on it.
+        Edge samples on colour renders (on by default): a pixel whose two samples
+        (:data:`~arenabench.generator.edges.EDGE_SAMPLES`) see different surfaces of the
+        obstacles' region gets their mean in linear light, as in the competition's images
+        (docs/rendering.md). Textures (floor, markers) are filtered either way; ground
+        truth, depth and instance masks never depend on it.
 
     Raises
     ------
@@ -160,6 +165,9 @@ class Renderer(SceneRenderer):
         self._obstacle_nodes: list = []
         self._overlay_nodes: list = []
         self._camera_node = None
+        # the static layer (see _static_layer): (key, image) once built, and the last key seen
+        self._static: tuple[Any, np.ndarray] | None = None
+        self._static_key: Any = None
 
     def close(self) -> None:
         """Release this renderer's GL objects and context; other renderers keep working."""
@@ -314,7 +322,7 @@ class Renderer(SceneRenderer):
         self._ensure_renderer(scene.camera.width, scene.camera.height)
         self._update_static(scene)
         self._update_dynamic(scene)
-        rgb, z = self._colour_pass(depth=depth)
+        rgb, z = self._colour_pass(scene, depth=depth)
         out = RenderOutput(rgb=apply_spot_light(rgb, scene))
         if depth:
             out.depth = z
@@ -324,13 +332,79 @@ class Renderer(SceneRenderer):
 
     # Render passes: each draws the pyrender scene prepared by _update_static/_update_dynamic.
 
-    def _colour_pass(self, *, depth: bool) -> tuple[np.ndarray, np.ndarray | None]:
-        """(H, W, 3) uint8 colour, flat shaded, 4x MSAA when :attr:`antialias` is set; and the
-        (H, W) float32 depth map when ``depth`` is set (else None)."""
+    def _colour_pass(self, scene: Scene, *, depth: bool) -> tuple[np.ndarray, np.ndarray | None]:
+        """(H, W, 3) uint8 colour, flat shaded; and the (H, W) float32 depth map when ``depth``
+        is set (else None).
+
+        One sample per pixel at its centre, then, when :attr:`antialias` is set, two more
+        renders of the obstacles' region at the offsets
+        :data:`~arenabench.generator.edges.EDGE_SAMPLES`, resolved into the edge pixels
+        (:func:`~arenabench.generator.edges.resolve_two_samples`).
+        The centre sample outside that region comes from the static layer
+        (:meth:`_static_layer`) when it is cached: the pixels are the same either way.
+        """
         flags = self._pr.RenderFlags.FLAT | self._pr.RenderFlags.SKIP_CULL_FACES
-        color, z = self._offscreen.render(self._scene, flags, antialias=self.antialias,
-                                          want_depth=depth)
-        return np.ascontiguousarray(color[:, :, :3]), z
+        region = obstacle_region(scene)
+        static = None if depth else self._static_layer(scene, flags)
+        if static is None:
+            color, z = self._offscreen.render(self._scene, flags, want_depth=depth)
+            rgb = np.ascontiguousarray(color)
+        else:
+            rgb, z = static.copy(), None
+            if region is not None:
+                x0, y0, x1, y1 = region
+                rgb[y0:y1, x0:x1] = self._offscreen.render(self._scene, flags, region=region)[0]
+        if self.antialias and region is not None:
+            x0, y0, x1, y1 = region
+            first, second = (self._offset_pass(flags, region, offset) for offset in EDGE_SAMPLES)
+            resolve_two_samples(rgb[y0:y1, x0:x1], first, second)
+        return rgb, z
+
+    def _offset_pass(self, flags: int, region: tuple[int, int, int, int],
+                     offset: tuple[float, float]) -> np.ndarray:
+        """Colour of ``region`` sampled at ``offset`` (x, y px) from each pixel's centre."""
+        camera = self._camera_node.camera
+        cx, cy = camera.cx, camera.cy
+        # moving the principal point by (-dx, -dy) moves the image content by (-dx, -dy)
+        # (pyrender's cx, cy run along the image's columns and rows, as OpenCV's): each pixel
+        # centre then sees the point at (x + dx, y + dy); tests/test_edges.py checks the signs
+        camera.cx, camera.cy = cx - offset[0], cy - offset[1]
+        try:
+            color, _ = self._offscreen.render(self._scene, flags, region=region)
+        finally:
+            camera.cx, camera.cy = cx, cy
+        return np.ascontiguousarray(color)
+
+    def _static_layer(self, scene: Scene, flags: int) -> np.ndarray | None:
+        """The centre-sample render of ``scene`` without its obstacles, when it can be reused.
+
+        The floor, markers, background and camera of consecutive scenes are often the same
+        (the ``eyrc`` twin holds them fixed): from the second scene on that repeats them, the
+        layer is rendered once and each scene draws only its obstacles' region over it. A
+        scene with overlays (patches, shadows) changes the floor outside that region and never
+        uses the layer.
+        """
+        if self._overlay_nodes:
+            self._static_key = None
+            return None
+        key = (scene.camera, scene.arena, scene.markers, floor_factor(scene.lighting),
+               scene.background_rgb)
+        if self._static is not None and self._static[0] == key:
+            return self._static[1]
+        if key != self._static_key:  # first time: render as usual, remember the key
+            self._static_key = key
+            return None
+        for node in self._obstacle_nodes:
+            node.mesh.is_visible = False
+        try:
+            color, _ = self._offscreen.render(self._scene, flags)
+        finally:
+            for node in self._obstacle_nodes:
+                node.mesh.is_visible = True
+        layer = np.ascontiguousarray(color)
+        layer.flags.writeable = False
+        self._static = (key, layer)
+        return layer
 
     def _mask_pass(self) -> np.ndarray:
         """(H, W) uint8 instance mask: ``i + 1`` where obstacle ``i`` is nearest (exact SEG)."""

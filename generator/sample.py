@@ -48,7 +48,10 @@ from arenabench.workers import thread_state
 #: (seed, index, crc32(name)), and so are obstacle placement, warehouse loads, floor patches and
 #: image noise (they were drawn in list order from three shared generators); every preset's
 #: sampled values, hence images and GT, differ. Parameters are declared once
-#: (generator/params.py).
+#: (generator/params.py). Edges as the competition's renderer draws them: two samples per
+#: pixel (a quarter pixel either side of the centre, on the diagonal) averaged in linear light
+#: on the obstacles' region, instead of 4x MSAA averaged in sRGB (docs/rendering.md); images
+#: change along box outlines only.
 GENERATOR_VERSION = "5"
 
 #: A post-render hook: (rgb uint8 (H, W, 3), rng) -> rgb uint8 (H, W, 3).

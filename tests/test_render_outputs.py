@@ -139,11 +139,15 @@ def test_antialiased_renders_keep_markers_and_masks_exact():
     with Renderer(antialias=False) as r:
         plain = r.render(scene, masks=True, depth=True)
     assert aa.instance_mask.tobytes() == plain.instance_mask.tobytes()
-    close = np.isclose(aa.depth, plain.depth, rtol=1e-4)
-    assert close.mean() > 0.99  # MSAA depth differs only along edges
-    # MSAA blends box edges: some pixels differ, but only along edges
+    assert aa.depth.tobytes() == plain.depth.tobytes()  # depth is the centre sample's
+    # the edge samples blend box edges: some pixels differ, but only next to an edge of the
+    # single-sample render, and only where a box is
     diff = np.any(aa.rgb != plain.rgb, axis=2)
-    assert 0 < diff.mean() < 0.05
+    assert 0 < diff.mean() < 0.02
+    gray = cv2.cvtColor(plain.rgb, cv2.COLOR_RGB2GRAY)
+    edges = cv2.morphologyEx(gray, cv2.MORPH_GRADIENT, np.ones((3, 3), np.uint8)) > 8
+    near_box = cv2.dilate((plain.instance_mask > 0).astype(np.uint8), np.ones((5, 5), np.uint8))
+    assert not (diff & ~(edges & (near_box > 0))).any()
     gt = compute_ground_truth(scene)
     found = _detect(np.ascontiguousarray(aa.rgb[:, :, ::-1]))
     for m in gt["markers"]:

@@ -1,0 +1,122 @@
+"""The edge model (generator/edges.py) and how the renderer draws it: the two offset samples,
+the obstacles' region and the reusable static layer."""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+import pytest
+from test_twin_fidelity import SCENE
+
+from arenabench.generator.edges import (
+    EDGE_SAMPLES,
+    SAME_SURFACE_MAX_DIFF,
+    linear_to_srgb,
+    obstacle_region,
+    resolve_two_samples,
+    srgb_to_linear,
+)
+from arenabench.generator.render import Renderer
+from arenabench.generator.sampler import sample_scene
+from arenabench.generator.scene import load_scene
+
+
+def test_srgb_round_trip_and_known_values():
+    values = np.arange(256, dtype=np.uint8)
+    assert np.array_equal(linear_to_srgb(srgb_to_linear(values)), values)
+    assert srgb_to_linear(np.uint8(0)) == 0.0 and srgb_to_linear(np.uint8(255)) == 1.0
+    assert int(linear_to_srgb(0.5)) == 188  # mid-grey in linear light
+
+
+def test_resolve_blends_only_where_the_samples_differ():
+    centre = np.full((2, 3, 3), 71, np.uint8)
+    first = centre.copy()
+    second = centre.copy()
+    second[0, 0] = 248                            # an edge: dark face and floor
+    second[1, 1] = 71 + SAME_SURFACE_MAX_DIFF     # texture-level difference: same surface
+    n = resolve_two_samples(centre, first, second)
+    assert n == 1
+    assert centre[0, 0].tolist() == [188, 188, 188]  # half of 71 and 248 in linear light
+    assert (centre.reshape(-1, 3)[1:] == 71).all()
+
+
+def test_resolve_refuses_mismatched_samples():
+    with pytest.raises(ValueError, match="equal-shaped uint8"):
+        resolve_two_samples(np.zeros((2, 2, 3), np.uint8), np.zeros((2, 3, 3), np.uint8),
+                            np.zeros((2, 2, 3), np.uint8))
+
+
+def test_samples_sit_on_the_diagonal_either_side_of_the_centre():
+    (ax, ay), (bx, by) = EDGE_SAMPLES
+    assert (ax + bx, ay + by) == (0.0, 0.0) and abs(ax) == abs(ay) == 0.25
+
+
+@pytest.fixture(scope="module")
+def example():
+    return load_scene(SCENE)
+
+
+@pytest.fixture(scope="module")
+def renderer():
+    with Renderer() as r:
+        yield r
+
+
+def test_offset_pass_samples_where_it_says(example):
+    """A pass at offset (dx, dy) shows at pixel (x, y) what the centre pass shows at
+    (x + dx, y + dy): checked with whole-pixel offsets (geometry lands exactly; texture
+    filtering may differ on a few pixels of the printed lines)."""
+    with Renderer(antialias=False) as r:
+        base = r.render(example).rgb
+        flags = r._pr.RenderFlags.FLAT | r._pr.RenderFlags.SKIP_CULL_FACES
+        full = (0, 0, example.camera.width, example.camera.height)
+        shifted = {off: r._offset_pass(flags, full, off) for off in ((3, 0), (0, 3), (-2, 1))}
+    for (dx, dy), image in shifted.items():
+        inner = image[100:900, 100:900]
+        right = np.any(inner != base[100 + dy:900 + dy, 100 + dx:900 + dx], axis=2).mean()
+        wrong = np.any(inner != base[100 - dy:900 - dy, 100 - dx:900 - dx], axis=2).mean()
+        assert right < 0.0005 and wrong > 20 * right, (dx, dy, right, wrong)
+
+
+@pytest.mark.parametrize("preset", ["eyrc", "eyrc-oblique"])
+def test_region_holds_every_obstacle_pixel(renderer, preset):
+    for index in range(8):
+        scene = sample_scene(preset, seed=5, index=index).scene
+        mask = renderer.render(scene, masks=True).instance_mask
+        x0, y0, x1, y1 = obstacle_region(scene)
+        inside = np.zeros_like(mask, dtype=bool)
+        inside[y0:y1, x0:x1] = True
+        assert mask.any() and not (mask.astype(bool) & ~inside).any()
+
+
+def test_region_is_none_without_obstacles(example):
+    from dataclasses import replace
+
+    assert obstacle_region(replace(example, obstacles=())) is None
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("preset", ["eyrc", "eyrc-jitter", "warehouse"])
+def test_static_layer_gives_the_same_bytes_as_a_fresh_renderer(preset):
+    """A renderer reuses the floor, markers and background of consecutive scenes that share
+    them (the twin's fixed camera) and draws only the obstacles' region: every image must be
+    byte-identical to a full render by a fresh renderer."""
+    scenes = [sample_scene(preset, seed=2, index=i).scene for i in range(12)]
+    with Renderer() as r:
+        images = [r.render(s).rgb for s in scenes]
+        cached = r._static is not None
+    assert cached == (preset == "eyrc")  # fixed camera and no overlays: the twin only
+    for scene, image in zip(scenes, images, strict=True):
+        with Renderer() as fresh:
+            assert np.array_equal(fresh.render(scene).rgb, image)
+
+
+def test_antialias_off_draws_no_blended_pixel(example):
+    with Renderer(antialias=False) as r:
+        gray = cv2.cvtColor(r.render(example).rgb, cv2.COLOR_RGB2GRAY)
+    with Renderer() as r:
+        soft = cv2.cvtColor(r.render(example).rgb, cv2.COLOR_RGB2GRAY)
+    x0, y0, x1, y1 = obstacle_region(example)
+    halves = [188, 198]  # dark face / floor and top face / floor, half blends
+    assert not np.isin(gray[y0:y1, x0:x1], halves).any()
+    assert np.isin(soft[y0:y1, x0:x1], halves).sum() > 300
