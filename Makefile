@@ -9,7 +9,7 @@ STAMP := $(VENV)/.arenabench-installed
 DEMO_OUT ?= demo-out
 PYTEST_ARGS ?=
 
-.PHONY: demo test test-fast golden lint venv system-deps clean
+.PHONY: demo test test-fast golden docs-images lint venv system-deps clean
 
 $(STAMP): pyproject.toml
 	@test -x $(PY) || $(PYTHON) -m venv $(VENV) || { \
@@ -37,6 +37,10 @@ test-fast: $(STAMP) system-deps
 # (bump GENERATOR_VERSION in generator/sample.py first; see docs/architecture.md).
 golden: $(STAMP)
 	$(PY) -m tests.golden --update
+
+# Re-render the README's images (docs/images/) after a change of the generator's output.
+docs-images: $(STAMP)
+	$(PY) tools/docs_images.py
 
 demo: $(STAMP) system-deps
 	@$(PY) -m arenabench demo --out $(DEMO_OUT) --example tests/data/task1c_image.jpg
