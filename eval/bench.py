@@ -465,6 +465,8 @@ def run_bench(
             notify("pipeline_ips", sec)
 
             gl_info = pool.apply(_gl_info)
+            pool.close()  # let the workers exit on their own (no signal to an idle worker)
+            pool.join()
 
         # 3. the naive baseline (own processes: pyrender's clean-up ends their EGL display)
         naive_dir = scratch / "naive"
@@ -521,6 +523,8 @@ def run_bench(
         # 7. memory of one rendering worker over rss_renders consecutive renders
         with _pool(1) as pool:
             rss = pool.apply(_rss_run, (RssTask(cfg.preset, cfg.seed, cfg.rss_renders),))
+            pool.close()
+            pool.join()
         figures["worker_peak_rss_mb"] = rss["peak_rss_mb"]
         figures["worker_rss_growth_mb"] = max(0.0, rss["rss_after_mb"]
                                               - rss["rss_after_warmup_mb"])

@@ -548,6 +548,9 @@ def _generate_locked(
                 except BaseException:
                     stop_workers()  # before the pool's own terminate(), which waits on them
                     raise
+                # done: let the workers exit on their own (no signal to an idle worker)
+                pool.close()
+                pool.join()
     except Interrupted as exc:
         bar.close()
         finished = _finish_partial(root, args, results)

@@ -93,6 +93,9 @@ def _local_pool(tasks: list[SweepTask], workers: int) -> Iterator[dict[str, Any]
         except BaseException:  # interrupted, closed early or a task failed
             stop_workers()  # before the pool's own terminate(), which waits on them
             raise
+        # done: let the workers exit on their own (no signal to an idle worker)
+        pool.close()
+        pool.join()
 
 
 def _dask(tasks: list[SweepTask], scheduler: Any) -> Iterator[dict[str, Any]]:
