@@ -22,7 +22,9 @@ import pytest
 from arenabench.fileio import sha256_file
 from arenabench.interrupts import Interrupted, stop_on_signals
 
-COUNT = 40
+#: Long enough that a signal sent after the third image lands mid-run (a twin image takes
+#: about 30 ms with one worker).
+COUNT = 150
 SEED = 3
 #: Generous bound on how long a signalled command may take to exit (the machine is shared).
 STOP_S = 20.0
@@ -185,9 +187,14 @@ def test_generate_workers_die_with_a_killed_parent(tmp_path):
     assert _still_alive(kids) == {}
 
 
+#: Points x scenes per point of the interrupted sweeps: long enough to stop mid-run.
+SWEEP_PER_POINT = 60
+SWEEP_SAMPLES = 3 * SWEEP_PER_POINT
+
+
 def _sweep_args(out: Path, workers: int, *pipes: str) -> list[str]:
     return ["sweep", "--preset", "eyrc", "--vary", "camera.tilt_deg=0:20:10",
-            "--per-point", "20", "--seed", str(SEED), *pipes, "--out", str(out),
+            "--per-point", str(SWEEP_PER_POINT), "--seed", str(SEED), *pipes, "--out", str(out),
             "--workers", str(workers), "--no-progress", "--no-plots"]
 
 
@@ -206,8 +213,8 @@ def test_sweep_stops_and_writes_what_finished(tmp_path):
     doc = json.loads((out / "sweep.json").read_text())
     assert doc["complete"] is False and doc["run"]["interrupted"] == "SIGINT"
     done = doc["run"]["samples_done"]
-    assert 3 <= done < 60 and doc["run"]["samples"] == 60
-    assert f"{done} of 60 samples done" in lines[0]
+    assert 3 <= done < SWEEP_SAMPLES and doc["run"]["samples"] == SWEEP_SAMPLES
+    assert f"{done} of {SWEEP_SAMPLES} samples done" in lines[0]
     rows = (out / "results.jsonl").read_text().splitlines()
     assert len(rows) == done
     assert sum(p["summary"]["n"] for p in doc["points"]) == done
