@@ -312,6 +312,16 @@ def run(cfg: dict) -> int:
         streams = {r_out: tails["stdout"], r_err: tails["stderr"]}
         for fd in (pidfd, r_out, r_err):
             poller.register(fd, select.POLLIN)
+
+        def pump(fd: int) -> None:
+            """Keep one chunk of an output pipe; forget the pipe at end of file."""
+            chunk = os.read(fd, 1 << 16)
+            if chunk:
+                streams[fd].add(chunk)
+            else:
+                poller.unregister(fd)
+                del streams[fd]
+
         exited = False
         while not exited:
             remaining = deadline - time.perf_counter()
@@ -322,12 +332,7 @@ def run(cfg: dict) -> int:
                 if fd == pidfd:
                     exited = True
                     continue
-                chunk = os.read(fd, 1 << 16)
-                if chunk:
-                    streams[fd].add(chunk)
-                else:
-                    poller.unregister(fd)
-                    del streams[fd]
+                pump(fd)
         # in a sandbox nothing can leave the run's cgroup: reading it finds every process;
         # without one a process could move itself out, so /proc is scanned too
         scan = not cfg.get("sandboxed")
@@ -343,12 +348,7 @@ def run(cfg: dict) -> int:
         drain_until = time.perf_counter() + 2.0
         while streams and time.perf_counter() < drain_until:
             for fd, _ in poller.poll(100):
-                chunk = os.read(fd, 1 << 16)
-                if chunk:
-                    streams[fd].add(chunk)
-                else:
-                    poller.unregister(fd)
-                    del streams[fd]
+                pump(fd)
         result["pids_limit_hit"] = _pids_limit_hit(cgroup)
         return 0
     except _Stop:

@@ -40,11 +40,8 @@ EDGE_MODEL = (f"two samples per pixel at {EDGE_SAMPLES[0]} and {EDGE_SAMPLES[1]}
 #: Margin in px around the obstacles' projected bounding box that gets two samples.
 REGION_PAD_PX = 2
 
-_SRGB_TO_LINEAR = np.where(
-    np.arange(256) / 255.0 <= 0.04045,
-    np.arange(256) / 255.0 / 12.92,
-    ((np.arange(256) / 255.0 + 0.055) / 1.055) ** 2.4,
-)
+_SRGB = np.arange(256) / 255.0
+_SRGB_TO_LINEAR = np.where(_SRGB <= 0.04045, _SRGB / 12.92, ((_SRGB + 0.055) / 1.055) ** 2.4)
 
 
 def srgb_to_linear(values: np.ndarray) -> np.ndarray:
