@@ -14,7 +14,9 @@ size (1000 x 1000):
    included; ``pipeline_eval_ips``: the same through :func:`arenabench.eval.runner.evaluate`
    (as ``arenabench eval`` runs it: its process pool's start-up included);
 6. ``sweep_ips``: a streaming sweep in memory (render, degrade, detect, score) through
-   :func:`arenabench.eval.sweep.run_sweep`, varying ``SWEEP_AXIS``, its start-up included;
+   :func:`arenabench.eval.sweep.run_sweep`, varying ``SWEEP_AXIS``, its start-up included
+   (a post-render axis: each worker renders a scene once for all its points, as any such
+   sweep does);
 7. ``worker_peak_rss_mb`` / ``worker_rss_growth_mb``: peak resident memory of a rendering
    worker and its growth over ``rss_renders`` consecutive renders;
 8. ``sandbox_overhead_ms``: what bubblewrap adds to one external run
@@ -514,7 +516,8 @@ def run_bench(
         details["sweep"] = {
             "scenes": scenes, "seconds": sec, "vary": SWEEP_AXIS,
             "cpu_ms_per_scene": _per(_cpu_seconds() - c0, scenes),
-            "how": "arenabench.eval.sweep.run_sweep, its process pool's start-up included",
+            "how": "arenabench.eval.sweep.run_sweep, its process pool's start-up included; "
+                   "a post-render axis, so each scene is rendered once for all its points",
             "pass_rate": {str(p.params): p.summary.pass_rate for p in sweep.summaries},
             "median_ms": sweep.run.get("median_ms", {}),
         }

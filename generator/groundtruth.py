@@ -11,6 +11,8 @@
 
 from __future__ import annotations
 
+import copy
+import functools
 from typing import Any
 
 import cv2
@@ -150,9 +152,19 @@ def compute_ground_truth(scene: Scene, *, frame: FrameSpec | None = None) -> dic
     dict
         Keys ``image_size``, ``scene``, ``count``, ``components``, ``area`` (``visible_px``,
         ``footprint_px``, ``contour_px``), ``frame``,
-        ``homography``, ``camera``, ``markers``, ``obstacles`` (docs/ground-truth.md).
+        ``homography``, ``camera``, ``markers``, ``obstacles`` (docs/ground-truth.md); a
+        new dict each call (the caller may change it).
+
+    Notes
+    -----
+    The result is a pure function of ``scene`` and ``frame``; the last few are kept, so the
+    points of a sweep that vary only post-render parameters compute each scene's GT once.
     """
-    frame = frame or FrameSpec()
+    return copy.deepcopy(_ground_truth(scene, frame or FrameSpec()))
+
+
+@functools.lru_cache(maxsize=4)
+def _ground_truth(scene: Scene, frame: FrameSpec) -> dict[str, Any]:
     K = cam.intrinsics(scene.camera)
     pose = cam.world_from_camera(scene.camera)
     rvec, tvec = cam.rvec_tvec(pose)

@@ -128,6 +128,12 @@ class Param:
                              f"{', '.join(SECTIONS)}, got {self.lands!r}")
 
     @property
+    def post_render(self) -> bool:
+        """Whether it acts on the rendered image only (a ``degrade.*`` degradation): scenes
+        that differ only in such parameters render to the same pixels and ground truth."""
+        return self.lands.split(".")[0] == "degrade"
+
+    @property
     def numeric(self) -> bool:
         """Whether the parameter is a number (and so may be a :class:`Range`)."""
         return self.kind in ("float", "int")

@@ -14,6 +14,7 @@ platform (:func:`arenabench.glplatform.configure`), imports pyrender and raises
 
 from __future__ import annotations
 
+import sys
 from typing import Any
 
 import numpy as np
@@ -40,10 +41,26 @@ def check_version(version: str) -> None:
         )
 
 
+#: Modules held out of pyrender's import when this process has not loaded them yet: trimesh,
+#: which pyrender imports, loads SciPy (``scipy.spatial``, ``scipy.optimize``) at import time
+#: for features that neither pyrender's drawing nor arenabench use, and treats it as optional.
+#: That is 0.37 of the 0.81 s the import takes in every rendering worker. SciPy imported later
+#: in the process works as usual (``tests/test_renderer_api.py`` checks it); only trimesh's
+#: own SciPy-based functions (convex hulls, KD-trees) raise in that process.
+IMPORT_WITHOUT = ("scipy",)
+
+
 def _import_pyrender():
     glplatform.configure()  # before the first import of pyrender / OpenGL
-    import pyrender
-
+    held = [name for name in IMPORT_WITHOUT if name not in sys.modules]
+    for name in held:
+        sys.modules[name] = None  # type: ignore[assignment]  # importing it fails meanwhile
+    try:
+        import pyrender
+    finally:
+        for name in held:
+            if name in sys.modules and sys.modules[name] is None:
+                del sys.modules[name]
     check_version(str(getattr(pyrender, "__version__", "unknown")))
     return pyrender
 

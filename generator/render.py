@@ -168,6 +168,8 @@ class Renderer(SceneRenderer):
         # the static layer (see _static_layer): (key, image) once built, and the last key seen
         self._static: tuple[Any, np.ndarray] | None = None
         self._static_key: Any = None
+        # the last render (see render): (key, read-only output)
+        self._last: tuple[Any, RenderOutput] | None = None
 
     def close(self) -> None:
         """Release this renderer's GL objects and context; other renderers keep working."""
@@ -300,7 +302,24 @@ class Renderer(SceneRenderer):
         Returns
         -------
         RenderOutput
+            Arrays of its own: the caller may change them.
+
+        Notes
+        -----
+        A render is a pure function of the scene (and ``depth``, ``masks``,
+        :attr:`antialias`), so the renderer keeps its last output and gives a copy of it
+        when the same scene comes again: a sweep over post-render parameters (noise, blur,
+        JPEG, ...) renders each base scene once (``tests/test_render_reuse.py`` checks the
+        bytes against a fresh renderer).
         """
+        key = (scene, bool(depth), bool(masks), self.antialias)
+        if self._last is not None and self._last[0] == key:
+            return _copied(self._last[1])
+        out = self._render(scene, depth=depth, masks=masks)
+        self._last = (key, _copied(out, writeable=False))
+        return out
+
+    def _render(self, scene: Scene, *, depth: bool, masks: bool) -> RenderOutput:
         if has_distortion(scene.camera.dist):
             camera = scene.camera
             canvas = lens_canvas(cam.intrinsics(camera), camera.dist, camera.width,
@@ -414,6 +433,17 @@ class Renderer(SceneRenderer):
         seg_flags = self._pr.RenderFlags.SEG | self._pr.RenderFlags.SKIP_CULL_FACES
         seg, _ = self._offscreen.render(self._scene, seg_flags, seg_node_map=seg_map)
         return np.ascontiguousarray(seg[:, :, 0])
+
+
+def _copied(out: RenderOutput, *, writeable: bool = True) -> RenderOutput:
+    """A copy of ``out`` with arrays of its own (read-only ones when not ``writeable``)."""
+    arrays = []
+    for a in (out.rgb, out.depth, out.instance_mask):
+        if a is not None:
+            a = a.copy()
+            a.flags.writeable = writeable
+        arrays.append(a)
+    return RenderOutput(*arrays)
 
 
 class NaiveRenderer(SceneRenderer):

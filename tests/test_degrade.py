@@ -258,3 +258,28 @@ def test_standard_normal_is_seeded_by_the_generator_only():
     assert abs(float(a.mean())) < 0.02
     for channel in range(3):
         assert abs(float(a[..., channel].std()) - 1.0) < 0.02
+
+
+def test_standard_normal_seen_again_is_the_same_field_and_a_copy():
+    """The last field is kept per thread: the same seed and shape give the same samples as a
+    fresh draw, in an array the caller may change."""
+    shape = (40, 30, 3)
+
+    def direct(seed_rng):
+        out = np.empty(shape, np.float32)
+        cv2.setRNGSeed(int(seed_rng.integers(0, 2**31 - 1)))
+        cv2.randn(out.reshape(-1, 3), 0.0, 1.0)
+        return out
+
+    first = standard_normal(shape, np.random.default_rng(7))
+    want = direct(np.random.default_rng(7))
+    np.testing.assert_array_equal(first, want)
+    first[:] = 0  # the caller's to change
+    again = standard_normal(shape, np.random.default_rng(7))
+    np.testing.assert_array_equal(again, want)
+    assert again.flags.writeable and not np.shares_memory(again, first)
+    other = standard_normal(shape, np.random.default_rng(8))
+    np.testing.assert_array_equal(other, direct(np.random.default_rng(8)))
+    assert not np.array_equal(other, want)
+    flat = standard_normal((40, 90), np.random.default_rng(7))  # same seed, other shape
+    assert flat.shape == (40, 90)

@@ -148,3 +148,22 @@ def test_pyrender_private_api_is_used_only_in_the_compat_module():
             offenders += [f"{rel}:{n}" for n, line in enumerate(path.read_text().splitlines(), 1)
                           if _PRIVATE.search(line)]
     assert offenders == []
+
+
+_WITHOUT_SCIPY = """
+import sys
+from arenabench.generator.render import Renderer
+from arenabench.generator.sampler import sample_scene
+assert "scipy" not in sys.modules, "pyrender's import loaded SciPy"
+with Renderer() as r:
+    rgb = r.render(sample_scene("eyrc", seed=0, index=0).scene).rgb
+import scipy.spatial  # later imports work as usual
+print(rgb.shape, scipy.spatial.ConvexHull([[0, 0], [1, 0], [0, 1]]).volume)
+"""
+
+
+def test_pyrender_is_imported_without_scipy_which_stays_importable():
+    proc = subprocess.run([sys.executable, "-c", _WITHOUT_SCIPY], capture_output=True,
+                          text=True, timeout=120)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert proc.stdout.split() == ["(1000,", "1000,", "3)", "0.5"]

@@ -26,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from arenabench.generator.params import PARAMETERS
 from arenabench.generator.presets import resolve
 from arenabench.interrupts import (
     Interrupted,
@@ -73,15 +74,51 @@ def sweep_tasks(spec: SweepSpec, points: list[dict[str, Any]]) -> list[SweepTask
     return tasks
 
 
-def _inline(tasks: list[SweepTask]) -> Iterator[dict[str, Any]]:
+#: Batches per worker a local sweep aims at (more balance the load at the end, fewer reuse more).
+BATCHES_PER_WORKER = 8
+
+
+def post_render_only(spec: SweepSpec) -> bool:
+    """Whether every axis of ``spec`` is a post-render parameter
+    (:attr:`arenabench.generator.params.Param.post_render`: noise, blur, JPEG, ...): then scene
+    ``i`` renders to the same pixels and ground truth at every point."""
+    return all(PARAMETERS[axis.key].post_render for axis in spec.axes)
+
+
+def sweep_batches(tasks: list[SweepTask], workers: int, *,
+                  by_scene: bool = False) -> list[tuple[SweepTask, ...]]:
+    """The tasks cut into batches for ``workers`` local processes, each run by one worker.
+
+    A batch holds at most ``len(tasks) / (workers * BATCHES_PER_WORKER)`` tasks (at least
+    one), so the last batches still spread over the workers. With ``by_scene``
+    (:func:`post_render_only`), a batch holds points of one scene index, in point order: its
+    worker renders the base scene and computes its ground truth once
+    (:meth:`arenabench.generator.render.Renderer.render` keeps its last output; with
+    ``independent_scenes`` every task is its own scene). Otherwise batches follow the points,
+    and consecutive scenes of a point keep sharing what the renderer reuses (the ``eyrc``
+    twin's static layer).
+    """
+    size = max(1, len(tasks) // (max(1, workers) * BATCHES_PER_WORKER))
+    if not by_scene:
+        return [tuple(tasks[k:k + size]) for k in range(0, len(tasks), size)]
+    groups: dict[int, list[SweepTask]] = {}
+    for task in tasks:
+        groups.setdefault(task.index, []).append(task)
+    return [tuple(group[k:k + size]) for group in groups.values()
+            for k in range(0, len(group), size)]
+
+
+def _inline(batches: list[tuple[SweepTask, ...]]) -> Iterator[dict[str, Any]]:
     from .task import run_task
 
-    for task in tasks:
-        yield run_task(task)
+    for batch in batches:
+        for task in batch:
+            yield run_task(task)
 
 
-def _local_pool(tasks: list[SweepTask], workers: int) -> Iterator[dict[str, Any]]:
-    from .task import init_sweep_worker, run_task
+def _local_pool(batches: list[tuple[SweepTask, ...]],
+                workers: int) -> Iterator[dict[str, Any]]:
+    from .task import init_sweep_worker, run_batch
 
     lp = llvmpipe_threads(workers)
     ctx = multiprocessing.get_context("spawn")
@@ -89,7 +126,8 @@ def _local_pool(tasks: list[SweepTask], workers: int) -> Iterator[dict[str, Any]
         pool = ctx.Pool(workers, initializer=init_sweep_worker, initargs=(lp, os.getpid()))
     with pool:
         try:
-            yield from pool.imap_unordered(run_task, tasks, chunksize=1)
+            for outputs in pool.imap_unordered(run_batch, batches):
+                yield from outputs
         except BaseException:  # interrupted, closed early or a task failed
             stop_workers()  # before the pool's own terminate(), which waits on them
             raise
@@ -112,6 +150,7 @@ def execute(
     *,
     workers: int | None = None,
     scheduler: Any = None,
+    by_scene: bool = False,
 ) -> Iterator[dict[str, Any]]:
     """Run tasks, yielding each task's result dict as it completes (any order).
 
@@ -123,13 +162,17 @@ def execute(
     scheduler : str or distributed.Client, optional, keyword-only
         ``tcp://HOST:PORT`` of a Dask scheduler (or a connected client): the tasks run on
         that cluster instead.
+    by_scene : bool, keyword-only
+        Run the points of each scene one after another in one local worker
+        (:func:`sweep_batches`; true when :func:`post_render_only`). Results never depend on it.
     """
     if workers is not None and (int(workers) != workers or workers < 1):
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     if scheduler is not None:
         return _dask(tasks, scheduler)
     n = min(workers or usable_cores(), max(1, len(tasks)))
-    return _inline(tasks) if n == 1 else _local_pool(tasks, n)
+    batches = sweep_batches(tasks, n, by_scene=by_scene)
+    return _inline(batches) if n == 1 else _local_pool(batches, n)
 
 
 def aggregate(
@@ -214,7 +257,8 @@ def run_sweep(
     timings: dict[str, list[float]] = {}
     interrupted: int | None = None
     with progress_bar(len(tasks), desc="sweep", enabled=progress) as bar:
-        results = execute(tasks, workers=workers, scheduler=scheduler)
+        results = execute(tasks, workers=workers, scheduler=scheduler,
+                          by_scene=post_render_only(spec))
         try:
             for out in results:
                 if on_output is not None:

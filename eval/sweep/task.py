@@ -79,6 +79,12 @@ def run_task(task: SweepTask) -> dict[str, Any]:
         return _run_task(task)
 
 
+def run_batch(batch: tuple[SweepTask, ...]) -> list[dict[str, Any]]:
+    """:func:`run_task` on each task of a batch
+    (:func:`arenabench.eval.sweep.runner.sweep_batches`), in order."""
+    return [run_task(task) for task in batch]
+
+
 def _run_task(task: SweepTask) -> dict[str, Any]:
     from arenabench.generator.sample import make_sample, worker_renderer
     from arenabench.generator.sampler import SamplingError
