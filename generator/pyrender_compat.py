@@ -15,6 +15,7 @@ platform (:func:`arenabench.glplatform.configure`), imports pyrender and raises
 from __future__ import annotations
 
 import sys
+import threading
 from typing import Any
 
 import numpy as np
@@ -46,13 +47,15 @@ def check_version(version: str) -> None:
 #: for features that neither pyrender's drawing nor arenabench use, and treats it as optional.
 #: That is 0.37 of the 0.81 s the import takes in every rendering worker. SciPy imported later
 #: in the process works as usual (``tests/test_renderer_api.py`` checks it); only trimesh's
-#: own SciPy-based functions (convex hulls, KD-trees) raise in that process.
+#: own SciPy-based functions (convex hulls, KD-trees) raise in that process. Held only while
+#: no other Python thread runs, since an import of SciPy in another thread would fail then.
 IMPORT_WITHOUT = ("scipy",)
 
 
 def _import_pyrender():
     glplatform.configure()  # before the first import of pyrender / OpenGL
-    held = [name for name in IMPORT_WITHOUT if name not in sys.modules]
+    alone = threading.active_count() == 1
+    held = [name for name in IMPORT_WITHOUT if alone and name not in sys.modules]
     for name in held:
         sys.modules[name] = None  # type: ignore[assignment]  # importing it fails meanwhile
     try:
