@@ -11,7 +11,7 @@ from pathlib import Path
 from arenabench.clihelp import HelpFormatter
 from arenabench.eval.bench import TARGETS, BenchConfig, BenchResult, target_met
 
-#: (key, label, unit) rows of the table, in the README's order (section Benchmark).
+#: (key, label, unit) rows of the table, in the order of docs/benchmark.md.
 ROWS: tuple[tuple[str, str, str], ...] = (
     ("generate_disk_ips", "1 generation to disk (PNG + GT)", "images/s"),
     ("generate_memory_ips", "2 generation in memory (render + GT)", "images/s"),
@@ -82,7 +82,7 @@ def format_table(result: BenchResult, *, quick: bool = False) -> str:
                f"opencv {v.get('opencv')}, numpy {v.get('numpy')}, "
                f"pyrender {v.get('pyrender')}; {result.seconds:.0f} s in all")
     out.append("Targets: the figures a full run should reach on a 2-core machine without a GPU "
-               "(README, section Benchmark). CPU ms/img: CPU time (all processes and threads) "
+               "(docs/benchmark.md). CPU ms/img: CPU time (all processes and threads) "
                "per image.")
     if quick:
         out.append("Quick run: tiny counts, so the figures say only that every item runs; "

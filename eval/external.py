@@ -71,14 +71,17 @@ from functools import lru_cache
 from pathlib import Path
 from typing import Any
 
-from arenabench.competition import OBSTACLES_FILE, OutputFormatError, parse_obstacles_txt
+from arenabench.competition import (
+    EXIT_MARKERS_NOT_FOUND,
+    OBSTACLES_FILE,
+    OutputFormatError,
+    parse_obstacles_txt,
+)
 
 from .records import Prediction, tail
 from .run_limits import RunLimits, RunSettings
 
 OUTPUT_MODES: tuple[str, ...] = ("obstacles", "json")
-#: Exit status by which ``arenabench detect`` (and any command) says "markers not found".
-EXIT_MARKERS_NOT_FOUND = 3
 #: Largest ``obstacles.txt`` read; a larger one is ``bad_output``.
 OBSTACLES_MAX_BYTES = 64 * 1024
 #: Where the private directory appears inside the bubblewrap sandbox.

@@ -16,6 +16,8 @@ from collections.abc import Sequence
 
 import numpy as np
 
+from arenabench.competition import OutputFormatError, check_area, check_count
+
 from .records import CATEGORIES, ImageScore, Prediction, Summary, Truth
 
 DEFAULT_TOLERANCE = 0.05
@@ -64,16 +66,14 @@ def area_error(pred_area: float, gt_area: float) -> tuple[float, str]:
     return (float(pred_area) - float(gt_area)) / float(gt_area), "relative"
 
 
-def _is_count(value: object) -> bool:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
+def _valid(check, value: object) -> bool:
+    """Whether ``value`` passes one of the competition's answer checks (one rule, stated in
+    :mod:`arenabench.competition`)."""
+    try:
+        check(value)
+    except OutputFormatError:
         return False
-    return math.isfinite(value) and value >= 0 and value == int(value)
-
-
-def _is_area(value: object) -> bool:
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)):
-        return False
-    return math.isfinite(value) and value >= 0
+    return True
 
 
 def score_image(
@@ -99,8 +99,8 @@ def score_image(
         raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
     # Defence in depth: adapters already refuse these, but a non-finite, negative or fractional
     # value must never pass (abs(nan) > tolerance is False).
-    count_ok = _is_count(prediction.count)
-    area_ok = _is_area(prediction.area)
+    count_ok = _valid(check_count, prediction.count)
+    area_ok = _valid(check_area, prediction.area)
     count_err = int(prediction.count) - int(truth.count) if count_ok else None
     rel, kind = (None, "relative")
     if prediction.status == "ok" and area_ok:

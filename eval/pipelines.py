@@ -33,6 +33,7 @@ from arenabench.competition import (
     check_area,
     check_count,
 )
+from arenabench.pipeline.config import PROFILES
 
 from .external import EXIT_MARKERS_NOT_FOUND, OUTPUT_MODES, CommandPipeline
 from .records import Prediction, tail
@@ -43,7 +44,8 @@ __all__ = [
     "prediction_from_result",
 ]  # fmt: skip
 
-BUILTIN_PIPELINES: tuple[str, ...] = ("reference", "seed")
+#: The built-in pipelines are the detection profiles.
+BUILTIN_PIPELINES: tuple[str, ...] = PROFILES
 
 
 class Pipeline(Protocol):

@@ -23,6 +23,7 @@ from arenabench.frame import CORNER_ORDER
 from arenabench.generator import camera as cam
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.layout import MARKER_Z, box_vertices, marker_corners_world
+from arenabench.generator.params import PARAMETERS
 from arenabench.generator.scene import (
     ArenaSpec,
     CameraSpec,
@@ -73,15 +74,16 @@ class FitOptions:
     min_box_px: int = 400
 
     def __post_init__(self) -> None:
+        fov = PARAMETERS["camera.fov_deg"].bounds
         lo, hi = (float(v) for v in self.fov_range_deg)
-        if not 1.0 <= lo < hi <= 170.0:
-            raise ValueError(
-                f"fov_range_deg must be 1 <= lo < hi <= 170, got {self.fov_range_deg!r}"
-            )
+        if not fov.lo <= lo < hi <= fov.hi:
+            raise ValueError(f"fov_range_deg must be {fov.lo:g} <= lo < hi <= {fov.hi:g}, "
+                             f"got {self.fov_range_deg!r}")
         if self.refine_rounds < 0:
             raise ValueError(f"refine_rounds must be >= 0, got {self.refine_rounds!r}")
-        if self.fov_deg is not None and not 1.0 <= float(self.fov_deg) <= 170.0:
-            raise ValueError(f"fov_deg must be in [1, 170] or None, got {self.fov_deg!r}")
+        if self.fov_deg is not None and not fov.lo <= float(self.fov_deg) <= fov.hi:
+            raise ValueError(f"fov_deg must be in [{fov.lo:g}, {fov.hi:g}] or None, "
+                             f"got {self.fov_deg!r}")
         if self.match_detector_rounds < 0:
             raise ValueError(f"match_detector_rounds must be >= 0, got "
                              f"{self.match_detector_rounds!r}")

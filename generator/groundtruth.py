@@ -25,6 +25,7 @@ from arenabench.frame import CORNER_ORDER, FrameSpec
 from arenabench.generator import camera as cam
 from arenabench.generator.distractors import occluded_fractions
 from arenabench.generator.layout import (
+    IN_VIEW_MARGIN_PX,
     MARKER_Z,
     box_footprint,
     box_vertices,
@@ -36,8 +37,6 @@ from arenabench.generator.scene import Scene
 
 #: Significant digits kept for matrices (homography, K, pose).
 SIGNIFICANT_DIGITS = 12
-#: A marker is in view when its corners lie this many px inside the image border.
-IN_VIEW_MARGIN_PX = 2.0
 
 
 def significant(a: np.ndarray, digits: int = SIGNIFICANT_DIGITS) -> list:

@@ -17,6 +17,9 @@ from arenabench.generator.scene import ArenaSpec, FloorPatch, MarkerSpec, Obstac
 
 #: Height (m) of the marker sheets above the floor: keeps them off the floor's depth values.
 MARKER_Z = 0.0005
+#: A marker is in view when its corners lie this many px inside the image border (the GT's
+#: ``in_view`` and the sampler's check that a camera sees all four markers).
+IN_VIEW_MARGIN_PX = 2.0
 
 #: Signs (sx, sy) of each arena corner.
 _CORNER_SIGNS = {"nw": (-1, 1), "ne": (1, 1), "se": (1, -1), "sw": (-1, -1)}

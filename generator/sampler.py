@@ -26,7 +26,11 @@ from shapely.geometry import Polygon, box
 from arenabench.fileio import rounded
 from arenabench.generator import camera as cam
 from arenabench.generator.distractors import occluder_patch, sample_patches
-from arenabench.generator.layout import box_footprint, marker_corners_world
+from arenabench.generator.layout import (
+    IN_VIEW_MARGIN_PX,
+    box_footprint,
+    marker_corners_world,
+)
 from arenabench.generator.lens import distort_points
 from arenabench.generator.params import PARAMETERS, PARAMS, Range, Value, assemble
 from arenabench.generator.presets import resolve
@@ -128,7 +132,7 @@ def _camera(values: dict[str, Any]) -> CameraSpec:
 
 
 def markers_in_view(arena: ArenaSpec, markers: MarkerSpec, camera: CameraSpec,
-                    *, margin_px: float = 2.0) -> bool:
+                    *, margin_px: float = IN_VIEW_MARGIN_PX) -> bool:
     """Whether all four markers (quiet zone included) project inside the (distorted) image."""
     K = cam.intrinsics(camera)
     pose = cam.world_from_camera(camera)

@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from arenabench.generator import competition_arena as comp
+from arenabench.generator.params import PARAMETERS
 from arenabench.limits import MAX_IMAGE_SIDE_PX
 
 Rgb = tuple[int, int, int]
@@ -30,6 +31,13 @@ def _rgb(value: Any, name: str) -> Rgb:
     if not all(0 <= c <= 255 for c in (r, g, b)):
         raise ValueError(f"{name} must be three numbers 0..255, got {value!r}")
     return (r, g, b)
+
+
+def _within_bounds(value: float, name: str) -> None:
+    """Refuse a value outside the bounds the parameter registry declares for ``name``."""
+    bounds = PARAMETERS[name].bounds
+    if not bounds.lo <= float(value) <= bounds.hi:
+        raise ValueError(f"{name} must be in [{bounds.lo:g}, {bounds.hi:g}], got {value!r}")
 
 
 def _positive(value: float, name: str) -> float:
@@ -219,11 +227,9 @@ class CameraSpec:
                     f"(the largest image side arenabench renders), got {value!r}"
                 )
             object.__setattr__(self, name, int(value))
-        if not 1.0 <= float(self.fov_deg) <= 170.0:
-            raise ValueError(f"camera.fov_deg must be in [1, 170], got {self.fov_deg!r}")
+        _within_bounds(self.fov_deg, "camera.fov_deg")
         _positive(self.altitude_m, "camera.altitude_m")
-        if not 0.0 <= float(self.tilt_deg) < 80.0:
-            raise ValueError(f"camera.tilt_deg must be in [0, 80), got {self.tilt_deg!r}")
+        _within_bounds(self.tilt_deg, "camera.tilt_deg")
         object.__setattr__(self, "target_m", tuple(float(c) for c in self.target_m))
         if self.K is not None:
             k = tuple(tuple(float(v) for v in row) for row in self.K)

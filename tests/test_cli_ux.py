@@ -252,10 +252,10 @@ def test_data_folder_is_ignored():
         assert "data/" in (ROOT / ".gitignore").read_text().splitlines()
 
 
-def test_readme_and_bench_help_agree_on_the_duration(capsys, monkeypatch):
+def test_benchmark_docs_and_bench_help_agree_on_the_duration(capsys, monkeypatch):
     monkeypatch.setenv("COLUMNS", "200")
     text = " ".join(_help("bench", capsys).split())
-    readme = (ROOT / "README.md").read_text()
+    readme = (ROOT / "docs" / "benchmark.md").read_text()
     phrase = "about 1.5 minutes on 2 idle cores"
     assert phrase in text and phrase in readme
     assert "two minutes" not in text

@@ -38,6 +38,10 @@ class CompetitionOutput:
     marker_ids: list[int] = field(default_factory=list)
 
 
+#: Exit status by which a competition-style command (``arenabench detect``, a team's script
+#: run by the harness) says "markers not found".
+EXIT_MARKERS_NOT_FOUND = 3
+
 #: Largest count accepted: beyond 2**53 an integer has no exact float (nor JSON) value.
 MAX_COUNT = 2**53
 

@@ -21,12 +21,17 @@ import argparse
 import sys
 
 from arenabench.clihelp import HelpFormatter
-from arenabench.competition import OBSTACLES_FILE, format_obstacles_txt
+from arenabench.competition import (
+    EXIT_MARKERS_NOT_FOUND,
+    OBSTACLES_FILE,
+    format_obstacles_txt,
+)
 from arenabench.fileio import OutputPathError, check_output_file, write_output_text
 from arenabench.frame import FrameSpec
+from arenabench.pipeline.config import PROFILES
 
 PROG = "arenabench detect"
-EXIT_OK, EXIT_USAGE, EXIT_MARKERS = 0, 2, 3
+EXIT_OK, EXIT_USAGE, EXIT_MARKERS = 0, 2, EXIT_MARKERS_NOT_FOUND
 
 
 class _UsageError(Exception):
@@ -57,7 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --json: indent the JSON by N spaces (default: one line)")
     p.add_argument("--contours", action="store_true",
                    help="with --json: include each obstacle's contour points (frame px)")
-    p.add_argument("--profile", choices=("reference", "seed"), default="reference",
+    p.add_argument("--profile", choices=PROFILES, default="reference",
                    help="reference (default): the sound method; seed: as published")
     p.add_argument("--threshold", type=int, default=70,
                    help="global threshold before the marker search (default 70)")
