@@ -314,15 +314,36 @@ def _row(team, n_passed, exact, area, latency):
 def test_ranking_keys_and_deterministic_ties():
     rows = [
         _row("e", 3, 1.0, 0.01, 10.0),
-        _row("d", 3, 1.0, 0.01, 10.0),      # tie with e on everything: by name
-        _row("c", 3, 1.0, 0.01, 5.0),       # faster
+        _row("d", 3, 1.0, 0.01, 99.0),      # tie with e (latency never ranks): by name
+        _row("c", 3, 1.0, 0.005, 50.0),     # better area
         _row("b", 3, 1.0, None, 1.0),       # never answered: after any area
         _row("a", 3, 0.75, 0.0, 1.0),       # fewer exact counts
         _row("z", 4, 0.0, 0.5, 99.0),       # more passes first
     ]
     ranked = rank_rows(rows)
     assert [r.team for r in ranked] == ["z", "c", "d", "e", "b", "a"]
-    assert [r.rank for r in ranked] == [1, 2, 3, 4, 5, 6]
+    assert [r.rank for r in ranked] == [1, 2, 3, 3, 5, 6]
+    assert [r.tied for r in ranked] == [False, False, True, True, False, False]
+    # the same rows in any order, with any latencies: the same ranks
+    again = rank_rows([_row(r.team, 3, 1.0, 0.01, 1000.0 - i) if r.team in "de" else r
+                       for i, r in enumerate(reversed(rows))])
+    assert [(r.team, r.rank, r.tied) for r in again] == [(r.team, r.rank, r.tied)
+                                                         for r in ranked]
+
+
+def test_leaderboard_csv_escapes_formulas_and_rounds_floats():
+    from arenabench.eval.grade.leaderboard import leaderboard_dict
+    from arenabench.eval.reports.leaderboard_report import leaderboard_csv
+
+    rows = rank_rows([_row(name, 3, 0.1 + 0.2, 0.30000000000000004, 1.0)
+                      for name in ("=HYPERLINK(1)", "+1", "-2", "@SUM(A1)", "plain")])
+    doc = leaderboard_dict(rows, dataset={"path": "d", "manifest_sha256": "0" * 64, "n": 4},
+                           options={})
+    text = leaderboard_csv(doc)
+    cells = list(csv.DictReader(text.splitlines()))
+    assert {c["team"] for c in cells} == {"'=HYPERLINK(1)", "'+1", "'-2", "'@SUM(A1)", "plain"}
+    assert "0.30000000000000004" not in text and "0.3," in text
+    assert all(c["rank"] == "1" for c in cells)  # all equal: one shared rank
 
 
 @pytest.mark.parametrize(
@@ -437,3 +458,23 @@ def test_signal_stops_running_commands_and_keeps_finished_teams(sig, dataset, tm
     assert not (out / "teams" / "zz_slow" / STATE_FILE).exists()
     ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
     assert str(subs / "zz_slow" / "map.py") not in ps  # the running command was killed
+
+
+def test_submission_hash_of_a_deep_tree_and_a_huge_sparse_file(tmp_path):
+    team = _fast_teams(tmp_path / "subs", {"t": 1}) / "t"
+    fd = os.open(team, os.O_RDONLY | os.O_DIRECTORY)
+    for _ in range(1500):  # deeper than Python's recursion limit
+        os.mkdir("d", dir_fd=fd)
+        fd, old = os.open("d", os.O_RDONLY | os.O_DIRECTORY, dir_fd=fd), fd
+        os.close(old)
+    os.close(os.open("leaf.txt", os.O_WRONLY | os.O_CREAT, dir_fd=fd))
+    os.close(fd)
+    h_deep = submission_hash(team)
+    assert h_deep != submission_hash(_fast_teams(tmp_path / "other", {"t": 1}) / "t")
+    with open(team / "huge.bin", "wb") as fh:  # 1 TiB, sparse: must not be read
+        fh.truncate(1 << 40)
+    h_huge = submission_hash(team)
+    assert h_huge != h_deep and submission_hash(team) == h_huge
+    with open(team / "huge.bin", "r+b") as fh:
+        fh.truncate((1 << 40) + 1)  # another size: another hash
+    assert submission_hash(team) != h_huge

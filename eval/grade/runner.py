@@ -21,6 +21,7 @@ other teams go on.
 from __future__ import annotations
 
 import json
+import math
 import os
 import shlex
 import sys
@@ -89,8 +90,8 @@ class GradeOptions:
     def __post_init__(self) -> None:
         if self.output not in OUTPUT_MODES:
             raise ValueError(f"output must be one of {OUTPUT_MODES}, got {self.output!r}")
-        if not self.tolerance >= 0:
-            raise ValueError(f"tolerance must be >= 0, got {self.tolerance!r}")
+        if not (math.isfinite(self.tolerance) and self.tolerance >= 0):
+            raise ValueError(f"tolerance must be a finite number >= 0, got {self.tolerance!r}")
         if self.area_reference not in AREA_REFERENCES:
             raise ValueError(f"area_reference must be one of {sorted(AREA_REFERENCES)}, "
                              f"got {self.area_reference!r}")
