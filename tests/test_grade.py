@@ -41,7 +41,8 @@ def _env() -> dict[str, str]:
 
 
 def _grade_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "arenabench", "grade", *args, "--no-progress"],
+    return subprocess.run([sys.executable, "-m", "arenabench", "grade", *args, "--no-progress",
+                           "--allow-guessable-seed"],
                           capture_output=True, text=True, env=_env(), timeout=600)
 
 
@@ -187,7 +188,7 @@ def test_dask_local_cluster_gives_the_same_leaderboard(graded, dataset, submissi
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         result = grade(dataset, submissions, tmp_path / "dask",
                        options=GradeOptions(settings=settings),
-                       scheduler=cluster.scheduler_address)
+                       scheduler=cluster.scheduler_address, allow_guessable_seed=True)
     assert sorted(result.graded) == sorted(TEAMS) and not result.errors
     local = json.loads((out / "leaderboard.json").read_text())
     remote = json.loads((tmp_path / "dask" / "leaderboard.json").read_text())
@@ -223,19 +224,21 @@ def _opts(**kw) -> GradeOptions:
 def test_changed_submission_or_options_are_graded_again(dataset, tmp_path):
     subs = _fast_teams(tmp_path / "subs", {"a": 1, "b": 2, "c": 3})
     out = tmp_path / "out"
-    first = grade(dataset, subs, out, options=_opts(), workers=2)
+    first = grade(dataset, subs, out, options=_opts(), workers=2, allow_guessable_seed=True)
     assert sorted(first.graded) == ["a", "b", "c"] and first.skipped == []
     (subs / "a" / "notes.txt").write_text("a new file")       # content changed: regrade
     (subs / "b" / "__pycache__").mkdir()                       # Python's cache: not content
     (subs / "b" / "__pycache__" / "x.pyc").write_bytes(b"\0")
     os.utime(subs / "c" / "map.py", (0, 0))                    # times only: not content
-    second = grade(dataset, subs, out, options=_opts(), workers=2)
+    second = grade(dataset, subs, out, options=_opts(), workers=2, allow_guessable_seed=True)
     assert second.graded == ["a"] and sorted(second.skipped) == ["b", "c"]
-    third = grade(dataset, subs, out, options=_opts(tolerance=0.1), workers=2)
+    third = grade(dataset, subs, out, options=_opts(tolerance=0.1), workers=2,
+                  allow_guessable_seed=True)
     assert sorted(third.graded) == ["a", "b", "c"]             # other options: regrade all
     # a team removed from SUBMISSIONS leaves the leaderboard
     shutil.rmtree(subs / "c")
-    fourth = grade(dataset, subs, out, options=_opts(tolerance=0.1), workers=2)
+    fourth = grade(dataset, subs, out, options=_opts(tolerance=0.1), workers=2,
+                   allow_guessable_seed=True)
     assert {r.team for r in fourth.rows} == {"a", "b"}
 
 
@@ -248,10 +251,11 @@ def test_interrupted_grade_keeps_finished_teams(dataset, tmp_path):
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        grade(dataset, subs, out, options=_opts(), workers=1, report_workers=1, log=interrupt)
+        grade(dataset, subs, out, options=_opts(), workers=1, report_workers=1, log=interrupt,
+              allow_guessable_seed=True)
     finished = [p.parent.name for p in (out / "teams").glob(f"*/{STATE_FILE}")]
     assert len(finished) == 1
-    again = grade(dataset, subs, out, options=_opts(), workers=1)
+    again = grade(dataset, subs, out, options=_opts(), workers=1, allow_guessable_seed=True)
     assert again.skipped == finished and len(again.graded) == 2
     assert len(again.rows) == 3
 
@@ -264,7 +268,7 @@ def test_odd_team_names_are_escaped_and_linked(dataset, tmp_path):
     name = 'we <b>"rock" & ü #1?'
     subs = _fast_teams(tmp_path / "subs", {name: 1, "plain": 2})
     out = tmp_path / "out"
-    result = grade(dataset, subs, out, options=_opts(), workers=2)
+    result = grade(dataset, subs, out, options=_opts(), workers=2, allow_guessable_seed=True)
     assert sorted(result.graded) == sorted([name, "plain"])
     page = (out / "leaderboard.html").read_text()
     assert "<b>" not in page and html.escape(name) in page
@@ -360,7 +364,8 @@ def test_leaderboard_csv_escapes_formulas_and_rounds_floats():
 def test_bad_options_exit_2_with_one_line(extra, needle, dataset, tmp_path, capsys):
     subs = _fast_teams(tmp_path / "subs", {"a": 1})
     out = tmp_path / "out"
-    rc = arenabench_main(["grade", str(dataset), str(subs), "--out", str(out), *extra])
+    rc = arenabench_main(["grade", str(dataset), str(subs), "--out", str(out), *extra,
+                          "--allow-guessable-seed"])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and needle in err and len(err.splitlines()) == 1, err
     assert not out.exists()
@@ -423,9 +428,9 @@ def test_unreachable_scheduler_exits_2_before_writing(dataset, tmp_path):
     out = tmp_path / "out"
     proc = subprocess.run(
         [sys.executable, "-m", "arenabench", "grade", str(dataset), str(subs), "--out", str(out),
-         "--scheduler", "tcp://127.0.0.1:9"],
+         "--scheduler", "tcp://127.0.0.1:9", "--allow-guessable-seed"],
         capture_output=True, text=True, timeout=120,
-        env={**os.environ, "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"})
+        env={**_env(), "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"})
     err = proc.stderr.strip().splitlines()
     assert proc.returncode == 2 and err[-1].startswith("arenabench grade: error: "), err
     assert "127.0.0.1:9" in err[-1]
@@ -441,7 +446,8 @@ def test_signal_stops_running_commands_and_keeps_finished_teams(sig, dataset, tm
     out = tmp_path / "out"
     argv = [sys.executable, "-m", "arenabench", "grade", str(dataset), str(subs), "--out",
             str(out), "--cmd", "{python} {submission}/map.py --image {image}", "--workers", "1",
-            "--report-workers", "1", "--formats", "json", "--timeout", "300", "--no-progress"]
+            "--report-workers", "1", "--formats", "json", "--timeout", "300", "--no-progress",
+            "--allow-guessable-seed"]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
