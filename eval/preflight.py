@@ -74,7 +74,12 @@ import sys
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from arenabench.detect import main  # noqa: E402  (the copy next to this file)
 
-sys.exit(main(sys.argv[1:] + EXTRA))
+# the image: after --image, else the first argument naming a file (other arguments of the
+# grading command are the teams' business)
+args = sys.argv[1:]
+image = next((b for a, b in zip(args, args[1:]) if a == "--image"), None)
+image = image or next((a for a in args if os.path.isfile(a)), "")
+sys.exit(main(["--image", image] + EXTRA))
 '''
 
 
