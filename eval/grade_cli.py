@@ -115,6 +115,8 @@ def main(argv: list[str] | None = None) -> int:
         return _error(f"--workers must be >= 1, got {args.workers}")
     if args.report_workers is not None and args.report_workers < 1:
         return _error(f"--report-workers must be >= 1, got {args.report_workers}")
+    if args.reference is not None and not Path(args.reference).is_dir():
+        return _error(f"--reference {args.reference}: not a folder (a known-good submission)")
     if args.scheduler is not None and args.workers is not None:
         return _error("--workers and --scheduler exclude each other (the cluster's workers "
                       "run the commands)")

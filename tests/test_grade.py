@@ -355,6 +355,9 @@ def test_leaderboard_csv_escapes_formulas_and_rounds_floats():
     [
         (["--workers", "0"], "--workers must be >= 1"),
         (["--timeout", "0"], "--timeout must be > 0"),
+        (["--tolerance", "inf"], "--tolerance must be a finite number >= 0"),
+        (["--tolerance", "1e309"], "--tolerance must be a finite number >= 0"),
+        (["--reference", "/nonexistent/ref"], "--reference /nonexistent/ref: not a folder"),
         (["--formats", "html,pdf"], "--formats must be"),
         (["--cmd", "python3 'unclosed"], "--cmd cannot be split"),
         (["--memory-limit", "lots"], "--memory-limit: not a size"),

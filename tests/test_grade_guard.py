@@ -337,6 +337,24 @@ def test_an_all_timeout_team_ranks_last_with_null_latency(seed3_set, tmp_path):
     assert "latency" not in json.dumps(doc["ranking"])
 
 
+def test_byte_identical_submissions_share_one_rank_every_run(seed3_set, tmp_path):
+    subs = tmp_path / "subs"
+    for name in ("x", "y", "z"):
+        _team(subs, name, ANSWER.format(count=1))
+    _team(subs, "w", ANSWER.format(count=99))
+    ranks = []
+    for run in range(2):
+        result = grade(seed3_set, subs, tmp_path / f"out{run}", options=GradeOptions(
+            command=PY_CMD, formats=("json",)), workers=3, allow_guessable_seed=True)
+        ranks.append([(r.team, r.rank, r.tied) for r in result.rows])
+        csv_text = result.files["leaderboard.csv"].read_text()
+        assert [line.split(",")[0] for line in csv_text.splitlines()[1:4]] == ["1", "1", "1"]
+    assert ranks[0] == ranks[1]
+    top = [r for r in ranks[0] if r[0] in "xyz"]
+    assert {(rank, tied) for _, rank, tied in top} == {(1, True)}
+    assert [t for t, _, _ in top] == ["x", "y", "z"]  # listed by name
+
+
 def _settings(**limits):
     from arenabench.eval.run_limits import RunLimits, RunSettings
 
