@@ -433,3 +433,37 @@ def test_interrupted_grade_and_eval_show_the_banner(seed3_set, tmp_path):
     banner = f"INCOMPLETE: {doc['images_done']} of 9 images"
     dom = _dom(out / "leaderboard.html", tmp_path)
     assert banner in dom and "Leaderboard (partial)" in dom
+
+
+def test_sweep_page_of_a_partial_sweep_shows_the_banner(tmp_path):
+    from dataclasses import replace
+
+    from arenabench.eval.sweep.html import sweep_page
+    from arenabench.eval.sweep.outputs import load_sweep
+    from arenabench.eval.sweep_cli import main as sweep_main
+
+    out = tmp_path / "sweep"
+    assert sweep_main(["--vary", "camera.tilt_deg=0,10", "--per-point", "1", "--seed", "2",
+                       "--pipeline", "seed", "--out", str(out), "--workers", "1",
+                       "--no-progress", "--no-plots"]) == 0
+    result = load_sweep(out)
+    assert "INCOMPLETE" not in sweep_page(result, [])
+    partial = replace(result, run={**result.run, "complete": False, "samples_done": 1})
+    page = sweep_page(partial, [])
+    assert "INCOMPLETE: 1 of 2 images" in page and 'id="incomplete"' in page
+
+
+def test_a_submission_too_large_to_fingerprint_is_refused_alone(seed3_set, tmp_path,
+                                                                 monkeypatch):
+    from arenabench.eval.grade import submissions
+
+    monkeypatch.setattr(submissions, "MAX_ENTRIES", 50)
+    subs = tmp_path / "subs"
+    _team(subs, "fine", ANSWER.format(count=1))
+    big = _team(subs, "many_files", ANSWER.format(count=1))
+    for i in range(60):
+        (big / f"f{i}").write_text("")
+    result = grade(seed3_set, subs, tmp_path / "out", options=GradeOptions(
+        command=PY_CMD, formats=("json",)), workers=1, allow_guessable_seed=True)
+    assert [r.team for r in result.rows] == ["fine"]
+    assert "more than 50 entries" in result.errors["many_files"]

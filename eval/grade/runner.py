@@ -379,7 +379,13 @@ def grade(
     mode = require_sandbox(opts.settings.sandbox)
     opts = replace(opts, settings=replace(opts.settings, sandbox=mode))
     check_dataset_seed(data.root, allow_guessable=allow_guessable_seed)
-    digests = {t.name: submission_hash(t.path) for t in teams}
+    digests: dict[str, str] = {}
+    refused: dict[str, str] = {}  # a submission that cannot be fingerprinted is not graded
+    for t in teams:
+        try:
+            digests[t.name] = submission_hash(t.path)
+        except SubmissionsError as exc:
+            refused[t.name] = str(exc)
     record = preflight(
         opts.command, image=data.samples[0].image_path, mode=mode,
         limits=opts.settings.to_dict(), output=opts.output, reference=reference,
@@ -404,7 +410,8 @@ def grade(
     try:
         return _grade(data, teams, root, opts, expect_common, workers=workers, client=client,
                       report_workers=report_workers, progress=progress,
-                      emit=log or (lambda line: None), digests=digests, sandbox=sandbox)
+                      emit=log or (lambda line: None), digests=digests, sandbox=sandbox,
+                      refused=refused)
     finally:
         if client is not None and client is not scheduler:
             client.close()
@@ -414,7 +421,7 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
            expect_common: dict[str, str], *, workers: int | None, client: Any,
            report_workers: int | None, progress: bool,
            emit: Callable[[str], None], digests: dict[str, str],
-           sandbox: dict[str, Any]) -> GradeResult:
+           sandbox: dict[str, Any], refused: dict[str, str]) -> GradeResult:
     from arenabench.progress import progress as progress_bar
 
     (root / TEAMS_DIR).mkdir(parents=True, exist_ok=True)
@@ -423,6 +430,9 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
     todo: list[tuple[Team, str]] = []
     skipped: list[str] = []
     for team in teams:
+        if team.name in refused:
+            emit(f"{team.name}: error: {refused[team.name]}")
+            continue
         digest = digests[team.name]
         team_dir = root / TEAMS_DIR / team.name
         state = _read_state(team_dir)
@@ -452,7 +462,7 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
     preds: list[list[Prediction | None]] = [[None] * n_images for _ in todo]
     left = [n_images] * len(todo)
     graded: list[str] = []
-    errors: dict[str, str] = {}
+    errors: dict[str, str] = dict(refused)
     bar = progress_bar(len(units), desc="grade", unit="run", enabled=progress)
 
     def say(line: str) -> None:
