@@ -22,7 +22,9 @@ How one image runs
   ``TMPDIR``). ``{image}`` in the template is the copy; the dataset's path never appears in
   the command's arguments or environment. The run directory is removed afterwards.
 - Environment: only ``PATH``, ``HOME``, ``LANG``/``LC_ALL`` (``C.UTF-8``), ``TMPDIR`` and
-  ``settings.env``.
+  ``settings.env``; under bubblewrap ``PATH`` is the executable's folder, then
+  ``/usr/local/bin:/usr/bin:/bin`` (no host folder), and the command runs as PID 1 of its
+  PID namespace (no process there shows bubblewrap's arguments).
 - A launcher process (:mod:`arenabench.eval.launcher`) owns the run: child subreaper, so no
   process the command starts outlives the run however it detaches; killed with its
   processes (and the run directory removed) when the harness dies, even by SIGKILL.
@@ -32,11 +34,15 @@ How one image runs
 - Sandbox (``settings.sandbox``): ``bwrap`` runs the command under bubblewrap with new user,
   mount, PID, IPC, UTS and network namespaces (no network), ``--die-with-parent``, a fresh
   ``/dev`` and ``/proc``; visible read-only: ``/usr`` (and the ``/bin``, ``/lib*`` links),
-  a few ``/etc`` files, the Python installation and virtual environment (with the source
-  folders of its editable installs), and the submission's own folder (the folders of files
-  named in the command); read-write only the private directory (at :data:`SANDBOX_DIR`)
-  and ``/tmp`` (the run's ``tmp/``). The dataset, its ground truth and the rest of the
-  machine are not visible; a dataset inside a visible folder is hidden under an empty tmpfs.
+  a few ``/etc`` files, what the command's executable needs (:mod:`.interpreter`: a venv
+  with its base installation and the source folders of its ``.pth`` and editable installs,
+  conda, pyenv, a ``#!`` script's interpreter; the running Python's only for ``{python}``),
+  and the submission's own folder (the folders of files named in the command); read-write
+  only the private directory (at :data:`SANDBOX_DIR`) and ``/tmp`` (the run's ``tmp/``).
+  The dataset, its ground truth and the rest of the machine are not visible; a dataset
+  inside a visible folder (its root found by ``manifest.jsonl`` / ``dataset.json``, whatever
+  its images' folder is called) is hidden under an empty tmpfs. ``grade`` never uses
+  ``auto``'s fallback: it fails closed (:mod:`.preflight`).
   ``none`` runs without namespaces (private directory, environment, limits and cleanup
   still apply; it is no security boundary: the command can read what the harness can);
   ``auto`` is ``bwrap`` when it works, else ``none`` with one warning line on stderr.
@@ -473,7 +479,8 @@ class CommandPipeline:
         if self.sandbox == "bwrap":
             argv = self._bwrap_argv(work, tmp, image_path) + self.argv(image_path)
             env = self._env(SANDBOX_DIR, "/tmp")
-            env["PATH"] = self._sandbox_path()
+            if "PATH" not in self.settings.env:
+                env["PATH"] = self._sandbox_path()
             pids_max = lim.max_procs + 2  # bubblewrap's own two processes
         else:
             argv = self.argv(image_path, image_dir=work)

@@ -39,8 +39,8 @@ PROBE_TAG = "ARENABENCH-PREFLIGHT "
 
 PROBE = r'''"""arenabench grade preflight: what this interpreter offers competition scripts."""
 import importlib.util
-import json
 import sys
+from json import dumps  # this runs in the sandbox, without arenabench's JSON helpers
 
 info = {"python": sys.version.split()[0], "executable": sys.executable}
 missing = []
@@ -61,7 +61,7 @@ try:
     info["arenabench_importable"] = importlib.util.find_spec("arenabench") is not None
 except Exception:
     info["arenabench_importable"] = False
-print("ARENABENCH-PREFLIGHT " + json.dumps(info), flush=True)
+print("ARENABENCH-PREFLIGHT " + dumps(info), flush=True)
 if missing:
     print("missing: " + "; ".join(missing), file=sys.stderr)
     sys.exit(1)
