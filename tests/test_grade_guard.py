@@ -467,3 +467,42 @@ def test_a_submission_too_large_to_fingerprint_is_refused_alone(seed3_set, tmp_p
         command=PY_CMD, formats=("json",)), workers=1, allow_guessable_seed=True)
     assert [r.team for r in result.rows] == ["fine"]
     assert "more than 50 entries" in result.errors["many_files"]
+
+
+def test_interpreter_folders_of_venv_conda_pyenv_and_scripts(tmp_path):
+    from arenabench.eval.interpreter import interpreter_folders
+
+    def exe(path: Path, text: str = "") -> Path:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+        path.chmod(0o755)
+        return path
+
+    base = exe(tmp_path / "base" / "bin" / "python3")
+    venv = tmp_path / "venv"
+    (venv / "bin").mkdir(parents=True)
+    (venv / "bin" / "python").symlink_to(base)
+    (venv / "pyvenv.cfg").write_text(f"home = {base.parent}\n")
+    (tmp_path / "extra").mkdir()
+    site = venv / "lib" / "python3.11" / "site-packages"
+    site.mkdir(parents=True)
+    (site / "extra.pth").write_text(f"{tmp_path / 'extra'}\n")
+    info = interpreter_folders(venv / "bin" / "python")
+    assert info.kind == "venv"
+    assert set(info.folders) == {str(venv), str(tmp_path / "base"), str(tmp_path / "extra")}
+
+    conda = exe(tmp_path / "conda" / "envs" / "teams" / "bin" / "python")
+    (conda.parent.parent / "conda-meta").mkdir()
+    info = interpreter_folders(conda)
+    assert info.kind == "conda" and info.folders == (str(conda.parent.parent),)
+
+    shim = exe(tmp_path / "pyenv" / "shims" / "python3", "#!/usr/bin/env bash\n")
+    info = interpreter_folders(shim)
+    assert info.kind == "pyenv" and info.folders == (str(tmp_path / "pyenv"),)
+
+    script = exe(tmp_path / "tools" / "bin" / "grade-run", f"#!{conda}\nprint(1)\n")
+    info = interpreter_folders(script)
+    assert info.kind == "conda"
+    assert set(info.folders) == {str(tmp_path / "tools"), str(conda.parent.parent)}
+
+    assert interpreter_folders("/usr/bin/python3").folders == ()  # /usr: always visible
