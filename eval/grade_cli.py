@@ -23,7 +23,8 @@ PROG = "arenabench grade"
 EPILOG = """\
 examples:
   arenabench grade hidden/ submissions/ --out results/
-  arenabench grade hidden/ submissions/ --out results/ --timeout 30 --workers 8
+  arenabench grade hidden/ submissions/ --out results/ --timeout 30 --workers 8 \
+      --cmd "$HOME/teams-venv/bin/python {submission}/map.py --image {image}"
   arenabench grade hidden/ submissions/ --out results/ --cmd "python3 {submission}/run.py {image}"
   arenabench grade hidden/ submissions/ --out results/ --scheduler tcp://10.0.0.5:8786
 
@@ -48,6 +49,11 @@ each team's report.json), and warns when arenabench itself is importable there.
 Resuming: a team graded before on the same dataset (manifest sha256), with the same submission
 files and the same options is skipped ("skipped: already graded"); so is everything after an
 interruption that had finished.
+
+exit status: 0 done; 1 some team could not be graded; 2 usage error or a failed check before
+any team ran; 3 most teams failed alike (the setup, not the teams); 130/143 interrupted (the
+leaderboard of the finished teams is written, marked INCOMPLETE). The organiser's recipe from
+a fresh machine: docs/grading.md.
 """
 
 
