@@ -23,8 +23,9 @@ PROG = "arenabench grade"
 EPILOG = """\
 examples:
   arenabench grade hidden/ submissions/ --out results/
-  arenabench grade hidden/ submissions/ --out results/ --timeout 30 --workers 8 \
-      --cmd "$HOME/teams-venv/bin/python {submission}/map.py --image {image}"
+  arenabench grade hidden/ submissions/ --out results/ --timeout 30 --workers 8
+  arenabench grade hidden/ submissions/ --out results/ --cmd "$HOME/teams-venv/bin/python \\
+      {submission}/map.py --image {image}"
   arenabench grade hidden/ submissions/ --out results/ --cmd "python3 {submission}/run.py {image}"
   arenabench grade hidden/ submissions/ --out results/ --scheduler tcp://10.0.0.5:8786
 
