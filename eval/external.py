@@ -22,7 +22,9 @@ How one image runs
   ``TMPDIR``). ``{image}`` in the template is the copy; the dataset's path never appears in
   the command's arguments or environment. The run directory is removed afterwards.
 - Environment: only ``PATH``, ``HOME``, ``LANG``/``LC_ALL`` (``C.UTF-8``), ``TMPDIR`` and
-  ``settings.env``.
+  ``settings.env``; under bubblewrap ``PATH`` is the executable's folder, then
+  ``/usr/local/bin:/usr/bin:/bin`` (no host folder), and the command runs as PID 1 of its
+  PID namespace (no process there shows bubblewrap's arguments).
 - A launcher process (:mod:`arenabench.eval.launcher`) owns the run: child subreaper, so no
   process the command starts outlives the run however it detaches; killed with its
   processes (and the run directory removed) when the harness dies, even by SIGKILL.
@@ -32,11 +34,15 @@ How one image runs
 - Sandbox (``settings.sandbox``): ``bwrap`` runs the command under bubblewrap with new user,
   mount, PID, IPC, UTS and network namespaces (no network), ``--die-with-parent``, a fresh
   ``/dev`` and ``/proc``; visible read-only: ``/usr`` (and the ``/bin``, ``/lib*`` links),
-  a few ``/etc`` files, the Python installation and virtual environment (with the source
-  folders of its editable installs), and the submission's own folder (the folders of files
-  named in the command); read-write only the private directory (at :data:`SANDBOX_DIR`)
-  and ``/tmp`` (the run's ``tmp/``). The dataset, its ground truth and the rest of the
-  machine are not visible; a dataset inside a visible folder is hidden under an empty tmpfs.
+  a few ``/etc`` files, what the command's executable needs (:mod:`.interpreter`: a venv
+  with its base installation and the source folders of its ``.pth`` and editable installs,
+  conda, pyenv, a ``#!`` script's interpreter; the running Python's only for ``{python}``),
+  and the submission's own folder (the folders of files named in the command); read-write
+  only the private directory (at :data:`SANDBOX_DIR`) and ``/tmp`` (the run's ``tmp/``).
+  The dataset, its ground truth and the rest of the machine are not visible; a dataset
+  inside a visible folder (its root found by ``manifest.jsonl`` / ``dataset.json``, whatever
+  its images' folder is called) is hidden under an empty tmpfs. ``grade`` never uses
+  ``auto``'s fallback: it fails closed (:mod:`.preflight`).
   ``none`` runs without namespaces (private directory, environment, limits and cleanup
   still apply; it is no security boundary: the command can read what the harness can);
   ``auto`` is ``bwrap`` when it works, else ``none`` with one warning line on stderr.
@@ -190,38 +196,6 @@ def pids_cgroup_parent() -> str | None:
     return None
 
 
-@lru_cache(maxsize=1)
-def python_source_paths() -> tuple[str, ...]:
-    """Folders outside the Python installation that its site-packages point to: plain path
-    lines of ``.pth`` files and the package folders of editable installs (setuptools'
-    ``__editable__`` finders). Bound read-only in the sandbox so the interpreter works there
-    as it does outside (e.g. ``{python} -m arenabench.detect``)."""
-    import ast
-    import re
-    import site
-
-    dirs = set(site.getsitepackages()) if hasattr(site, "getsitepackages") else set()
-    out: set[str] = set()
-    for d in dirs:
-        for pth in Path(d).glob("*.pth"):
-            try:
-                lines = pth.read_text(errors="replace").splitlines()
-            except OSError:
-                continue
-            for line in lines:
-                line = line.strip()
-                if line and not line.startswith(("#", "import")) and os.path.isdir(line):
-                    out.add(os.path.realpath(line))
-        for finder in Path(d).glob("__editable__*finder.py"):
-            try:
-                m = re.search(r"^MAPPING[^=]*=\s*(\{.*?\})\s*$", finder.read_text(), re.M)
-                mapping = ast.literal_eval(m.group(1)) if m else {}
-            except (OSError, ValueError, SyntaxError):
-                continue
-            out.update(os.path.realpath(v) for v in mapping.values() if os.path.isdir(v))
-    return tuple(sorted(out))
-
-
 def _format_size(n: int) -> str:
     for unit, size in (("G", 1024**3), ("M", 1024**2), ("k", 1024)):
         if n >= size and n % size == 0:
@@ -271,6 +245,17 @@ def _wait(proc: subprocess.Popen, timeout: float) -> int:
     if not ready:
         raise subprocess.TimeoutExpired(proc.args, timeout)
     return proc.wait()
+
+
+def dataset_folders(image_dir: Path) -> list[Path]:
+    """The folders from ``image_dir``'s parent up to the dataset root that holds it (the
+    nearest one with ``manifest.jsonl`` or ``dataset.json``); empty when there is none."""
+    for k, folder in enumerate(image_dir.parents):
+        if (folder / "manifest.jsonl").exists() or (folder / "dataset.json").exists():
+            return list(image_dir.parents)[: k + 1]
+        if k >= 8:
+            break
+    return []
 
 
 def _is_within(path: str, root: str) -> bool:
@@ -390,14 +375,18 @@ class CommandPipeline:
                 for a in self._resolved_args()]
 
     def _visible_paths(self) -> list[str]:
-        """Read-only folders of the sandbox besides /usr (outermost first, no duplicates)."""
-        paths = {sys.prefix, sys.base_prefix, sys.exec_prefix, sys.base_exec_prefix,
-                 str(Path(sys.executable).resolve().parent), *python_source_paths()}
+        """Read-only folders of the sandbox besides /usr (outermost first, no duplicates):
+        what the command's executable needs (:mod:`arenabench.eval.interpreter`: a venv with
+        its base installation, conda, pyenv, a ``#!`` script's interpreter), the running
+        Python's only when the command names ``{python}``, and the submission's own folders
+        (those of files named in the command)."""
+        from .interpreter import interpreter_folders, outermost
+
+        paths: set[str] = set()
         if self._executable:
-            # the command's whole installation prefix (/opt/conda for /opt/conda/bin/python3,
-            # ~/.pyenv for a pyenv shim), since interpreters and shims need more than their bin/
-            folder = Path(self._executable).resolve().parent
-            paths.add(str(folder.parent if folder.name in ("bin", "sbin", "shims") else folder))
+            paths.update(interpreter_folders(self._executable).folders)
+        if any("{python}" in a for a in self._argv):
+            paths.update(interpreter_folders(sys.executable).folders)
         roots = ("/", "/proc", "/dev", "/sys", "/tmp", "/run", "/var", "/home", "/root", "/mnt")
         for arg in self._resolved_args():
             if "{" in arg or not os.path.isabs(arg) or not os.path.exists(arg):
@@ -406,14 +395,7 @@ class CommandPipeline:
             folder = real if os.path.isdir(real) else os.path.dirname(real)
             # a file directly in a top folder such as /tmp: only the file itself
             paths.add(real if folder in roots and real != folder else folder)
-        out: list[str] = []
-        for p in sorted(paths, key=len):
-            p = os.path.realpath(p)
-            if p in roots or _is_within(p, "/usr"):
-                continue
-            if not any(_is_within(p, q) for q in out):
-                out.append(p)
-        return out
+        return [p for p in outermost(paths) if p not in roots]
 
     def _bwrap_argv(self, work: str, tmp: str, image_path: Path) -> list[str]:
         args = ["bwrap", *_NAMESPACE_ARGS, "--ro-bind", "/usr", "/usr"]
@@ -429,18 +411,30 @@ class CommandPipeline:
         visible = self._visible_paths()
         for p in visible:
             args += ["--ro-bind", p, p]
-        # a dataset inside a visible folder is hidden under an empty tmpfs
+        # a dataset inside a visible folder is hidden under an empty tmpfs: the image's
+        # folder and every folder up to the dataset's root (manifest.jsonl / dataset.json)
         image_dir = Path(os.path.realpath(image_path)).parent
-        hide = [image_dir] + ([image_dir.parent] if image_dir.name == "images" else [])
+        hide = [image_dir, *dataset_folders(image_dir)]
         for d in hide:
             ds = str(d)
             if any(_is_within(ds, v) and ds != v for v in visible) and not any(
                 _is_within(v, ds) for v in visible
             ):
                 args += ["--tmpfs", ds]
+        # --as-pid-1: the command is pid 1 of the sandbox's PID namespace, so no process there
+        # (bubblewrap's own init before) shows this argument list, bind paths included, in
+        # /proc/*/cmdline
         args += ["--proc", "/proc", "--dev", "/dev", "--remount-ro", "/", "--chdir", SANDBOX_DIR,
-                 "--"]
+                 "--as-pid-1", "--"]
         return [shutil.which("bwrap") or "bwrap", *args[1:]]
+
+    def _sandbox_path(self) -> str:
+        """``PATH`` inside the sandbox: the executable's folder, then the system's (the
+        harness's own ``PATH`` would name host folders in ``/proc/self/environ``)."""
+        system = "/usr/local/bin:/usr/bin:/bin"
+        if not self._executable:
+            return system
+        return f"{os.path.dirname(self._executable)}:{system}"
 
     def _env(self, home: str, tmp: str) -> dict[str, str]:
         env = {
@@ -488,6 +482,8 @@ class CommandPipeline:
         if self.sandbox == "bwrap":
             argv = self._bwrap_argv(work, tmp, image_path) + self.argv(image_path)
             env = self._env(SANDBOX_DIR, "/tmp")
+            if "PATH" not in self.settings.env:
+                env["PATH"] = self._sandbox_path()
             pids_max = lim.max_procs + 2  # bubblewrap's own two processes
         else:
             argv = self.argv(image_path, image_dir=work)

@@ -2,7 +2,10 @@
 report and a ranked leaderboard; re-running skips teams already graded.
 
 Exit status: 0 done; 1 the grader could not finish some team (the others are ranked);
-2 usage error (bad dataset, submissions folder, output folder or option; no cluster);
+2 usage error (bad dataset, submissions folder, output folder or option; no cluster) or a
+failed preflight (no sandbox without --sandbox none, a guessable seed, a grading command that
+cannot run the reference submission), before any team runs; 3 most teams failed alike (the
+setup, not the teams: one line names the shared error; the leaderboard is written);
 130 / 143 interrupted by SIGINT / SIGTERM (running commands are killed; teams already
 finished stay graded: run the same command again to resume).
 """
@@ -21,6 +24,8 @@ EPILOG = """\
 examples:
   arenabench grade hidden/ submissions/ --out results/
   arenabench grade hidden/ submissions/ --out results/ --timeout 30 --workers 8
+  arenabench grade hidden/ submissions/ --out results/ --cmd "$HOME/teams-venv/bin/python \\
+      {submission}/map.py --image {image}"
   arenabench grade hidden/ submissions/ --out results/ --cmd "python3 {submission}/run.py {image}"
   arenabench grade hidden/ submissions/ --out results/ --scheduler tcp://10.0.0.5:8786
 
@@ -32,12 +37,24 @@ Submissions are only read.
 
 outputs in --out: teams/TEAM/ (report.json, results.csv, report.md, report.html, junit.xml,
 grade-state.json), leaderboard.json (schema arenabench.leaderboard/1), leaderboard.csv,
-leaderboard.html. Ranked by pass rate, then count exact rate, then median |area error|, then
-median latency, then team name.
+leaderboard.html. Ranked by pass rate, then count exact rate, then median |area error|;
+teams equal on all three share a rank (listed by name); latency is never ranked on.
+
+Before any team runs (exit 2, one line, when one fails): bubblewrap must work (or pass
+--sandbox none explicitly); a set generated with a seed below 2**64 is refused (generate
+hidden sets with --seed random, or pass --allow-guessable-seed); the preflight runs a probe
+and the built-in reference submission (or --reference DIR) through the grading command in the
+sandbox and reports the Python, numpy and OpenCV versions seen there (in leaderboard.json and
+each team's report.json), and warns when arenabench itself is importable there.
 
 Resuming: a team graded before on the same dataset (manifest sha256), with the same submission
 files and the same options is skipped ("skipped: already graded"); so is everything after an
 interruption that had finished.
+
+exit status: 0 done; 1 some team could not be graded; 2 usage error or a failed check before
+any team ran; 3 most teams failed alike (the setup, not the teams); 130/143 interrupted (the
+leaderboard of the finished teams is written, marked INCOMPLETE). The organiser's recipe from
+a fresh machine: docs/grading.md.
 """
 
 
@@ -75,6 +92,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--report-workers", type=int, default=None,
                    help="processes here writing the teams' reports (default: cores)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    p.add_argument("--allow-guessable-seed", action="store_true",
+                   help="grade a set generated with a seed below 2**64 (a submission can "
+                        "re-render it and read its answers)")
+    p.add_argument("--reference", default=None, metavar="DIR",
+                   help="a known-good submission for the preflight (default: the built-in "
+                        "reference detector as a competition script)")
     add_run_arguments(p)
     return p
 
@@ -99,6 +122,8 @@ def main(argv: list[str] | None = None) -> int:
         return _error(f"--workers must be >= 1, got {args.workers}")
     if args.report_workers is not None and args.report_workers < 1:
         return _error(f"--report-workers must be >= 1, got {args.report_workers}")
+    if args.reference is not None and not Path(args.reference).is_dir():
+        return _error(f"--reference {args.reference}: not a folder (a known-good submission)")
     if args.scheduler is not None and args.workers is not None:
         return _error("--workers and --scheduler exclude each other (the cluster's workers "
                       "run the commands)")
@@ -140,7 +165,8 @@ def main(argv: list[str] | None = None) -> int:
             result = grade(dataset, args.submissions, args.out, options=options,
                            workers=args.workers, scheduler=args.scheduler,
                            report_workers=args.report_workers, progress=not args.no_progress,
-                           log=print)
+                           log=print, allow_guessable_seed=args.allow_guessable_seed,
+                           reference=args.reference)
         except (DatasetError, SubmissionsError, ValueError) as exc:
             return _error(str(exc))
         except OSError as exc:  # e.g. the scheduler cannot be reached
@@ -158,6 +184,9 @@ def main(argv: list[str] | None = None) -> int:
         for team, why in result.errors.items():
             print(f"{PROG}: could not grade {team}: {why}", file=sys.stderr)
         return 1
+    if result.systemic:
+        print(f"{PROG}: error: {result.systemic}", file=sys.stderr)
+        return 3
     return 0
 
 

@@ -204,5 +204,7 @@ def summarize(
         area_rel_err_signed=_stats(rels, ("median", "mean", "p5", "p95", "min", "max")),
         marker_id_accuracy=(sum(ids) / len(ids)) if ids else None,
         failures=failures,
-        latency_ms=_stats([p.latency_ms for p in predictions], ("median", "p95")),
+        # a timed-out image has no latency (nor one that never ran): undefined, not 0
+        latency_ms=_stats([p.latency_ms for p in predictions
+                           if p.status != "timeout" and p.latency_ms > 0], ("median", "p95")),
     )

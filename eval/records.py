@@ -310,7 +310,7 @@ class Report:
     """A whole evaluation: settings, summary, per-image results and the parameter breakdown.
 
     ``complete`` is ``False`` for a run stopped early (SIGINT/SIGTERM); its summary then
-    covers the ``n_done`` images evaluated before the stop.
+    covers the ``n_done`` images evaluated before the stop, of ``n_total`` (when known).
     """
 
     pipeline: str
@@ -323,6 +323,7 @@ class Report:
     schema: str = REPORT_SCHEMA
     complete: bool = True
     n_done: int | None = None
+    n_total: int | None = None
 
     @property
     def images_done(self) -> int:
@@ -339,6 +340,7 @@ class Report:
             "tolerance": self.tolerance,
             "complete": self.complete,
             "n_done": self.images_done,
+            **({} if self.n_total is None else {"n_total": self.n_total}),
             "summary": self.summary.to_dict(),
             "breakdown": self.breakdown,
             "images": [r.to_dict() for r in self.images],
@@ -365,4 +367,5 @@ class Report:
             breakdown=dict(d.get("breakdown", {})),
             complete=bool(d.get("complete", True)),
             n_done=None if d.get("n_done") is None else int(d["n_done"]),
+            n_total=None if d.get("n_total") is None else int(d["n_total"]),
         )

@@ -101,12 +101,14 @@ def build_report(
     area_reference: str = "visible",
     tolerance: float = DEFAULT_TOLERANCE,
     complete: bool = True,
+    n_total: int | None = None,
 ) -> Report:
     """Summary and breakdown of scored images, as a :class:`Report` (``complete=False``: a
-    run stopped early, ``n_done`` is then the number of images given)."""
+    run stopped early, ``n_done`` is then the number of images given, of ``n_total``)."""
     return Report(
         complete=complete,
         n_done=len(results),
+        n_total=None if complete else n_total,
         pipeline=pipeline,
         dataset=dataset,
         area_reference=area_reference,
@@ -235,6 +237,7 @@ def evaluate(
         area_reference=area_reference,
         tolerance=tolerance,
         complete=interrupted is None,
+        n_total=len(samples),
     )
     if interrupted is not None:
         raise EvaluationInterrupted(report, interrupted.signum)

@@ -24,7 +24,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--preset", default="eyrc",
                    help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
     p.add_argument("--count", type=int, required=True, help="number of scenes")
-    p.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
+    p.add_argument("--seed", default="0",
+                   help="run seed: an integer >= 0 (default 0), or 'random': 128 bits from "
+                        "the operating system, printed and recorded in dataset.json (use it "
+                        "for a hidden grading set: a small seed lets a submission re-render "
+                        "the set and read its answers)")
     p.add_argument("--out", required=True, help="output directory")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a preset parameter, e.g. camera.tilt_deg=10:30 or "
@@ -47,6 +51,7 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.generator.dataset import GenerateError, generate_dataset
     from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError
+    from arenabench.generator.seeds import parse_seed
     from arenabench.interrupts import Interrupted, exit_code, stop_on_signals
 
     try:
@@ -54,11 +59,21 @@ def main(argv: list[str] | None = None) -> int:
     except OutputPathError as exc:
         print(f"arenabench generate: error: --out {args.out}: {exc}", file=sys.stderr)
         return 2
+    try:
+        seed = parse_seed(args.seed)
+    except ValueError:
+        print(f"arenabench generate: error: --seed: not an integer >= 0 nor 'random': "
+              f"{args.seed!r}", file=sys.stderr)
+        return 2
+    if args.seed.strip().lower() == "random":
+        print(f"arenabench generate: seed {seed} (random; recorded in "
+              f"{os.path.join(args.out, 'dataset.json')}, which no submission may see)",
+              flush=True)
     with stop_on_signals():
         try:
             overrides = parse_overrides(args.overrides)
             result = generate_dataset(
-                args.out, preset=args.preset, count=args.count, seed=args.seed,
+                args.out, preset=args.preset, count=args.count, seed=seed,
                 overrides=overrides, workers=args.workers, scheduler=args.scheduler,
                 progress=not args.no_progress,
             )

@@ -65,3 +65,26 @@ def test_command_line_json_no_context():
     data = json.loads(proc.stdout)
     assert proc.returncode == (0 if data["ok"] else 1)
     assert {c["name"] for c in data["checks"]} >= {"python", "opencv", "opengl platform"}
+
+
+def test_sandbox_and_browser_checks_run_for_real(monkeypatch, tmp_path):
+    import shutil
+
+    from arenabench.eval.external import bwrap_problem
+
+    check = doctor.check_sandbox()
+    assert check.ok == (bwrap_problem() is None), check.detail
+    assert check.required and (check.ok or "apt-get install -y bubblewrap" in check.fix)
+    browser = doctor.check_browser()
+    assert not browser.required
+    assert browser.ok or browser.fix == doctor.BROWSER_FIX
+    # no bwrap on PATH: FAIL with the command that installs it
+    (tmp_path / "bin").mkdir()
+    monkeypatch.setenv("PATH", str(tmp_path / "bin"))
+    assert shutil.which("bwrap") is None
+    missing = doctor.check_sandbox()
+    assert not missing.ok and "apt-get install -y bubblewrap" in missing.fix
+    no_browser = doctor.check_browser()
+    assert not no_browser.ok and no_browser.fix == doctor.BROWSER_FIX
+    report = doctor.DoctorReport([doctor.Check("a", True, "1"), no_browser])
+    assert report.ok and "WARN  headless browser" in report.to_text()

@@ -41,7 +41,8 @@ def _env() -> dict[str, str]:
 
 
 def _grade_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "arenabench", "grade", *args, "--no-progress"],
+    return subprocess.run([sys.executable, "-m", "arenabench", "grade", *args, "--no-progress",
+                           "--allow-guessable-seed"],
                           capture_output=True, text=True, env=_env(), timeout=600)
 
 
@@ -187,7 +188,7 @@ def test_dask_local_cluster_gives_the_same_leaderboard(graded, dataset, submissi
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         result = grade(dataset, submissions, tmp_path / "dask",
                        options=GradeOptions(settings=settings),
-                       scheduler=cluster.scheduler_address)
+                       scheduler=cluster.scheduler_address, allow_guessable_seed=True)
     assert sorted(result.graded) == sorted(TEAMS) and not result.errors
     local = json.loads((out / "leaderboard.json").read_text())
     remote = json.loads((tmp_path / "dask" / "leaderboard.json").read_text())
@@ -223,19 +224,21 @@ def _opts(**kw) -> GradeOptions:
 def test_changed_submission_or_options_are_graded_again(dataset, tmp_path):
     subs = _fast_teams(tmp_path / "subs", {"a": 1, "b": 2, "c": 3})
     out = tmp_path / "out"
-    first = grade(dataset, subs, out, options=_opts(), workers=2)
+    first = grade(dataset, subs, out, options=_opts(), workers=2, allow_guessable_seed=True)
     assert sorted(first.graded) == ["a", "b", "c"] and first.skipped == []
     (subs / "a" / "notes.txt").write_text("a new file")       # content changed: regrade
     (subs / "b" / "__pycache__").mkdir()                       # Python's cache: not content
     (subs / "b" / "__pycache__" / "x.pyc").write_bytes(b"\0")
     os.utime(subs / "c" / "map.py", (0, 0))                    # times only: not content
-    second = grade(dataset, subs, out, options=_opts(), workers=2)
+    second = grade(dataset, subs, out, options=_opts(), workers=2, allow_guessable_seed=True)
     assert second.graded == ["a"] and sorted(second.skipped) == ["b", "c"]
-    third = grade(dataset, subs, out, options=_opts(tolerance=0.1), workers=2)
+    third = grade(dataset, subs, out, options=_opts(tolerance=0.1), workers=2,
+                  allow_guessable_seed=True)
     assert sorted(third.graded) == ["a", "b", "c"]             # other options: regrade all
     # a team removed from SUBMISSIONS leaves the leaderboard
     shutil.rmtree(subs / "c")
-    fourth = grade(dataset, subs, out, options=_opts(tolerance=0.1), workers=2)
+    fourth = grade(dataset, subs, out, options=_opts(tolerance=0.1), workers=2,
+                   allow_guessable_seed=True)
     assert {r.team for r in fourth.rows} == {"a", "b"}
 
 
@@ -248,10 +251,11 @@ def test_interrupted_grade_keeps_finished_teams(dataset, tmp_path):
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        grade(dataset, subs, out, options=_opts(), workers=1, report_workers=1, log=interrupt)
+        grade(dataset, subs, out, options=_opts(), workers=1, report_workers=1, log=interrupt,
+              allow_guessable_seed=True)
     finished = [p.parent.name for p in (out / "teams").glob(f"*/{STATE_FILE}")]
     assert len(finished) == 1
-    again = grade(dataset, subs, out, options=_opts(), workers=1)
+    again = grade(dataset, subs, out, options=_opts(), workers=1, allow_guessable_seed=True)
     assert again.skipped == finished and len(again.graded) == 2
     assert len(again.rows) == 3
 
@@ -264,7 +268,7 @@ def test_odd_team_names_are_escaped_and_linked(dataset, tmp_path):
     name = 'we <b>"rock" & ü #1?'
     subs = _fast_teams(tmp_path / "subs", {name: 1, "plain": 2})
     out = tmp_path / "out"
-    result = grade(dataset, subs, out, options=_opts(), workers=2)
+    result = grade(dataset, subs, out, options=_opts(), workers=2, allow_guessable_seed=True)
     assert sorted(result.graded) == sorted([name, "plain"])
     page = (out / "leaderboard.html").read_text()
     assert "<b>" not in page and html.escape(name) in page
@@ -314,15 +318,36 @@ def _row(team, n_passed, exact, area, latency):
 def test_ranking_keys_and_deterministic_ties():
     rows = [
         _row("e", 3, 1.0, 0.01, 10.0),
-        _row("d", 3, 1.0, 0.01, 10.0),      # tie with e on everything: by name
-        _row("c", 3, 1.0, 0.01, 5.0),       # faster
+        _row("d", 3, 1.0, 0.01, 99.0),      # tie with e (latency never ranks): by name
+        _row("c", 3, 1.0, 0.005, 50.0),     # better area
         _row("b", 3, 1.0, None, 1.0),       # never answered: after any area
         _row("a", 3, 0.75, 0.0, 1.0),       # fewer exact counts
         _row("z", 4, 0.0, 0.5, 99.0),       # more passes first
     ]
     ranked = rank_rows(rows)
     assert [r.team for r in ranked] == ["z", "c", "d", "e", "b", "a"]
-    assert [r.rank for r in ranked] == [1, 2, 3, 4, 5, 6]
+    assert [r.rank for r in ranked] == [1, 2, 3, 3, 5, 6]
+    assert [r.tied for r in ranked] == [False, False, True, True, False, False]
+    # the same rows in any order, with any latencies: the same ranks
+    again = rank_rows([_row(r.team, 3, 1.0, 0.01, 1000.0 - i) if r.team in "de" else r
+                       for i, r in enumerate(reversed(rows))])
+    assert [(r.team, r.rank, r.tied) for r in again] == [(r.team, r.rank, r.tied)
+                                                         for r in ranked]
+
+
+def test_leaderboard_csv_escapes_formulas_and_rounds_floats():
+    from arenabench.eval.grade.leaderboard import leaderboard_dict
+    from arenabench.eval.reports.leaderboard_report import leaderboard_csv
+
+    rows = rank_rows([_row(name, 3, 0.1 + 0.2, 0.30000000000000004, 1.0)
+                      for name in ("=HYPERLINK(1)", "+1", "-2", "@SUM(A1)", "plain")])
+    doc = leaderboard_dict(rows, dataset={"path": "d", "manifest_sha256": "0" * 64, "n": 4},
+                           options={})
+    text = leaderboard_csv(doc)
+    cells = list(csv.DictReader(text.splitlines()))
+    assert {c["team"] for c in cells} == {"'=HYPERLINK(1)", "'+1", "'-2", "'@SUM(A1)", "plain"}
+    assert "0.30000000000000004" not in text and "0.3," in text
+    assert all(c["rank"] == "1" for c in cells)  # all equal: one shared rank
 
 
 @pytest.mark.parametrize(
@@ -330,6 +355,9 @@ def test_ranking_keys_and_deterministic_ties():
     [
         (["--workers", "0"], "--workers must be >= 1"),
         (["--timeout", "0"], "--timeout must be > 0"),
+        (["--tolerance", "inf"], "--tolerance must be a finite number >= 0"),
+        (["--tolerance", "1e309"], "--tolerance must be a finite number >= 0"),
+        (["--reference", "/nonexistent/ref"], "--reference /nonexistent/ref: not a folder"),
         (["--formats", "html,pdf"], "--formats must be"),
         (["--cmd", "python3 'unclosed"], "--cmd cannot be split"),
         (["--memory-limit", "lots"], "--memory-limit: not a size"),
@@ -339,7 +367,8 @@ def test_ranking_keys_and_deterministic_ties():
 def test_bad_options_exit_2_with_one_line(extra, needle, dataset, tmp_path, capsys):
     subs = _fast_teams(tmp_path / "subs", {"a": 1})
     out = tmp_path / "out"
-    rc = arenabench_main(["grade", str(dataset), str(subs), "--out", str(out), *extra])
+    rc = arenabench_main(["grade", str(dataset), str(subs), "--out", str(out), *extra,
+                          "--allow-guessable-seed"])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and needle in err and len(err.splitlines()) == 1, err
     assert not out.exists()
@@ -402,9 +431,9 @@ def test_unreachable_scheduler_exits_2_before_writing(dataset, tmp_path):
     out = tmp_path / "out"
     proc = subprocess.run(
         [sys.executable, "-m", "arenabench", "grade", str(dataset), str(subs), "--out", str(out),
-         "--scheduler", "tcp://127.0.0.1:9"],
+         "--scheduler", "tcp://127.0.0.1:9", "--allow-guessable-seed"],
         capture_output=True, text=True, timeout=120,
-        env={**os.environ, "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"})
+        env={**_env(), "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"})
     err = proc.stderr.strip().splitlines()
     assert proc.returncode == 2 and err[-1].startswith("arenabench grade: error: "), err
     assert "127.0.0.1:9" in err[-1]
@@ -420,7 +449,8 @@ def test_signal_stops_running_commands_and_keeps_finished_teams(sig, dataset, tm
     out = tmp_path / "out"
     argv = [sys.executable, "-m", "arenabench", "grade", str(dataset), str(subs), "--out",
             str(out), "--cmd", "{python} {submission}/map.py --image {image}", "--workers", "1",
-            "--report-workers", "1", "--formats", "json", "--timeout", "300", "--no-progress"]
+            "--report-workers", "1", "--formats", "json", "--timeout", "300", "--no-progress",
+            "--allow-guessable-seed"]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:
@@ -437,3 +467,23 @@ def test_signal_stops_running_commands_and_keeps_finished_teams(sig, dataset, tm
     assert not (out / "teams" / "zz_slow" / STATE_FILE).exists()
     ps = subprocess.run(["ps", "-eo", "args"], capture_output=True, text=True).stdout
     assert str(subs / "zz_slow" / "map.py") not in ps  # the running command was killed
+
+
+def test_submission_hash_of_a_deep_tree_and_a_huge_sparse_file(tmp_path):
+    team = _fast_teams(tmp_path / "subs", {"t": 1}) / "t"
+    fd = os.open(team, os.O_RDONLY | os.O_DIRECTORY)
+    for _ in range(1500):  # deeper than Python's recursion limit
+        os.mkdir("d", dir_fd=fd)
+        fd, old = os.open("d", os.O_RDONLY | os.O_DIRECTORY, dir_fd=fd), fd
+        os.close(old)
+    os.close(os.open("leaf.txt", os.O_WRONLY | os.O_CREAT, dir_fd=fd))
+    os.close(fd)
+    h_deep = submission_hash(team)
+    assert h_deep != submission_hash(_fast_teams(tmp_path / "other", {"t": 1}) / "t")
+    with open(team / "huge.bin", "wb") as fh:  # 1 TiB, sparse: must not be read
+        fh.truncate(1 << 40)
+    h_huge = submission_hash(team)
+    assert h_huge != h_deep and submission_hash(team) == h_huge
+    with open(team / "huge.bin", "r+b") as fh:
+        fh.truncate((1 << 40) + 1)  # another size: another hash
+    assert submission_hash(team) != h_huge

@@ -1,9 +1,10 @@
 """The leaderboard of a grading run: one row per team, ranked, and its JSON form.
 
 Ranking (best first): pass rate (higher), then count exact rate (higher), then the median
-``|area_rel_err|`` (lower; a team that never answered comes after any that did), then the
-median latency (lower), then the team name, so the order is total and deterministic. Only the
-last two keys depend on wall-clock time, and only for teams equal on the first three.
+``|area_rel_err|`` (lower; a team that never answered comes after any that did). Nothing that
+depends on wall-clock time ranks: teams equal on those three keys share a rank (shown as a
+tie, "2=") and are listed by name, so the same submissions get the same ranks every run.
+Latency is reported, never ranked on; a timed-out image has no latency (``null``).
 
 ``leaderboard.json`` (schema ``arenabench.leaderboard/1``; :data:`LEADERBOARD_JSON_SCHEMA`
 is its JSON Schema)::
@@ -11,9 +12,13 @@ is its JSON Schema)::
     {"schema": "arenabench.leaderboard/1",
      "dataset": {"path": ..., "manifest_sha256": ..., "n": 200},
      "options": {the grading options: command, output, tolerance, area_reference, run},
-     "ranking": ["pass_rate desc", "count_exact_rate desc", ...],
+     "ranking": ["pass_rate desc", "count_exact_rate desc", ...], "tie_order": "team asc",
+     "complete": true, "images_done": 1200, "images_total": 1200,
+     "sandbox": {the preflight: sandbox mode, limits, interpreter and module versions seen
+                 inside the sandbox, whether arenabench is importable there},
      "categories": ["markers_not_found", "wrong_count", ...],
-     "teams": [{"rank": 1, "team": "alpha", "n": 200, "n_passed": 198, "pass_rate": 0.99,
+     "teams": [{"rank": 1, "tied": false, "team": "alpha", "n": 200, "n_passed": 198,
+                "pass_rate": 0.99,
                 "pass_rate_ci95": [0.96, 1.0], "count_exact_rate": 0.995,
                 "count_mae": 0.005, "area_rel_err_median": 0.012,
                 "latency_ms_median": 412.0, "failures": {"crash": 2, ...},
@@ -39,9 +44,9 @@ RANKING: tuple[str, ...] = (
     "pass_rate desc",
     "count_exact_rate desc",
     "area_rel_err_median asc (null last)",
-    "latency_ms_median asc (null last)",
-    "team asc",
 )
+#: How teams equal on every :data:`RANKING` key are listed (they share a rank).
+TIE_ORDER = "team asc"
 
 @dataclass(frozen=True)
 class LeaderboardRow:
@@ -58,7 +63,9 @@ class LeaderboardRow:
     submission_sha256 : str
         Fingerprint of the submission that was graded.
     rank : int
-        1-based position (0 until ranked).
+        1-based rank (0 until ranked); teams equal on every ranking key share it.
+    tied : bool
+        Whether another team shares the rank.
     """
 
     team: str
@@ -66,6 +73,7 @@ class LeaderboardRow:
     report: str
     submission_sha256: str
     rank: int = 0
+    tied: bool = False
 
     @property
     def area_rel_err_median(self) -> float | None:
@@ -77,22 +85,22 @@ class LeaderboardRow:
         """Median latency in ms (``None`` without images)."""
         return _finite(self.summary.latency_ms.get("median"))
 
+    def rank_key(self) -> tuple[float, ...]:
+        """The ranking key (:data:`RANKING`): equal keys share a rank."""
+        area = self.area_rel_err_median
+        return (-self.summary.pass_rate, -self.summary.count_exact_rate,
+                math.inf if area is None else area)
+
     def sort_key(self) -> tuple[Any, ...]:
-        """The ranking key (see the module docstring)."""
-        area, latency = self.area_rel_err_median, self.latency_ms_median
-        return (
-            -self.summary.pass_rate,
-            -self.summary.count_exact_rate,
-            math.inf if area is None else area,
-            math.inf if latency is None else latency,
-            self.team,
-        )
+        """The listing order: :meth:`rank_key`, then :data:`TIE_ORDER`."""
+        return (*self.rank_key(), self.team)
 
     def to_dict(self, categories: Sequence[str] = CATEGORIES) -> dict[str, Any]:
         """JSON form (an entry of ``leaderboard.json["teams"]``)."""
         s = self.summary
         return {
             "rank": self.rank,
+            "tied": self.tied,
             "team": self.team,
             "n": s.n,
             "n_passed": s.n_passed,
@@ -116,9 +124,16 @@ def _finite(value: Any) -> float | None:
 
 
 def rank_rows(rows: Iterable[LeaderboardRow]) -> list[LeaderboardRow]:
-    """Rows sorted best first, with ``rank`` set to 1, 2, ... (no shared ranks)."""
+    """Rows sorted best first, ranked 1, 2, 2, 4, ... (equal :meth:`~LeaderboardRow.rank_key`
+    share a rank and are ``tied``; listed by name)."""
     ordered = sorted(rows, key=LeaderboardRow.sort_key)
-    return [replace(r, rank=i) for i, r in enumerate(ordered, 1)]
+    keys = [r.rank_key() for r in ordered]
+    out = []
+    for i, r in enumerate(ordered):
+        first = keys.index(keys[i])
+        tied = keys.count(keys[i]) > 1
+        out.append(replace(r, rank=first + 1, tied=tied))
+    return out
 
 
 def categories_of(rows: Iterable[LeaderboardRow]) -> tuple[str, ...]:
@@ -132,14 +147,29 @@ def leaderboard_dict(
     *,
     dataset: Mapping[str, Any],
     options: Mapping[str, Any],
+    images_done: int | None = None,
+    images_total: int | None = None,
+    sandbox: Mapping[str, Any] | None = None,
 ) -> dict[str, Any]:
-    """The JSON document of ``leaderboard.json`` (rows must be ranked already)."""
+    """The JSON document of ``leaderboard.json`` (rows must be ranked already).
+
+    ``images_done`` of ``images_total`` (team-image runs) say how much of the grading ran;
+    ``complete`` is false when fewer ran (an interrupted grade). ``sandbox`` is what the
+    preflight saw (:mod:`arenabench.eval.preflight`).
+    """
     categories = categories_of(rows)
+    total = sum(r.summary.n for r in rows) if images_total is None else int(images_total)
+    done = total if images_done is None else int(images_done)
     return {
         "schema": LEADERBOARD_SCHEMA,
         "dataset": dict(dataset),
         "options": dict(options),
         "ranking": list(RANKING),
+        "tie_order": TIE_ORDER,
+        "complete": done >= total,
+        "images_done": done,
+        "images_total": total,
+        "sandbox": dict(sandbox) if sandbox is not None else None,
         "categories": list(categories),
         "teams": [r.to_dict(categories) for r in rows],
     }
@@ -154,7 +184,8 @@ LEADERBOARD_JSON_SCHEMA: dict[str, Any] = {
     "$id": "arenabench.leaderboard/1",
     "title": "arenabench grade leaderboard",
     "type": "object",
-    "required": ["schema", "dataset", "options", "ranking", "categories", "teams"],
+    "required": ["schema", "dataset", "options", "ranking", "tie_order", "complete",
+                 "images_done", "images_total", "sandbox", "categories", "teams"],
     "properties": {
         "schema": {"const": LEADERBOARD_SCHEMA},
         "dataset": {
@@ -168,16 +199,22 @@ LEADERBOARD_JSON_SCHEMA: dict[str, Any] = {
         },
         "options": {"type": "object"},
         "ranking": {"type": "array", "items": {"type": "string"}},
+        "tie_order": {"type": "string"},
+        "complete": {"type": "boolean"},
+        "images_done": {"type": "integer", "minimum": 0},
+        "images_total": {"type": "integer", "minimum": 0},
+        "sandbox": {"type": ["object", "null"]},
         "categories": {"type": "array", "items": {"type": "string"}},
         "teams": {
             "type": "array",
             "items": {
                 "type": "object",
-                "required": ["rank", "team", "n", "n_passed", "pass_rate", "pass_rate_ci95",
+                "required": ["rank", "tied", "team", "n", "n_passed", "pass_rate", "pass_rate_ci95",
                              "count_exact_rate", "count_mae", "area_rel_err_median",
                              "latency_ms_median", "failures", "report", "submission_sha256"],
                 "properties": {
                     "rank": {"type": "integer", "minimum": 1},
+                    "tied": {"type": "boolean"},
                     "team": {"type": "string"},
                     "n": {"type": "integer", "minimum": 0},
                     "n_passed": {"type": "integer", "minimum": 0},

@@ -21,6 +21,7 @@ other teams go on.
 from __future__ import annotations
 
 import json
+import math
 import os
 import shlex
 import sys
@@ -89,8 +90,8 @@ class GradeOptions:
     def __post_init__(self) -> None:
         if self.output not in OUTPUT_MODES:
             raise ValueError(f"output must be one of {OUTPUT_MODES}, got {self.output!r}")
-        if not self.tolerance >= 0:
-            raise ValueError(f"tolerance must be >= 0, got {self.tolerance!r}")
+        if not (math.isfinite(self.tolerance) and self.tolerance >= 0):
+            raise ValueError(f"tolerance must be a finite number >= 0, got {self.tolerance!r}")
         if self.area_reference not in AREA_REFERENCES:
             raise ValueError(f"area_reference must be one of {sorted(AREA_REFERENCES)}, "
                              f"got {self.area_reference!r}")
@@ -147,6 +148,9 @@ class GradeResult:
         Team -> why the grader could not finish it (such teams are not ranked).
     files : dict
         Leaderboard file name -> path.
+    systemic : str or None
+        One line when most teams fail alike (:func:`systemic_failure`): the grading setup,
+        not the teams, is then the likely cause.
     """
 
     rows: list[LeaderboardRow]
@@ -154,6 +158,7 @@ class GradeResult:
     skipped: list[str]
     errors: dict[str, str]
     files: dict[str, Path]
+    systemic: str | None = None
 
 
 def team_command(template: str, submission: str | os.PathLike[str]) -> str:
@@ -311,8 +316,14 @@ def grade(
     report_workers: int | None = None,
     progress: bool = False,
     log: Callable[[str], None] | None = None,
+    allow_guessable_seed: bool = False,
+    reference: str | os.PathLike[str] | None = None,
 ) -> GradeResult:
     """Grade every team folder in ``submissions`` on ``dataset`` and write the leaderboard.
+
+    Before any team runs: the sandbox must work unless ``options.settings.sandbox`` is
+    ``"none"`` (fail closed), a generated set's seed must not be guessable, and the preflight
+    (:mod:`arenabench.eval.preflight`) must pass.
 
     Parameters
     ----------
@@ -336,6 +347,10 @@ def grade(
         Progress over units on stderr (:mod:`arenabench.progress`).
     log : callable, optional, keyword-only
         Receives one line per team (graded, skipped or failed).
+    allow_guessable_seed : bool, keyword-only
+        Grade a set generated with a seed below 2**64 (a submission can re-render it).
+    reference : path-like, optional, keyword-only
+        A known-good submission for the preflight (default: the built-in reference).
 
     Returns
     -------
@@ -345,6 +360,9 @@ def grade(
     ------
     DatasetError, SubmissionsError, ValueError
         Before anything runs, for a bad dataset, submissions folder, output folder or option.
+    PreflightError
+        (a ``ValueError``) Before any team runs: no sandbox, a guessable seed, or a grading
+        command that cannot run the reference submission.
     OSError
         When the scheduler cannot be reached (before anything is written).
     """
@@ -352,13 +370,37 @@ def grade(
     for name, value in (("workers", workers), ("report_workers", report_workers)):
         if value is not None and (int(value) != value or value < 1):
             raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    from ..preflight import check_dataset_seed, preflight, require_sandbox
+
     data = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
     teams = find_teams(submissions)
     root = Path(out).resolve()
     check_out_dir(root, Path(submissions))
+    mode = require_sandbox(opts.settings.sandbox)
+    opts = replace(opts, settings=replace(opts.settings, sandbox=mode))
+    check_dataset_seed(data.root, allow_guessable=allow_guessable_seed)
+    digests: dict[str, str] = {}
+    refused: dict[str, str] = {}  # a submission that cannot be fingerprinted is not graded
+    for t in teams:
+        try:
+            digests[t.name] = submission_hash(t.path)
+        except SubmissionsError as exc:
+            refused[t.name] = str(exc)
+    record = preflight(
+        opts.command, image=data.samples[0].image_path, mode=mode,
+        limits=opts.settings.to_dict(), output=opts.output, reference=reference,
+        make_pipeline=lambda cmd, base: _team_pipeline(
+            cmd, settings=opts.settings, output=opts.output, team="preflight", base_dir=base))
+    if record.arenabench_importable:
+        print("arenabench grade: WARNING: arenabench is importable inside the sandbox (the "
+              "grading interpreter has it): a submission can run the generator; the set's "
+              "seed must stay unguessable (--seed random)", file=sys.stderr, flush=True)
+    sandbox = record.to_dict()
+    seen = {k: sandbox[k] for k in ("mode", "executable", "versions", "arenabench_importable")}
     expect_common = {
         "dataset_manifest_sha256": sha256_file(data.root / "manifest.jsonl"),
         "options_sha256": opts.fingerprint(),
+        "sandbox_sha256": sha256_bytes(dumps_json(seen).encode()),
     }
     client = None
     if scheduler is not None:  # reach the cluster before writing anything
@@ -368,7 +410,8 @@ def grade(
     try:
         return _grade(data, teams, root, opts, expect_common, workers=workers, client=client,
                       report_workers=report_workers, progress=progress,
-                      emit=log or (lambda line: None))
+                      emit=log or (lambda line: None), digests=digests, sandbox=sandbox,
+                      refused=refused)
     finally:
         if client is not None and client is not scheduler:
             client.close()
@@ -377,7 +420,8 @@ def grade(
 def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
            expect_common: dict[str, str], *, workers: int | None, client: Any,
            report_workers: int | None, progress: bool,
-           emit: Callable[[str], None]) -> GradeResult:
+           emit: Callable[[str], None], digests: dict[str, str],
+           sandbox: dict[str, Any], refused: dict[str, str]) -> GradeResult:
     from arenabench.progress import progress as progress_bar
 
     (root / TEAMS_DIR).mkdir(parents=True, exist_ok=True)
@@ -386,7 +430,10 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
     todo: list[tuple[Team, str]] = []
     skipped: list[str] = []
     for team in teams:
-        digest = submission_hash(team.path)
+        if team.name in refused:
+            emit(f"{team.name}: error: {refused[team.name]}")
+            continue
+        digest = digests[team.name]
         team_dir = root / TEAMS_DIR / team.name
         state = _read_state(team_dir)
         expect = {**expect_common, "team": team.name, "submission_sha256": digest}
@@ -415,7 +462,7 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
     preds: list[list[Prediction | None]] = [[None] * n_images for _ in todo]
     left = [n_images] * len(todo)
     graded: list[str] = []
-    errors: dict[str, str] = {}
+    errors: dict[str, str] = dict(refused)
     bar = progress_bar(len(units), desc="grade", unit="run", enabled=progress)
 
     def say(line: str) -> None:
@@ -448,6 +495,7 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
 
     results = _execute(units, workers=workers, scheduler=client)
     finished = False
+    n_total = len(teams) * n_images
     try:
         for i, pred in results:
             k = owner[i]
@@ -459,21 +507,36 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
                 job = _FinishJob(team=team, digest=digest,
                                  preds=[p for p in preds[k] if p is not None],
                                  dataset_root=str(data.root), root=str(root), opts=opts,
-                                 expect_common=expect_common)
+                                 expect_common=expect_common, sandbox=sandbox)
                 preds[k] = []  # the job holds them now
                 finishing[finisher.submit(job, data)] = job
             collect(block=False)
         collect(block=True)
         finished = True
+    except BaseException:  # interrupted: a partial leaderboard of the finished teams
+        try:
+            collect(block=False)
+            rows = rank_rows(_row(t.name, states[t.name]) for t in teams if t.name in states)
+            done = len(skipped) * n_images + sum(n_images - x for x in left)
+            write_leaderboard_files(root, rows, data=data, opts=opts,
+                                    manifest_sha256=expect_common["dataset_manifest_sha256"],
+                                    images_done=done, images_total=n_total, sandbox=sandbox)
+        except Exception:  # never hide the interrupt behind a report error
+            pass
+        raise
     finally:
         results.close()  # stops and cancels what is still running or pending
         bar.close()
         finisher.close(wait=finished)
 
     rows = rank_rows(_row(t.name, states[t.name]) for t in teams if t.name in states)
+    done = sum(states[t.name]["summary"].get("n", 0) for t in teams if t.name in states)
     files = write_leaderboard_files(root, rows, data=data, opts=opts,
-                                    manifest_sha256=expect_common["dataset_manifest_sha256"])
-    return GradeResult(rows=rows, graded=graded, skipped=skipped, errors=errors, files=files)
+                                    manifest_sha256=expect_common["dataset_manifest_sha256"],
+                                    images_done=done, images_total=n_total, sandbox=sandbox)
+    systemic = systemic_failure({t.name: states[t.name] for t in teams if t.name in states})
+    return GradeResult(rows=rows, graded=graded, skipped=skipped, errors=errors, files=files,
+                       systemic=systemic)
 
 
 @dataclass(frozen=True)
@@ -487,6 +550,7 @@ class _FinishJob:
     root: str
     opts: GradeOptions
     expect_common: dict[str, str]
+    sandbox: dict[str, Any] = field(default_factory=dict)
 
 
 def _finish_in_worker(job: _FinishJob) -> dict[str, Any]:
@@ -547,6 +611,11 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
                           area_reference=opts.area_reference, tolerance=opts.tolerance)
     team_dir = Path(job.root) / TEAMS_DIR / team.name
     write_reports(report, team_dir, formats=opts.formats, dataset=data)
+    if "json" in opts.formats:  # what the preflight saw inside the sandbox, with the report
+        path = team_dir / FORMATS["json"]
+        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc["sandbox"] = job.sandbox
+        atomic_write_json(path, doc)
     state = {
         "schema": STATE_SCHEMA,
         "team": team.name,
@@ -555,13 +624,16 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
         "options": opts.to_dict(),
         "report": _report_link(team.name, opts.formats),
         "summary": report.summary.to_dict(),
+        "first_error": first_error(job.preds, str(team.path)),
     }
     atomic_write_json(team_dir / STATE_FILE, state)  # last: marks the team as graded
     return state
 
 
 def write_leaderboard_files(root: Path, rows: list[LeaderboardRow], *, data: Dataset,
-                            opts: GradeOptions, manifest_sha256: str) -> dict[str, Path]:
+                            opts: GradeOptions, manifest_sha256: str,
+                            images_done: int | None = None, images_total: int | None = None,
+                            sandbox: dict[str, Any] | None = None) -> dict[str, Path]:
     """Write ``leaderboard.json``, ``.csv`` and ``.html`` into ``root`` (atomically)."""
     from ..reports.leaderboard_report import write_leaderboard
 
@@ -569,9 +641,43 @@ def write_leaderboard_files(root: Path, rows: list[LeaderboardRow], *, data: Dat
         rows,
         dataset={"path": str(data.root), "manifest_sha256": manifest_sha256,
                  "n": len(data.samples)},
-        options=opts.to_dict(),
+        options=opts.to_dict(), images_done=images_done, images_total=images_total,
+        sandbox=sandbox,
     )
     return write_leaderboard(doc, root)
+
+
+#: Statuses of a run that failed without an answer (what a broken setup gives).
+_FAILED = ("crash", "timeout", "limit", "bad_output")
+#: Share of teams (and least number) failing alike that makes a failure systemic.
+SYSTEMIC_SHARE, SYSTEMIC_MIN_TEAMS = 0.8, 3
+
+
+def first_error(preds: Sequence[Prediction], submission: str) -> str | None:
+    """The first line of the first failed run's message (``None``: no run failed), with the
+    submission's path written ``{submission}`` so that teams failing alike compare equal."""
+    for p in preds:
+        if p.status in _FAILED:
+            line = ((p.message or "").strip().splitlines() or [""])[0]
+            return f"{p.status}: {line.replace(submission, '{submission}')}"[:300]
+    return None
+
+
+def systemic_failure(states: dict[str, dict[str, Any]]) -> str | None:
+    """One line when at least :data:`SYSTEMIC_SHARE` of the teams (and at least
+    :data:`SYSTEMIC_MIN_TEAMS`) passed nothing and failed with the same first error line."""
+    from collections import Counter
+
+    errors = Counter(
+        st.get("first_error") for st in states.values()
+        if st.get("first_error") and st["summary"].get("n_passed", 0) == 0)
+    if not errors:
+        return None
+    line, n = errors.most_common(1)[0]
+    if n >= SYSTEMIC_MIN_TEAMS and n >= SYSTEMIC_SHARE * len(states):
+        return (f"{n} of {len(states)} teams fail alike ({line}): the grading setup, not the "
+                "teams, is the likely cause")
+    return None
 
 
 __all__ = [

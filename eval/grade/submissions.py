@@ -1,9 +1,13 @@
 """Teams' submission folders: finding them and fingerprinting their content.
 
-``SUBMISSIONS/`` holds one folder per team; the folder's name is the team's name. A
-submission is only ever read: its fingerprint is a SHA-256 over every entry's relative path
-and content, computed without following symbolic links and without opening anything that is
-not a regular file (a FIFO or device file in a hostile submission cannot block the grader).
+``SUBMISSIONS/`` holds one folder per team; the folder's name is the team's name. A team
+entry that is a symbolic link to a folder is graded as its target (the team keeps the link's
+name). A submission is only ever read: its fingerprint is a SHA-256 over every entry's
+relative path and content, computed without following symbolic links, without recursion (a
+folder nested thousands deep is fine), without opening anything that is not a regular file (a
+FIFO or device file in a hostile submission cannot block the grader), and without reading a
+file larger than :data:`HASH_CONTENT_MAX` (such a file, e.g. a 1 TiB sparse one, counts by its
+size and modification time instead of its bytes).
 """
 
 from __future__ import annotations
@@ -17,6 +21,10 @@ from pathlib import Path
 #: Entries that Python itself leaves next to a team's code; not part of the submission.
 IGNORED_NAMES: frozenset[str] = frozenset({"__pycache__", ".pytest_cache"})
 _CHUNK = 1 << 20
+#: Largest file whose bytes are hashed; a larger one counts by size and mtime.
+HASH_CONTENT_MAX = 256 * 1024**2
+#: Most entries a submission may hold (more: :class:`SubmissionsError`, one line).
+MAX_ENTRIES = 200_000
 
 
 class SubmissionsError(ValueError):
@@ -30,9 +38,10 @@ class Team:
     Parameters
     ----------
     name : str
-        The folder's name.
+        The folder's name (a symbolic link's own name).
     path : pathlib.Path
-        Absolute path of the folder.
+        Absolute, resolved path of the folder (a symbolic link's target), the path the
+        command names and the sandbox shows.
     """
 
     name: str
@@ -58,7 +67,7 @@ def find_teams(root: str | os.PathLike[str]) -> tuple[Team, ...]:
     if not base.is_dir():
         raise SubmissionsError(f"{base}: SUBMISSIONS folder does not exist or is not a folder")
     teams = [
-        Team(name=entry.name, path=base / entry.name)
+        Team(name=entry.name, path=Path(os.path.realpath(base / entry.name)))
         for entry in os.scandir(base)
         if not entry.name.startswith(".") and entry.is_dir(follow_symlinks=True)
     ]
@@ -67,19 +76,27 @@ def find_teams(root: str | os.PathLike[str]) -> tuple[Team, ...]:
     return tuple(sorted(teams, key=lambda t: t.name))
 
 
-def _file_digest(path: str) -> str:
+def _file_digest(path: str, st: os.stat_result) -> tuple[str, str]:
+    if st.st_size > HASH_CONTENT_MAX:
+        return "big", f"{st.st_size}:{st.st_mtime_ns}"
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
-        while chunk := fh.read(_CHUNK):
+    fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    with os.fdopen(fd, "rb") as fh:
+        if not stat.S_ISREG(os.fstat(fd).st_mode):  # swapped since the lstat
+            return "special", "?"
+        left = HASH_CONTENT_MAX
+        while left > 0 and (chunk := fh.read(min(_CHUNK, left))):
             h.update(chunk)
-    return h.hexdigest()
+            left -= len(chunk)
+    return "file", h.hexdigest()
 
 
 def submission_hash(folder: str | os.PathLike[str]) -> str:
     """Deterministic SHA-256 of a submission folder: file names and contents.
 
     Each entry contributes its path relative to ``folder`` (POSIX separators) and: for a
-    regular file, the SHA-256 of its bytes; for a symbolic link, its target text (never
+    regular file, the SHA-256 of its bytes (of at most :data:`HASH_CONTENT_MAX` bytes: a larger
+    file contributes its size and mtime); for a symbolic link, its target text (never
     followed); for anything else (FIFO, socket, device), its type only. Entries are taken in
     sorted order; empty folders and :data:`IGNORED_NAMES` do not count, nor do permissions
     or times. The folder may itself be a symbolic link to the submission.
@@ -92,22 +109,37 @@ def submission_hash(folder: str | os.PathLike[str]) -> str:
     -------
     str
         64 hex digits.
+
+    Raises
+    ------
+    SubmissionsError
+        When the folder holds more than :data:`MAX_ENTRIES` entries.
     """
     root = os.path.realpath(folder)
     entries: list[tuple[str, str, str]] = []
-    for dirpath, dirnames, filenames in os.walk(root, followlinks=False):
-        rel_dir = os.path.relpath(dirpath, root)
-        dirnames[:] = [d for d in dirnames if d not in IGNORED_NAMES]
-        names = list(filenames) + [d for d in dirnames if os.path.islink(os.path.join(dirpath, d))]
-        for name in names:
-            full = os.path.join(dirpath, name)
-            rel = name if rel_dir == "." else f"{rel_dir}/{name}".replace(os.sep, "/")
+    stack = [""]  # relative folders still to list: iterative, no recursion limit
+    while stack:
+        rel_dir = stack.pop()
+        try:
+            with os.scandir(os.path.join(root, rel_dir) if rel_dir else root) as it:
+                listed = list(it)
+        except OSError as exc:
+            entries.append((rel_dir or ".", "error", type(exc).__name__))
+            continue
+        for entry in listed:
+            if len(entries) >= MAX_ENTRIES:
+                raise SubmissionsError(f"{root}: more than {MAX_ENTRIES} entries: not a "
+                                       "competition submission")
+            rel = f"{rel_dir}/{entry.name}" if rel_dir else entry.name
             try:
-                st = os.lstat(full)
-                if stat.S_ISLNK(st.st_mode):
-                    entries.append((rel, "link", os.readlink(full)))
+                st = entry.stat(follow_symlinks=False)
+                if stat.S_ISDIR(st.st_mode):
+                    if entry.name not in IGNORED_NAMES:
+                        stack.append(rel)
+                elif stat.S_ISLNK(st.st_mode):
+                    entries.append((rel, "link", os.readlink(entry.path)))
                 elif stat.S_ISREG(st.st_mode):
-                    entries.append((rel, "file", _file_digest(full)))
+                    entries.append((rel, *_file_digest(entry.path, st)))
                 else:
                     entries.append((rel, "special", stat.filemode(st.st_mode)[0]))
             except OSError as exc:  # vanished or unreadable: still deterministic

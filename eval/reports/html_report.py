@@ -20,6 +20,7 @@ from arenabench.fileio import atomic_write_text
 from ..breakdown import importance
 from ..dataset import Dataset, DatasetError, load_dataset
 from ..records import ImageResult, Prediction, Report
+from .incomplete import banner_html, partial
 from .summary_rows import fmt, summary_rows
 
 CSS = """
@@ -285,11 +286,13 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
         '<link rel="icon" href="data:,">',
         f"<title>arenabench: {e(report.pipeline)}</title><style>{CSS}</style></head><body>",
         f"<h1>arenabench evaluation: {e(report.pipeline)}</h1>",
+        "" if report.complete else banner_html(report.images_done, report.n_total),
         f"<p>dataset <code>{e(report.dataset)}</code>; area reference "
         f"<code>{e(report.area_reference)}</code>; tolerance {report.tolerance:g}; "
         f'<span class="{"pass" if s.pass_rate == 1 else "fail"}">'
-        f"pass rate {fmt(s.pass_rate, pct=True)}</span></p>",
-        "<h2>Summary</h2><table><tr><th>metric</th><th>value</th></tr>",
+        f"{partial('pass rate', report.complete)} {fmt(s.pass_rate, pct=True)}</span></p>",
+        f"<h2>{partial('Summary', report.complete)}</h2>"
+        "<table><tr><th>metric</th><th>value</th></tr>",
     ]
     parts += [f"<tr><td>{e(k)}</td><td>{e(v)}</td></tr>" for k, v in summary_rows(s)]
     parts.append('</table><h2>Plots</h2><div class="plots">')

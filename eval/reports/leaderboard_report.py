@@ -21,6 +21,8 @@ from urllib.parse import quote
 
 from arenabench.fileio import atomic_write_json, atomic_write_text
 
+from .incomplete import banner_html, partial
+
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#222}
 h1{font-size:1.5em}table{border-collapse:collapse;margin:8px 0}
@@ -65,6 +67,24 @@ CSV_COLUMNS: tuple[str, ...] = (
     "rank", "team", "n", "n_passed", "pass_rate", "pass_rate_ci95_lo", "pass_rate_ci95_hi",
     "count_exact_rate", "count_mae", "area_rel_err_median", "latency_ms_median",
 )
+#: Leading characters by which a spreadsheet reads a cell as a formula (and tab / CR,
+#: which some strip first); such text cells get a leading apostrophe in ``leaderboard.csv``.
+CSV_FORMULA_STARTS: tuple[str, ...] = ("=", "+", "-", "@", "\t", "\r")
+#: Significant digits of floats in ``leaderboard.csv`` (no ``0.9999999999999999``).
+CSV_FLOAT_DIGITS = 10
+
+
+def csv_cell(value: Any) -> Any:
+    """One ``leaderboard.csv`` cell: ``None`` empty, floats rounded to
+    :data:`CSV_FLOAT_DIGITS` significant digits, text that a spreadsheet would run as a
+    formula prefixed with ``'``."""
+    if value is None:
+        return ""
+    if isinstance(value, float):
+        return float(f"{value:.{CSV_FLOAT_DIGITS}g}")
+    if isinstance(value, str) and value.startswith(CSV_FORMULA_STARTS):
+        return "'" + value
+    return value
 
 
 def _fmt(value: Any, kind: str) -> str:
@@ -109,7 +129,7 @@ def leaderboard_html(doc: dict[str, Any]) -> str:
     for t in teams:
         lo, hi = t["pass_rate_ci95"]
         cells = [
-            _cell("rank", t["rank"], str(t["rank"])),
+            _cell("rank", t["rank"], f'{t["rank"]}{"=" if t.get("tied") else ""}'),
             _cell("team", t["team"], f'<a href="{html.escape(_href(t["report"]))}">'
                   f'{html.escape(t["team"])}</a>', "team"),
             _cell("pass_rate", t["pass_rate"],
@@ -128,16 +148,26 @@ def leaderboard_html(doc: dict[str, Any]) -> str:
         body.append("<tr>" + "".join(cells) + "</tr>")
     ds = doc["dataset"]
     opts = doc["options"]
+    complete = doc.get("complete", True)
+    banner = "" if complete else banner_html(doc.get("images_done", 0), doc.get("images_total"))
+    box = doc.get("sandbox") or {}
+    seen = ", ".join(f"{k} {v}" for k, v in (box.get("versions") or {}).items() if v)
+    sandbox = (f' Sandbox {html.escape(str(box.get("mode", "?")))}'
+               + (f"; seen inside it: {html.escape(seen)}" if seen else "") + "."
+               ) if box else ""
     meta = (f'{len(teams)} teams on {html.escape(str(ds["path"]))} ({ds["n"]} images, manifest '
             f'sha256 {html.escape(str(ds["manifest_sha256"])[:12])}); command '
             f'<code>{html.escape(str(opts.get("command", "")))}</code>, tolerance '
             f'{html.escape(str(opts.get("tolerance", "")))}, area reference '
             f'{html.escape(str(opts.get("area_reference", "")))}. Ranked by pass rate, then '
-            "count exact rate, then median |area error|, then median latency, then name.")
+            "count exact rate, then median |area error|; teams equal on all three share a "
+            "rank (2=) and are listed by name. Latency is shown, never ranked on; a timed-out "
+            "image has none." + sandbox)
     return (
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
         "<title>arenabench leaderboard</title>"
-        f"<style>{CSS}</style></head><body>\n<h1>Leaderboard</h1>\n"
+        f"<style>{CSS}</style></head><body>\n<h1>{partial('Leaderboard', complete)}</h1>\n"
+        f"{banner}\n"
         f'<p class="meta">{meta}</p>\n'
         f'<table id="leaderboard"><thead><tr>{head}</tr></thead>\n<tbody>\n'
         + "\n".join(body)
@@ -157,7 +187,7 @@ def leaderboard_csv(doc: dict[str, Any]) -> str:
                t["count_exact_rate"], t["count_mae"], t["area_rel_err_median"],
                t["latency_ms_median"]]
         row += [t["failures"].get(c, 0) for c in cats] + [t["report"]]
-        writer.writerow(["" if v is None else v for v in row])
+        writer.writerow([csv_cell(v) for v in row])
     return buf.getvalue()
 
 

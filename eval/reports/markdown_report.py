@@ -9,6 +9,7 @@ from arenabench.fileio import atomic_write_text
 
 from ..breakdown import importance
 from ..records import Report
+from .incomplete import banner_markdown, partial
 from .summary_rows import fmt, summary_rows
 
 
@@ -21,10 +22,11 @@ def markdown(report: Report, *, max_failures: int = 30) -> str:
     lines = [
         f"# arenabench evaluation: {report.pipeline}",
         "",
+        *([] if report.complete else banner_markdown(report.images_done, report.n_total)),
         f"- dataset: `{report.dataset}`",
         f"- area reference: `{report.area_reference}`, tolerance {report.tolerance:g}",
         "",
-        "## Summary",
+        f"## {partial('Summary', report.complete)}",
         "",
         "| metric | value |",
         "|---|---|",

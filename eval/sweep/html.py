@@ -9,6 +9,7 @@ import html
 from arenabench.generator.presets import format_value
 
 from ..reports.html_report import CSS
+from ..reports.incomplete import banner_html
 from ..reports.summary_rows import fmt
 from .grid import point_label
 from .records import SweepResult
@@ -50,6 +51,8 @@ def sweep_page(result: SweepResult, figures: list[tuple[str, str, bytes]]) -> st
         f"<title>arenabench sweep: {e(spec.preset)}</title>"
         f"<style>{CSS}{SWEEP_CSS}</style></head><body>",
         f"<h1>arenabench sweep: preset {e(spec.preset)}</h1>",
+        "" if result.complete else banner_html(int(result.run.get("samples_done", 0)),
+                                               result.run.get("samples")),
         "<table>",
         *(f"<tr><th>{e(k)}</th><td>{e(str(v))}</td></tr>" for k, v in (
             ("mode", d["mode"] + (f" ({spec.random} points)" if spec.random else "")),

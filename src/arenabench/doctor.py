@@ -2,7 +2,10 @@
 
 Checks Python, NumPy, OpenCV with a working ArUco module, pyrender, the OpenGL platform
 :mod:`arenabench.glplatform` will choose (EGL or OSMesa) and whether an off-screen context
-can actually be created and used. The context is created in a subprocess with a timeout, so a
+can actually be created and used; then the sandbox ``grade`` requires (a real bubblewrap run
+in new user, PID and network namespaces, the same probe ``grade`` uses) and, as a warning
+only, a headless browser (chromium) able to load a page, which the HTML screenshot tests
+need. The context is created in a subprocess with a timeout, so a
 driver that crashes or hangs cannot take the caller down. Each failed check carries the exact
 command that fixes it. Exit status 0 when all is well, 1 otherwise (2 for bad options).
 """
@@ -71,16 +74,20 @@ class Check:
         Version or what went wrong.
     fix : str
         The command that fixes it (empty when ok).
+    required : bool
+        Whether a failure fails the doctor (else it is a warning: ``WARN``).
     """
 
     name: str
     ok: bool
     detail: str
     fix: str = ""
+    required: bool = True
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe form."""
-        return {"name": self.name, "ok": self.ok, "detail": self.detail, "fix": self.fix}
+        return {"name": self.name, "ok": self.ok, "detail": self.detail, "fix": self.fix,
+                "required": self.required}
 
 
 @dataclass(frozen=True)
@@ -91,8 +98,8 @@ class DoctorReport:
 
     @property
     def ok(self) -> bool:
-        """True when every check passed."""
-        return all(c.ok for c in self.checks)
+        """True when every required check passed."""
+        return all(c.ok for c in self.checks if c.required)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-safe form: ``{"ok": bool, "checks": [...]}``."""
@@ -103,7 +110,8 @@ class DoctorReport:
         width = max((len(c.name) for c in self.checks), default=0)
         lines = []
         for c in self.checks:
-            lines.append(f"{'ok  ' if c.ok else 'FAIL'}  {c.name:<{width}}  {c.detail}")
+            mark = "ok  " if c.ok else ("FAIL" if c.required else "WARN")
+            lines.append(f"{mark}  {c.name:<{width}}  {c.detail}")
             if not c.ok and c.fix:
                 lines.append(f"      {'':<{width}}  fix: {c.fix}")
         lines.append("all checks passed" if self.ok else "some checks failed")
@@ -238,6 +246,68 @@ def check_offscreen_context(platform: str | None, *, timeout: float = 60.0) -> C
     return Check(name, False, f"{platform}: {last[:300]}", _context_fix(platform))
 
 
+#: How to install bubblewrap (the sandbox of ``grade`` and ``eval --cmd``).
+BWRAP_FIX = ("sudo apt-get install -y bubblewrap (and allow unprivileged user namespaces: "
+             "sudo sysctl -w kernel.unprivileged_userns_clone=1 "
+             "kernel.apparmor_restrict_unprivileged_userns=0)")
+#: How to install the headless browser the HTML screenshot tests use.
+BROWSER_FIX = "sudo apt-get install -y chromium"
+BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
+# the harness's own probe (one declaration of the sandbox's namespaces), in a subprocess:
+# the core package never imports the harness
+_SANDBOX_PROBE = ("from arenabench.eval.external import bwrap_problem; "
+                  "print('ARENABENCH_PROBE ' + (bwrap_problem() or 'ok'))")
+
+
+def check_sandbox(*, timeout: float = 60.0) -> Check:
+    """bubblewrap: a real run in new user, PID and network namespaces (``grade`` refuses
+    to run teams without it unless ``--sandbox none``)."""
+    import shutil
+
+    name = "sandbox (bubblewrap)"
+    exe = shutil.which("bwrap")
+    if exe is None:
+        return Check(name, False, "bwrap is not installed", BWRAP_FIX)
+    try:
+        proc = subprocess.run([sys.executable, "-c", _SANDBOX_PROBE], capture_output=True,
+                              text=True, timeout=timeout, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired:
+        return Check(name, False, f"no answer within {timeout:g} s", BWRAP_FIX)
+    for line in proc.stdout.splitlines():
+        if line.startswith("ARENABENCH_PROBE "):
+            why = line.split(" ", 1)[1]
+            if why == "ok":
+                return Check(name, True, f"{exe}: namespaces work")
+            return Check(name, False, why, BWRAP_FIX)
+    err = (proc.stderr or "").strip().splitlines() or [f"exit status {proc.returncode}"]
+    return Check(name, False, err[-1][:300], BWRAP_FIX)
+
+
+def check_browser(*, timeout: float = 60.0) -> Check:
+    """A headless browser that loads a page (a warning only: the HTML screenshot tests
+    need it, nothing else does)."""
+    import shutil
+    import tempfile
+
+    name = "headless browser"
+    exe = next((p for b in BROWSERS if (p := shutil.which(b))), None)
+    if exe is None:
+        return Check(name, False, "no chromium found", BROWSER_FIX, required=False)
+    with tempfile.TemporaryDirectory(prefix="arenabench-doctor-") as tmp:
+        argv = [exe, "--headless", "--no-sandbox", "--disable-gpu", "--no-first-run",
+                f"--user-data-dir={tmp}", "--dump-dom",
+                "data:text/html,<p id=probe>arenabench-doctor</p>"]
+        try:
+            proc = subprocess.run(argv, capture_output=True, text=True, timeout=timeout,
+                                  stdin=subprocess.DEVNULL)
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            return Check(name, False, f"{exe}: {exc}", BROWSER_FIX, required=False)
+    if "arenabench-doctor" in proc.stdout:
+        return Check(name, True, f"{exe}: loads a page headless", required=False)
+    err = (proc.stderr or "").strip().splitlines() or [f"exit status {proc.returncode}"]
+    return Check(name, False, f"{exe}: {err[-1][:300]}", BROWSER_FIX, required=False)
+
+
 def run_checks(*, context: bool = True, timeout: float = 60.0) -> DoctorReport:
     """Run every check.
 
@@ -259,6 +329,7 @@ def run_checks(*, context: bool = True, timeout: float = 60.0) -> DoctorReport:
         else:
             checks.append(Check("offscreen context", False, "skipped: pyrender missing",
                                 PYRENDER_FIX))
+    checks += [check_sandbox(timeout=timeout), check_browser(timeout=timeout)]
     return DoctorReport(checks)
 
 
@@ -267,8 +338,9 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog=PROG, formatter_class=HelpFormatter,
         description="Is this machine ready to detect (OpenCV) and to render (pyrender)? "
-        "Checks Python, OpenCV with aruco, pyrender and an off-screen OpenGL context; exit "
-        "status 0 when every check passes, 1 otherwise.")
+        "Checks Python, OpenCV with aruco, pyrender, an off-screen OpenGL context, the "
+        "bubblewrap sandbox that 'grade' requires and (a warning only) a headless browser; "
+        "exit status 0 when every required check passes, 1 otherwise.")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
     parser.add_argument("--timeout", type=float, default=60.0,
                         help="seconds allowed for creating the OpenGL context (default 60)")

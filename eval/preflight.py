@@ -1,0 +1,307 @@
+"""``arenabench grade``'s preflight: prove the grading setup works before any team runs.
+
+Three checks, each ending the grade before any team is graded (``PreflightError``: one line,
+exit 2) when it fails:
+
+1. **Sandbox** (:func:`require_sandbox`): ``grade`` fails closed. Without a working bubblewrap
+   it refuses to run untrusted code unless ``--sandbox none`` is given explicitly.
+2. **Set** (:func:`check_dataset_seed`): a generated set whose seed is below 2**64 can be
+   re-rendered by a submission that brings (or imports) the open-source generator, which then
+   reads its own answers; refused unless ``allow_guessable`` (``--allow-guessable-seed``).
+3. **Command** (:func:`preflight`): the grading command runs, in the same sandbox with the
+   same limits and environment as every team, (a) a probe script in the place of the team's
+   script that reports the interpreter, numpy, OpenCV (with ``aruco``) and whether arenabench
+   itself is importable there, and (b) a known-good submission on the set's first image: the
+   built-in reference (arenabench's own detector as a competition script, with its source
+   alongside, so it needs only numpy and OpenCV) or ``--reference DIR``. It must answer
+   (status ``ok``).
+
+What the preflight saw (:class:`PreflightRecord`) goes into ``leaderboard.json["sandbox"]``
+and every team's ``report.json``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shlex
+import shutil
+import tempfile
+from collections.abc import Callable
+from dataclasses import asdict, dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+from arenabench.generator.seeds import GUESSABLE_BELOW, is_guessable
+
+#: The line by which the probe reports what it found (followed by one JSON object).
+PROBE_TAG = "ARENABENCH-PREFLIGHT "
+
+PROBE = r'''"""arenabench grade preflight: what this interpreter offers competition scripts."""
+import importlib.util
+import sys
+from json import dumps  # this runs in the sandbox, without arenabench's JSON helpers
+
+info = {"python": sys.version.split()[0], "executable": sys.executable}
+missing = []
+try:
+    import numpy
+    info["numpy"] = numpy.__version__
+except Exception as exc:
+    missing.append(f"numpy ({type(exc).__name__}: {exc})")
+try:
+    import cv2
+    info["cv2"] = cv2.__version__
+    info["aruco"] = hasattr(cv2, "aruco") and hasattr(cv2.aruco, "ArucoDetector")
+    if not info["aruco"]:
+        missing.append(f"cv2.aruco.ArucoDetector (OpenCV {cv2.__version__} lacks it)")
+except Exception as exc:
+    missing.append(f"cv2 ({type(exc).__name__}: {exc})")
+try:
+    info["arenabench_importable"] = importlib.util.find_spec("arenabench") is not None
+except Exception:
+    info["arenabench_importable"] = False
+print("ARENABENCH-PREFLIGHT " + dumps(info), flush=True)
+if missing:
+    print("missing: " + "; ".join(missing), file=sys.stderr)
+    sys.exit(1)
+'''
+
+REFERENCE = r'''"""arenabench's reference detector as a competition submission (preflight)."""
+import os
+import sys
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from arenabench.detect import main  # noqa: E402  (the copy next to this file)
+
+# the image: after --image, else the first argument naming a file (other arguments of the
+# grading command are the teams' business)
+args = sys.argv[1:]
+image = next((b for a, b in zip(args, args[1:]) if a == "--image"), None)
+image = image or next((a for a in args if os.path.isfile(a)), "")
+sys.exit(main(["--image", image] + EXTRA))
+'''
+
+
+class PreflightError(ValueError):
+    """The grading setup does not work (the message is one line naming the cause)."""
+
+
+@dataclass(frozen=True)
+class PreflightRecord:
+    """What the preflight saw inside the sandbox.
+
+    Parameters
+    ----------
+    mode : str
+        The sandbox the teams run in (``bwrap`` or ``none``).
+    limits : dict
+        The run settings (:meth:`RunSettings.to_dict`).
+    executable, kind : str or None
+        The command's executable and its kind (``venv``, ``conda``, ``pyenv``, ``system``).
+    versions : dict
+        ``python``, ``numpy``, ``cv2`` (and ``aruco``) as seen inside the sandbox; empty
+        when the command is not a Python script (nothing to probe).
+    arenabench_importable : bool or None
+        Whether ``import arenabench`` finds it inside the sandbox.
+    reference : dict
+        The known-good submission's run: ``source``, ``image``, ``status``, ``count``,
+        ``area`` (no timing: a re-run that grades nothing writes the same leaderboard).
+    """
+
+    mode: str
+    limits: dict[str, Any]
+    executable: str | None = None
+    kind: str | None = None
+    versions: dict[str, Any] = field(default_factory=dict)
+    arenabench_importable: bool | None = None
+    reference: dict[str, Any] = field(default_factory=dict)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form."""
+        return asdict(self)
+
+
+def require_sandbox(mode: str) -> str:
+    """The sandbox ``grade`` runs teams in: fail closed.
+
+    Returns ``"bwrap"`` when bubblewrap works, ``"none"`` only when asked for explicitly.
+
+    Raises
+    ------
+    PreflightError
+        For ``auto`` or ``bwrap`` without a working bubblewrap (one line: how to install it
+        or opt out).
+    """
+    from .external import bwrap_problem
+
+    if mode == "none":
+        return "none"
+    problem = bwrap_problem()
+    if problem is None:
+        return "bwrap"
+    raise PreflightError(
+        f"--sandbox {mode}: {problem}; grade runs untrusted code only in a sandbox: install "
+        "bubblewrap (apt-get install bubblewrap) or pass --sandbox none to grade WITHOUT one")
+
+
+def dataset_seed(root: str | os.PathLike[str]) -> int | None:
+    """The run seed recorded in ``ROOT/dataset.json`` (``None``: not a generated set)."""
+    try:
+        meta = json.loads(Path(root, "dataset.json").read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+    seed = meta.get("seed") if isinstance(meta, dict) else None
+    if seed is None and isinstance(meta, dict) and isinstance(meta.get("args"), dict):
+        seed = meta["args"].get("seed")
+    return seed if isinstance(seed, int) and not isinstance(seed, bool) else None
+
+
+def check_dataset_seed(root: str | os.PathLike[str], *, allow_guessable: bool) -> int | None:
+    """Refuse a generated set whose seed can be enumerated.
+
+    Raises
+    ------
+    PreflightError
+        When ``dataset.json`` records a seed below 2**64 and ``allow_guessable`` is false.
+    """
+    seed = dataset_seed(root)
+    if seed is not None and is_guessable(seed) and not allow_guessable:
+        raise PreflightError(
+            f"{root}: generated with seed {seed} (below 2**{GUESSABLE_BELOW.bit_length() - 1}): "
+            "a submission can re-render the set and read its answers; generate the hidden set "
+            "with 'arenabench generate --seed random' (or pass --allow-guessable-seed)")
+    return seed
+
+
+def _script_args(template: str) -> list[str]:
+    """The ``{submission}/...`` parts of the template's arguments (the team's files)."""
+    out = []
+    for arg in shlex.split(template):
+        if arg.startswith("{submission}/"):
+            out.append(arg[len("{submission}/"):])
+    return out
+
+
+def _write_as(folder: Path, template: str, text: str) -> bool:
+    """Write ``text`` as every ``.py`` file the template names in the submission; whether
+    there was one."""
+    wrote = False
+    for rel in _script_args(template):
+        if rel.endswith(".py") and ".." not in Path(rel).parts:
+            path = folder / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            path.write_text(text)
+            wrote = True
+    return wrote
+
+
+def builtin_reference(folder: Path, template: str, *, output: str) -> bool:
+    """Lay out the built-in reference submission in ``folder``: arenabench's detector (its
+    source copied alongside: nothing of this installation needed) as every ``.py`` file the
+    template names. Returns whether the template names one (else nothing to lay out)."""
+    import arenabench
+
+    src = Path(arenabench.__file__).parent
+    extra = ["--json"] if output == "json" else []
+    if not _write_as(folder, template, REFERENCE.replace("EXTRA", repr(extra))):
+        return False
+    shutil.copytree(src, folder / "arenabench",
+                    ignore=shutil.ignore_patterns("__pycache__", "generator", "eval", "*.pyc"))
+    return True
+
+
+def preflight(
+    template: str,
+    *,
+    image: str | os.PathLike[str],
+    make_pipeline: Callable[[str, str], Any],
+    mode: str,
+    limits: dict[str, Any],
+    output: str = "obstacles",
+    reference: str | os.PathLike[str] | None = None,
+) -> PreflightRecord:
+    """Run the probe and a known-good submission through the grading command.
+
+    Parameters
+    ----------
+    template : str
+        The grading command (``{submission}``, ``{image}``, ``{python}``).
+    image : path-like
+        The image the reference runs on (the set's first).
+    make_pipeline : callable
+        ``(command, submission_dir) -> CommandPipeline`` exactly as a team's is made.
+    mode : str
+        The sandbox mode (for the record).
+    limits : dict
+        The run settings (for the record).
+    output : {"obstacles", "json"}
+        How the command answers.
+    reference : path-like, optional
+        A known-good submission folder (default: the built-in reference).
+
+    Raises
+    ------
+    PreflightError
+        One line naming the cause: the interpreter cannot run, lacks a module, the sandbox
+        fails, or the reference gives no answer.
+    """
+    from .grade.runner import team_command
+
+    record = PreflightRecord(mode=mode, limits=dict(limits))
+    with tempfile.TemporaryDirectory(prefix="arenabench-preflight-") as tmp:
+        probe_dir = Path(tmp, "probe")
+        probe_dir.mkdir()
+        if _write_as(probe_dir, template, PROBE):
+            pipe = make_pipeline(team_command(template, probe_dir), str(probe_dir))
+            record = replace(record, executable=getattr(pipe, "_executable", None))
+            from .interpreter import interpreter_folders
+
+            if record.executable:
+                record = replace(record, kind=interpreter_folders(record.executable).kind)
+            pred = pipe.run(Path(image))
+            info = _probe_info(pred.stdout)
+            if info is None or pred.status in ("crash", "timeout", "limit"):
+                why = (pred.stderr.strip().splitlines() or [pred.message])[-1]
+                if why.startswith("missing: "):
+                    raise PreflightError(
+                        f"preflight: {record.executable or template.split()[0]} in the "
+                        f"sandbox lacks {why[len('missing: '):]}: the teams' scripts need "
+                        "numpy and OpenCV with aruco (install them into that interpreter, or "
+                        "name another in --cmd)")
+                raise PreflightError(
+                    f"preflight: the grading command cannot run a Python script in the "
+                    f"sandbox ({mode}): {pred.status}: {why[:300]}")
+            record = replace(
+                record, versions={k: info.get(k) for k in ("python", "numpy", "cv2", "aruco")},
+                arenabench_importable=bool(info.get("arenabench_importable")))
+        if reference is not None:
+            ref_dir, source = Path(reference).resolve(), str(Path(reference).resolve())
+        else:
+            ref_dir, source = Path(tmp, "reference"), "built-in"
+            ref_dir.mkdir()
+            if not builtin_reference(ref_dir, template, output=output):
+                return replace(record, reference={"source": "none (the command names no "
+                                                  "Python script: pass --reference DIR)"})
+        pipe = make_pipeline(team_command(template, ref_dir), str(ref_dir))
+        pred = pipe.run(Path(image))
+        ref = {"source": source, "image": Path(image).name, "status": pred.status,
+               "count": pred.count, "area": pred.area}
+        if pred.status != "ok":
+            why = (pred.stderr.strip().splitlines() or [pred.message])[-1]
+            raise PreflightError(
+                f"preflight: the {source} reference submission gets no answer through the "
+                f"grading command in the sandbox ({mode}): {pred.status}: "
+                f"{(pred.message or why)[:300]}")
+        return replace(record, reference=ref)
+
+
+def _probe_info(stdout: str) -> dict[str, Any] | None:
+    for line in reversed((stdout or "").splitlines()):
+        if line.startswith(PROBE_TAG):
+            try:
+                info = json.loads(line[len(PROBE_TAG):])
+            except ValueError:
+                return None
+            return info if isinstance(info, dict) else None
+    return None

@@ -1,0 +1,508 @@
+"""Organiser grading that cannot go silently wrong or be gamed (issue 21), end to end with
+real subprocesses and real bubblewrap: unguessable sets, the preflight, any interpreter in
+the sandbox, fail closed, hidden GT wherever the images live, symlinked teams, systemic
+failures, null latency, the INCOMPLETE banner and what /proc shows inside the sandbox."""
+
+import json
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from arenabench.eval.external import bwrap_problem
+from arenabench.eval.grade.runner import STATE_FILE, GradeOptions, grade
+from arenabench.generator.seeds import GUESSABLE_BELOW
+
+HERE = Path(__file__).resolve().parent
+ATTACKS = HERE / "grade_attacks"
+needs_bwrap = pytest.mark.skipif(bwrap_problem() is not None, reason=str(bwrap_problem()))
+ANSWER = """\
+from pathlib import Path
+Path("obstacles.txt").write_text("Aruco ID: [80, 85, 90, 95]\\nObstacles: {count}\\nArea: 1.0\\n")
+"""
+PY_CMD = "{python} {submission}/map.py --image {image}"
+
+
+def _env(**extra: str) -> dict[str, str]:
+    """This environment with this Python's bin folder first, so 'python3' has arenabench."""
+    path = f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}"
+    return {**os.environ, "PATH": path, **extra}
+
+
+def _cli(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "arenabench", *args], capture_output=True,
+                          text=True, env=env or _env(), timeout=600)
+
+
+def _grade(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    return _cli("grade", *args, "--no-progress", "--formats", "json,md,html", env=env)
+
+
+def _team(root: Path, name: str, text: str) -> Path:
+    (root / name).mkdir(parents=True, exist_ok=True)
+    (root / name / "map.py").write_text(text)
+    return root / name
+
+
+def _one_line_error(proc: subprocess.CompletedProcess, needle: str, code: int = 2) -> str:
+    err = proc.stderr.strip()
+    assert proc.returncode == code, (proc.returncode, err[-3000:])
+    assert len(err.splitlines()) == 1 and needle in err and "Traceback" not in err, err
+    return err
+
+
+@pytest.fixture(scope="module")
+def random_set(tmp_path_factory):
+    out = tmp_path_factory.mktemp("guard-random") / "hidden"
+    proc = _cli("generate", "--count", "1", "--seed", "random", "--out", str(out),
+                "--workers", "1", "--no-progress")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return out, proc.stdout
+
+
+@pytest.fixture(scope="module")
+def seed3_set(tmp_path_factory):
+    from arenabench.generator.dataset import generate_dataset
+
+    out = tmp_path_factory.mktemp("guard-seed3") / "hidden"
+    generate_dataset(out, preset="eyrc", count=1, seed=3, workers=1, progress=False)
+    return out
+
+
+# ----------------------------------------------------------------------------- seeds
+
+
+def test_generate_seed_random_prints_and_records_a_128_bit_seed(random_set):
+    out, stdout = random_set
+    seed = json.loads((out / "dataset.json").read_text())["args"]["seed"]
+    assert GUESSABLE_BELOW <= seed < 2**128
+    assert f"seed {seed} (random" in stdout
+
+
+def test_grade_refuses_a_guessable_seed_before_any_team(seed3_set, tmp_path):
+    subs = tmp_path / "subs"
+    _team(subs, "a", ANSWER.format(count=1))
+    out = tmp_path / "out"
+    proc = _grade(str(seed3_set), str(subs), "--out", str(out), "--cmd", PY_CMD)
+    err = _one_line_error(proc, "seed 3")
+    assert "--seed random" in err and "--allow-guessable-seed" in err
+    assert not out.exists()
+
+
+@pytest.mark.slow
+@needs_bwrap
+def test_seed_brute_force_wins_on_seed_3_and_fails_on_a_random_set(random_set, seed3_set,
+                                                                   tmp_path):
+    # the worst case: the grading interpreter is the project's own, so the submission can
+    # import the generator; the preflight says so on stderr
+    subs = tmp_path / "subs"
+    shutil.copytree(ATTACKS / "seed_brute_force", subs / "brute")
+    guessable = _grade(str(seed3_set), str(subs), "--out", str(tmp_path / "o3"), "--cmd",
+                       PY_CMD, "--allow-guessable-seed", "--timeout", "120")
+    assert guessable.returncode == 0, guessable.stderr[-3000:]
+    assert "arenabench is importable inside the sandbox" in guessable.stderr
+    team = json.loads((tmp_path / "o3" / "leaderboard.json").read_text())["teams"][0]
+    assert team["n_passed"] == 1  # the attack is real: it found seed 3 and copied the GT
+
+    proc = _grade(str(random_set[0]), str(subs), "--out", str(tmp_path / "or"), "--cmd",
+                  PY_CMD, "--timeout", "120")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    team = json.loads((tmp_path / "or" / "leaderboard.json").read_text())["teams"][0]
+    assert team["n_passed"] == 0 and team["failures"]["wrong_count"] == 1
+    rep = json.loads((tmp_path / "or" / "teams" / "brute" / "report.json").read_text())
+    assert "seed not found" in rep["images"][0]["stderr_tail"]
+
+
+# ----------------------------------------------------------------------------- sandbox view
+
+SNOOP = """\
+import base64, glob, json, os, sys, zlib
+from pathlib import Path
+seen = {"cmdline": {}, "gt": []}
+for d in glob.glob("/proc/[0-9]*"):
+    try:
+        seen["cmdline"][d] = Path(d, "cmdline").read_bytes().decode().split("\\0")
+    except OSError:
+        pass
+seen["mountinfo"] = [" ".join(line.split()[3:5])
+                     for line in Path("/proc/self/mountinfo").read_text().splitlines()]
+seen["environ"] = Path("/proc/self/environ").read_bytes().decode()
+for arg in sys.argv[1:]:
+    if arg.startswith("/") and not arg.startswith("/sandbox") and os.path.exists(arg):
+        top = Path(arg).parent
+        seen["gt"] += [str(p) for p in top.rglob("*.json")] + [str(p) for p in top.rglob("*.png")]
+print(base64.b64encode(zlib.compress(json.dumps(seen).encode(), 9)).decode(), file=sys.stderr)
+Path("obstacles.txt").write_text("Aruco ID: [80, 85, 90, 95]\\nObstacles: 0\\nArea: 0\\n")
+"""
+
+
+@needs_bwrap
+def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp_path):
+    # the dataset sits inside a folder the command makes visible (a shared config folder),
+    # its images in pics/ (not images/)
+    shared = tmp_path / "shared"
+    data = shared / "set"
+    shutil.copytree(seed3_set, data)
+    (data / "images").rename(data / "pics")
+    lines = (data / "manifest.jsonl").read_text().replace('"images/', '"pics/')
+    (data / "manifest.jsonl").write_text(lines)
+    (shared / "config.txt").write_text("x")
+    subs = tmp_path / "subs"
+    _team(subs, "snoop", SNOOP)
+    out = tmp_path / "out"
+    cmd = "{python} {submission}/map.py --image {image} " + str(shared / "config.txt")
+    opts = GradeOptions(command=cmd, formats=("json",))
+    grade(data, subs, out, options=opts, workers=1, allow_guessable_seed=True)
+    rep = json.loads((out / "teams" / "snoop" / "report.json").read_text())
+    import base64
+    import zlib
+
+    packed = rep["images"][0]["stderr_tail"].strip().splitlines()[-1]
+    seen = json.loads(zlib.decompress(base64.b64decode(packed)))
+    assert seen["gt"] == []  # nothing of the dataset: no GT, no images
+    for host in (str(data), str(out), "arenabench-run-"):
+        assert host not in json.dumps(seen["cmdline"]) and host not in seen["environ"], host
+    # mountinfo lists the mount points: the system folders, the interpreter's, the
+    # submission's, the visible shared folder and, hidden under empty tmpfs, the dataset's
+    from arenabench.eval.interpreter import interpreter_folders
+
+    allowed = {str(subs / "snoop"), str(shared), str(data), str(data / "pics"),
+               *interpreter_folders(sys.executable).folders}
+    points = {line.split()[1] for line in seen["mountinfo"]}
+    system = ("/usr", "/sandbox", "/proc", "/dev", "/etc", "/bin", "/sbin", "/lib", "/lib64")
+    host = {p for p in points if p not in ("/", "/tmp")
+            and not any(p == s or p.startswith(s + "/") for s in system)}
+    assert host <= allowed and str(subs / "snoop") in host
+    assert "bwrap" not in json.dumps(seen["cmdline"])  # no bubblewrap argv (bind list)
+    pid1 = seen["cmdline"]["/proc/1"]
+    assert pid1[0] == sys.executable and pid1[1] == str(subs / "snoop" / "map.py")
+    assert pid1[2:4] == ["--image", "/sandbox/image.png"]
+    assert sys.executable.split("/bin/")[0] in seen["environ"]  # PATH: the interpreter's bin
+    assert os.environ["PATH"] not in seen["environ"]
+
+
+@needs_bwrap
+def test_symlinked_team_grades_like_its_target(seed3_set, tmp_path):
+    elsewhere = _team(tmp_path / "real", "team_src", ANSWER.format(count=1))
+    subs = tmp_path / "subs"
+    subs.mkdir()
+    (subs / "linked").symlink_to(elsewhere)
+    shutil.copytree(elsewhere, subs / "copied")
+    result = grade(seed3_set, subs, tmp_path / "out", options=GradeOptions(
+        command=PY_CMD, formats=("json",)), workers=2, allow_guessable_seed=True)
+    rows = {r.team: r for r in result.rows}
+    assert rows["linked"].summary.to_dict() | {"latency_ms": None} == \
+        rows["copied"].summary.to_dict() | {"latency_ms": None}
+    assert rows["linked"].summary.failures.get("crash", 0) == 0
+    assert rows["linked"].submission_sha256 == rows["copied"].submission_sha256
+
+
+# ----------------------------------------------------------------------------- interpreters
+
+
+@pytest.fixture(scope="session")
+def teams_venv(tmp_path_factory):
+    """A second, real virtual environment with its own numpy 1.26 and OpenCV 4.10 (as the
+    competition used), made once per session from the base Python of this one."""
+    venv = tmp_path_factory.mktemp("teams-venv") / "venv"
+    base = Path(sys.base_prefix) / "bin" / "python3"
+    subprocess.run([str(base), "-m", "venv", "--without-pip", str(venv)], check=True,
+                   timeout=120)
+    pip = subprocess.run(
+        [sys.executable, "-m", "pip", "--python", str(venv / "bin" / "python"), "install", "-q",
+         "--no-deps", "numpy==1.26.4", "opencv-contrib-python-headless==4.10.0.84"],
+        capture_output=True, text=True, timeout=600)
+    if pip.returncode != 0:
+        pytest.skip(f"cannot install numpy and OpenCV into a new venv: {pip.stderr[-300:]}")
+    return venv
+
+
+@pytest.mark.slow
+@needs_bwrap
+def test_a_second_venv_grades_a_correct_team_100(seed3_set, teams_venv, tmp_path):
+    subs = tmp_path / "subs"
+    shutil.copytree(HERE / "grade_teams" / "correct", subs / "correct")
+    # the team's script is the reference detector with its source alongside (the teams'
+    # venv has no arenabench), as the built-in preflight reference is laid out
+    from arenabench.eval.preflight import builtin_reference
+
+    shutil.rmtree(subs / "correct")
+    (subs / "correct").mkdir()
+    builtin_reference(subs / "correct", "python {submission}/map.py", output="obstacles")
+    out = tmp_path / "out"
+    python = teams_venv / "bin" / "python"
+    proc = _grade(str(seed3_set), str(subs), "--out", str(out), "--allow-guessable-seed",
+                  "--cmd", f"{python} {{submission}}/map.py --image {{image}}")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert "importable" not in proc.stderr  # the teams' venv has no arenabench
+    doc = json.loads((out / "leaderboard.json").read_text())
+    assert doc["teams"][0]["pass_rate"] == 1.0
+    box = doc["sandbox"]
+    assert box["mode"] == "bwrap" and box["kind"] == "venv"
+    assert box["versions"]["cv2"] == "4.10.0" and box["versions"]["numpy"] == "1.26.4"
+    assert box["arenabench_importable"] is False
+    rep = json.loads((out / "teams" / "correct" / "report.json").read_text())
+    assert rep["sandbox"]["versions"] == box["versions"]
+
+
+def _no_team_graded(out: Path) -> bool:
+    return not out.exists() or not list(out.rglob(STATE_FILE))
+
+
+def test_python_without_cv2_stops_at_the_preflight(seed3_set, tmp_path):
+    bare = tmp_path / "bare-venv"
+    base = Path(sys.base_prefix) / "bin" / "python3"
+    subprocess.run([str(base), "-m", "venv", "--without-pip", str(bare)], check=True,
+                   timeout=120)
+    subs = tmp_path / "subs"
+    _team(subs, "a", ANSWER.format(count=1))
+    out = tmp_path / "out"
+    proc = _grade(str(seed3_set), str(subs), "--out", str(out), "--allow-guessable-seed",
+                  "--cmd", f"{bare}/bin/python {{submission}}/map.py --image {{image}}")
+    err = _one_line_error(proc, "preflight")
+    assert "cv2" in err and str(bare) in err
+    assert _no_team_graded(out)
+
+
+def test_a_broken_interpreter_stops_at_the_preflight(seed3_set, tmp_path):
+    broken = tmp_path / "broken" / "bin" / "python3"
+    broken.parent.mkdir(parents=True)
+    broken.write_text("#!/bin/sh\necho 'Fatal Python error: init_fs_encoding: failed to get "
+                      "the Python codec of the filesystem encoding' >&2\nexit 1\n")
+    broken.chmod(0o755)
+    subs = tmp_path / "subs"
+    _team(subs, "a", ANSWER.format(count=1))
+    out = tmp_path / "out"
+    proc = _grade(str(seed3_set), str(subs), "--out", str(out), "--allow-guessable-seed",
+                  "--cmd", f"{broken} {{submission}}/map.py --image {{image}}")
+    err = _one_line_error(proc, "preflight")
+    assert "Fatal Python error" in err
+    assert _no_team_graded(out)
+
+
+def test_sandbox_none_is_required_without_bubblewrap(seed3_set, tmp_path):
+    # a PATH without bubblewrap (the harness is started by its absolute path)
+    nobwrap = tmp_path / "bin"
+    nobwrap.mkdir()
+    for tool in ("true", "sh"):
+        os.symlink(shutil.which(tool), nobwrap / tool)
+    env = {**os.environ, "PATH": str(nobwrap)}
+    subs = tmp_path / "subs"
+    _team(subs, "a", ANSWER.format(count=1))
+    out = tmp_path / "out"
+    base = ["--out", str(out), "--allow-guessable-seed", "--cmd", PY_CMD]
+    proc = _grade(str(seed3_set), str(subs), *base, env=env)
+    err = _one_line_error(proc, "bubblewrap")
+    assert "apt-get install bubblewrap" in err and "--sandbox none" in err
+    assert not out.exists()
+    proc = _grade(str(seed3_set), str(subs), *base, "--sandbox", "none", env=env)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert json.loads((out / "leaderboard.json").read_text())["sandbox"]["mode"] == "none"
+
+
+# ----------------------------------------------------------------------------- leaderboard
+
+
+def test_six_teams_failing_alike_exit_non_zero(seed3_set, tmp_path):
+    subs = tmp_path / "subs"
+    for i in range(6):
+        _team(subs, f"t{i}", "import no_such_module_for_grading\n")
+    out = tmp_path / "out"
+    proc = _grade(str(seed3_set), str(subs), "--out", str(out), "--allow-guessable-seed",
+                  "--cmd", PY_CMD)
+    err = [line for line in proc.stderr.strip().splitlines() if "WARNING" not in line]
+    assert proc.returncode == 3, proc.stderr[-3000:]
+    assert len(err) == 1 and "6 of 6 teams fail alike" in err[0]
+    assert "no_such_module_for_grading" in err[0] and "Traceback" not in proc.stderr
+    assert (out / "leaderboard.json").is_file()
+
+
+def test_an_all_timeout_team_ranks_last_with_null_latency(seed3_set, tmp_path):
+    subs = tmp_path / "subs"
+    _team(subs, "a_sleeps", "import time\ntime.sleep(60)\n")
+    _team(subs, "b_wrong", ANSWER.format(count=99))
+    opts = GradeOptions(command=PY_CMD, formats=("json",),
+                        settings=_settings(timeout_s=2.0))
+    result = grade(seed3_set, subs, tmp_path / "out", options=opts, workers=2,
+                   allow_guessable_seed=True)
+    doc = json.loads(result.files["leaderboard.json"].read_text())
+    assert [t["team"] for t in doc["teams"]] == ["b_wrong", "a_sleeps"]
+    last = doc["teams"][-1]
+    assert last["failures"]["timeout"] == 1 and last["latency_ms_median"] is None
+    assert last["rank"] == 2 and not last["tied"]
+    assert "latency" not in json.dumps(doc["ranking"])
+
+
+def test_byte_identical_submissions_share_one_rank_every_run(seed3_set, tmp_path):
+    subs = tmp_path / "subs"
+    for name in ("x", "y", "z"):
+        _team(subs, name, ANSWER.format(count=1))
+    _team(subs, "w", ANSWER.format(count=99))
+    ranks = []
+    for run in range(2):
+        result = grade(seed3_set, subs, tmp_path / f"out{run}", options=GradeOptions(
+            command=PY_CMD, formats=("json",)), workers=3, allow_guessable_seed=True)
+        ranks.append([(r.team, r.rank, r.tied) for r in result.rows])
+        csv_text = result.files["leaderboard.csv"].read_text()
+        assert [line.split(",")[0] for line in csv_text.splitlines()[1:4]] == ["1", "1", "1"]
+    assert ranks[0] == ranks[1]
+    top = [r for r in ranks[0] if r[0] in "xyz"]
+    assert {(rank, tied) for _, rank, tied in top} == {(1, True)}
+    assert [t for t, _, _ in top] == ["x", "y", "z"]  # listed by name
+
+
+def _settings(**limits):
+    from arenabench.eval.run_limits import RunLimits, RunSettings
+
+    return RunSettings(limits=RunLimits(**limits))
+
+
+# ----------------------------------------------------------------------------- INCOMPLETE
+
+
+def _dom(page: Path, tmp_path: Path) -> str:
+    from test_report_html import CHROMIUM_FLAGS, _find_chromium
+
+    chromium = _find_chromium()
+    if chromium is None:
+        pytest.skip("chromium is not installed (apt-get install -y chromium)")
+    proc = subprocess.run([chromium, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'prof'}",
+                           "--dump-dom", page.resolve().as_uri()],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return proc.stdout
+
+
+@pytest.mark.slow
+def test_interrupted_grade_and_eval_show_the_banner(seed3_set, tmp_path):
+    from arenabench.generator.dataset import generate_dataset
+
+    data = tmp_path / "three"
+    generate_dataset(data, preset="eyrc", count=3, seed=3, workers=1, progress=False)
+    # eval: the second image hangs (after leaving a mark); SIGINT once it does
+    slow, mark = tmp_path / "slow.py", tmp_path / "sleeping"
+    slow.write_text("import sys, time\nfrom pathlib import Path\n"
+                    "if Path(sys.argv[1]).stat().st_size != Path(sys.argv[2]).stat().st_size:\n"
+                    f"    Path({str(mark)!r}).touch()\n    time.sleep(300)\n"
+                    + ANSWER.format(count=1))
+    first = sorted((data / "images").iterdir())[0]
+    ev = tmp_path / "ev"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "arenabench", "eval", str(data), "--cmd",
+         f"{sys.executable} {slow} {{image}} {first}", "--workers", "1", "--out", str(ev),
+         "--formats", "json,md,html", "--no-progress", "--timeout", "300", "--sandbox", "none"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env())
+    try:
+        import time
+
+        deadline = time.monotonic() + 120
+        while not mark.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        proc.send_signal(signal.SIGINT)
+        proc.communicate(timeout=120)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130
+    md = (ev / "report.md").read_text()
+    report = json.loads((ev / "report.json").read_text())
+    done = report["n_done"]
+    assert report["n_total"] == 3 and done < 3
+    assert f"INCOMPLETE: {done} of 3 images" in md and "Summary (partial)" in md
+    dom = _dom(ev / "report.html", tmp_path)
+    assert f"INCOMPLETE: {done} of 3 images" in dom and 'id="incomplete"' in dom
+
+    # grade: interrupted after the first of three teams
+    subs = tmp_path / "subs"
+    for name in ("a", "b", "c"):
+        _team(subs, name, ANSWER.format(count=1))
+    out = tmp_path / "out"
+
+    def interrupt(line: str) -> None:
+        if ": graded" in line:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        grade(data, subs, out, options=GradeOptions(command=PY_CMD, formats=("json",)),
+              workers=1, report_workers=1, log=interrupt, allow_guessable_seed=True)
+    doc = json.loads((out / "leaderboard.json").read_text())
+    assert doc["complete"] is False and doc["images_total"] == 9
+    banner = f"INCOMPLETE: {doc['images_done']} of 9 images"
+    dom = _dom(out / "leaderboard.html", tmp_path)
+    assert banner in dom and "Leaderboard (partial)" in dom
+
+
+def test_sweep_page_of_a_partial_sweep_shows_the_banner(tmp_path):
+    from dataclasses import replace
+
+    from arenabench.eval.sweep.html import sweep_page
+    from arenabench.eval.sweep.outputs import load_sweep
+    from arenabench.eval.sweep_cli import main as sweep_main
+
+    out = tmp_path / "sweep"
+    assert sweep_main(["--vary", "camera.tilt_deg=0,10", "--per-point", "1", "--seed", "2",
+                       "--pipeline", "seed", "--out", str(out), "--workers", "1",
+                       "--no-progress", "--no-plots"]) == 0
+    result = load_sweep(out)
+    assert "INCOMPLETE" not in sweep_page(result, [])
+    partial = replace(result, run={**result.run, "complete": False, "samples_done": 1})
+    page = sweep_page(partial, [])
+    assert "INCOMPLETE: 1 of 2 images" in page and 'id="incomplete"' in page
+
+
+def test_a_submission_too_large_to_fingerprint_is_refused_alone(seed3_set, tmp_path,
+                                                                 monkeypatch):
+    from arenabench.eval.grade import submissions
+
+    monkeypatch.setattr(submissions, "MAX_ENTRIES", 50)
+    subs = tmp_path / "subs"
+    _team(subs, "fine", ANSWER.format(count=1))
+    big = _team(subs, "many_files", ANSWER.format(count=1))
+    for i in range(60):
+        (big / f"f{i}").write_text("")
+    result = grade(seed3_set, subs, tmp_path / "out", options=GradeOptions(
+        command=PY_CMD, formats=("json",)), workers=1, allow_guessable_seed=True)
+    assert [r.team for r in result.rows] == ["fine"]
+    assert "more than 50 entries" in result.errors["many_files"]
+
+
+def test_interpreter_folders_of_venv_conda_pyenv_and_scripts(tmp_path):
+    from arenabench.eval.interpreter import interpreter_folders
+
+    def exe(path: Path, text: str = "") -> Path:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_text(text)
+        path.chmod(0o755)
+        return path
+
+    base = exe(tmp_path / "base" / "bin" / "python3")
+    venv = tmp_path / "venv"
+    (venv / "bin").mkdir(parents=True)
+    (venv / "bin" / "python").symlink_to(base)
+    (venv / "pyvenv.cfg").write_text(f"home = {base.parent}\n")
+    (tmp_path / "extra").mkdir()
+    site = venv / "lib" / "python3.11" / "site-packages"
+    site.mkdir(parents=True)
+    (site / "extra.pth").write_text(f"{tmp_path / 'extra'}\n")
+    info = interpreter_folders(venv / "bin" / "python")
+    assert info.kind == "venv"
+    assert set(info.folders) == {str(venv), str(tmp_path / "base"), str(tmp_path / "extra")}
+
+    conda = exe(tmp_path / "conda" / "envs" / "teams" / "bin" / "python")
+    (conda.parent.parent / "conda-meta").mkdir()
+    info = interpreter_folders(conda)
+    assert info.kind == "conda" and info.folders == (str(conda.parent.parent),)
+
+    shim = exe(tmp_path / "pyenv" / "shims" / "python3", "#!/usr/bin/env bash\n")
+    info = interpreter_folders(shim)
+    assert info.kind == "pyenv" and info.folders == (str(tmp_path / "pyenv"),)
+
+    script = exe(tmp_path / "tools" / "bin" / "grade-run", f"#!{conda}\nprint(1)\n")
+    info = interpreter_folders(script)
+    assert info.kind == "conda"
+    assert set(info.folders) == {str(tmp_path / "tools"), str(conda.parent.parent)}
+
+    assert interpreter_folders("/usr/bin/python3").folders == ()  # /usr: always visible
