@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.clihelp import ArgumentParser, HelpFormatter
 from arenabench.competition import OBSTACLES_FILE, format_obstacles_txt
 from arenabench.fileio import OutputPathError, check_output_file, write_output_text
 from arenabench.frame import FrameSpec
@@ -33,7 +33,7 @@ class _UsageError(Exception):
     pass
 
 
-class _Parser(argparse.ArgumentParser):
+class _Parser(ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         raise _UsageError(message)
 
