@@ -599,15 +599,17 @@ def _broken_gl() -> dict[str, str]:
     return {"PYOPENGL_PLATFORM": "osmesa"}
 
 
-@pytest.mark.parametrize("command", ["generate", "sweep", "render"])
+@pytest.mark.parametrize("command", ["generate", "sweep", "render", "contact-sheet", "bench"])
 def test_broken_opengl_is_one_line_pointing_at_doctor_and_leaves_nothing(tmp_path, command):
     env = _broken_gl()
-    out = tmp_path / "o"
+    out = tmp_path / ("o.jpg" if command == "contact-sheet" else "o")
     argv = {
         "generate": ("generate", "--count", "1", "--no-progress"),
         "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
                   "--per-point", "1", "--no-progress"),
         "render": ("render", str(HERE.parent / "generator" / "scenes" / "task1c_example.json")),
+        "contact-sheet": ("contact-sheet", "--count", "1", "--no-progress"),
+        "bench": ("bench", "--quick"),
     }[command]
     proc = subprocess.run([sys.executable, "-m", "arenabench", *argv, "--out", str(out)],
                           capture_output=True, text=True, timeout=120,
