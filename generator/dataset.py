@@ -275,8 +275,11 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
     try:
         meta = json.loads(meta_path.read_text())
         old = meta["args"]
-    except (ValueError, KeyError) as exc:
-        raise GenerateError(f"{meta_path} is unreadable ({exc}): refusing to overwrite") from exc
+        if not isinstance(old, dict):
+            raise TypeError("args is not an object")
+    except (ValueError, KeyError, TypeError, RecursionError) as exc:
+        why = "nested too deeply" if isinstance(exc, RecursionError) else exc
+        raise GenerateError(f"{meta_path} is unreadable ({why}): refusing to overwrite") from None
     new = args.to_dict()
     for key in ("preset", "count", "seed", "overrides", "generator_version"):
         if key == "count" and isinstance(old.get(key), int) and new[key] > old[key]:
@@ -481,13 +484,17 @@ def generate_dataset(
         from arenabench.cluster import connect
 
         client = connect(scheduler)
-    else:
+    made = not Path(out).exists()
+    if client is None and made:
         from arenabench.generator.gl_check import require_offscreen_gl
 
         require_offscreen_gl()  # OffscreenGLError: one line, before out is created
-    made = not Path(out).exists()
     try:
         with lock_folder(out, command=shlex.join(sys.argv)[:300]):
+            if client is None and not made:  # after the lock: a run holding it is named at once
+                from arenabench.generator.gl_check import require_offscreen_gl
+
+                require_offscreen_gl()
             return _generate_locked(out, preset=preset, count=count, seed=seed,
                                     overrides=overrides, workers=workers, client=client,
                                     progress=progress)

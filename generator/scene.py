@@ -372,6 +372,12 @@ class FloorPatch:
         object.__setattr__(self, "color_rgb", _rgb(self.color_rgb, "patch.color_rgb"))
 
 
+def _check_sizes(obstacles: Any, patches: Any) -> None:
+    """At most :data:`~arenabench.limits.MAX_SCENE_OBJECTS` obstacles and patches."""
+    check_at_most(len(obstacles), MAX_SCENE_OBJECTS, "number of obstacles")
+    check_at_most(len(patches), MAX_SCENE_OBJECTS, "number of patches")
+
+
 @dataclass(frozen=True)
 class Scene:
     """Everything needed to render one image and compute its ground truth.
@@ -389,8 +395,7 @@ class Scene:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "obstacles", tuple(self.obstacles))
-        check_at_most(len(self.obstacles), MAX_SCENE_OBJECTS, "number of obstacles")
-        check_at_most(len(self.patches), MAX_SCENE_OBJECTS, "number of patches")
+        _check_sizes(self.obstacles, self.patches)
         object.__setattr__(self, "patches", tuple(
             p if isinstance(p, FloorPatch) else FloorPatch(**_tuplify(p)) for p in self.patches
         ))
@@ -442,6 +447,7 @@ class Scene:
                     )
             if cam.get("K") is not None:
                 cam["K"] = tuple(tuple(r) for r in cam["K"])
+            _check_sizes(data["obstacles"], data.get("patches", ()))  # before building them
             lighting = _tuplify(dict(data.get("lighting", {})))
             if "directional" in lighting:
                 lighting["directional"] = tuple(

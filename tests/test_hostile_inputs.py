@@ -616,3 +616,15 @@ def test_broken_opengl_is_one_line_pointing_at_doctor_and_leaves_nothing(tmp_pat
                           env={**os.environ, **env})
     assert_clean_error(proc, "no off-screen OpenGL", "arenabench doctor", prog=command)
     assert not out.exists()
+
+
+@pytest.mark.parametrize("text", ["[1]", '{"args": 5}', "[" * 100_000 + "]" * 100_000],
+                         ids=["a-list", "args-a-number", "deeply-nested"])
+def test_generate_into_a_folder_with_a_hostile_dataset_json_is_refused(tmp_path, text):
+    out = tmp_path / "ds"
+    out.mkdir()
+    (out / "dataset.json").write_text(text)
+    proc = run("generate", "--count", "1", "--out", str(out), "--no-progress", timeout=60)
+    assert_clean_error(proc, "dataset.json is unreadable", prog="generate")
+    assert sorted(p.name for p in out.iterdir()) == ["dataset.json"]
+    assert (out / "dataset.json").read_text() == text
