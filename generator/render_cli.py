@@ -75,6 +75,10 @@ def main(argv: list[str] | None = None) -> int:
     except OutputPathError as exc:
         print(f"arenabench render: error: --out {args.out}: {exc}", file=sys.stderr)
         return 2
+    if (Path(args.out) / "dataset.json").exists():  # its manifest would be replaced
+        print(f"arenabench render: error: --out {args.out}: holds a generated dataset "
+              "(dataset.json); use another folder", file=sys.stderr)
+        return 2
     from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
 
     try:

@@ -628,3 +628,16 @@ def test_generate_into_a_folder_with_a_hostile_dataset_json_is_refused(tmp_path,
     assert_clean_error(proc, "dataset.json is unreadable", prog="generate")
     assert sorted(p.name for p in out.iterdir()) == ["dataset.json"]
     assert (out / "dataset.json").read_text() == text
+
+
+def test_render_into_a_generated_dataset_is_refused(toy, tmp_path):
+    import shutil
+
+    ds = tmp_path / "ds"
+    shutil.copytree(toy, ds)
+    (ds / "dataset.json").write_text("{}")
+    before = {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()}
+    scene = HERE.parent / "generator" / "scenes" / "task1c_example.json"
+    proc = run("render", str(scene), "--out", str(ds), timeout=120)
+    assert_clean_error(proc, "holds a generated dataset", prog="render")
+    assert {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()} == before
