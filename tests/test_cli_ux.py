@@ -410,22 +410,26 @@ def test_render_writes_a_one_image_dataset_that_eval_scores(tmp_path):
 
 
 @pytest.mark.slow
-def test_pytest_plugin_without_the_cache_provider_uses_a_temporary_folder(tmp_path):
+def test_pytest_plugin_without_the_cache_provider_uses_a_temporary_folder(tmp_path,
+                                                                          tmp_path_factory):
     (tmp_path / "test_team.py").write_text(
         "from pathlib import Path\n\n"
         "def test_dataset(arenabench_dataset):\n"
         "    assert (arenabench_dataset / 'manifest.jsonl').is_file()\n"
         "    assert Path(__file__).parent not in arenabench_dataset.parents\n"
     )
+    # its own --basetemp: sessions of other pytest runs on this machine prune the shared one
+    basetemp = tmp_path_factory.mktemp("inner") / "base"
     proc = subprocess.run(
         [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "test_team.py",
-         "--arenabench-count", "1", "--rootdir", str(tmp_path)],
+         "--arenabench-count", "1", "--rootdir", str(tmp_path), "--basetemp", str(basetemp)],
         capture_output=True, text=True, cwd=tmp_path, timeout=300,
     )
     assert proc.returncode == 0, proc.stdout + proc.stderr
     assert "1 passed" in proc.stdout
     assert sorted(p.name for p in tmp_path.iterdir() if p.name != "__pycache__") == [
         "test_team.py"]  # no cache folder left in the project
+    assert list(basetemp.glob("arenabench*/*/manifest.jsonl"))  # the session's temporary one
 
 
 @pytest.mark.slow
