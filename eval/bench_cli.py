@@ -145,6 +145,13 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"arenabench bench: error: {exc}", file=sys.stderr)
         return 2
+    from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
+
+    try:
+        require_offscreen_gl()  # every figure renders
+    except OffscreenGLError as exc:
+        print(f"arenabench bench: error: {exc}", file=sys.stderr)
+        return 2
 
     def progress(key: str, seconds: float) -> None:
         print(f"  {key}: {seconds:.1f} s", file=sys.stderr, flush=True)

@@ -69,10 +69,17 @@ def main(argv: list[str] | None = None) -> int:
         return 2
     from arenabench.fileio import OutputPathError, check_output_dir
 
+    from .pipelines import make_pipeline
+
     try:
         check_output_dir(args.out)
     except OutputPathError as exc:
         print(f"arenabench demo: error: --out {args.out}: {exc}", file=sys.stderr)
+        return 2
+    try:
+        make_pipeline(args.pipeline)  # an unknown name or import now, not after rendering
+    except ValueError as exc:
+        print(f"arenabench demo: error: --pipeline: {exc}", file=sys.stderr)
         return 2
 
     step = 1
@@ -86,6 +93,7 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{step}. reusing dataset {dataset_dir} ({args.count} eyrc images)")
     else:
         from arenabench.generator.dataset import GenerateError, generate_dataset
+        from arenabench.generator.gl_check import OffscreenGLError
         from arenabench.generator.sampler import SamplingError
 
         try:
@@ -94,7 +102,7 @@ def main(argv: list[str] | None = None) -> int:
                 workers=args.workers or _cores(),
                 progress=not args.no_progress,
             )
-        except (GenerateError, SamplingError, ValueError) as exc:
+        except (GenerateError, SamplingError, ValueError, OffscreenGLError) as exc:
             print(f"arenabench demo: error: generation failed: {exc}", file=sys.stderr)
             return 2
         print(f"{step}. generated {result.rendered} eyrc images (seed {args.seed}) into "
@@ -118,7 +126,24 @@ def main(argv: list[str] | None = None) -> int:
         print(f"   {key:<{width}}  {value}")
     print(f"   report files in {report_dir}/ (report.json, results.csv, report.md, junit.xml)")
     print(f"open the HTML report: {written['html'].resolve()}")
+    print(_on_path_hint())
     return 0
+
+
+def _on_path_hint() -> str:
+    """How to run ``arenabench`` from a shell: the command as this run found it (the
+    project's ``.venv/bin/arenabench`` after ``make demo``), and how to put it on PATH."""
+    import os
+    import shutil
+
+    here = Path(sys.executable).parent
+    exe = here / "arenabench"
+    if shutil.which("arenabench") == str(exe) or not exe.is_file():
+        return "next: arenabench --help (every command; arenabench help COMMAND)"
+    shown = os.path.relpath(exe) if not os.path.relpath(exe).startswith("../..") else str(exe)
+    activate = Path(shown).parent / "activate"
+    return (f"next: {shown} --help (every command), or put arenabench on PATH with: "
+            f"source {activate}")
 
 
 def _cores() -> int:

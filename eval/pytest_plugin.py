@@ -9,7 +9,8 @@ Usage in a team's test suite::
 
 ``arenabench_dataset`` (session scope) is the path of a small generated dataset, cached under
 pytest's cache folder (``.pytest_cache/d/arenabench/``) and keyed by preset, count, seed and
-arenabench version, so it is rendered once and reused by later runs. Options:
+arenabench version, so it is rendered once and reused by later runs (under
+``-p no:cacheprovider``: in a temporary folder, rendered again each session). Options:
 ``--arenabench-preset`` (default ``eyrc``), ``--arenabench-count`` (default 12),
 ``--arenabench-seed`` (default 0), or ``--arenabench-dataset DIR`` to use an existing dataset.
 
@@ -65,11 +66,11 @@ def arenabench_dataset(request: pytest.FixtureRequest) -> Path:
     preset = config.getoption("--arenabench-preset")
     count = config.getoption("--arenabench-count")
     seed = config.getoption("--arenabench-seed")
-    if config.cache is not None:
-        root = config.cache.mkdir("arenabench")
-    else:  # cache provider disabled (-p no:cacheprovider)
-        root = Path(request.config.rootpath, ".arenabench-cache")
-        root.mkdir(exist_ok=True)
+    cache = getattr(config, "cache", None)  # no attribute under -p no:cacheprovider
+    if cache is not None:
+        root = cache.mkdir("arenabench")
+    else:  # no cache: a temporary folder of this session (generated again next time)
+        root = request.getfixturevalue("tmp_path_factory").mktemp("arenabench")
     final = Path(root) / dataset_key(preset, count, seed, __version__)
     if (final / "manifest.jsonl").is_file():
         return final

@@ -171,6 +171,13 @@ def main(argv: list[str] | None = None) -> int:
         )
     except ValueError as exc:
         return _error(str(exc))
+    if args.scheduler is None:  # renders here: OpenGL must work before anything is written
+        from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
+
+        try:
+            require_offscreen_gl()
+        except OffscreenGLError as exc:
+            return _error(str(exc))
     writer = KeptImageWriter(args.out)
     with stop_on_signals() as stop:
         try:
@@ -199,9 +206,10 @@ def main(argv: list[str] | None = None) -> int:
     print(f"sweep: {len(result.points)} points x {spec.per_point} scenes x "
           f"{len(pipelines)} pipeline(s) in {run['seconds']:.1f} s "
           f"({run['samples_per_s']} samples/s, {run['skipped']} skipped)")
-    for name, bps in result.breakdown.items():
-        text = ", ".join(f"{k}={'none' if v is None else v}" for k, v in bps.items())
-        print(f"  breakdown {name}: {text}")
+    from .sweep.breakdown import breakdown_texts
+
+    for name, texts in breakdown_texts(result).items():
+        print(f"  breakdown {name}: " + ", ".join(f"{k}={v}" for k, v in texts.items()))
     print(f"  wrote {written['json'].parent}/ (sweep.json, sweep.csv, results.jsonl"
           f"{', plots/, sweep.html' if not args.no_plots else ''}"
           f"{f', {writer.written} images' if writer.written else ''})")

@@ -49,6 +49,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
     from arenabench.fileio import OutputPathError, check_output_dir
     from arenabench.generator.dataset import GenerateError, generate_dataset
+    from arenabench.generator.gl_check import OffscreenGLError
     from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError
     from arenabench.generator.seeds import parse_seed
@@ -77,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
                 overrides=overrides, workers=args.workers, scheduler=args.scheduler,
                 progress=not args.no_progress,
             )
-        except (GenerateError, SamplingError, ValueError) as exc:
+        except (GenerateError, SamplingError, ValueError, OffscreenGLError) as exc:
             print(f"arenabench generate: error: {exc}", file=sys.stderr)
             return 2
         except Interrupted as exc:  # before or after the rendering loop

@@ -169,12 +169,16 @@ def main(argv: list[str] | None = None) -> int:
     except OutputPathError as exc:
         print(f"arenabench contact-sheet: error: --out {out}: {exc}", file=sys.stderr)
         return 2
+    from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
+
     try:
         get_preset(args.preset)
+        overrides = parse_overrides(args.overrides)
+        require_offscreen_gl()
         sheet = render_sheet(args.preset, count=args.count, seed=args.seed,
-                             overrides=parse_overrides(args.overrides), columns=args.columns,
+                             overrides=overrides, columns=args.columns,
                              tile=args.tile, progress=not args.no_progress)
-    except (SamplingError, ValueError) as exc:
+    except (SamplingError, ValueError, OffscreenGLError) as exc:
         print(f"arenabench contact-sheet: error: {exc}", file=sys.stderr)
         return 2
     params = [cv2.IMWRITE_JPEG_QUALITY, 85] if out.suffix.lower() != ".png" else []

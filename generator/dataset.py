@@ -24,10 +24,12 @@ with the same files as an uninterrupted run.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import multiprocessing
 import os
 import shlex
+import shutil
 import sys
 import time
 from dataclasses import dataclass, field
@@ -263,6 +265,8 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
     meta_path = out / "dataset.json"
     if not out.exists():
         return None
+    if meta_path.exists() and not meta_path.is_file():  # a FIFO would block the read
+        raise GenerateError(f"{meta_path} is not a regular file: refusing to use {out}")
     if not meta_path.exists():
         if any(p.name != LOCK_FILE and not is_temp_name(p.name) for p in out.iterdir()):
             raise GenerateError(f"{out} is not empty and holds no dataset.json: refusing to "
@@ -271,8 +275,11 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
     try:
         meta = json.loads(meta_path.read_text())
         old = meta["args"]
-    except (ValueError, KeyError) as exc:
-        raise GenerateError(f"{meta_path} is unreadable ({exc}): refusing to overwrite") from exc
+        if not isinstance(old, dict):
+            raise TypeError("args is not an object")
+    except (ValueError, KeyError, TypeError, RecursionError) as exc:
+        why = "nested too deeply" if isinstance(exc, RecursionError) else exc
+        raise GenerateError(f"{meta_path} is unreadable ({why}): refusing to overwrite") from None
     new = args.to_dict()
     for key in ("preset", "count", "seed", "overrides", "generator_version"):
         if key == "count" and isinstance(old.get(key), int) and new[key] > old[key]:
@@ -469,23 +476,58 @@ def generate_dataset(
     if int(workers) != workers or workers < 1:
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     check_at_most(int(workers), MAX_WORKERS, "workers")
-    DatasetArgs(preset=preset, count=int(count), seed=int(seed),
-                overrides=dict(overrides or {}))  # refuse bad arguments before creating out
+    args = DatasetArgs(preset=preset, count=int(count), seed=int(seed),
+                       overrides=dict(overrides or {}))  # refuse bad arguments before creating out
+    check_first_scene(args)
     client = None
     if scheduler is not None:  # reach the cluster before writing anything
         from arenabench.cluster import connect
 
         client = connect(scheduler)
+    made = not Path(out).exists()
+    if client is None and made:
+        from arenabench.generator.gl_check import require_offscreen_gl
+
+        require_offscreen_gl()  # OffscreenGLError: one line, before out is created
     try:
         with lock_folder(out, command=shlex.join(sys.argv)[:300]):
+            if client is None and not made:  # after the lock: a run holding it is named at once
+                from arenabench.generator.gl_check import require_offscreen_gl
+
+                require_offscreen_gl()
             return _generate_locked(out, preset=preset, count=count, seed=seed,
                                     overrides=overrides, workers=workers, client=client,
                                     progress=progress)
     except FolderLockedError as exc:
         raise GenerateError(f"{exc}; wait for it to finish or use another --out") from None
+    except ValueError:  # a scene's values fail: _generate_locked left the folder as it was
+        if made:
+            with contextlib.suppress(OSError):
+                Path(out).rmdir()  # only when empty
+        raise
     finally:
         if client is not None and client is not scheduler:
             client.close()
+
+
+def check_first_scene(args: DatasetArgs) -> None:
+    """Draw scene 0 of a run and compute its ground truth (no rendering): values that are
+    valid one by one but fail together (an unknown ArUco dictionary, a marker id outside it,
+    boxes that do not fit, markers out of view) are refused before anything is written.
+
+    Raises
+    ------
+    ValueError
+        :class:`~arenabench.generator.sampler.SamplingError` or the scene's own refusal,
+        naming the parameter.
+    """
+    if args.count < 1:
+        return
+    from arenabench.generator.groundtruth import compute_ground_truth
+    from arenabench.generator.sampler import sample_scene
+
+    sampled = sample_scene(args.preset, seed=args.seed, index=0, overrides=args.overrides)
+    compute_ground_truth(sampled.scene)
 
 
 def _generate_locked(
@@ -516,6 +558,25 @@ def _generate_locked(
     if meta is not None and meta.get("complete") and not todo:
         return DatasetResult(root, 0, skipped, time.perf_counter() - start, count=args.count,
                              finished=args.count)
+    old_meta = (root / "dataset.json").read_bytes() if meta is not None else None
+    try:
+        return _render_all(root, args, todo, skipped, meta, start, workers=workers,
+                           client=client, progress=progress)
+    except ValueError:  # a scene's values fail at render time: undo what this run began
+        if old_meta is None:  # a new set: leave nothing
+            for name in ("images", "gt"):
+                shutil.rmtree(root / name, ignore_errors=True)
+            for name in ("dataset.json", "manifest.jsonl", "coco.json"):
+                (root / name).unlink(missing_ok=True)
+        else:  # resumed or extended: the set as it was (scenes finished are kept)
+            atomic_write_bytes(root / "dataset.json", old_meta)
+        raise
+
+
+def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
+                meta: dict[str, Any] | None, start: float, *, workers: int, client: Any,
+                progress: bool) -> DatasetResult:
+    """Render the scenes ``todo`` of ``args`` into ``root`` and finish the set."""
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
     if meta is None or meta["args"].get("count") != args.count:
@@ -545,9 +606,12 @@ def _generate_locked(
                     for res in pool.imap_unordered(render_task, tasks, chunksize=1):
                         results.append(res)
                         bar.update(1)
-                except BaseException:
+                except Interrupted:
                     stop_workers()  # before the pool's own terminate(), which waits on them
                     raise
+                # (a failed task: leaving the with, the pool's terminate() ends the workers;
+                # killing them first could kill an idle one holding the lock of the task
+                # queue, and terminate() would wait for that lock forever)
                 # done: let the workers exit on their own (no signal to an idle worker)
                 pool.close()
                 pool.join()

@@ -50,11 +50,18 @@ def main(argv: list[str] | None = None) -> int:
         print(f"arenabench fit: error: --out {args.out}: {exc}", file=sys.stderr)
         return 2
     try:
+        arena = None if args.arena_side is None else ArenaSpec(side_m=args.arena_side,
+                                                               logo_text="eyantra")
+    except ValueError as exc:  # the arena's own rule (finite, > 0), said of the option
+        why = str(exc).removeprefix("arena.side_m ")
+        print(f"arenabench fit: error: --arena-side {why}", file=sys.stderr)
+        return 2
+    try:
         image = load_image(args.image)
-        if args.arena_side is None:
+        if arena is None:
             options = FitOptions(refine_rounds=args.refine_rounds)
         else:
-            options = FitOptions(arena=ArenaSpec(side_m=args.arena_side, logo_text="eyantra"),
+            options = FitOptions(arena=arena,
                                  markers=MarkerSpec(side_m=0.0669 * args.arena_side),
                                  fit_marker_side=True, fov_deg=None,
                                  refine_rounds=args.refine_rounds)

@@ -7,6 +7,7 @@ import sys
 
 from arenabench.clihelp import HelpFormatter
 from arenabench.generator.presets import PARAMETERS, PRESETS, format_value
+from arenabench.suggest import did_you_mean
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -20,8 +21,9 @@ def main(argv: list[str] | None = None) -> int:
     args = p.parse_args(argv)
     if args.show:
         if args.show not in PRESETS:
-            print(f"arenabench presets: error: unknown preset {args.show!r} "
-                  f"(known: {', '.join(PRESETS)})", file=sys.stderr)
+            print(f"arenabench presets: error: unknown preset {args.show!r}"
+                  f"{did_you_mean(args.show, PRESETS)} (known: {', '.join(PRESETS)})",
+                  file=sys.stderr)
             return 2
         for key, value in PRESETS[args.show][1].items():
             print(f"{key}={format_value(value)}")

@@ -1,7 +1,8 @@
 """``arenabench render``: render one scene file with its ground truth.
 
-Writes ``DIR/images/000000.png`` and ``DIR/gt/000000.json`` (the dataset GT schema),
-atomically. Scene files are :meth:`Scene.to_dict` JSON, e.g. the fitted
+Writes ``DIR/images/000000.png``, ``DIR/gt/000000.json`` (the dataset GT schema) and
+``DIR/manifest.jsonl`` (a one-image dataset ``arenabench eval DIR`` reads), atomically.
+Scene files are :meth:`Scene.to_dict` JSON, e.g. the fitted
 ``generator/scenes/task1c_example.json`` (``arenabench fit``).
 """
 
@@ -25,19 +26,28 @@ def scene_gt_record(scene: Scene, *, sid: str = "000000", source: str = "scene")
 
 
 def render_scene_files(scene: Scene, out: str | Path, *, source: str = "scene") -> Path:
-    """Render ``scene`` into ``out/images/000000.png`` + ``out/gt/000000.json``; returns the PNG."""
+    """Render ``scene`` into ``out/images/000000.png`` + ``out/gt/000000.json`` and
+    ``out/manifest.jsonl`` (so ``arenabench eval OUT`` scores it); returns the PNG.
+
+    The image and the GT are both made before the first file is written: a scene whose
+    ground truth cannot be computed leaves nothing.
+    """
     import cv2
 
-    from arenabench.fileio import atomic_write_bytes, atomic_write_json
+    from arenabench.fileio import atomic_write_bytes, atomic_write_text, dumps_json, sha256_bytes
+    from arenabench.generator.dataset import _manifest_line
     from arenabench.generator.render import Renderer
     from arenabench.imageio import encode_png
 
     out = Path(out)
+    gt = dumps_json(scene_gt_record(scene, source=source)).encode("utf-8")
     with Renderer() as renderer:
         rgb = renderer.render(scene).rgb
     png = encode_png(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR))
     image = atomic_write_bytes(out / "images" / "000000.png", png)
-    atomic_write_json(out / "gt" / "000000.json", scene_gt_record(scene, source=source))
+    atomic_write_bytes(out / "gt" / "000000.json", gt)
+    atomic_write_text(out / "manifest.jsonl",
+                      _manifest_line("000000", sha256_bytes(png), sha256_bytes(gt)))
     return image
 
 
@@ -47,7 +57,8 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=HelpFormatter,
         prog="arenabench render",
         description="Render a scene file (JSON, e.g. from 'arenabench fit') with its ground "
-                    "truth: DIR/images/000000.png and DIR/gt/000000.json.",
+                    "truth: DIR/images/000000.png, DIR/gt/000000.json and "
+                    "DIR/manifest.jsonl ('arenabench eval DIR' scores it).",
     )
     p.add_argument("scene", help="scene file (JSON)")
     p.add_argument("--out", required=True, help="output directory")
@@ -64,13 +75,22 @@ def main(argv: list[str] | None = None) -> int:
     except OutputPathError as exc:
         print(f"arenabench render: error: --out {args.out}: {exc}", file=sys.stderr)
         return 2
+    if (Path(args.out) / "dataset.json").exists():  # its manifest would be replaced
+        print(f"arenabench render: error: --out {args.out}: holds a generated dataset "
+              "(dataset.json); use another folder", file=sys.stderr)
+        return 2
+    from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
+
     try:
         scene = load_scene(args.scene)
+        require_offscreen_gl()
         image = render_scene_files(scene, args.out, source=Path(args.scene).stem)
-    except ValueError as exc:
+    except (ValueError, OffscreenGLError) as exc:
         print(f"arenabench render: error: {exc}", file=sys.stderr)
         return 2
-    print(f"wrote {image} and {Path(args.out) / 'gt' / '000000.json'}", file=sys.stderr)
+    print(f"wrote {image}, {Path(args.out) / 'gt' / '000000.json'} and "
+          f"{Path(args.out) / 'manifest.jsonl'} (score it: arenabench eval {args.out} "
+          "--pipeline reference)", file=sys.stderr)
     return 0
 
 

@@ -8,13 +8,18 @@ are adapters over it.
 from __future__ import annotations
 
 import json
-from dataclasses import asdict, dataclass, field
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.params import PARAMETERS
-from arenabench.limits import MAX_IMAGE_SIDE_PX
+from arenabench.limits import (
+    MAX_IMAGE_SIDE_PX,
+    MAX_SCENE_NUMBER,
+    MAX_SCENE_OBJECTS,
+    check_at_most,
+)
 
 Rgb = tuple[int, int, int]
 
@@ -38,6 +43,24 @@ def _within_bounds(value: float, name: str) -> None:
     bounds = PARAMETERS[name].bounds
     if not bounds.lo <= float(value) <= bounds.hi:
         raise ValueError(f"{name} must be in [{bounds.lo:g}, {bounds.hi:g}], got {value!r}")
+
+
+def _finite_fields(spec: Any, section: str) -> None:
+    """Refuse a non-finite number (``inf``, ``nan``; JSON's ``1e309`` reads as ``inf``) or one
+    beyond :data:`~arenabench.limits.MAX_SCENE_NUMBER` in any field of ``spec``, nested tuples
+    included, naming it ``section.field``."""
+    def check(value: Any, name: str) -> None:
+        if (isinstance(value, (int, float)) and not isinstance(value, bool)
+                and not abs(value) <= MAX_SCENE_NUMBER):  # also NaN
+            raise ValueError(f"{name} must be a finite number in "
+                             f"[-{MAX_SCENE_NUMBER:.0f}, {MAX_SCENE_NUMBER:.0f}], "
+                             f"got {value!r}")
+        if isinstance(value, (tuple, list)):
+            for item in value:
+                check(item, name)
+
+    for f in fields(spec):
+        check(getattr(spec, f.name), f"{section}.{f.name}")
 
 
 def _positive(value: float, name: str) -> float:
@@ -94,6 +117,7 @@ class ArenaSpec:
     logo_rgb: Rgb = (220, 50, 50)
 
     def __post_init__(self) -> None:
+        _finite_fields(self, "arena")
         _positive(self.side_m, "arena.side_m")
         if self.margin_m < 0:
             raise ValueError(f"arena.margin_m must be >= 0, got {self.margin_m!r}")
@@ -144,10 +168,20 @@ class MarkerSpec:
     quiet_zone_m: float = 0.04
 
     def __post_init__(self) -> None:
+        _finite_fields(self, "markers")
         ids = tuple(int(i) for i in self.ids)
         if len(ids) != 4:
             raise ValueError(f"markers.ids must be 4 ids (nw, ne, se, sw), got {self.ids!r}")
         object.__setattr__(self, "ids", ids)
+        if not isinstance(self.dictionary, str):
+            raise ValueError(f"markers.dictionary must be a name, got {self.dictionary!r}")
+        from arenabench.generator.textures import aruco_dictionary  # imports this module
+
+        size = aruco_dictionary(self.dictionary).bytesList.shape[0]
+        for marker_id in ids:
+            if not 0 <= marker_id < size:
+                raise ValueError(f"markers.ids: id {marker_id} is not in {self.dictionary} "
+                                 f"(ids 0..{size - 1})")
         _positive(self.side_m, "markers.side_m")
         if self.quiet_zone_m < 0:
             raise ValueError(f"markers.quiet_zone_m must be >= 0, got {self.quiet_zone_m!r}")
@@ -181,6 +215,7 @@ class Obstacle:
     color_rgb: Rgb = (124, 124, 124)
 
     def __post_init__(self) -> None:
+        _finite_fields(self, "obstacle")
         object.__setattr__(self, "center_m", tuple(float(c) for c in self.center_m))
         for name in ("length_m", "width_m", "height_m"):
             _positive(getattr(self, name), f"obstacle.{name}")
@@ -215,6 +250,7 @@ class CameraSpec:
     dist: tuple[float, float, float, float, float] = (0.0, 0.0, 0.0, 0.0, 0.0)
 
     def __post_init__(self) -> None:
+        _finite_fields(self, "camera")
         dist = tuple(float(c) for c in self.dist)
         if len(dist) != 5:
             raise ValueError(f"camera.dist must be (k1, k2, p1, p2, k3), got {self.dist!r}")
@@ -259,6 +295,7 @@ class DirectionalLight:
     intensity: float = 0.3
 
     def __post_init__(self) -> None:
+        _finite_fields(self, "light")
         d = tuple(float(c) for c in self.direction)
         if len(d) != 3 or not any(d):
             raise ValueError(f"light.direction must be a non-zero 3-vector, got {self.direction!r}")
@@ -287,6 +324,7 @@ class LightingSpec:
     spot_radius_m: float = 3.0
 
     def __post_init__(self) -> None:
+        _finite_fields(self, "lighting")
         if self.ambient < 0:
             raise ValueError(f"lighting.ambient must be >= 0, got {self.ambient!r}")
         for name in ("shadow_strength", "spot_strength"):
@@ -331,12 +369,19 @@ class FloorPatch:
     color_rgb: Rgb = (40, 40, 40)
 
     def __post_init__(self) -> None:
+        _finite_fields(self, "patch")
         if self.kind not in ("tape", "paper", "occluder"):
             raise ValueError(f"patch.kind must be tape, paper or occluder, got {self.kind!r}")
         object.__setattr__(self, "center_m", tuple(float(c) for c in self.center_m))
         for name in ("length_m", "width_m"):
             _positive(getattr(self, name), f"patch.{name}")
         object.__setattr__(self, "color_rgb", _rgb(self.color_rgb, "patch.color_rgb"))
+
+
+def _check_sizes(obstacles: Any, patches: Any) -> None:
+    """At most :data:`~arenabench.limits.MAX_SCENE_OBJECTS` obstacles and patches."""
+    check_at_most(len(obstacles), MAX_SCENE_OBJECTS, "number of obstacles")
+    check_at_most(len(patches), MAX_SCENE_OBJECTS, "number of patches")
 
 
 @dataclass(frozen=True)
@@ -356,6 +401,7 @@ class Scene:
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "obstacles", tuple(self.obstacles))
+        _check_sizes(self.obstacles, self.patches)
         object.__setattr__(self, "patches", tuple(
             p if isinstance(p, FloorPatch) else FloorPatch(**_tuplify(p)) for p in self.patches
         ))
@@ -407,6 +453,7 @@ class Scene:
                     )
             if cam.get("K") is not None:
                 cam["K"] = tuple(tuple(r) for r in cam["K"])
+            _check_sizes(data["obstacles"], data.get("patches", ()))  # before building them
             lighting = _tuplify(dict(data.get("lighting", {})))
             if "directional" in lighting:
                 lighting["directional"] = tuple(
@@ -421,7 +468,7 @@ class Scene:
                 background_rgb=tuple(data.get("background_rgb", (225, 225, 225))),
                 patches=tuple(FloorPatch(**_tuplify(p)) for p in data.get("patches", ())),
             )
-        except (KeyError, TypeError) as exc:
+        except (KeyError, TypeError, AttributeError) as exc:
             raise ValueError(f"invalid scene description: {exc}") from exc
 
 
@@ -460,6 +507,8 @@ def load_scene(path: str | Path) -> Scene:
         raise ValueError(f"cannot read scene file {str(p)!r}: {exc.strerror or exc}") from None
     except (json.JSONDecodeError, UnicodeDecodeError) as exc:
         raise ValueError(f"scene file {str(p)!r} is not valid JSON: {exc}") from None
+    except RecursionError:
+        raise ValueError(f"scene file {str(p)!r} is nested too deeply to be a scene") from None
     if not isinstance(data, dict):
         raise ValueError(f"scene file {str(p)!r} must hold a JSON object")
     unknown = sorted(set(data) - SCENE_KEYS)

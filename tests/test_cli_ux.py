@@ -156,6 +156,9 @@ def test_help_command_is_the_commands_help(capsys):
         (["eval", "{tmp}", "--pipeline", "referense"], "did you mean 'reference'?"),
         (["sweep", "--vary", "camera.tilt=0:10", "--pipeline", "reference", "--out", "{tmp}/s"],
          "did you mean 'camera.tilt_deg'"),
+        (["presets", "--show", "eyrc-uprite"], "did you mean 'eyrc-upright'?"),
+        (["detect", "--image", "x.png", "--profile", "refrence"], "did you mean 'reference'?"),
+        (["detect", "--image", "x.png", "--corners", "outr"], "did you mean 'outer'?"),
     ],
 )
 def test_did_you_mean(argv, hint, tmp_path, capsys):
@@ -364,3 +367,114 @@ def test_sweep_point_colours():
     assert point_class(200, 0.99, 0.96, 0.9) == "pass"
     assert point_class(200, 0.5, 0.43, 0.9) == "fail"
     assert point_class(0, 0.0, 0.0, 0.9) == "fail"
+
+
+# ------------------------------------------------------ what a new user trips on, round 3
+
+SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
+
+
+def test_demo_ends_saying_how_to_run_arenabench_from_a_shell():
+    venv_bin = Path(sys.executable).parent
+    if not (venv_bin / "arenabench").is_file():
+        pytest.skip("not run from a virtual environment with the arenabench script")
+    code = "from arenabench.eval.demo import _on_path_hint; print(_on_path_hint())"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=ROOT, env={**os.environ, "PATH": "/usr/bin:/bin"}, timeout=60)
+    hint = proc.stdout.strip()
+    assert proc.returncode == 0 and len(hint.splitlines()) == 1, proc.stderr
+    shown = os.path.relpath(venv_bin / "arenabench", ROOT)
+    if shown.startswith("../.."):
+        shown = str(venv_bin / "arenabench")
+    assert f"{shown} --help" in hint and f"source {Path(shown).parent / 'activate'}" in hint
+    # arenabench on PATH already: no activation advice
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          cwd=ROOT, env={**os.environ, "PATH": f"{venv_bin}:/usr/bin:/bin"},
+                          timeout=60)
+    assert "source" not in proc.stdout and "arenabench --help" in proc.stdout
+
+
+@pytest.mark.slow
+def test_render_writes_a_one_image_dataset_that_eval_scores(tmp_path):
+    out = tmp_path / "one"
+    proc = _run("render", str(SCENE), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    assert f"arenabench eval {out}" in proc.stderr
+    assert sorted(p.relative_to(out).as_posix() for p in out.rglob("*") if p.is_file()) == [
+        "gt/000000.json", "images/000000.png", "manifest.jsonl"]
+    proc = _run("eval", str(out), "--pipeline", "reference", "--out", str(tmp_path / "rep"),
+                "--no-progress", "--formats", "json")
+    assert proc.returncode == 0, proc.stderr
+    summary = json.loads((tmp_path / "rep" / "report.json").read_text())["summary"]
+    assert (summary["n"], summary["n_passed"]) == (1, 1)
+
+
+@pytest.mark.slow
+def test_pytest_plugin_without_the_cache_provider_uses_a_temporary_folder(tmp_path,
+                                                                          tmp_path_factory):
+    (tmp_path / "test_team.py").write_text(
+        "from pathlib import Path\n\n"
+        "def test_dataset(arenabench_dataset):\n"
+        "    assert (arenabench_dataset / 'manifest.jsonl').is_file()\n"
+        "    assert Path(__file__).parent not in arenabench_dataset.parents\n"
+    )
+    # its own --basetemp: sessions of other pytest runs on this machine prune the shared one
+    basetemp = tmp_path_factory.mktemp("inner") / "base"
+    proc = subprocess.run(
+        [sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "test_team.py",
+         "--arenabench-count", "1", "--rootdir", str(tmp_path), "--basetemp", str(basetemp)],
+        capture_output=True, text=True, cwd=tmp_path, timeout=300,
+    )
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "1 passed" in proc.stdout
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name != "__pycache__") == [
+        "test_team.py"]  # no cache folder left in the project
+    assert list(basetemp.glob("arenabench*/*/manifest.jsonl"))  # the session's temporary one
+
+
+@pytest.mark.slow
+def test_html_frame_outlines_follow_a_pipeline_warping_to_the_outer_corners():
+    """eyrc-upright: the reference pipeline with outer corners warps to another frame than the
+    GT's (inner corners); the GT outlines drawn on its warp must sit on its boxes."""
+    from shapely.geometry import Polygon
+
+    from arenabench.eval.reports.html_report import gt_frame_polygons
+    from arenabench.frame import FrameSpec
+    from arenabench.generator.sample import make_sample
+    from arenabench.pipeline import DetectConfig, detect
+
+    sample = make_sample("eyrc-upright", seed=0, index=0)
+    gt = sample.record.to_dict()
+    det = detect(sample.bgr, DetectConfig(frame=FrameSpec(corners="outer")))
+    assert det.status == "ok" and det.count == gt["count"] > 0
+    found = [Polygon(o.contour).buffer(0) for o in det.obstacles]
+
+    def best_iou(poly) -> float:
+        p = Polygon(poly).buffer(0)
+        return max(p.intersection(d).area / p.union(d).area for d in found)
+
+    mapped = gt_frame_polygons(gt, np.asarray(det.homography))
+    assert min(best_iou(p) for p in mapped) > 0.9
+    as_is = [o["visible_frame_px"] for o in gt["obstacles"]]  # the GT's own (inner) frame
+    assert max(best_iou(p) for p in as_is) < 0.8
+    # with the GT's own homography the polygons are left as they are
+    assert gt_frame_polygons(gt, np.asarray(gt["homography"])) == as_is
+
+
+@pytest.mark.slow
+def test_sweep_whose_points_all_pass_says_the_breakdown_cannot_be_determined(tmp_path):
+    proc = _run("sweep", "--vary", "camera.tilt_deg=0,2", "--pipeline", "reference",
+                "--per-point", "1", "--workers", "1", "--no-progress", "--no-plots",
+                "--out", str(tmp_path / "s"))
+    assert proc.returncode == 0, proc.stderr
+    line = next(ln for ln in proc.stdout.splitlines() if "breakdown reference" in ln)
+    assert "camera.tilt_deg=cannot be determined with 1 scene(s) at the first value" in line
+    assert "at least 35 passing scenes per value" in line
+    assert "fails at the first value" not in line
+
+
+def test_formats_doc_says_detect_json_is_one_line_for_output_json():
+    text = (ROOT / "docs" / "formats.md").read_text()
+    section = text.split("### `arenabench detect --json`", 1)[1].split("\n## ", 1)[0]
+    assert "indented JSON" not in section and "one compact JSON line" in section
+    assert "--output json" in section

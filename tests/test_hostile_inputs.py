@@ -480,3 +480,164 @@ def test_two_generate_runs_at_once_the_second_is_refused_then_the_first_resumes(
     seeds = {json.loads(p.read_text())["seed"] for p in (out / "gt").glob("*.json")}
     assert seeds == {1} and len(list((out / "gt").glob("*.json"))) == 6
     assert not [p for p in out.rglob(".*") if p.is_file()]  # no temp or lock file left
+
+
+# ------------------------------- values that fail only when a scene is drawn or rendered
+
+
+@pytest.mark.parametrize(
+    ("value", "needle"),
+    [
+        ("markers.dictionary=NOPE", "unknown ArUco dictionary 'NOPE'"),
+        ("markers.ids=80,85,90,100000", "id 100000 is not in DICT_4X4_100"),
+        ("obstacles.count=50", "could not place obstacle"),
+        ("markers.side_m=100", "no room for obstacles"),
+        ("camera.altitude_m=0.01", "markers not in view"),
+        ("camera.fov_deg=1", "markers not in view"),
+    ],
+)
+def test_generate_values_that_fail_when_drawn_are_refused_before_any_file(tmp_path, value,
+                                                                          needle):
+    out = tmp_path / "ds"
+    proc = run("generate", "--count", "2", "--workers", "1", "--out", str(out), "--set", value,
+               "--no-progress", timeout=120)
+    assert_clean_error(proc, needle, prog="generate")
+    assert not out.exists()
+
+
+@pytest.mark.slow
+def test_generate_scene_failing_after_the_first_leaves_the_folder_as_it_was(tmp_path):
+    """Seed 1 with obstacles.count=1:12: scenes 0-2 place their boxes, scene 3 cannot (so the
+    check of scene 0 passes and the failure comes from a worker of the pool)."""
+    out = tmp_path / "ds"
+    base = ("generate", "--seed", "1", "--set", "obstacles.count=1:12", "--out", str(out),
+            "--no-progress")
+    proc = run(*base, "--count", "4", "--workers", "2", timeout=300)
+    assert_clean_error(proc, "could not place obstacle", prog="generate")
+    assert not out.exists()  # a new set: nothing left
+    proc = run(*base, "--count", "3", "--workers", "1", timeout=300)
+    assert proc.returncode == 0, proc.stderr  # the corrected command works
+    before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    proc = run(*base, "--count", "4", "--workers", "1", timeout=300)
+    assert_clean_error(proc, "could not place obstacle", prog="generate")
+    after = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert after == before  # an extension that fails: the set as it was
+    proc = run(*base, "--count", "3", "--workers", "1", timeout=300)
+    assert proc.returncode == 0 and "already complete: 3 images" in proc.stdout, proc.stderr
+
+
+def test_generate_into_a_folder_whose_dataset_json_is_a_fifo_is_refused(tmp_path):
+    out = tmp_path / "ds"
+    out.mkdir()
+    os.mkfifo(out / "dataset.json")
+    proc = run("generate", "--count", "1", "--out", str(out), "--no-progress", timeout=60)
+    assert_clean_error(proc, "dataset.json is not a regular file", prog="generate")
+    assert sorted(p.name for p in out.iterdir()) == ["dataset.json"]
+
+
+def _scene_text(edit: str) -> str:
+    scene = json.loads((HERE.parent / "generator" / "scenes" / "task1c_example.json").read_text())
+    if edit == "height-inf":
+        scene["obstacles"][0]["height_m"] = math.inf
+    elif edit == "length-1e309":
+        scene["obstacles"][0]["length_m"] = 12345.678
+        return json.dumps(scene).replace("12345.678", "1e309")
+    elif edit == "center-1e300":
+        scene["obstacles"][0]["center_m"] = [1e300, 0.0]
+    elif edit == "100000-obstacles":
+        scene["obstacles"] = scene["obstacles"][:1] * 100_000
+    elif edit == "deeply-nested":
+        return '{"arena": ' + "[" * 100_000 + "]" * 100_000 + "}"
+    elif edit == "arena-a-list":
+        scene["arena"] = [1, 2]
+    elif edit == "dictionary-a-number":
+        scene["markers"]["dictionary"] = 5
+    return json.dumps(scene)
+
+
+@pytest.mark.parametrize(
+    ("edit", "needle"),
+    [
+        ("height-inf", "obstacle.height_m must be a finite number"),
+        ("length-1e309", "obstacle.length_m must be a finite number"),
+        ("center-1e300", "obstacle.center_m must be a finite number in [-1000000, 1000000]"),
+        ("100000-obstacles", "number of obstacles = 100000 exceeds the limit of 1000"),
+        ("deeply-nested", "nested too deeply"),
+        ("arena-a-list", "invalid scene description"),
+        ("dictionary-a-number", "markers.dictionary must be a name"),
+    ],
+)
+def test_render_of_a_hostile_scene_file_is_one_line_and_writes_nothing(tmp_path, edit, needle):
+    path = tmp_path / "scene.json"
+    path.write_text(_scene_text(edit))
+    out = tmp_path / "o"
+    proc = run("render", str(path), "--out", str(out), timeout=120)
+    assert_clean_error(proc, needle, prog="render")
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("side", ["inf", "nan", "1e309", "-1"])
+def test_fit_arena_side_that_is_not_a_finite_positive_length_is_refused(tmp_path, side):
+    out = tmp_path / "scene.json"
+    proc = run("fit", str(EXAMPLE), "--arena-side", side, "--out", str(out), timeout=120)
+    assert_clean_error(proc, "--arena-side must be", prog="fit")
+    assert not out.exists()
+
+
+def test_demo_with_an_unknown_pipeline_is_refused_before_rendering(tmp_path):
+    out = tmp_path / "demo"
+    proc = run("demo", "--pipeline", "nosuch", "--out", str(out), "--no-progress", timeout=60)
+    assert_clean_error(proc, "--pipeline", "'nosuch'", prog="demo")
+    assert not out.exists()
+
+
+def _broken_gl() -> dict[str, str]:
+    import ctypes.util
+
+    if ctypes.util.find_library("OSMesa"):
+        pytest.skip("libOSMesa is installed here: PYOPENGL_PLATFORM=osmesa is not broken")
+    return {"PYOPENGL_PLATFORM": "osmesa"}
+
+
+@pytest.mark.parametrize("command", ["generate", "sweep", "render", "contact-sheet", "bench"])
+def test_broken_opengl_is_one_line_pointing_at_doctor_and_leaves_nothing(tmp_path, command):
+    env = _broken_gl()
+    out = tmp_path / ("o.jpg" if command == "contact-sheet" else "o")
+    argv = {
+        "generate": ("generate", "--count", "1", "--no-progress"),
+        "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+                  "--per-point", "1", "--no-progress"),
+        "render": ("render", str(HERE.parent / "generator" / "scenes" / "task1c_example.json")),
+        "contact-sheet": ("contact-sheet", "--count", "1", "--no-progress"),
+        "bench": ("bench", "--quick"),
+    }[command]
+    proc = subprocess.run([sys.executable, "-m", "arenabench", *argv, "--out", str(out)],
+                          capture_output=True, text=True, timeout=120,
+                          env={**os.environ, **env})
+    assert_clean_error(proc, "no off-screen OpenGL", "arenabench doctor", prog=command)
+    assert not out.exists()
+
+
+@pytest.mark.parametrize("text", ["[1]", '{"args": 5}', "[" * 100_000 + "]" * 100_000],
+                         ids=["a-list", "args-a-number", "deeply-nested"])
+def test_generate_into_a_folder_with_a_hostile_dataset_json_is_refused(tmp_path, text):
+    out = tmp_path / "ds"
+    out.mkdir()
+    (out / "dataset.json").write_text(text)
+    proc = run("generate", "--count", "1", "--out", str(out), "--no-progress", timeout=60)
+    assert_clean_error(proc, "dataset.json is unreadable", prog="generate")
+    assert sorted(p.name for p in out.iterdir()) == ["dataset.json"]
+    assert (out / "dataset.json").read_text() == text
+
+
+def test_render_into_a_generated_dataset_is_refused(toy, tmp_path):
+    import shutil
+
+    ds = tmp_path / "ds"
+    shutil.copytree(toy, ds)
+    (ds / "dataset.json").write_text("{}")
+    before = {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()}
+    scene = HERE.parent / "generator" / "scenes" / "task1c_example.json"
+    proc = run("render", str(scene), "--out", str(ds), timeout=120)
+    assert_clean_error(proc, "holds a generated dataset", prog="render")
+    assert {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()} == before

@@ -145,3 +145,18 @@ def test_random_continuous_axis_bins_from_the_easy_end():
     assert group_of(axis, 39.0, random=True, bins=4) == 0
     assert group_of(axis, 0.0, random=True, bins=4) == 3
     assert group_of(axis, 40.0, random=True, bins=4) == 0
+
+
+def test_breakdown_reason_tells_too_few_scenes_from_a_failure():
+    from arenabench.eval.sweep.breakdown import breakdown_reason, scenes_needed
+
+    assert scenes_needed(0.9) == 35  # 35/35 has a lower bound of 0.901, 34/34 of 0.898
+    assert breakdown_value(_curve([0, 10], [_results(2, 0), _results(2, 0)]),
+                           threshold=0.9) is None
+    text = breakdown_reason(_curve([0, 10], [_results(2, 0), _results(2, 0)]), threshold=0.9)
+    assert text.startswith("cannot be determined with 2 scene(s) at the first value")
+    assert "at least 35 passing scenes" in text
+    assert breakdown_reason(_curve([0], [_results(1, 9)]), threshold=0.9) == (
+        "none (fails at the first value)")
+    assert breakdown_reason(_curve([0], [[]]), threshold=0.9) == (
+        "none (no scenes at the first value)")

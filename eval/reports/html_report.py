@@ -180,6 +180,31 @@ def _map(points: Any, h: np.ndarray) -> np.ndarray:
     return cv2.perspectiveTransform(pts, h).reshape(-1, 2)
 
 
+def gt_frame_polygons(gt: dict[str, Any] | None, h: np.ndarray, *,
+                      area_key: str = "visible_frame_px") -> list[Any]:
+    """The GT's frame polygons (``area_key``) in the frame that ``h`` (input image px ->
+    frame px) warps to.
+
+    GT polygons are in the GT's frame (its reference corners, usually the inner ones); a
+    pipeline that warps to other corners (the outer ones, markers printed upright) has
+    another frame, so they are taken back to the image by the GT's homography and on by
+    ``h``. The GT's own homography leaves them as they are.
+    """
+    polys = [o.get(area_key, []) for o in (gt or {}).get("obstacles", [])]
+    gt_h = _homography(None, gt)
+    if gt_h is None or np.allclose(gt_h, h, rtol=1e-9, atol=1e-12):
+        return polys
+    back = _frame_to_image(gt_h)
+    if back is None:
+        return []
+    out = []
+    for poly in polys:
+        pts = np.asarray(poly, dtype=np.float64)
+        if pts.ndim == 2 and pts.shape[0] >= 3 and pts.shape[1] == 2:
+            out.append(_map(pts, h @ back))
+    return out
+
+
 def _predicted_polygons(pred: Prediction | None, h: np.ndarray | None, *,
                         space: str) -> list[np.ndarray]:
     """The pipeline's polygons in ``space`` ("image" or "frame") px."""
@@ -264,8 +289,7 @@ def frame_thumbnail(image_path: str, gt: dict[str, Any] | None, *, width: int = 
     if not (16 <= fw <= 8000 and 16 <= fh <= 8000):
         return None
     small, scale = _small(cv2.warpPerspective(image, h, (fw, fh)), width)
-    _outline(small, [o.get(area_key, []) for o in (gt or {}).get("obstacles", [])], GT_BGR, 5,
-             scale)
+    _outline(small, gt_frame_polygons(gt, h, area_key=area_key), GT_BGR, 5, scale)
     _outline(small, _predicted_polygons(pred, h, space="frame"), PRED_BGR, 2, scale)
     return _encode(small)
 

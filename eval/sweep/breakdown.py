@@ -143,6 +143,70 @@ def breakdown_value(curve: Sequence[CurvePoint], *, threshold: float) -> Any:
     return best
 
 
+def scenes_needed(threshold: float) -> int | None:
+    """Fewest scenes, all passing, whose pass rate's lower 95 % Wilson bound reaches
+    ``threshold`` (``None`` when no number does: a threshold of 1 or more)."""
+    from ..metrics import wilson_interval
+
+    if threshold >= 1.0:
+        return None
+    n = 1
+    while wilson_interval(n, n)[0] < threshold:
+        n *= 2
+    lo = n // 2 + 1 if n > 1 else 1
+    while lo < n:  # the smallest n in (n/2, n] that reaches it
+        mid = (lo + n) // 2
+        if wilson_interval(mid, mid)[0] >= threshold:
+            n = mid
+        else:
+            lo = mid + 1
+    return n
+
+
+def breakdown_reason(curve: Sequence[CurvePoint], *, threshold: float) -> str:
+    """Why a parameter has no breakdown point (:func:`breakdown_value` gave ``None``), in
+    words: its first value fails, has no scenes, or passes on too few scenes for the pass
+    rate's lower 95 % bound to reach ``threshold`` (then the point cannot be determined with
+    this many scenes)."""
+    first = curve[0].summary if curve else None
+    if first is None or first.n == 0:
+        return "none (no scenes at the first value)"
+    if first.pass_rate < threshold:
+        return "none (fails at the first value)"
+    need = scenes_needed(threshold)
+    more = (f"; at least {need} passing scenes per value are needed" if need is not None
+            else "; no number of scenes can reach a threshold of 1")
+    return (f"cannot be determined with {first.n} scene(s) at the first value (pass rate "
+            f"{first.pass_rate:.0%}, but its lower 95 % bound {first.pass_rate_ci95[0]:.0%} "
+            f"is below the threshold {threshold:g}{more})")
+
+
+def breakdown_texts(result: Any) -> dict[str, dict[str, str]]:
+    """``{pipeline: {parameter: text}}`` of a :class:`~arenabench.eval.sweep.records.SweepResult`:
+    each breakdown point as its ``--set`` spelling, or :func:`breakdown_reason` where there is
+    none."""
+    from arenabench.generator.presets import format_value
+
+    spec = result.spec
+    out: dict[str, dict[str, str]] = {}
+    for pipe, values in result.breakdown.items():
+        by_point: dict[int, list[ImageResult]] = {}
+        for r in result.images:
+            if r["pipeline"] == pipe:
+                by_point.setdefault(r["point"], []).append(ImageResult.from_dict(r))
+        texts = {}
+        for axis in spec.axes:
+            value = values.get(axis.key)
+            if value is not None:
+                texts[axis.key] = format_value(value)
+                continue
+            curve = axis_curve(axis, axes=spec.axes, points=result.points, results=by_point,
+                               random=spec.random is not None, mode=spec.breakdown_mode)
+            texts[axis.key] = breakdown_reason(curve, threshold=spec.threshold)
+        out[pipe] = texts
+    return out
+
+
 def heat_grid(
     ax0: Axis,
     ax1: Axis,

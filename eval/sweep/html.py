@@ -6,18 +6,12 @@ from __future__ import annotations
 import base64
 import html
 
-from arenabench.generator.presets import format_value
-
 from ..reports.html_report import CSS
 from ..reports.incomplete import banner_html
 from ..reports.summary_rows import fmt
+from .breakdown import breakdown_texts
 from .grid import point_label
 from .records import SweepResult
-
-
-def _value(v: object) -> str:
-    return "none (fails at the first value)" if v is None else format_value(v)
-
 
 #: Extra style of the sweep page: the "clears the threshold, interval does not" colour.
 SWEEP_CSS = ".unsure{color:#9a6700}"
@@ -75,9 +69,9 @@ def sweep_page(result: SweepResult, figures: list[tuple[str, str, bytes]]) -> st
         *(f"<th>{e(a.key)}</th>" for a in spec.axes),
         "</tr>",
     ]
-    for name, bps in result.breakdown.items():
+    for name, texts in breakdown_texts(result).items():
         parts.append(f"<tr><td>{e(name)}</td>")
-        parts += [f"<td>{e(_value(bps.get(a.key)))}</td>" for a in spec.axes]
+        parts += [f"<td>{e(texts[a.key])}</td>" for a in spec.axes]
         parts.append("</tr>")
     parts.append('</table><h2>Plots</h2><div class="plots">')
     for _, title, png in figures:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import argparse
 import sys
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.clihelp import ArgumentParser, HelpFormatter
 from arenabench.competition import (
     EXIT_MARKERS_NOT_FOUND,
     OBSTACLES_FILE,
@@ -38,7 +38,7 @@ class _UsageError(Exception):
     pass
 
 
-class _Parser(argparse.ArgumentParser):
+class _Parser(ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         raise _UsageError(message)
 

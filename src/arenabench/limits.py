@@ -11,6 +11,15 @@ from __future__ import annotations
 #: renderbuffers are commonly limited to 8192 or 16384 px; a 8192 x 8192 BGR image is 192 MiB.
 MAX_IMAGE_SIDE_PX = 8192
 
+#: Most obstacles, and most floor patches, in one scene (a scene file's ``obstacles`` and
+#: ``patches``): the renderer and the ground truth grow with their number (and with its square
+#: for the visibility of every box against every other).
+MAX_SCENE_OBJECTS = 1000
+
+#: Largest magnitude of any number in a scene (metres, degrees, pixels, intrinsics): beyond
+#: it the camera and geometry arithmetic loses all precision (``inf`` and ``nan`` never pass).
+MAX_SCENE_NUMBER = 1e6
+
 #: Most scenes in one dataset (``generate --count``): scene ids have six digits.
 MAX_DATASET_SCENES = 1_000_000
 
