@@ -1,0 +1,124 @@
+"""The phase check (eval/phase_check.py): failing images re-rendered with the boxes moved by
+sub-pixel amounts, the pipeline re-run on each (real renders, real pipelines)."""
+
+from __future__ import annotations
+
+import json
+import threading
+
+import edge_phase
+import pytest
+
+from arenabench.eval.phase_check import (
+    PHASE_DEPENDENT_MEANING,
+    PhaseResult,
+    parse_phase_check,
+    phase_offsets,
+    resolve_phases,
+    shifted_scene,
+)
+from arenabench.eval.records import Report
+from arenabench.eval.runner import evaluate
+from arenabench.generator.camera import intrinsics, project, world_from_camera
+from arenabench.generator.dataset import generate_dataset
+from arenabench.generator.sampler import sample_scene
+
+PHASES = 8
+# Scenes 0 and 2 of seed 0: edge_phase:detect fails (edge pixel fully covered); 1 and 3 pass.
+COUNT = 4
+
+
+@pytest.fixture(scope="module")
+def twin(tmp_path_factory):
+    out = tmp_path_factory.mktemp("twin") / "eyrc"
+    generate_dataset(out, preset="eyrc", count=COUNT, seed=0, workers=1, progress=False)
+    return out
+
+
+class Counting:
+    """A callable pipeline that counts its calls."""
+
+    def __init__(self, fn):
+        self.fn, self.calls, self._lock = fn, 0, threading.Lock()
+
+    def __call__(self, image):
+        with self._lock:
+            self.calls += 1
+        return self.fn(image)
+
+
+def test_offsets_spread_over_one_pixel():
+    offsets = phase_offsets(PHASES)
+    assert len(set(offsets)) == PHASES
+    assert all(0 < dx < 1 and 0 <= dy < 1 for dx, dy in offsets)
+    # one offset per column and per row of an 8 x 8 grid over the pixel
+    assert sorted(int(dx * PHASES) for dx, _ in offsets) == list(range(PHASES))
+    assert sorted(int(dy * PHASES) for _, dy in offsets) == list(range(PHASES))
+
+
+def test_a_shift_moves_every_box_by_that_many_image_pixels():
+    scene = sample_scene("eyrc", seed=0, index=0).scene
+    moved = shifted_scene(scene, 0.375, 0.625)
+    K, pose = intrinsics(scene.camera), world_from_camera(scene.camera)
+    import numpy as np
+
+    for a, b in zip(scene.obstacles, moved.obstacles, strict=True):
+        before = project(np.array([[*a.center_m, a.height_m]]), K, pose)[0]
+        after = project(np.array([[*b.center_m, b.height_m]]), K, pose)[0]
+        assert after - before == pytest.approx([0.375, 0.625], abs=1e-9)
+
+
+def test_option_values():
+    assert parse_phase_check("off") == 0 and parse_phase_check("12") == 12
+    assert parse_phase_check("auto") == "auto"
+    with pytest.raises(Exception, match="number of phases"):
+        parse_phase_check("0")
+    assert resolve_phases("auto", ["eyrc"]) == PHASES
+    assert resolve_phases("auto", ["eyrc-jitter"]) == 0
+    assert resolve_phases(3, ["warehouse"]) == 3
+
+
+def test_phase_dependent_failures_get_some_passes_and_passing_images_are_not_rerun(twin):
+    pipe = Counting(edge_phase.detect)
+    report = evaluate(pipe, twin, workers=2, phases=PHASES)
+    failing = [r for r in report.images if not r.passed]
+    assert [r.id for r in failing] == ["000000", "000002"]
+    for r in failing:
+        assert r.phase is not None and 0 < r.phase.passes < PHASES, r.phase
+        assert r.phase.label == "phase_dependent"
+    assert all(r.phase is None for r in report.images if r.passed)
+    # every image once, then N phases of each failing image only
+    assert pipe.calls == COUNT + PHASES * len(failing)
+    s = report.summary
+    assert s.phase_dependent_failure_rate == pytest.approx(2 / COUNT)
+    assert s.robust_failure_rate == 0.0
+    assert s.phase_check["phases"] == PHASES and s.phase_check["meaning"] == (
+        PHASE_DEPENDENT_MEANING)
+    # JSON round trip keeps the per-image record
+    doc = json.loads(json.dumps(report.to_dict()))
+    assert doc["images"][0]["phase"] == {"passes": failing[0].phase.passes, "n": PHASES,
+                                         "class": "phase_dependent"}
+    again = Report.from_dict(doc)
+    assert again.images[0].phase == failing[0].phase
+    assert again.summary.phase_dependent_failure_rate == s.phase_dependent_failure_rate
+
+
+def test_an_always_wrong_pipeline_fails_every_phase(twin):
+    pipe = Counting(edge_phase.always_wrong)
+    report = evaluate(pipe, twin, workers=2, limit=1, phases=PHASES)
+    (r,) = report.images
+    assert r.phase == PhaseResult(passes=0, n=PHASES) and r.phase.label == "robust"
+    assert report.summary.robust_failure_rate == 1.0
+    assert report.summary.phase_dependent_failure_rate == 0.0
+    assert pipe.calls == 1 + PHASES
+
+
+def test_nothing_is_rerun_when_nothing_fails_or_the_check_is_off(twin):
+    good = Counting(edge_phase.reference_answer)
+    report = evaluate(good, twin, workers=2, phases=PHASES)
+    assert report.summary.pass_rate == 1.0 and good.calls == COUNT
+    assert report.summary.phase_check is None and report.summary.robust_failure_rate is None
+    off = Counting(edge_phase.always_wrong)
+    report = evaluate(off, twin, workers=2, phases=0)
+    assert off.calls == COUNT and all(r.phase is None for r in report.images)
+    assert "phase" not in report.to_dict()["images"][0]
