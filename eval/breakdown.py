@@ -188,3 +188,16 @@ def cause_sentence(cause: dict[str, Any]) -> str:
     return (f"failures have {cause['direction']} {cause['param']} (median "
             f"{_fmt(cause['fail_median'])} vs {_fmt(cause['pass_median'])} in passes; strength "
             f"{cause['strength']:.2f}, p {cause['p_value']:.2g})")
+
+
+#: Breakdown tables a report shows (the rest stay in report.json).
+SHOWN_BREAKDOWNS = 4
+
+
+def shown_breakdown(report: Any, *, limit: int = SHOWN_BREAKDOWNS) -> list[str]:
+    """The breakdown parameters a report shows, most telling first: the ranked causes'
+    parameters (:func:`rank_causes`), then by pass-rate spread (:func:`importance`)."""
+    ranked = [c["param"] for c in report.causes if c["param"] in report.breakdown]
+    rest = sorted((k for k in report.breakdown if k not in ranked),
+                  key=lambda k: importance(report.breakdown[k]), reverse=True)
+    return [*ranked, *rest][:limit]

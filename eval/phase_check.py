@@ -46,6 +46,9 @@ PHASE_DEPENDENT_MEANING = (
     "phase-dependent: passes at some sub-pixel positions of the boxes and fails at others: on "
     "the hidden tests it would have depended on luck"
 )
+#: Failure categories the check leaves alone: the program failed (crashed, ran out of time
+#: or of a limit), not its reading of the pixels; re-running it N times would only cost.
+UNCHECKED_CATEGORIES = frozenset({"crash", "timeout", "limit"})
 #: ``--phase-check`` values besides a number.
 PHASE_CHECK_WORDS = ("auto", "off")
 
@@ -290,7 +293,8 @@ def check_phases(
     -------
     list of ImageResult
         Passing images untouched; failing images with ``phase`` set (a failure whose GT
-        holds no scene keeps ``phase=None``).
+        holds no scene, or whose category is in :data:`UNCHECKED_CATEGORIES`, keeps
+        ``phase=None``).
     """
     from .dataset import DatasetItem
     from .runner import score_sample
@@ -298,7 +302,8 @@ def check_phases(
     if len(results) != len(gts):
         raise ValueError(f"results and gts must have the same length, got {len(results)} "
                          f"and {len(gts)}")
-    failing = [i for i, r in enumerate(results) if not r.passed and gts[i].scene is not None]
+    failing = [i for i, r in enumerate(results) if not r.passed and gts[i].scene is not None
+               and r.category not in UNCHECKED_CATEGORIES]
     out = list(results)
     if phases < 1 or not failing:
         return out
@@ -347,8 +352,9 @@ def phase_summary(results: Sequence[ImageResult]) -> dict[str, Any]:
     dict
         ``robust_failure_rate`` and ``phase_dependent_failure_rate`` (fractions of all
         images; ``None`` when no image was phase-checked) and ``phase_check``: ``phases``
-        (N), ``checked``, ``robust``, ``phase_dependent`` (image counts), ``meaning`` (one
-        sentence); ``None`` when no image was phase-checked.
+        (N), ``checked``, ``robust``, ``phase_dependent``, ``unchecked`` (failing images not
+        checked: crash, timeout, limit) (image counts), ``meaning`` (one sentence); ``None``
+        when no image was phase-checked.
     """
     checked = [r.phase for r in results if r.phase is not None]
     if not checked:
@@ -362,6 +368,8 @@ def phase_summary(results: Sequence[ImageResult]) -> dict[str, Any]:
         "phase_dependent_failure_rate": dependent / n,
         "phase_check": {"phases": max(p.n for p in checked), "checked": len(checked),
                         "robust": robust, "phase_dependent": dependent,
+                        "unchecked": sum(1 for r in results
+                                         if not r.passed and r.phase is None),
                         "meaning": PHASE_DEPENDENT_MEANING},
     }
 

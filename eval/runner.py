@@ -262,10 +262,12 @@ def _check_phases(results: list[ImageResult], samples: Sequence[DatasetItem], pi
     """The phase check of a run's failing images (docs/phase-check.md)."""
     from arenabench.progress import progress as progress_bar
 
-    from .phase_check import check_phases
+    from .phase_check import UNCHECKED_CATEGORIES, check_phases
 
     by_id = {s.id: s for s in samples}
-    failing = sum(1 for r in results if not r.passed)
+    failing = sum(1 for r in results if not r.passed and r.category not in UNCHECKED_CATEGORIES)
+    if not failing:
+        return results
     with progress_bar(failing, desc=f"phase check {pipe.name}", enabled=progress) as bar:
         return check_phases(results, [by_id[r.id].gt for r in results], pipe.run,
                             phases=phases, tolerance=tolerance, area_reference=area_reference,
