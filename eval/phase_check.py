@@ -1,7 +1,8 @@
 """The phase check: does a failure depend on where the box edges fall within a pixel?
 
 For each failing image, the same scene is rendered again ``N`` times with every obstacle moved
-by a sub-pixel amount (phases spread over one image pixel in x and y), its ground truth
+by a sub-pixel amount (phases spread over one image pixel in x and y, each box at its own
+phase), its ground truth
 computed analytically as always, and the pipeline run again on each (docs/phase-check.md).
 ``k`` of the ``N`` phases pass:
 
@@ -153,25 +154,43 @@ def phase_offsets(n: int) -> list[tuple[float, float]]:
     return out
 
 
-def shifted_scene(scene: Any, dx: float, dy: float) -> Any:
-    """``scene`` with every obstacle moved so that the centre of its top face moves by
-    (``dx``, ``dy``) image px (pinhole camera; the move is found on the top face's plane).
+#: Per-box rotation of the offsets (box ``j`` adds ``j`` times these, modulo 1 px): irrational
+#: steps, so the boxes of one scene land at unrelated phases, as on an independent image.
+BOX_STEP = ((5 ** 0.5 - 1) / 2, 2 ** 0.5 - 1)
+
+
+def box_offsets(offset: tuple[float, float], n_boxes: int) -> list[tuple[float, float]]:
+    """The offsets of a scene's boxes at one phase: box ``j`` gets ``offset + j * BOX_STEP``
+    modulo 1 px, so over the phases every box sweeps its pixel evenly and the boxes' phases
+    are unrelated (a hidden-test image gives each box its own luck)."""
+    dx, dy = offset
+    return [((dx + j * BOX_STEP[0]) % 1.0, (dy + j * BOX_STEP[1]) % 1.0)
+            for j in range(n_boxes)]
+
+
+def shifted_scene(scene: Any, offsets: Sequence[tuple[float, float]]) -> Any:
+    """``scene`` with obstacle ``j`` moved so that the centre of its top face moves by
+    ``offsets[j]`` = (dx, dy) image px (pinhole camera; the move is found on the top face's
+    plane).
 
     Parameters
     ----------
     scene : arenabench.generator.scene.Scene
         The scene.
-    dx, dy : float
-        Image px.
+    offsets : sequence of (float, float)
+        Image px, one pair per obstacle.
     """
     from arenabench.generator import camera as cam
 
+    if len(offsets) != len(scene.obstacles):
+        raise ValueError(f"need one offset per obstacle ({len(scene.obstacles)}), got "
+                         f"{len(offsets)}")
     K = cam.intrinsics(scene.camera)
     pose = cam.world_from_camera(scene.camera)
     r, c = pose[:3, :3], pose[:3, 3]
     k_inv = np.linalg.inv(K)
     moved = []
-    for ob in scene.obstacles:
+    for ob, (dx, dy) in zip(scene.obstacles, offsets, strict=True):
         top = np.array([*ob.center_m, ob.height_m])
         uv = cam.project(top[None, :], K, pose)[0]
         ray = r @ (k_inv @ np.array([uv[0] + dx, uv[1] + dy, 1.0]))
@@ -204,7 +223,8 @@ def _encode(bgr: np.ndarray, suffix: str) -> bytes:
 
 def render_phases(gt: GroundTruth, *, phases: int, folder: Path, suffix: str = ".png",
                   renderer: Any = None) -> Iterator[PhaseImage]:
-    """Render the scene of ``gt`` at ``phases`` sub-pixel offsets into ``folder``.
+    """Render the scene of ``gt`` at ``phases`` sub-pixel offsets into ``folder``
+    (:func:`phase_offsets`, each box rotated by :func:`box_offsets`).
 
     The image goes through the scene's own degradations (GT ``params``, the scene's noise
     stream) like the original; each phase's GT is computed from its moved scene.
@@ -241,8 +261,9 @@ def render_phases(gt: GroundTruth, *, phases: int, folder: Path, suffix: str = "
 
         frame = FrameSpec(size=int(gt.frame.size[0]), corners=gt.frame.corners or "inner")
     sampled = {k: v for k, v in params.items() if not k.startswith("derived.")}
-    for i, (dx, dy) in enumerate(phase_offsets(phases)):
-        moved = Scene.from_dict(rounded(shifted_scene(scene, dx, dy).to_dict()))
+    for i, offset in enumerate(phase_offsets(phases)):
+        offsets = box_offsets(offset, len(scene.obstacles))
+        moved = Scene.from_dict(rounded(shifted_scene(scene, offsets).to_dict()))
         rgb = renderer.render(moved).rgb
         if not degradations.is_neutral:
             rgb = apply_degradations(rgb, degradations, degrade_rng(gt.seed, gt.index))

@@ -7,11 +7,13 @@ import json
 import threading
 
 import edge_phase
+import numpy as np
 import pytest
 
 from arenabench.eval.phase_check import (
     PHASE_DEPENDENT_MEANING,
     PhaseResult,
+    box_offsets,
     parse_phase_check,
     phase_offsets,
     resolve_phases,
@@ -56,16 +58,23 @@ def test_offsets_spread_over_one_pixel():
     assert sorted(int(dy * PHASES) for _, dy in offsets) == list(range(PHASES))
 
 
-def test_a_shift_moves_every_box_by_that_many_image_pixels():
+def test_a_shift_moves_each_box_by_its_own_offset_in_image_pixels():
     scene = sample_scene("eyrc", seed=0, index=0).scene
-    moved = shifted_scene(scene, 0.375, 0.625)
+    offsets = box_offsets((0.375, 0.625), len(scene.obstacles))
+    assert len(scene.obstacles) >= 2 and offsets[0] == (0.375, 0.625)
+    assert len(set(offsets)) == len(offsets)  # the boxes get unrelated phases
+    moved = shifted_scene(scene, offsets)
     K, pose = intrinsics(scene.camera), world_from_camera(scene.camera)
-    import numpy as np
-
-    for a, b in zip(scene.obstacles, moved.obstacles, strict=True):
+    for a, b, off in zip(scene.obstacles, moved.obstacles, offsets, strict=True):
         before = project(np.array([[*a.center_m, a.height_m]]), K, pose)[0]
         after = project(np.array([[*b.center_m, b.height_m]]), K, pose)[0]
-        assert after - before == pytest.approx([0.375, 0.625], abs=1e-9)
+        assert after - before == pytest.approx(off, abs=1e-9)
+
+
+def test_every_box_sweeps_its_pixel_evenly():
+    for j in range(4):
+        xs = sorted(box_offsets(o, 4)[j][0] for o in phase_offsets(PHASES))
+        assert sorted(int(x * PHASES) for x in xs) == list(range(PHASES))
 
 
 def test_option_values():
