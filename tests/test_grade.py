@@ -121,6 +121,10 @@ def test_six_teams_are_ranked_as_expected(graded, dataset):
         assert teams[team]["n_passed"] == COUNT, teams[team]
     assert teams["partly_right"]["n_passed"] == COUNT - n_one
     assert teams["partly_right"]["failures"]["wrong_count"] == n_one
+    # eyrc: failures are phase-checked by default; a wrong count at every phase is robust
+    assert teams["partly_right"]["robust_failure_rate"] == n_one / COUNT
+    assert teams["partly_right"]["phase_dependent_failure_rate"] == 0.0
+    assert teams["correct"]["robust_failure_rate"] is None
     assert teams["crashing"]["n_passed"] == COUNT - n_odd
     assert teams["crashing"]["failures"]["crash"] == n_odd
     assert teams["slow"]["n_passed"] == 0 and teams["slow"]["failures"]["timeout"] == COUNT

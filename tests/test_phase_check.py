@@ -131,3 +131,25 @@ def test_nothing_is_rerun_when_nothing_fails_or_the_check_is_off(twin):
     report = evaluate(off, twin, workers=2, phases=0)
     assert off.calls == COUNT and all(r.phase is None for r in report.images)
     assert "phase" not in report.to_dict()["images"][0]
+
+
+def test_a_sweep_phase_checks_its_failures_in_the_worker():
+    from arenabench.eval.sweep.grid import parse_varies
+    from arenabench.eval.sweep.records import PipelineSpec, SweepSpec
+    from arenabench.eval.sweep.runner import run_sweep
+
+    spec = SweepSpec(preset="eyrc", axes=parse_varies(["degrade.gamma=1:1:1"]),
+                     per_point=COUNT, seed=0, phases=PHASES,
+                     pipelines=(PipelineSpec("pipeline", "edge_phase:detect"),
+                                PipelineSpec("pipeline", "edge_phase:reference_answer")))
+    result = run_sweep(spec, workers=1, progress=False)
+    rows = {(r["pipeline"], r["scene"]): r for r in result.images}
+    edge = "edge_phase:detect"
+    assert [s for s in range(COUNT) if not rows[(edge, s)]["pass"]] == [0, 2]
+    for s in (0, 2):
+        phase = rows[(edge, s)]["phase"]
+        assert phase["n"] == PHASES and 0 < phase["passes"] < PHASES
+    assert all("phase" not in r for r in result.images if r["pass"])
+    summaries = {p.pipeline: p.summary for p in result.summaries}
+    assert summaries[edge].phase_dependent_failure_rate == pytest.approx(0.5)
+    assert summaries["edge_phase:reference_answer"].phase_check is None
