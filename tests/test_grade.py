@@ -24,6 +24,7 @@ from arenabench.eval.grade.leaderboard import (
 )
 from arenabench.eval.grade.runner import STATE_FILE, GradeOptions, grade, team_command
 from arenabench.eval.grade.submissions import submission_hash
+from arenabench.eval.phase_check import DEFAULT_PHASES
 from arenabench.eval.pipelines import CommandPipeline
 from arenabench.eval.records import Summary
 from arenabench.eval.run_limits import RunLimits, RunSettings
@@ -189,8 +190,8 @@ def test_dask_local_cluster_gives_the_same_leaderboard(graded, dataset, submissi
     settings = RunSettings(limits=RunLimits(timeout_s=float(TIMEOUT)))
     with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=True,
                                   host="127.0.0.1", dashboard_address=None) as cluster:
-        result = grade(dataset, submissions, tmp_path / "dask",
-                       options=GradeOptions(settings=settings),
+        result = grade(dataset, submissions, tmp_path / "dask",  # as the CLI on eyrc
+                       options=GradeOptions(settings=settings, phases=DEFAULT_PHASES),
                        scheduler=cluster.scheduler_address)
     assert sorted(result.graded) == sorted(TEAMS) and not result.errors
     local = json.loads((out / "leaderboard.json").read_text())
