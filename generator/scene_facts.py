@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
+import cv2
 import numpy as np
 from shapely.geometry import MultiPoint, Polygon
 
@@ -27,6 +28,10 @@ TOUCH_GAP_PX = 1.0
 FACTS: dict[str, str] = {
     "derived.max_aspect_ratio": "largest length / width (>= 1) of a box counted in the frame; "
                                 "0 without boxes",
+    "derived.max_visible_aspect_ratio": "largest long side / short side of the smallest "
+                                        "rectangle around a counted box's visible "
+                                        "silhouette in the frame (what a pipeline measures); "
+                                        "0 without boxes",
     "derived.min_edge_distance_px": "smallest distance (frame px) from a counted box's visible "
                                     "silhouette to the frame's edge; negative when it crosses "
                                     "the edge; the frame's half side without boxes",
@@ -58,7 +63,8 @@ def derived_facts(scene: Scene, *, frame: FrameSpec | None = None) -> dict[str, 
     Returns
     -------
     dict
-        ``derived.max_aspect_ratio`` (float), ``derived.min_edge_distance_px`` (float, frame
+        ``derived.max_aspect_ratio`` (float, of the boxes' length and width),
+        ``derived.max_visible_aspect_ratio`` (float), ``derived.min_edge_distance_px`` (float, frame
         px, of the visible silhouettes), ``derived.touching_boxes`` (int),
         ``derived.min_box_gap_px`` (float, frame px).
     """
@@ -67,6 +73,7 @@ def derived_facts(scene: Scene, *, frame: FrameSpec | None = None) -> dict[str, 
     w2f = world_to_frame(scene.arena, scene.markers, frame)
     frame_poly = Polygon([(0, 0), (size, 0), (size, size), (0, size)])
     ratios: list[float] = []
+    seen: list[float] = []
     silhouettes: list[Polygon] = []
     edge = size / 2.0
     for i, ob in enumerate(scene.obstacles):
@@ -75,6 +82,8 @@ def derived_facts(scene: Scene, *, frame: FrameSpec | None = None) -> dict[str, 
         ratios.append(max(ob.length_m, ob.width_m) / min(ob.length_m, ob.width_m))
         pts = _apply(w2f, visible_silhouette_world(scene, i))
         silhouettes.append(MultiPoint(pts).convex_hull)
+        (_, _), (w, h), _ = cv2.minAreaRect(pts.astype(np.float32))
+        seen.append(max(w, h) / max(min(w, h), 1e-9))
         # a convex silhouette is nearest to each side at a vertex
         edge = min(edge, float(np.min(np.concatenate([pts.ravel(), size - pts.ravel()]))))
     gap = size
@@ -87,6 +96,7 @@ def derived_facts(scene: Scene, *, frame: FrameSpec | None = None) -> dict[str, 
                 touching.update((a, b))
     return {
         "derived.max_aspect_ratio": max(ratios, default=0.0),
+        "derived.max_visible_aspect_ratio": max(seen, default=0.0),
         "derived.min_edge_distance_px": edge,
         "derived.touching_boxes": len(touching),
         "derived.min_box_gap_px": gap,

@@ -32,6 +32,7 @@ def test_aspect_touching_and_edge_distance_of_flat_boxes():
         _box(3.9, -1.0, 0.2, 0.02),      # in the margin, outside the frame: ignored
     ))
     assert facts["derived.max_aspect_ratio"] == pytest.approx(4.0)
+    assert facts["derived.max_visible_aspect_ratio"] == pytest.approx(4.0, abs=1e-3)
     assert facts["derived.touching_boxes"] == 2
     assert facts["derived.min_box_gap_px"] == pytest.approx(0.0, abs=1e-6)
     # flat boxes: silhouette = footprint (to 0.1 px at 1 mm height)
@@ -46,6 +47,10 @@ def test_edge_distance_is_the_visible_silhouettes_and_gap_between_apart_boxes():
     assert facts["derived.min_edge_distance_px"] == pytest.approx((HALF - top_x) * PX_PER_M,
                                                                   abs=1e-6)
     assert facts["derived.max_aspect_ratio"] == pytest.approx(2.0)
+    # the tall cube's silhouette: its top, projected further out, stretches it along x
+    stretch = (top_x - 2.95) / 0.1
+    assert facts["derived.max_visible_aspect_ratio"] == pytest.approx(
+        max(2.0, stretch / (ALTITUDE / (ALTITUDE - 1.0))), rel=1e-3)
     assert facts["derived.touching_boxes"] == 0
     # the flat box's right side at x = 0.1, the tall box's silhouette starts at x = 2.95
     assert facts["derived.min_box_gap_px"] == pytest.approx((2.95 - 0.1) * PX_PER_M, abs=0.01)
@@ -67,7 +72,8 @@ def test_boxes_just_apart_but_closer_than_a_pixel_touch():
 
 def test_no_boxes():
     facts = derived_facts(_scene())
-    assert facts == {"derived.max_aspect_ratio": 0.0, "derived.min_edge_distance_px": 500.0,
+    assert facts == {"derived.max_aspect_ratio": 0.0, "derived.max_visible_aspect_ratio": 0.0,
+                     "derived.min_edge_distance_px": 500.0,
                      "derived.touching_boxes": 0, "derived.min_box_gap_px": 1000.0}
 
 

@@ -65,3 +65,17 @@ def always_wrong(image_bgr: np.ndarray) -> dict:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit("import it: edge_phase:detect")
+
+
+def aspect_filter(image_bgr: np.ndarray) -> dict:
+    """The reference answer, counting only boxes with 0.3 < w/h < 3 (a public solution's
+    filter): wrong exactly where a box is longer than three widths."""
+    det = reference_detect(image_bgr)
+    if not det.ok:
+        return {"status": "markers_not_found", "marker_ids": list(det.marker_ids or [])}
+    kept = []
+    for ob in det.obstacles:
+        (_, _), (w, h), _ = cv2.minAreaRect(np.asarray(ob.contour, dtype=np.float32))
+        if h > 0 and 0.3 < w / h < 3:
+            kept.append(ob.area)
+    return {"count": len(kept), "area": sum(kept), "marker_ids": list(det.marker_ids)}
