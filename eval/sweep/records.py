@@ -201,6 +201,7 @@ class SweepSpec:
             "breakdown_mode": self.breakdown_mode,
             "scenes": "independent" if self.independent_scenes else "common",
             "keep": self.keep,
+            "phase_check": self.phases,
         }
 
 
