@@ -3,6 +3,7 @@ sub-pixel amounts, the pipeline re-run on each (real renders, real pipelines).""
 
 from __future__ import annotations
 
+import csv
 import json
 import threading
 
@@ -87,7 +88,8 @@ def test_option_values():
     assert resolve_phases(3, ["warehouse"]) == 3
 
 
-def test_phase_dependent_failures_get_some_passes_and_passing_images_are_not_rerun(twin):
+def test_phase_dependent_failures_get_some_passes_and_passing_images_are_not_rerun(twin,
+                                                                                  tmp_path):
     pipe = Counting(edge_phase.detect)
     report = evaluate(pipe, twin, workers=2, phases=PHASES)
     failing = [r for r in report.images if not r.passed]
@@ -110,6 +112,17 @@ def test_phase_dependent_failures_get_some_passes_and_passing_images_are_not_rer
     again = Report.from_dict(doc)
     assert again.images[0].phase == failing[0].phase
     assert again.summary.phase_dependent_failure_rate == s.phase_dependent_failure_rate
+    # every human report says what phase-dependent means, beside the rates
+    from arenabench.eval.reports import write_reports
+
+    files = write_reports(report, tmp_path, formats=("md", "html", "csv"))
+    sentence = PHASE_DEPENDENT_MEANING.split(": ", 1)[1]
+    md, page = files["md"].read_text(), files["html"].read_text()
+    assert sentence in md and "| phase-dependent failures | 50.0 % (2/4; 8 phases" in md
+    assert f"{failing[0].phase.passes}/{PHASES} phase-dependent" in md
+    assert sentence in page and "robust failures (fail at every phase)" in page
+    first = next(csv.DictReader(files["csv"].read_text().splitlines()))
+    assert first["phase_class"] == "phase_dependent" and first["phase_n"] == str(PHASES)
 
 
 def test_an_always_wrong_pipeline_fails_every_phase(twin):
