@@ -337,23 +337,38 @@ def check_phases(
                 folder.mkdir()
                 suffix = Path(results[i].image).suffix or ".png"
                 pending = []
-                for image in render_phases(gts[i], phases=phases, folder=folder,
-                                           suffix=suffix, renderer=renderer):
-                    pending.append((image, pool.submit(_safe_run, run, image.path)))
+                try:
+                    for image in render_phases(gts[i], phases=phases, folder=folder,
+                                               suffix=suffix, renderer=renderer):
+                        pending.append((image, pool.submit(_safe_run, run, image.path)))
+                except Exception as exc:  # a scene that cannot be re-rendered stays unchecked
+                    _warn(f"phase check of {results[i].id} skipped: {type(exc).__name__}: {exc}")
+                    for _, fut in pending:
+                        fut.cancel()
+                    pending = []
                 passes = 0
                 for image, fut in pending:
+                    if fut.cancelled():
+                        continue
                     item = DatasetItem(id=results[i].id, image_path=image.path,
                                        gt_path=image.path, gt=image.gt)
                     scored = score_sample(item, fut.result(), tolerance=tolerance,
                                           area_reference=area_reference)
                     passes += scored.passed
-                out[i] = replace(results[i], phase=PhaseResult(passes=passes, n=phases))
+                if pending:
+                    out[i] = replace(results[i], phase=PhaseResult(passes=passes, n=phases))
                 shutil.rmtree(folder, ignore_errors=True)
                 if on_image is not None:
                     on_image()
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return out
+
+
+def _warn(message: str) -> None:
+    import sys
+
+    print(f"arenabench: warning: {message}", file=sys.stderr)
 
 
 def _safe_run(run: Callable[[Path], Prediction], path: Path) -> Prediction:

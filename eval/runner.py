@@ -240,9 +240,15 @@ def evaluate(
         if p is not None
     ]
     if phases and interrupted is None and not all(r.passed for r in results):
-        results = _check_phases(results, samples, pipe, phases=phases, tolerance=tolerance,
-                                area_reference=area_reference, workers=n_workers,
-                                progress=progress)
+        try:
+            results = _check_phases(results, samples, pipe, phases=phases,
+                                    tolerance=tolerance, area_reference=area_reference,
+                                    workers=n_workers, progress=progress)
+        except Interrupted as exc:  # the images are scored; their phase check is not
+            interrupted = exc
+            stop = getattr(pipe, "stop", None)
+            if callable(stop):
+                stop()
     report = build_report(
         results,
         pipeline=pipe.name,
