@@ -120,6 +120,8 @@ def importance(rows: Sequence[dict[str, Any]]) -> tuple[float, float]:
 
 #: Fewest failures and passes a parameter needs before it is ranked as a cause.
 MIN_GROUP = 2
+#: Largest p value of a cause that reports and ``arenabench check`` call the strongest.
+CAUSE_P_VALUE = 0.05
 
 
 def rank_causes(results: Sequence[ImageResult], *, top: int | None = None) -> list[dict[str, Any]]:
@@ -180,6 +182,17 @@ def rank_causes(results: Sequence[ImageResult], *, top: int | None = None) -> li
         })
     out.sort(key=lambda c: (-c["strength"], c["p_value"], c["param"]))
     return out[:top] if top is not None else out
+
+
+def strongest_cause_text(causes: Sequence[dict[str, Any]]) -> str:
+    """``Strongest cause: ...`` when the top cause's p value is below :data:`CAUSE_P_VALUE`,
+    else a line saying that no parameter separates the failures clearly (and the closest)."""
+    if not causes:
+        return "No causes ranked (fewer than 2 failing or passing images)"
+    if causes[0]["p_value"] < CAUSE_P_VALUE:
+        return f"Strongest cause: {cause_sentence(causes[0])}"
+    return ("No scene parameter clearly separates the failures from the passes (closest: "
+            f"{cause_sentence(causes[0])})")
 
 
 def cause_sentence(cause: dict[str, Any]) -> str:

@@ -131,14 +131,10 @@ def _validate(args: argparse.Namespace) -> str | None:
     return None
 
 
-#: Largest p value of a cause the verdict calls "strongest cause".
-CAUSE_P_VALUE = 0.05
-
-
 def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
     """The verdict: pass rate, robust and phase-dependent failures, the strongest cause
-    (when its p value is below :data:`CAUSE_P_VALUE`)."""
-    from .breakdown import cause_sentence
+    (:func:`arenabench.eval.breakdown.strongest_cause_text`)."""
+    from .breakdown import strongest_cause_text
     from .phase_check import PHASE_DEPENDENT_MEANING, rate_text
 
     s = report.summary
@@ -159,11 +155,9 @@ def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
         unchecked = pc["unchecked"] if pc is not None else n_fail
         if phases and unchecked:
             lines.append(f"  not phase-checked (crash, timeout, limit): {unchecked}")
-        if report.causes and report.causes[0]["p_value"] < CAUSE_P_VALUE:
-            lines.append(f"  strongest cause: {cause_sentence(report.causes[0])}")
-        elif report.causes:
-            lines.append("  no scene parameter clearly separates the failures from the passes "
-                         f"(closest: {cause_sentence(report.causes[0])})")
+        if report.causes:
+            text = strongest_cause_text(report.causes)
+            lines.append(f"  {text[0].lower()}{text[1:]}")
         first = next(r for r in report.images if not r.passed)
         detail = first.prediction.message or (
             f"gt {first.truth.count} obstacles / {first.truth.area:.0f} px, answered "

@@ -62,4 +62,4 @@ def test_an_aspect_ratio_filter_is_traced_to_the_boxes_aspect(tmp_path):
     from arenabench.eval.reports import write_reports
 
     write_reports(report, tmp_path, formats=("md",))
-    assert f"Strongest: failures have higher {top['param']}" in md.read_text()
+    assert f"Strongest cause: failures have higher {top['param']}" in md.read_text()

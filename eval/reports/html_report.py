@@ -17,7 +17,7 @@ import numpy as np
 
 from arenabench.fileio import atomic_write_text
 
-from ..breakdown import cause_sentence, shown_breakdown
+from ..breakdown import shown_breakdown, strongest_cause_text
 from ..dataset import Dataset, DatasetError, load_dataset
 from ..records import ImageResult, Prediction, Report
 from .markdown_report import TOP_CAUSES, phase_cell
@@ -356,7 +356,7 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
         parts.append(
             "<h2>Likely causes</h2><p>Scene parameters and derived facts that best separate "
             "failing from passing images (strength = |2 AUC - 1|: 0 none, 1 every failure "
-            f"beyond every pass). Strongest: {e(cause_sentence(report.causes[0]))}.</p>"
+            f"beyond every pass). {e(strongest_cause_text(report.causes))}.</p>"
             "<table><tr><th>parameter</th><th>strength</th><th>failures have</th>"
             "<th>median in failures</th><th>median in passes</th><th>p</th></tr>")
         for c in report.causes[:TOP_CAUSES]:

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from arenabench.fileio import atomic_write_text
 
-from ..breakdown import cause_sentence, shown_breakdown
+from ..breakdown import shown_breakdown, strongest_cause_text
 from ..records import Report
 from .summary_rows import fmt, summary_rows
 
@@ -75,7 +75,7 @@ def markdown(report: Report, *, max_failures: int = 30) -> str:
             lines.append(
                 f"| {c['param']} | {c['strength']:.2f} | {c['direction']} values | "
                 f"{fmt(c['fail_median'])} | {fmt(c['pass_median'])} | {c['p_value']:.2g} |")
-        lines += ["", f"Strongest: {_esc(cause_sentence(report.causes[0]))}."]
+        lines += ["", f"{_esc(strongest_cause_text(report.causes))}."]
     keys = shown_breakdown(report)
     if keys:
         lines += [
