@@ -166,3 +166,20 @@ def test_a_sweep_phase_checks_its_failures_in_the_worker():
     summaries = {p.pipeline: p.summary for p in result.summaries}
     assert summaries[edge].phase_dependent_failure_rate == pytest.approx(0.5)
     assert summaries["edge_phase:reference_answer"].phase_check is None
+
+
+def test_a_clean_run_never_loads_the_renderer(twin):
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from arenabench.eval.runner import evaluate\n"
+        f"r = evaluate('reference', {str(twin)!r}, workers=1, phases=8)\n"
+        "assert r.summary.pass_rate == 1.0\n"
+        "print(sorted(m for m in sys.modules if m.startswith(('arenabench.generator', "
+        "'pyrender'))))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"
