@@ -115,7 +115,9 @@ def test_phase_dependent_failures_get_some_passes_and_passing_images_are_not_rer
     # every human report says what phase-dependent means, beside the rates
     from arenabench.eval.reports import write_reports
 
-    files = write_reports(report, tmp_path, formats=("md", "html", "csv"))
+    files = write_reports(report, tmp_path, formats=("md", "html", "csv", "junit"))
+    assert (f'message="phase-dependent (passes {failing[0].phase.passes}/{PHASES} sub-pixel '
+            "phases): wrong_count") in files["junit"].read_text()
     sentence = PHASE_DEPENDENT_MEANING.split(": ", 1)[1]
     md, page = files["md"].read_text(), files["html"].read_text()
     assert sentence in md and "| phase-dependent failures | 50.0 % (2/4; 8 phases" in md
