@@ -116,3 +116,101 @@ def importance(rows: Sequence[dict[str, Any]]) -> tuple[float, float]:
     median ``|area_rel_err|`` (larger = the parameter matters more)."""
     errs = [r["area_rel_err_median"] for r in rows if r.get("area_rel_err_median") is not None]
     return spread(rows), (max(errs) - min(errs)) if errs else 0.0
+
+
+#: Fewest failures and passes a parameter needs before it is ranked as a cause.
+MIN_GROUP = 2
+#: Largest p value of a cause that reports and ``arenabench check`` call the strongest.
+CAUSE_P_VALUE = 0.05
+
+
+def rank_causes(results: Sequence[ImageResult], *, top: int | None = None) -> list[dict[str, Any]]:
+    """Scene parameters (and derived facts) ranked by how well they separate failing images
+    from passing ones (docs/ground-truth.md, "Causes").
+
+    The effect size is the area under the ROC curve of the parameter as a failure score,
+    ``auc = P(x_fail > x_pass) + P(x_fail = x_pass) / 2`` over all (failing, passing) pairs
+    (the Mann-Whitney U statistic divided by ``n_fail * n_pass``), folded to a strength
+    ``|2 auc - 1|`` (the rank-biserial correlation's size): 0 = no separation, 1 = every
+    failure lies beyond every pass.
+
+    Parameters
+    ----------
+    results : sequence of ImageResult
+        Scored images with their ``params``.
+    top : int, optional
+        Keep only the ``top`` strongest.
+
+    Returns
+    -------
+    list of dict
+        ``{"param", "strength", "auc", "direction" ("higher": failures have the larger
+        values, or "lower"), "p_value" (two-sided, normal approximation of U),
+        "n_fail", "n_pass", "fail_median", "pass_median"}``, strongest first; parameters
+        that do not vary or have fewer than :data:`MIN_GROUP` failures or passes are left
+        out.
+    """
+    import math
+
+    keys = sorted({k for r in results for k in r.params})
+    out: list[dict[str, Any]] = []
+    for key in keys:
+        have = [r for r in results if key in r.params and np.isfinite(r.params[key])]
+        fail = np.array([r.params[key] for r in have if not r.passed], dtype=np.float64)
+        good = np.array([r.params[key] for r in have if r.passed], dtype=np.float64)
+        if fail.size < MIN_GROUP or good.size < MIN_GROUP:
+            continue
+        if np.unique(np.concatenate([fail, good])).size < 2:
+            continue
+        greater = (fail[:, None] > good[None, :]).sum()
+        ties = (fail[:, None] == good[None, :]).sum()
+        n1, n2 = fail.size, good.size
+        u = greater + ties / 2.0
+        auc = float(u / (n1 * n2))
+        sd = math.sqrt(n1 * n2 * (n1 + n2 + 1) / 12.0)
+        z = abs(u - n1 * n2 / 2.0) / sd if sd > 0 else 0.0
+        out.append({
+            "param": key,
+            "strength": abs(2.0 * auc - 1.0),
+            "auc": auc,
+            "direction": "higher" if auc >= 0.5 else "lower",
+            "p_value": math.erfc(z / math.sqrt(2.0)),
+            "n_fail": int(n1),
+            "n_pass": int(n2),
+            "fail_median": float(np.median(fail)),
+            "pass_median": float(np.median(good)),
+        })
+    out.sort(key=lambda c: (-c["strength"], c["p_value"], c["param"]))
+    return out[:top] if top is not None else out
+
+
+def strongest_cause_text(causes: Sequence[dict[str, Any]]) -> str:
+    """``Strongest cause: ...`` when the top cause's p value is below :data:`CAUSE_P_VALUE`,
+    else a line saying that no parameter separates the failures clearly (and the closest)."""
+    if not causes:
+        return "No causes ranked (fewer than 2 failing or passing images)"
+    if causes[0]["p_value"] < CAUSE_P_VALUE:
+        return f"Strongest cause: {cause_sentence(causes[0])}"
+    return ("No scene parameter clearly separates the failures from the passes (closest: "
+            f"{cause_sentence(causes[0])})")
+
+
+def cause_sentence(cause: dict[str, Any]) -> str:
+    """One line for a ranked cause: ``failures have higher derived.max_aspect_ratio (median
+    3.4 vs 1.8 in passes; strength 0.91)``."""
+    return (f"failures have {cause['direction']} {cause['param']} (median "
+            f"{_fmt(cause['fail_median'])} vs {_fmt(cause['pass_median'])} in passes; strength "
+            f"{cause['strength']:.2f}, p {cause['p_value']:.2g})")
+
+
+#: Breakdown tables a report shows (the rest stay in report.json).
+SHOWN_BREAKDOWNS = 4
+
+
+def shown_breakdown(report: Any, *, limit: int = SHOWN_BREAKDOWNS) -> list[str]:
+    """The breakdown parameters a report shows, most telling first: the ranked causes'
+    parameters (:func:`rank_causes`), then by pass-rate spread (:func:`importance`)."""
+    ranked = [c["param"] for c in report.causes if c["param"] in report.breakdown]
+    rest = sorted((k for k in report.breakdown if k not in ranked),
+                  key=lambda k: importance(report.breakdown[k]), reverse=True)
+    return [*ranked, *rest][:limit]

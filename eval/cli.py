@@ -17,6 +17,7 @@ from arenabench.clihelp import HelpFormatter
 from arenabench.limits import MAX_WORKERS
 
 from .dataset import AREA_REFERENCES
+from .phase_check import add_phase_check_argument
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 from .run_limits import add_run_arguments, run_settings_from_args
 
@@ -101,6 +102,7 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--limit", type=int, default=None, help="evaluate only the first N images")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_phase_check_argument(p)
     add_run_arguments(p)
     p.add_argument(
         "--no-verify",
@@ -187,6 +189,7 @@ def _main(argv: list[str] | None) -> int:
             return _usage_error(parser, f"--out {args.out}: {exc}")
 
     from .dataset import DatasetError, load_dataset
+    from .phase_check import resolve_phases
     from .pipelines import CommandPipeline, make_pipeline
     from .reports import FORMATS, write_reports
     from .reports.summary_rows import headline
@@ -218,6 +221,8 @@ def _main(argv: list[str] | None) -> int:
             area_reference=args.area_reference,
             executor=args.executor,
             progress=not args.no_progress,
+            phases=resolve_phases(args.phase_check,
+                                  sorted({s.gt.preset or "" for s in dataset.samples})),
         )
     except ValueError as exc:
         return _usage_error(parser, str(exc))

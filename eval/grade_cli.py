@@ -16,6 +16,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from .phase_check import add_phase_check_argument
 from .pipelines import OUTPUT_MODES
 
 PROG = "arenabench grade"
@@ -98,6 +99,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--reference", default=None, metavar="DIR",
                    help="a known-good submission for the preflight (default: the built-in "
                         "reference detector as a competition script)")
+    add_phase_check_argument(p)
     add_run_arguments(p)
     return p
 
@@ -134,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
     from .dataset import DatasetError, load_dataset
     from .grade.runner import GradeOptions, check_out_dir, grade
     from .grade.submissions import SubmissionsError, find_teams
+    from .phase_check import resolve_phases
     from .run_limits import run_settings_from_args
 
     formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
@@ -146,10 +149,13 @@ def main(argv: list[str] | None = None) -> int:
                               ("--report-workers", args.report_workers)):
             if value is not None:
                 check_at_most(value, MAX_WORKERS, option)
+        dataset = load_dataset(args.dataset)
+        phases = resolve_phases(args.phase_check,
+                                sorted({s.gt.preset or "" for s in dataset.samples}))
         options = GradeOptions(command=args.cmd, output=args.output, tolerance=args.tolerance,
                                area_reference=args.area_reference,
-                               settings=run_settings_from_args(args), formats=formats)
-        dataset = load_dataset(args.dataset)
+                               settings=run_settings_from_args(args), formats=formats,
+                               phases=phases)
         find_teams(args.submissions)
         check_out_dir(args.out, Path(args.submissions))
     except (DatasetError, SubmissionsError, ValueError) as exc:

@@ -151,6 +151,14 @@ class ImageScore:
     marker_ids_ok: bool | None
 
 
+def _phase_from_json(d: dict[str, Any] | None) -> Any:
+    if not d:
+        return None
+    from .phase_check import PhaseResult
+
+    return PhaseResult.from_dict(d)
+
+
 @dataclass(frozen=True)
 class ImageResult:
     """Everything the report says about one image."""
@@ -163,6 +171,8 @@ class ImageResult:
     gt_area_visible: float = 0.0
     gt_area_footprint: float = 0.0
     params: dict[str, float] = field(default_factory=dict)
+    #: The phase check's finding on a failing image (``PhaseResult``), ``None`` when not run.
+    phase: Any = None
 
     @property
     def passed(self) -> bool:
@@ -205,6 +215,7 @@ class ImageResult:
             "stdout_tail": p.stdout,
             "stderr_tail": p.stderr,
             "params": dict(self.params),
+            **({} if self.phase is None else {"phase": self.phase.to_dict()}),
         }
 
     @classmethod
@@ -245,6 +256,7 @@ class ImageResult:
             gt_area_visible=float(gt.get("area_visible_px", truth.area)),
             gt_area_footprint=float(gt.get("area_footprint_px", truth.area)),
             params={k: float(v) for k, v in d.get("params", {}).items()},
+            phase=_phase_from_json(d.get("phase")),
         )
 
 
@@ -269,6 +281,11 @@ class Summary:
     failures: dict[str, int]
     latency_ms: dict[str, float | None]
     n_passed: int = 0
+    #: Phase check (docs/phase-check.md): robust and phase-dependent failures as fractions of
+    #: all images, and its counts; ``None`` when no image was phase-checked.
+    robust_failure_rate: float | None = None
+    phase_dependent_failure_rate: float | None = None
+    phase_check: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form."""
@@ -284,6 +301,9 @@ class Summary:
             "marker_id_accuracy": self.marker_id_accuracy,
             "failures": dict(self.failures),
             "latency_ms": dict(self.latency_ms),
+            "robust_failure_rate": self.robust_failure_rate,
+            "phase_dependent_failure_rate": self.phase_dependent_failure_rate,
+            "phase_check": None if self.phase_check is None else dict(self.phase_check),
         }
 
     @classmethod
@@ -302,6 +322,9 @@ class Summary:
             marker_id_accuracy=d.get("marker_id_accuracy"),
             failures={k: int(v) for k, v in d.get("failures", {}).items()},
             latency_ms=dict(d.get("latency_ms", {})),
+            robust_failure_rate=d.get("robust_failure_rate"),
+            phase_dependent_failure_rate=d.get("phase_dependent_failure_rate"),
+            phase_check=d.get("phase_check"),
         )
 
 
@@ -321,6 +344,9 @@ class Report:
     images: tuple[ImageResult, ...]
     breakdown: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
     schema: str = REPORT_SCHEMA
+    #: Scene parameters and derived facts ranked by how well they separate failures from
+    #: passes (:func:`arenabench.eval.breakdown.rank_causes`), strongest first.
+    causes: tuple[dict[str, Any], ...] = ()
     complete: bool = True
     n_done: int | None = None
     n_total: int | None = None
@@ -343,6 +369,7 @@ class Report:
             **({} if self.n_total is None else {"n_total": self.n_total}),
             "summary": self.summary.to_dict(),
             "breakdown": self.breakdown,
+            "causes": [dict(c) for c in self.causes],
             "images": [r.to_dict() for r in self.images],
         }
 
@@ -365,6 +392,7 @@ class Report:
             summary=Summary.from_dict(d["summary"]),
             images=tuple(ImageResult.from_dict(i) for i in d.get("images", [])),
             breakdown=dict(d.get("breakdown", {})),
+            causes=tuple(dict(c) for c in d.get("causes", [])),
             complete=bool(d.get("complete", True)),
             n_done=None if d.get("n_done") is None else int(d["n_done"]),
             n_total=None if d.get("n_total") is None else int(d["n_total"]),

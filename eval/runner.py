@@ -18,7 +18,7 @@ from typing import Any
 
 from arenabench.workers import process_state, usable_cores
 
-from .breakdown import breakdown
+from .breakdown import breakdown, rank_causes
 from .dataset import AREA_REFERENCES, Dataset, DatasetItem, load_dataset
 from .metrics import DEFAULT_TOLERANCE, score_image, summarize
 from .pipelines import Pipeline, make_pipeline
@@ -103,8 +103,15 @@ def build_report(
     complete: bool = True,
     n_total: int | None = None,
 ) -> Report:
-    """Summary and breakdown of scored images, as a :class:`Report` (``complete=False``: a
-    run stopped early, ``n_done`` is then the number of images given, of ``n_total``)."""
+    """Summary, breakdown and ranked causes of scored images, as a :class:`Report`
+    (``complete=False``: a run stopped early, ``n_done`` is then the number of images given, of
+    ``n_total``). Phase-check results on the images (``ImageResult.phase``) fill the summary's
+    phase keys."""
+    from dataclasses import replace
+
+    from .phase_check import phase_summary
+
+    summary = summarize([r.score for r in results], [r.prediction for r in results])
     return Report(
         complete=complete,
         n_done=len(results),
@@ -113,9 +120,10 @@ def build_report(
         dataset=dataset,
         area_reference=area_reference,
         tolerance=tolerance,
-        summary=summarize([r.score for r in results], [r.prediction for r in results]),
+        summary=replace(summary, **phase_summary(results)),
         images=tuple(results),
         breakdown=breakdown(results),
+        causes=tuple(rank_causes(results)),
     )
 
 
@@ -129,6 +137,7 @@ def evaluate(
     executor: str = "thread",
     progress: bool = False,
     limit: int | None = None,
+    phases: int = 0,
 ) -> Report:
     """Run ``pipeline`` on every image of ``dataset`` and score it.
 
@@ -153,6 +162,9 @@ def evaluate(
         plain lines otherwise).
     limit : int, optional
         Evaluate only the first ``limit`` images.
+    phases : int
+        Phase check (:mod:`arenabench.eval.phase_check`): re-render each failing image's
+        scene at this many sub-pixel offsets and re-run the pipeline on each; 0 = off.
 
     Returns
     -------
@@ -230,6 +242,16 @@ def evaluate(
         for s, p in zip(samples, preds, strict=True)
         if p is not None
     ]
+    if phases and interrupted is None and not all(r.passed for r in results):
+        try:
+            results = _check_phases(results, samples, pipe, phases=phases,
+                                    tolerance=tolerance, area_reference=area_reference,
+                                    workers=n_workers, progress=progress)
+        except Interrupted as exc:  # the images are scored; their phase check is not
+            interrupted = exc
+            stop = getattr(pipe, "stop", None)
+            if callable(stop):
+                stop()
     report = build_report(
         results,
         pipeline=pipe.name,
@@ -242,6 +264,24 @@ def evaluate(
     if interrupted is not None:
         raise EvaluationInterrupted(report, interrupted.signum)
     return report
+
+
+def _check_phases(results: list[ImageResult], samples: Sequence[DatasetItem], pipe: Pipeline,
+                  *, phases: int, tolerance: float, area_reference: str, workers: int,
+                  progress: bool) -> list[ImageResult]:
+    """The phase check of a run's failing images (docs/phase-check.md)."""
+    from arenabench.progress import progress as progress_bar
+
+    from .phase_check import UNCHECKED_CATEGORIES, check_phases
+
+    by_id = {s.id: s for s in samples}
+    failing = sum(1 for r in results if not r.passed and r.category not in UNCHECKED_CATEGORIES)
+    if not failing:
+        return results
+    with progress_bar(failing, desc=f"phase check {pipe.name}", enabled=progress) as bar:
+        return check_phases(results, [by_id[r.id].gt for r in results], pipe.run,
+                            phases=phases, tolerance=tolerance, area_reference=area_reference,
+                            workers=workers, on_image=lambda: bar.update(1))
 
 
 def score(

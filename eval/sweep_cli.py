@@ -15,6 +15,7 @@ from arenabench.clihelp import HelpFormatter
 from arenabench.interrupts import Interrupted, stop_on_signals
 
 from .dataset import AREA_REFERENCES
+from .phase_check import add_phase_check_argument, resolve_phases
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 from .run_limits import add_run_arguments, run_settings_from_args
 
@@ -107,6 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="run on an existing Dask distributed cluster")
     p.add_argument("--no-plots", action="store_true", help="skip plots and sweep.html")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_phase_check_argument(p)
     add_run_arguments(p)
     return p
 
@@ -168,6 +170,7 @@ def main(argv: list[str] | None = None) -> int:
             threshold=args.threshold, breakdown_mode=args.breakdown_mode,
             keep="all" if args.keep_images else "failures" if args.keep_failures else "none",
             independent_scenes=args.independent_scenes,
+            phases=resolve_phases(args.phase_check, [args.preset]),
         )
     except ValueError as exc:
         return _error(str(exc))

@@ -25,6 +25,7 @@ from arenabench.generator.params import Range, Value
 from arenabench.generator.render import Renderer
 from arenabench.generator.renderer_api import RenderOutput, SceneRenderer
 from arenabench.generator.sampler import sample_scene, stream_rng
+from arenabench.generator.scene_facts import derived_facts
 from arenabench.gtrecord import GroundTruth
 from arenabench.schemas import GT_SCHEMA
 from arenabench.workers import thread_state
@@ -52,7 +53,10 @@ from arenabench.workers import thread_state
 #: pixel (a quarter pixel either side of the centre, on the diagonal) averaged in linear light
 #: on the obstacles' region, instead of 4x MSAA averaged in sRGB (docs/rendering.md); images
 #: change along box outlines only.
-GENERATOR_VERSION = "5"
+#: 6: derived facts of each scene in the GT's ``params`` (``derived.*``: largest box aspect
+#: ratio, smallest distance from a box to the frame's edge, touching boxes, smallest gap
+#: between boxes; generator/scene_facts.py); images unchanged.
+GENERATOR_VERSION = "6"
 
 #: A post-render hook: (rgb uint8 (H, W, 3), rng) -> rgb uint8 (H, W, 3).
 Degrade = Callable[[np.ndarray, np.random.Generator], np.ndarray]
@@ -206,7 +210,8 @@ def ground_truth_record(
     seed, index : int, keyword-only
         Run seed and scene index (0 for a scene rendered on its own).
     params, overrides : dict, keyword-only
-        Sampled parameter values and the ``--set`` overrides.
+        Sampled parameter values and the ``--set`` overrides; the scene's derived facts
+        (:func:`arenabench.generator.scene_facts.derived_facts`) are added to ``params``.
     frame : FrameSpec, keyword-only
         Rectified frame (default 1000 px, inner corners).
     image_ext : str, keyword-only
@@ -224,7 +229,7 @@ def ground_truth_record(
         "seed": int(seed),
         "index": int(index),
         "generator_version": GENERATOR_VERSION,
-        "params": dict(params or {}),
+        "params": {**(params or {}), **rounded(derived_facts(scene, frame=frame))},
         "overrides": {k: _jsonable(v) for k, v in sorted((overrides or {}).items())},
         **compute_ground_truth(scene, frame=frame),
     })

@@ -24,6 +24,7 @@ from arenabench.eval.grade.leaderboard import (
 )
 from arenabench.eval.grade.runner import STATE_FILE, GradeOptions, grade, team_command
 from arenabench.eval.grade.submissions import submission_hash
+from arenabench.eval.phase_check import DEFAULT_PHASES
 from arenabench.eval.pipelines import CommandPipeline
 from arenabench.eval.records import Summary
 from arenabench.eval.run_limits import RunLimits, RunSettings
@@ -122,6 +123,10 @@ def test_six_teams_are_ranked_as_expected(graded, dataset):
         assert teams[team]["n_passed"] == COUNT, teams[team]
     assert teams["partly_right"]["n_passed"] == COUNT - n_one
     assert teams["partly_right"]["failures"]["wrong_count"] == n_one
+    # eyrc: failures are phase-checked by default; a wrong count at every phase is robust
+    assert teams["partly_right"]["robust_failure_rate"] == n_one / COUNT
+    assert teams["partly_right"]["phase_dependent_failure_rate"] == 0.0
+    assert teams["correct"]["robust_failure_rate"] is None
     assert teams["crashing"]["n_passed"] == COUNT - n_odd
     assert teams["crashing"]["failures"]["crash"] == n_odd
     assert teams["slow"]["n_passed"] == 0 and teams["slow"]["failures"]["timeout"] == COUNT
@@ -186,8 +191,8 @@ def test_dask_local_cluster_gives_the_same_leaderboard(graded, dataset, submissi
     settings = RunSettings(limits=RunLimits(timeout_s=float(TIMEOUT)))
     with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=True,
                                   host="127.0.0.1", dashboard_address=None) as cluster:
-        result = grade(dataset, submissions, tmp_path / "dask",
-                       options=GradeOptions(settings=settings),
+        result = grade(dataset, submissions, tmp_path / "dask",  # as the CLI on eyrc
+                       options=GradeOptions(settings=settings, phases=DEFAULT_PHASES),
                        scheduler=cluster.scheduler_address, allow_guessable_seed=True)
     assert sorted(result.graded) == sorted(TEAMS) and not result.errors
     local = json.loads((out / "leaderboard.json").read_text())

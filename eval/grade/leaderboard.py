@@ -22,10 +22,13 @@ is its JSON Schema)::
                 "pass_rate_ci95": [0.96, 1.0], "count_exact_rate": 0.995,
                 "count_mae": 0.005, "area_rel_err_median": 0.012,
                 "latency_ms_median": 412.0, "failures": {"crash": 2, ...},
+                "robust_failure_rate": 0.005, "phase_dependent_failure_rate": 0.005,
                 "report": "teams/alpha/report.html", "submission_sha256": ...}, ...]}
 
 Every key is always present; ``area_rel_err_median``, ``count_mae`` and
-``latency_ms_median`` are ``null`` when undefined (no answer at all).
+``latency_ms_median`` are ``null`` when undefined (no answer at all);
+``robust_failure_rate`` and ``phase_dependent_failure_rate`` (the phase check,
+docs/phase-check.md) are ``null`` when no failure of the team was phase-checked.
 """
 
 from __future__ import annotations
@@ -111,6 +114,8 @@ class LeaderboardRow:
             "area_rel_err_median": self.area_rel_err_median,
             "latency_ms_median": self.latency_ms_median,
             "failures": {c: int(s.failures.get(c, 0)) for c in categories},
+            "robust_failure_rate": _finite(s.robust_failure_rate),
+            "phase_dependent_failure_rate": _finite(s.phase_dependent_failure_rate),
             "report": self.report,
             "submission_sha256": self.submission_sha256,
         }
@@ -227,6 +232,10 @@ LEADERBOARD_JSON_SCHEMA: dict[str, Any] = {
                     "latency_ms_median": _NUM_OR_NULL,
                     "failures": {"type": "object",
                                  "additionalProperties": {"type": "integer", "minimum": 0}},
+                    "robust_failure_rate": {"type": ["number", "null"], "minimum": 0,
+                                            "maximum": 1},
+                    "phase_dependent_failure_rate": {"type": ["number", "null"], "minimum": 0,
+                                                     "maximum": 1},
                     "report": {"type": "string"},
                     "submission_sha256": {"type": "string", "pattern": "^[0-9a-f]{64}$"},
                 },

@@ -78,6 +78,9 @@ class GradeOptions:
     formats : tuple of str
         Report files written per team (keys of ``FORMATS``); not part of the fingerprint,
         but a team whose files are missing is graded again.
+    phases : int
+        Phase check of each team's failing images (:mod:`arenabench.eval.phase_check`):
+        sub-pixel phases re-rendered per failure, the team's command re-run on each; 0 = off.
     """
 
     command: str = DEFAULT_COMMAND
@@ -86,6 +89,7 @@ class GradeOptions:
     area_reference: str = "visible"
     settings: RunSettings = field(default_factory=RunSettings)
     formats: tuple[str, ...] = tuple(FORMATS)
+    phases: int = 0
 
     def __post_init__(self) -> None:
         if self.output not in OUTPUT_MODES:
@@ -115,6 +119,7 @@ class GradeOptions:
             "area_reference": self.area_reference,
             "run": self.settings.to_dict(),
             "arenabench": __version__,
+            **({"phase_check": self.phases} if self.phases else {}),
         }
 
     def fingerprint(self) -> str:
@@ -607,6 +612,14 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
         score_sample(s, p, tolerance=opts.tolerance, area_reference=opts.area_reference)
         for s, p in zip(data.samples, job.preds, strict=True)
     ]
+    if opts.phases and not all(r.passed for r in results):
+        from ..phase_check import check_phases
+
+        pipe = _team_pipeline(team_command(opts.command, team.path), settings=opts.settings,
+                              output=opts.output, team=team.name, base_dir=str(team.path))
+        results = check_phases(results, [s.gt for s in data.samples[:len(results)]], pipe.run,
+                               phases=opts.phases, tolerance=opts.tolerance,
+                               area_reference=opts.area_reference, workers=2)
     report = build_report(results, pipeline=team.name, dataset=str(data.root),
                           area_reference=opts.area_reference, tolerance=opts.tolerance)
     team_dir = Path(job.root) / TEAMS_DIR / team.name

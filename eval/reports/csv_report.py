@@ -28,6 +28,9 @@ COLUMNS: tuple[str, ...] = (
     "latency_ms",
     "message",
     "image",
+    "phase_passes",
+    "phase_n",
+    "phase_class",
 )
 
 
@@ -64,6 +67,8 @@ def write_csv(report: Report, path: str | os.PathLike[str]) -> Path:
             round(p.latency_ms, 3),
             p.message,
             r.image,
+            *((None, None, None) if r.phase is None
+              else (r.phase.passes, r.phase.n, r.phase.label)),
         ]
         writer.writerow([_cell(v) for v in row] + [_cell(r.params.get(k)) for k in params])
     return atomic_write_text(path, buf.getvalue())

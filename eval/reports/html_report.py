@@ -17,10 +17,11 @@ import numpy as np
 
 from arenabench.fileio import atomic_write_text
 
-from ..breakdown import importance
+from ..breakdown import shown_breakdown, strongest_cause_text
 from ..dataset import Dataset, DatasetError, load_dataset
 from ..records import ImageResult, Prediction, Report
 from .incomplete import banner_html, partial
+from .markdown_report import TOP_CAUSES, phase_cell
 from .summary_rows import fmt, summary_rows
 
 CSS = """
@@ -123,7 +124,7 @@ def _figures(report: Report) -> list[tuple[str, str]]:
     ax.set_title("Count confusion")
     out.append(("Count confusion", _png_data_uri(fig)))
 
-    keys = sorted(report.breakdown, key=lambda k: importance(report.breakdown[k]), reverse=True)[:4]
+    keys = shown_breakdown(report)
     if keys:
         fig = Figure(figsize=(12, 2.8 * ((len(keys) + 1) // 2)))
         for i, key in enumerate(keys):
@@ -350,6 +351,8 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
             uri = thumbnail(r.image, gt, pred=p)
             frame_uri = frame_thumbnail(r.image, gt, pred=p, area_key=area_key)
             verdict = f"FAIL: {r.category}"
+            if r.phase is not None:
+                verdict += f" (passes {phase_cell(r.phase)})"
             parts.append(f'<div class="case{" wide" if frame_uri else ""}">')
             parts.append(f'<b class="fail">{e(r.id)} - {e(verdict)}</b>')
             if uri and frame_uri:
@@ -376,11 +379,25 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
                     parts.append(f"<div>{label} (tail):</div><pre>{e(text[-1500:])}</pre>")
             parts.append("</div>")
         parts.append("</div>")
-    if report.breakdown:
-        parts.append("<h2>Breakdown by scene parameter</h2>")
-        for key in sorted(
-            report.breakdown, key=lambda k: importance(report.breakdown[k]), reverse=True
-        ):
+    if report.causes:
+        parts.append(
+            "<h2>Likely causes</h2><p>Scene parameters and derived facts that best separate "
+            "failing from passing images (strength = |2 AUC - 1|: 0 none, 1 every failure "
+            f"beyond every pass). {e(strongest_cause_text(report.causes))}.</p>"
+            "<table><tr><th>parameter</th><th>strength</th><th>failures have</th>"
+            "<th>median in failures</th><th>median in passes</th><th>p</th></tr>")
+        for c in report.causes[:TOP_CAUSES]:
+            parts.append(
+                f"<tr><td>{e(c['param'])}</td><td>{c['strength']:.2f}</td>"
+                f"<td>{e(c['direction'])} values</td><td>{e(fmt(c['fail_median']))}</td>"
+                f"<td>{e(fmt(c['pass_median']))}</td><td>{c['p_value']:.2g}</td></tr>")
+        parts.append("</table>")
+    keys = shown_breakdown(report)
+    if keys:
+        parts.append("<h2>Breakdown by scene parameter</h2><p>The parameters that best "
+                     "separate failures from passes (all of them: <code>breakdown</code> in "
+                     "report.json).</p>")
+        for key in keys:
             parts.append(
                 f"<h3>{e(key)}</h3><table><tr><th>bin</th><th>n</th><th>pass rate</th>"
                 "<th>count exact</th><th>median |area err|</th><th>failures</th></tr>"
@@ -404,7 +421,9 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
         cls = "pass" if r.passed else "fail"
         parts.append(
             f'<tr><td>{e(r.id)}</td><td class="{cls}">'
-            f"{'pass' if r.passed else e(str(r.category))}</td><td>{r.truth.count}</td>"
+            f"{'pass' if r.passed else e(str(r.category))}"
+            f"{'' if r.phase is None else ' ' + e(phase_cell(r.phase))}</td>"
+            f"<td>{r.truth.count}</td>"
             f"<td>{e(fmt(p.count))}</td><td>{r.truth.area:.1f}</td>"
             f"<td>{e(fmt(p.area, digits=8))}</td><td>{e(fmt(r.score.area_rel_err))}</td>"
             f"<td>{p.latency_ms:.1f}</td></tr>"

@@ -60,6 +60,9 @@ def junit_tree(report: Report) -> ET.ElementTree:
                 f"pred count {p.count} area {p.area}; area_rel_err {sc.area_rel_err}"
             )
             msg = f"{sc.category}: {p.message or detail}"
+            if r.phase is not None:  # the phase check's verdict first: it is cut last
+                msg = (f"{r.phase.label.replace('_', '-')} (passes {r.phase.passes}/"
+                       f"{r.phase.n} sub-pixel phases): {msg}")
             fail = ET.SubElement(
                 case, "failure", type=str(sc.category), message=xml_safe(msg[:1000])
             )

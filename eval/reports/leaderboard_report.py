@@ -21,6 +21,7 @@ from urllib.parse import quote
 
 from arenabench.fileio import atomic_write_json, atomic_write_text
 
+from ..phase_check import PHASE_DEPENDENT_MEANING
 from .incomplete import banner_html, partial
 
 CSS = """
@@ -66,6 +67,7 @@ SCRIPT = """
 CSV_COLUMNS: tuple[str, ...] = (
     "rank", "team", "n", "n_passed", "pass_rate", "pass_rate_ci95_lo", "pass_rate_ci95_hi",
     "count_exact_rate", "count_mae", "area_rel_err_median", "latency_ms_median",
+    "robust_failure_rate", "phase_dependent_failure_rate",
 )
 #: Leading characters by which a spreadsheet reads a cell as a formula (and tab / CR,
 #: which some strip first); such text cells get a leading apostrophe in ``leaderboard.csv``.
@@ -119,6 +121,10 @@ def leaderboard_html(doc: dict[str, Any]) -> str:
             ("count_exact_rate", "Count exact", True),
             ("area_rel_err_median", "Median |area error|", False),
             ("latency_ms_median", "Median latency (ms)", False)]
+    phased = any(t.get("phase_dependent_failure_rate") is not None for t in teams)
+    if phased:
+        cols[3:3] = [("robust_failure_rate", "Robust failures", False),
+                     ("phase_dependent_failure_rate", "Phase-dependent failures", False)]
     cols += [(f"failures_{c}", c, True) for c in cats]
     head = "".join(
         f'<th data-key="{html.escape(k)}" data-desc="{int(d)}" data-num="{int(k != "team")}"'
@@ -135,6 +141,9 @@ def leaderboard_html(doc: dict[str, Any]) -> str:
             _cell("pass_rate", t["pass_rate"],
                   f'{_fmt(t["pass_rate"], "pct")} ({t["n_passed"]}/{t["n"]}; 95 % CI '
                   f'{_fmt(lo, "pct")}-{_fmt(hi, "pct")})'),
+            *([_cell(k, t.get(k), _fmt(t.get(k), "pct"))
+               for k in ("robust_failure_rate", "phase_dependent_failure_rate")]
+              if phased else []),
             _cell("count_exact_rate", t["count_exact_rate"],
                   _fmt(t["count_exact_rate"], "pct")),
             _cell("area_rel_err_median", t["area_rel_err_median"],
@@ -162,7 +171,9 @@ def leaderboard_html(doc: dict[str, Any]) -> str:
             f'{html.escape(str(opts.get("area_reference", "")))}. Ranked by pass rate, then '
             "count exact rate, then median |area error|; teams equal on all three share a "
             "rank (2=) and are listed by name. Latency is shown, never ranked on; a timed-out "
-            "image has none." + sandbox)
+            "image has none."
+            + (f" {html.escape(PHASE_DEPENDENT_MEANING[0].upper() + PHASE_DEPENDENT_MEANING[1:])}."
+               if phased else "") + sandbox)
     return (
         "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\">"
         "<title>arenabench leaderboard</title>"
@@ -185,7 +196,8 @@ def leaderboard_csv(doc: dict[str, Any]) -> str:
         lo, hi = t["pass_rate_ci95"]
         row = [t["rank"], t["team"], t["n"], t["n_passed"], t["pass_rate"], lo, hi,
                t["count_exact_rate"], t["count_mae"], t["area_rel_err_median"],
-               t["latency_ms_median"]]
+               t["latency_ms_median"], t.get("robust_failure_rate"),
+               t.get("phase_dependent_failure_rate")]
         row += [t["failures"].get(c, 0) for c in cats] + [t["report"]]
         writer.writerow([csv_cell(v) for v in row])
     return buf.getvalue()

@@ -7,10 +7,20 @@ from pathlib import Path
 
 from arenabench.fileio import atomic_write_text
 
-from ..breakdown import importance
+from ..breakdown import shown_breakdown, strongest_cause_text
 from ..records import Report
 from .incomplete import banner_markdown, partial
 from .summary_rows import fmt, summary_rows
+
+#: Ranked causes a report lists.
+TOP_CAUSES = 5
+
+
+def phase_cell(phase) -> str:
+    """``k/N robust`` or ``k/N phase-dependent``; ``-`` when not checked."""
+    if phase is None:
+        return "-"
+    return f"{phase.passes}/{phase.n} {phase.label.replace('_', '-')}"
 
 
 def _esc(text: str) -> str:
@@ -38,30 +48,47 @@ def markdown(report: Report, *, max_failures: int = 30) -> str:
             "",
             "## Failing images",
             "",
-            "| id | category | gt count | pred count | gt area | pred area | area rel err "
-            "| message |",
-            "|---|---|---|---|---|---|---|---|",
+            "| id | category | phase passes | gt count | pred count | gt area | pred area "
+            "| area rel err | message |",
+            "|---|---|---|---|---|---|---|---|---|",
         ]
         for r in failing[:max_failures]:
             p = r.prediction
             lines.append(
-                f"| {r.id} | {r.category} | {r.truth.count} | {fmt(p.count)} | "
-                f"{r.truth.area:.1f} | {fmt(p.area)} | {fmt(r.score.area_rel_err)} | "
-                f"{_esc(p.message)[:120]} |"
+                f"| {r.id} | {r.category} | {phase_cell(r.phase)} | {r.truth.count} | "
+                f"{fmt(p.count)} | {r.truth.area:.1f} | {fmt(p.area)} | "
+                f"{fmt(r.score.area_rel_err)} | {_esc(p.message)[:120]} |"
             )
         if len(failing) > max_failures:
             lines.append(f"\n... and {len(failing) - max_failures} more (see results.csv)")
-    if report.breakdown:
+    if report.causes:
+        lines += [
+            "",
+            "## Likely causes",
+            "",
+            "Scene parameters and derived facts that best separate failing from passing images "
+            "(strength = |2 AUC - 1|: 0 none, 1 every failure beyond every pass).",
+            "",
+            "| parameter | strength | failures have | median in failures | median in passes "
+            "| p |",
+            "|---|---|---|---|---|---|",
+        ]
+        for c in report.causes[:TOP_CAUSES]:
+            lines.append(
+                f"| {c['param']} | {c['strength']:.2f} | {c['direction']} values | "
+                f"{fmt(c['fail_median'])} | {fmt(c['pass_median'])} | {c['p_value']:.2g} |")
+        lines += ["", f"{_esc(strongest_cause_text(report.causes))}."]
+    keys = shown_breakdown(report)
+    if keys:
         lines += [
             "",
             "## Breakdown by scene parameter",
             "",
-            "Parameters sorted by how much the pass rate varies across their bins.",
+            f"The {len(keys)} parameters that best separate failures from passes (all of "
+            "them: `breakdown` in report.json).",
             "",
         ]
-        for key in sorted(
-            report.breakdown, key=lambda k: importance(report.breakdown[k]), reverse=True
-        ):
+        for key in keys:
             lines += [
                 f"### {key}",
                 "",

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from ..phase_check import PHASE_DEPENDENT_MEANING
 from ..records import CATEGORIES, Report, Summary
 
 
@@ -40,8 +41,24 @@ def summary_rows(summary: Summary) -> list[tuple[str, str]]:
             " / ".join(fmt(s.latency_ms.get(k), digits=3) for k in ("median", "p95")),
         ),
     ]
+    rows += phase_rows(s)
     rows += [(f"failures: {c}", str(s.failures.get(c, 0))) for c in CATEGORIES]
     return rows
+
+
+def phase_rows(summary: Summary) -> list[tuple[str, str]]:
+    """The phase check's rows (none when it did not run)."""
+    pc = summary.phase_check
+    if pc is None:
+        return []
+    return [
+        ("robust failures (fail at every phase)",
+         f"{fmt(summary.robust_failure_rate, pct=True)} ({pc['robust']}/{summary.n})"),
+        ("phase-dependent failures",
+         f"{fmt(summary.phase_dependent_failure_rate, pct=True)} "
+         f"({pc['phase_dependent']}/{summary.n}; {pc['phases']} phases per failure)"),
+        ("phase-dependent means", PHASE_DEPENDENT_MEANING.split(": ", 1)[1]),
+    ]
 
 
 def headline(report: Report) -> str:
@@ -49,7 +66,11 @@ def headline(report: Report) -> str:
     s = report.summary
     lo, hi = s.pass_rate_ci95
     fails = ", ".join(f"{c} {v}" for c, v in s.failures.items() if v) or "none"
+    phase = ""
+    if s.phase_check is not None:
+        phase = (f"; robust failures {fmt(s.robust_failure_rate, pct=True)}, phase-dependent "
+                 f"{fmt(s.phase_dependent_failure_rate, pct=True)}")
     return (
         f"{report.pipeline}: pass rate {fmt(s.pass_rate, pct=True)} ({s.n_passed}/{s.n}, "
-        f"95 % CI {fmt(lo, pct=True)}-{fmt(hi, pct=True)}); failures: {fails}"
+        f"95 % CI {fmt(lo, pct=True)}-{fmt(hi, pct=True)}){phase}; failures: {fails}"
     )

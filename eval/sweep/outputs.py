@@ -160,6 +160,7 @@ def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
         tolerance=doc["tolerance"], area_reference=doc["area_reference"],
         threshold=doc["threshold"], breakdown_mode=doc["breakdown_mode"], keep=doc["keep"],
         independent_scenes=doc.get("scenes") == "independent",
+        phases=int(doc.get("phase_check", 0)),
     )
     summaries = tuple(PointSummary.from_dict(p) for p in doc["points"])
     points: dict[int, dict[str, Any]] = {s.index: s.params for s in summaries}

@@ -121,6 +121,9 @@ class SweepSpec:
         Which rendered images are written to disk.
     independent_scenes : bool
         Give every point its own scenes (indices ``p * per_point + i``) instead of the same.
+    phases : int
+        Phase check of every failing image (:mod:`arenabench.eval.phase_check`), in the
+        worker that rendered it; 0 = off.
     """
 
     preset: str
@@ -136,6 +139,7 @@ class SweepSpec:
     breakdown_mode: str = "marginal"
     keep: str = "none"
     independent_scenes: bool = False
+    phases: int = 0
 
     def __post_init__(self) -> None:
         if int(self.per_point) != self.per_point or self.per_point < 1:
@@ -197,6 +201,7 @@ class SweepSpec:
             "breakdown_mode": self.breakdown_mode,
             "scenes": "independent" if self.independent_scenes else "common",
             "keep": self.keep,
+            "phase_check": self.phases,
         }
 
 
@@ -217,6 +222,7 @@ class SweepTask:
     tolerance: float
     area_reference: str
     keep: str
+    phases: int = 0
 
     @property
     def key(self) -> tuple[int, int]:

@@ -22,6 +22,7 @@ import multiprocessing
 import os
 import time
 from collections.abc import Callable, Iterator
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -37,6 +38,7 @@ from arenabench.interrupts import (
 from arenabench.workers import llvmpipe_threads, usable_cores
 
 from ..metrics import summarize
+from ..phase_check import phase_summary
 from ..records import ImageResult
 from .breakdown import axis_curve, breakdown_value
 from .grid import grid_points, random_points
@@ -69,7 +71,7 @@ def sweep_tasks(spec: SweepSpec, points: list[dict[str, Any]]) -> list[SweepTask
             tasks.append(SweepTask(
                 point=p, scene=i, index=index, preset=spec.preset, seed=int(spec.seed),
                 overrides=overrides, pipelines=spec.pipelines, tolerance=spec.tolerance,
-                area_reference=spec.area_reference, keep=spec.keep,
+                area_reference=spec.area_reference, keep=spec.keep, phases=spec.phases,
             ))
     return tasks
 
@@ -196,7 +198,8 @@ def aggregate(
             rs = by_pipe[pipe.name].get(p, [])
             summaries.append(PointSummary(
                 index=p, params=params, pipeline=pipe.name, skipped=skipped[p],
-                summary=summarize([r.score for r in rs], [r.prediction for r in rs]),
+                summary=replace(summarize([r.score for r in rs], [r.prediction for r in rs]),
+                                **phase_summary(rs)),
             ))
     breakdown: dict[str, dict[str, Any]] = {}
     for pipe in spec.pipelines:

@@ -57,6 +57,18 @@ def _predict(spec: PipelineSpec, bgr: Any, png: list[bytes], tmp: list[str]) -> 
     return pipe.run(Path(tmp[0], "image.png"))
 
 
+def _check_phases(task: SweepTask, gt: Any, results: list[Any], *, renderer: Any) -> None:
+    """The phase check of each failing pipeline result, in place (the worker's renderer)."""
+    from ..phase_check import check_phases
+
+    for k, (spec, result) in enumerate(zip(task.pipelines, results, strict=True)):
+        if not result.passed:
+            results[k] = check_phases([result], [gt], _pipeline(spec).run, phases=task.phases,
+                                      tolerance=task.tolerance,
+                                      area_reference=task.area_reference,
+                                      renderer=renderer)[0]
+
+
 def run_task(task: SweepTask) -> dict[str, Any]:
     """Render, run every pipeline and score one (point, scene).
 
@@ -121,6 +133,8 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
     finally:
         if tmp:
             shutil.rmtree(tmp[0], ignore_errors=True)
+    if task.phases and any_failed:
+        _check_phases(task, gt, out["results"], renderer=worker_renderer())
     keep = task.keep == "all" or (task.keep == "failures" and any_failed)
     rows = []
     for spec, result in zip(task.pipelines, out["results"], strict=True):

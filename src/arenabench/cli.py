@@ -30,6 +30,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench": ("arenabench.eval.bench_cli", "measure generation and scoring throughput here"),
     "sweep": ("arenabench.eval.sweep_cli", "vary scene parameters, score, find breakdown points"),
     "grade": ("arenabench.eval.grade_cli", "grade many teams' submissions, rank them (resumable)"),
+    "check": ("arenabench.eval.check_cli", "know before you submit: a script on the twin, verdict"),
     "demo": ("arenabench.eval.demo", "generate a small eyrc set, score the reference pipeline"),
 }
 

@@ -1,0 +1,253 @@
+"""``arenabench check map.py``: know before you submit.
+
+Generates (or reuses, from the user cache) a set of hidden-test twin scenes, runs the script on
+each as the competition did (``python3 map.py --image PATH``, ``obstacles.txt`` in the working
+directory; sandboxed where bubblewrap works: the ``eval --cmd`` machinery), phase-checks the
+failures, and prints a short verdict with the report's path (docs/phase-check.md).
+
+Exit status: 0 the pass rate reaches ``--fail-under``; 1 it does not; 2 bad input (before any
+work); 130/143 stopped by SIGINT/SIGTERM.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import math
+import os
+import sys
+from pathlib import Path
+
+from arenabench.clihelp import HelpFormatter
+
+from .phase_check import add_phase_check_argument
+from .run_limits import add_run_arguments
+
+PROG = "arenabench check"
+#: Twin scenes a check runs on by default.
+DEFAULT_COUNT = 200
+DEFAULT_PRESET = "eyrc"
+#: Pass rate a script must reach (``--fail-under``).
+DEFAULT_FAIL_UNDER = 0.95
+#: Environment variable naming the cache folder (default: ``$XDG_CACHE_HOME/arenabench``, else
+#: ``~/.cache/arenabench``).
+CACHE_ENV = "ARENABENCH_CACHE_DIR"
+#: Largest ``--count``.
+MAX_COUNT = 10000
+
+EPILOG = """\
+examples:
+  arenabench check map.py                       # 200 eyrc twin scenes, threshold 95 %
+  arenabench check map.py --count 50 --fail-under 0.9
+  arenabench check src/map.py --preset eyrc-jitter --seed 3 --out check-report/
+
+The twin set is generated once per (preset, seed, count, generator version) into the cache
+(ARENABENCH_CACHE_DIR, else $XDG_CACHE_HOME/arenabench, else ~/.cache/arenabench: sets/) and
+reused. The script runs as '{python} SCRIPT --image IMAGE' (the Python running arenabench,
+which has OpenCV; --python for another) with its own folder visible read-only and a private
+working directory where it writes obstacles.txt; exit status 3 means markers not found.
+
+exit status: 0 pass rate >= --fail-under, 1 below it, 2 bad input, 130/143 interrupted.
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``arenabench check``."""
+    p = argparse.ArgumentParser(
+        prog=PROG,
+        description="Know before you submit: run a competition script on hidden-test twin "
+        "scenes, tell robust failures from luck, and name the strongest cause.",
+        epilog=EPILOG, formatter_class=HelpFormatter,
+    )
+    p.add_argument("script", help="the competition script (map.py)")
+    p.add_argument("--count", type=int, default=DEFAULT_COUNT,
+                   help="twin scenes (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="scene seed (default: %(default)s)")
+    p.add_argument("--preset", default=DEFAULT_PRESET,
+                   help="scene preset (default: %(default)s, the hidden-test twin)")
+    p.add_argument("--fail-under", type=float, default=DEFAULT_FAIL_UNDER, metavar="RATE",
+                   help="pass rate needed for exit status 0 (default: %(default)s)")
+    p.add_argument("--python", default="{python}",
+                   help="interpreter that runs the script (default: the one running "
+                   "arenabench)")
+    p.add_argument("--out", type=Path, default=None,
+                   help="folder for the report files (default: the cache's reports/ folder)")
+    p.add_argument("--workers", type=int, default=None,
+                   help="scripts run at once (default: cores)")
+    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_phase_check_argument(p)
+    add_run_arguments(p)
+    return p
+
+
+def cache_dir() -> Path:
+    """The user cache folder of arenabench (see :data:`CACHE_ENV`)."""
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV])
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "arenabench"
+
+
+def twin_set_dir(*, preset: str, seed: int, count: int) -> Path:
+    """Cache folder of the twin set ``<preset>-<seed>-<count>-<generator version>``."""
+    from arenabench.generator.sample import GENERATOR_VERSION
+
+    return cache_dir() / "sets" / f"{preset}-{seed}-{count}-v{GENERATOR_VERSION}"
+
+
+def _report_dir(script: Path) -> Path:
+    digest = hashlib.sha256(str(script).encode()).hexdigest()[:10]
+    return cache_dir() / "reports" / f"{script.stem}-{digest}"
+
+
+def _error(message: str) -> int:
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    return 2
+
+
+def _validate(args: argparse.Namespace) -> str | None:
+    """The first bad input, as one line; ``None`` when all is well."""
+    from arenabench.generator.presets import get_preset
+
+    script = Path(args.script)
+    if not script.exists():
+        return f"{args.script}: no such file"
+    if not script.is_file():
+        return f"{args.script}: not a file"
+    if not os.access(script, os.R_OK):
+        return f"{args.script}: not readable"
+    if not 1 <= args.count <= MAX_COUNT:
+        return f"--count must be in [1, {MAX_COUNT}], got {args.count}"
+    if args.seed < 0:
+        return f"--seed must be >= 0, got {args.seed}"
+    if not (math.isfinite(args.fail_under) and 0.0 <= args.fail_under <= 1.0):
+        return f"--fail-under must be a pass rate in [0, 1], got {args.fail_under}"
+    if args.workers is not None and args.workers < 1:
+        return f"--workers must be >= 1, got {args.workers}"
+    try:
+        get_preset(args.preset)
+    except ValueError as exc:
+        return f"--preset: {exc}"
+    return None
+
+
+def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
+    """The verdict: pass rate, robust and phase-dependent failures, the strongest cause
+    (:func:`arenabench.eval.breakdown.strongest_cause_text`)."""
+    from .breakdown import strongest_cause_text
+    from .phase_check import PHASE_DEPENDENT_MEANING, rate_text
+
+    s = report.summary
+    ok = s.pass_rate >= fail_under
+    lines = [f"{'PASS' if ok else 'FAIL'}: pass rate {rate_text(s.pass_rate)} "
+             f"({s.n_passed}/{s.n}; needed {rate_text(fail_under)})"]
+    n_fail = s.n - s.n_passed
+    if n_fail:
+        fails = ", ".join(f"{c} {v}" for c, v in s.failures.items() if v)
+        lines.append(f"  failures: {n_fail} ({fails})")
+        pc = s.phase_check
+        if pc is not None:
+            lines.append(f"  robust failures: {pc['robust']} ({rate_text(s.robust_failure_rate)})"
+                         ": fail at every sub-pixel position: the method is wrong there")
+            lines.append(f"  phase-dependent failures: {pc['phase_dependent']} "
+                         f"({rate_text(s.phase_dependent_failure_rate)}): "
+                         f"{PHASE_DEPENDENT_MEANING.split(': ', 1)[1]}")
+        unchecked = pc["unchecked"] if pc is not None else n_fail
+        if phases and unchecked:
+            lines.append(f"  not phase-checked (crash, timeout, limit): {unchecked}")
+        if report.causes:
+            text = strongest_cause_text(report.causes)
+            lines.append(f"  {text[0].lower()}{text[1:]}")
+        first = next(r for r in report.images if not r.passed)
+        detail = first.prediction.message or (
+            f"gt {first.truth.count} obstacles / {first.truth.area:.0f} px, answered "
+            f"{first.prediction.count} / {first.prediction.area}")
+        lines.append(f"  first failure: {first.id}: {first.category}: {detail[:200]}")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``arenabench check``; returns the exit status."""
+    from arenabench.interrupts import Interrupted, stop_on_signals
+
+    with stop_on_signals():
+        try:
+            return _main(argv)
+        except Interrupted as exc:
+            print(f"{PROG}: interrupted ({exc}); nothing more written", file=sys.stderr)
+            return exc.exit_code
+
+
+def _main(argv: list[str] | None) -> int:
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as exc:  # argparse: --help (0) or usage error (2)
+        return int(exc.code or 0)
+    problem = _validate(args)
+    if problem:
+        return _error(problem)
+    import shlex
+
+    from arenabench.fileio import OutputPathError, check_output_dir
+
+    from .pipelines import CommandPipeline
+    from .run_limits import run_settings_from_args
+
+    script = Path(args.script).resolve()
+    out = args.out if args.out is not None else _report_dir(script)
+    try:
+        check_output_dir(out)
+    except OutputPathError as exc:
+        return _error(f"--out {out}: {exc}")
+    template = f"{shlex.quote(args.python)} {shlex.quote(str(script))} --image {{image}}"
+    try:
+        pipeline = CommandPipeline(template, settings=run_settings_from_args(args),
+                                   name=script.name, base_dir=str(script.parent))
+    except ValueError as exc:
+        return _error(str(exc))
+
+    from arenabench.generator.dataset import GenerateError, generate_dataset
+
+    from .dataset import DatasetError, load_dataset
+    from .phase_check import resolve_phases
+    from .reports import write_reports
+    from .runner import EvaluationInterrupted, evaluate
+
+    twin = twin_set_dir(preset=args.preset, seed=args.seed, count=args.count)
+    progress = not args.no_progress
+    try:
+        made = generate_dataset(twin, preset=args.preset, count=args.count, seed=args.seed,
+                                workers=min(args.workers or _cores(), 8), progress=progress)
+        dataset = load_dataset(twin)
+    except (GenerateError, DatasetError, ValueError) as exc:
+        return _error(f"twin set {twin}: {exc}")
+    if made.interrupted is not None:
+        print(f"{PROG}: {made.summary()}", file=sys.stderr)
+        return 128 + made.interrupted
+    what = "reused" if made.rendered == 0 else f"generated {made.rendered} scenes of"
+    print(f"{PROG}: {what} twin set {twin} ({args.count} scenes of {args.preset}, seed "
+          f"{args.seed})")
+    phases = resolve_phases(args.phase_check, [args.preset])
+    try:
+        report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
+                          phases=phases)
+    except EvaluationInterrupted as exc:
+        print(f"{PROG}: interrupted after {exc.report.images_done} images; running scripts "
+              "killed", file=sys.stderr)
+        return exc.exit_code
+    written = write_reports(report, out, dataset=dataset)
+    for line in verdict_lines(report, fail_under=args.fail_under, phases=phases):
+        print(line)
+    print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
+    return 0 if report.summary.pass_rate >= args.fail_under else 1
+
+
+def _cores() -> int:
+    from arenabench.workers import usable_cores
+
+    return usable_cores()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

@@ -1,0 +1,96 @@
+"""``arenabench check SCRIPT`` end to end: a cached twin set, the script run as the competition
+ran it (a real subprocess, sandboxed where bubblewrap works), the phase check, the verdict."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from arenabench.generator.sample import GENERATOR_VERSION
+
+PIPELINES = Path(__file__).resolve().parent / "pipelines"
+# Scene 3 of seed 0 is one the Canny style loses at the example's phases (docs/rendering.md).
+COUNT = 4
+
+
+def _check(*args: str, cache: Path) -> subprocess.CompletedProcess:
+    env = {**os.environ, "ARENABENCH_CACHE_DIR": str(cache)}
+    return subprocess.run([sys.executable, "-m", "arenabench", "check", *args, "--no-progress"],
+                          capture_output=True, text=True, env=env, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("cache")
+
+
+@pytest.mark.slow
+def test_a_good_script_passes_and_the_set_is_reused(cache, tmp_path):
+    out = tmp_path / "report"
+    proc = _check(str(PIPELINES / "style_blur127.py"), "--count", str(COUNT), "--out", str(out),
+                  cache=cache)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert f"PASS: pass rate 100.0 % ({COUNT}/{COUNT}" in proc.stdout
+    assert f"generated {COUNT} scenes" in proc.stdout
+    twin = cache / "sets" / f"eyrc-0-{COUNT}-v{GENERATOR_VERSION}"
+    assert (twin / "dataset.json").is_file()
+    report = json.loads((out / "report.json").read_text())
+    assert report["summary"]["n"] == COUNT and report["summary"]["phase_check"] is None
+    assert str((out / "report.html").resolve()) in proc.stdout
+    again = _check(str(PIPELINES / "style_blur127.py"), "--count", str(COUNT), "--out",
+                   str(tmp_path / "again"), cache=cache)
+    assert again.returncode == 0 and f"reused twin set {twin}" in again.stdout
+
+
+@pytest.mark.slow
+def test_a_canny_script_fails_by_luck(cache, tmp_path):
+    out = tmp_path / "report"
+    proc = _check(str(PIPELINES / "style_canny.py"), "--count", str(COUNT), "--out", str(out),
+                  cache=cache)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "FAIL: pass rate 75.0 % (3/4" in proc.stdout
+    assert "robust failures: 0" in proc.stdout
+    assert "phase-dependent failures: 1 (25.0 %)" in proc.stdout
+    assert "would have depended on luck" in proc.stdout
+    report = json.loads((out / "report.json").read_text())
+    (failing,) = [i for i in report["images"] if not i["pass"]]
+    assert failing["id"] == "000003" and failing["category"] == "wrong_count"
+    phase = failing["phase"]
+    assert phase["n"] == 8 and 0 < phase["passes"] < 8 and phase["class"] == "phase_dependent"
+    assert report["summary"]["phase_dependent_failure_rate"] == 0.25
+    # passing with a lower threshold
+    ok = _check(str(PIPELINES / "style_canny.py"), "--count", str(COUNT), "--fail-under",
+                "0.75", "--phase-check", "off", "--out", str(tmp_path / "off"), cache=cache)
+    assert ok.returncode == 0 and "phase-dependent" not in ok.stdout
+
+
+@pytest.mark.slow
+def test_a_crashing_script_fails_with_its_message(cache, tmp_path):
+    proc = _check(str(PIPELINES / "crash.py"), "--count", str(COUNT), "--out",
+                  str(tmp_path / "report"), cache=cache)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert "FAIL: pass rate 0.0 % (0/4" in proc.stdout
+    assert f"failures: {COUNT} (crash {COUNT})" in proc.stdout
+    assert f"not phase-checked (crash, timeout, limit): {COUNT}" in proc.stdout
+    assert "deliberate crash" in proc.stdout
+
+
+@pytest.mark.parametrize(("args", "needle"), [
+    (["missing.py"], "missing.py: no such file"),
+    (["{pipelines}"], "not a file"),
+    (["{pipelines}/crash.py", "--count", "0"], "--count must be in [1, "),
+    (["{pipelines}/crash.py", "--preset", "nope"], "--preset: unknown preset 'nope'"),
+    (["{pipelines}/crash.py", "--fail-under", "1.5"], "--fail-under must be a pass rate"),
+    (["{pipelines}/crash.py", "--phase-check", "zero"], "--phase-check"),
+])
+def test_bad_input_exits_2_before_any_work(args, needle, tmp_path):
+    cache = tmp_path / "cache"
+    proc = _check(*(a.format(pipelines=PIPELINES) for a in args), cache=cache)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert needle in proc.stderr.strip().splitlines()[-1]
+    assert not cache.exists()

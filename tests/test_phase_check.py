@@ -1,0 +1,187 @@
+"""The phase check (eval/phase_check.py): failing images re-rendered with the boxes moved by
+sub-pixel amounts, the pipeline re-run on each (real renders, real pipelines)."""
+
+from __future__ import annotations
+
+import csv
+import json
+import threading
+
+import edge_phase
+import numpy as np
+import pytest
+
+from arenabench.eval.phase_check import (
+    PHASE_DEPENDENT_MEANING,
+    PhaseResult,
+    box_offsets,
+    parse_phase_check,
+    phase_offsets,
+    resolve_phases,
+    shifted_scene,
+)
+from arenabench.eval.records import Report
+from arenabench.eval.runner import evaluate
+from arenabench.generator.camera import intrinsics, project, world_from_camera
+from arenabench.generator.dataset import generate_dataset
+from arenabench.generator.sampler import sample_scene
+
+PHASES = 8
+# Scenes 0 and 2 of seed 0: edge_phase:detect fails (edge pixel fully covered); 1 and 3 pass.
+COUNT = 4
+
+
+@pytest.fixture(scope="module")
+def twin(tmp_path_factory):
+    out = tmp_path_factory.mktemp("twin") / "eyrc"
+    generate_dataset(out, preset="eyrc", count=COUNT, seed=0, workers=1, progress=False)
+    return out
+
+
+class Counting:
+    """A callable pipeline that counts its calls."""
+
+    def __init__(self, fn):
+        self.fn, self.calls, self._lock = fn, 0, threading.Lock()
+
+    def __call__(self, image):
+        with self._lock:
+            self.calls += 1
+        return self.fn(image)
+
+
+def test_offsets_spread_over_one_pixel():
+    offsets = phase_offsets(PHASES)
+    assert len(set(offsets)) == PHASES
+    assert all(0 < dx < 1 and 0 <= dy < 1 for dx, dy in offsets)
+    # one offset per column and per row of an 8 x 8 grid over the pixel
+    assert sorted(int(dx * PHASES) for dx, _ in offsets) == list(range(PHASES))
+    assert sorted(int(dy * PHASES) for _, dy in offsets) == list(range(PHASES))
+
+
+def test_a_shift_moves_each_box_by_its_own_offset_in_image_pixels():
+    scene = sample_scene("eyrc", seed=0, index=0).scene
+    offsets = box_offsets((0.375, 0.625), len(scene.obstacles))
+    assert len(scene.obstacles) >= 2 and offsets[0] == (0.375, 0.625)
+    assert len(set(offsets)) == len(offsets)  # the boxes get unrelated phases
+    moved = shifted_scene(scene, offsets)
+    K, pose = intrinsics(scene.camera), world_from_camera(scene.camera)
+    for a, b, off in zip(scene.obstacles, moved.obstacles, offsets, strict=True):
+        before = project(np.array([[*a.center_m, a.height_m]]), K, pose)[0]
+        after = project(np.array([[*b.center_m, b.height_m]]), K, pose)[0]
+        assert after - before == pytest.approx(off, abs=1e-9)
+
+
+def test_every_box_sweeps_its_pixel_evenly():
+    for j in range(4):
+        xs = sorted(box_offsets(o, 4)[j][0] for o in phase_offsets(PHASES))
+        assert sorted(int(x * PHASES) for x in xs) == list(range(PHASES))
+
+
+def test_option_values():
+    assert parse_phase_check("off") == 0 and parse_phase_check("12") == 12
+    assert parse_phase_check("auto") == "auto"
+    with pytest.raises(Exception, match="number of phases"):
+        parse_phase_check("0")
+    assert resolve_phases("auto", ["eyrc"]) == PHASES
+    assert resolve_phases("auto", ["eyrc-jitter"]) == 0
+    assert resolve_phases(3, ["warehouse"]) == 3
+
+
+def test_phase_dependent_failures_get_some_passes_and_passing_images_are_not_rerun(twin,
+                                                                                  tmp_path):
+    pipe = Counting(edge_phase.detect)
+    report = evaluate(pipe, twin, workers=2, phases=PHASES)
+    failing = [r for r in report.images if not r.passed]
+    assert [r.id for r in failing] == ["000000", "000002"]
+    for r in failing:
+        assert r.phase is not None and 0 < r.phase.passes < PHASES, r.phase
+        assert r.phase.label == "phase_dependent"
+    assert all(r.phase is None for r in report.images if r.passed)
+    # every image once, then N phases of each failing image only
+    assert pipe.calls == COUNT + PHASES * len(failing)
+    s = report.summary
+    assert s.phase_dependent_failure_rate == pytest.approx(2 / COUNT)
+    assert s.robust_failure_rate == 0.0
+    assert s.phase_check["phases"] == PHASES and s.phase_check["meaning"] == (
+        PHASE_DEPENDENT_MEANING)
+    # JSON round trip keeps the per-image record
+    doc = json.loads(json.dumps(report.to_dict()))
+    assert doc["images"][0]["phase"] == {"passes": failing[0].phase.passes, "n": PHASES,
+                                         "class": "phase_dependent"}
+    again = Report.from_dict(doc)
+    assert again.images[0].phase == failing[0].phase
+    assert again.summary.phase_dependent_failure_rate == s.phase_dependent_failure_rate
+    # every human report says what phase-dependent means, beside the rates
+    from arenabench.eval.reports import write_reports
+
+    files = write_reports(report, tmp_path, formats=("md", "html", "csv", "junit"))
+    assert (f'message="phase-dependent (passes {failing[0].phase.passes}/{PHASES} sub-pixel '
+            "phases): wrong_count") in files["junit"].read_text()
+    sentence = PHASE_DEPENDENT_MEANING.split(": ", 1)[1]
+    md, page = files["md"].read_text(), files["html"].read_text()
+    assert sentence in md and "| phase-dependent failures | 50.0 % (2/4; 8 phases" in md
+    assert f"{failing[0].phase.passes}/{PHASES} phase-dependent" in md
+    assert sentence in page and "robust failures (fail at every phase)" in page
+    first = next(csv.DictReader(files["csv"].read_text().splitlines()))
+    assert first["phase_class"] == "phase_dependent" and first["phase_n"] == str(PHASES)
+
+
+def test_an_always_wrong_pipeline_fails_every_phase(twin):
+    pipe = Counting(edge_phase.always_wrong)
+    report = evaluate(pipe, twin, workers=2, limit=1, phases=PHASES)
+    (r,) = report.images
+    assert r.phase == PhaseResult(passes=0, n=PHASES) and r.phase.label == "robust"
+    assert report.summary.robust_failure_rate == 1.0
+    assert report.summary.phase_dependent_failure_rate == 0.0
+    assert pipe.calls == 1 + PHASES
+
+
+def test_nothing_is_rerun_when_nothing_fails_or_the_check_is_off(twin):
+    good = Counting(edge_phase.reference_answer)
+    report = evaluate(good, twin, workers=2, phases=PHASES)
+    assert report.summary.pass_rate == 1.0 and good.calls == COUNT
+    assert report.summary.phase_check is None and report.summary.robust_failure_rate is None
+    off = Counting(edge_phase.always_wrong)
+    report = evaluate(off, twin, workers=2, phases=0)
+    assert off.calls == COUNT and all(r.phase is None for r in report.images)
+    assert "phase" not in report.to_dict()["images"][0]
+
+
+def test_a_sweep_phase_checks_its_failures_in_the_worker():
+    from arenabench.eval.sweep.grid import parse_varies
+    from arenabench.eval.sweep.records import PipelineSpec, SweepSpec
+    from arenabench.eval.sweep.runner import run_sweep
+
+    spec = SweepSpec(preset="eyrc", axes=parse_varies(["degrade.gamma=1:1:1"]),
+                     per_point=COUNT, seed=0, phases=PHASES,
+                     pipelines=(PipelineSpec("pipeline", "edge_phase:detect"),
+                                PipelineSpec("pipeline", "edge_phase:reference_answer")))
+    result = run_sweep(spec, workers=1, progress=False)
+    rows = {(r["pipeline"], r["scene"]): r for r in result.images}
+    edge = "edge_phase:detect"
+    assert [s for s in range(COUNT) if not rows[(edge, s)]["pass"]] == [0, 2]
+    for s in (0, 2):
+        phase = rows[(edge, s)]["phase"]
+        assert phase["n"] == PHASES and 0 < phase["passes"] < PHASES
+    assert all("phase" not in r for r in result.images if r["pass"])
+    summaries = {p.pipeline: p.summary for p in result.summaries}
+    assert summaries[edge].phase_dependent_failure_rate == pytest.approx(0.5)
+    assert summaries["edge_phase:reference_answer"].phase_check is None
+
+
+def test_a_clean_run_never_loads_the_renderer(twin):
+    import subprocess
+    import sys
+
+    code = (
+        "import sys; from arenabench.eval.runner import evaluate\n"
+        f"r = evaluate('reference', {str(twin)!r}, workers=1, phases=8)\n"
+        "assert r.summary.pass_rate == 1.0\n"
+        "print(sorted(m for m in sys.modules if m.startswith(('arenabench.generator', "
+        "'pyrender'))))\n"
+    )
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.strip() == "[]"
