@@ -8,17 +8,22 @@ written with ``"complete": false``).
 
 from __future__ import annotations
 
-import argparse
-import math
 import sys
 from pathlib import Path
 
-from arenabench.clihelp import HelpFormatter
-from arenabench.limits import MAX_WORKERS
+from arenabench.cliopts import (
+    CommandParser,
+    add_area_reference,
+    add_count,
+    add_no_progress,
+    add_out,
+    add_run_options,
+    add_tolerance,
+    add_workers,
+)
 
-from .dataset import AREA_REFERENCES
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
-from .run_limits import add_run_arguments, run_settings_from_args
+from .run_limits import run_settings_from_args
 
 EPILOG = """\
 examples:
@@ -45,13 +50,12 @@ exit status: 0 ok, 1 a threshold missed, 2 usage error, 130/143 interrupted (SIG
 """
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The argument parser of ``arenabench eval``."""
-    p = argparse.ArgumentParser(
+    p = CommandParser(
         prog="arenabench eval",
         description="Score an obstacle-detection pipeline on a dataset written by the generator.",
         epilog=EPILOG,
-        formatter_class=HelpFormatter,
     )
     p.add_argument("dataset", nargs="?", help="dataset folder (holds manifest.jsonl and gt/)")
     src = p.add_mutually_exclusive_group()
@@ -72,21 +76,16 @@ def build_parser() -> argparse.ArgumentParser:
         default="obstacles",
         help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line",
     )
-    p.add_argument("--workers", type=int, default=None, help="parallel workers (default: cores)")
+    add_workers(p, help="parallel workers")
     p.add_argument(
         "--executor",
         choices=("thread", "process"),
         default="thread",
         help="pool for in-process pipelines (default thread)",
     )
-    p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument(
-        "--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
-        help="GT area the answer is compared with: visible (the silhouettes a camera-side "
-        "segmentation sees), footprint (the boxes' floor area) or contour (what "
-        "cv2.contourArea of the pixelated silhouettes gives, about half a perimeter less)",
-    )
-    p.add_argument("--out", type=Path, default=None, help="folder for the report files")
+    add_tolerance(p)
+    add_area_reference(p)
+    add_out(p, help="folder for the report files")
     p.add_argument(
         "--formats",
         default="json,csv,md,html,junit",
@@ -99,9 +98,9 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="METRIC=VALUE",
         help="threshold(s); see below",
     )
-    p.add_argument("--limit", type=int, default=None, help="evaluate only the first N images")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    add_run_arguments(p)
+    add_count(p, "--limit", help="evaluate only the first N images")
+    add_no_progress(p)
+    add_run_options(p)
     p.add_argument(
         "--no-verify",
         action="store_true",
@@ -127,9 +126,8 @@ def _warn_if_incomplete(root: Path) -> None:
               file=sys.stderr)
 
 
-def _usage_error(parser: argparse.ArgumentParser, message: str) -> int:
-    print(f"arenabench eval: error: {message}", file=sys.stderr)
-    return 2
+def _usage_error(parser: CommandParser, message: str) -> int:
+    return parser.fail(message)
 
 
 def _run_compare(old: str, new: str) -> int:
@@ -162,7 +160,7 @@ def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except SystemExit as exc:  # argparse: --help (0) or usage error (2)
+    except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
         return int(exc.code or 0)
     if args.compare:
         return _run_compare(*args.compare)
@@ -170,14 +168,6 @@ def _main(argv: list[str] | None) -> int:
         return _usage_error(parser, "a DATASET folder is required (or --compare OLD NEW)")
     if not args.pipeline and not args.cmd:
         return _usage_error(parser, "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE")
-    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
-        return _usage_error(parser, f"--workers must be in [1, {MAX_WORKERS}], got {args.workers}")
-    if args.limit is not None and args.limit < 1:
-        return _usage_error(parser, f"--limit must be >= 1, got {args.limit}")
-    if not (math.isfinite(args.tolerance) and args.tolerance >= 0):
-        return _usage_error(
-            parser, f"--tolerance must be a finite number >= 0, got {args.tolerance}"
-        )
     if args.out is not None:
         from arenabench.fileio import OutputPathError, check_output_dir
 

@@ -9,16 +9,12 @@ from pathlib import Path
 from typing import Any
 
 from arenabench.fileio import sha256_bytes, sha256_file
+from arenabench.gtrecord import AREA_REFERENCES as AREA_REFERENCES  # declared there
+from arenabench.gtrecord import DEFAULT_AREA_REFERENCE as DEFAULT_AREA_REFERENCE
 from arenabench.gtrecord import GroundTruth
 from arenabench.schemas import gt_problem
 
 from .records import Truth
-
-#: ``--area-reference`` name -> GT ``area`` field. ``contour_px`` is absent from GT files
-#: written before generator version 4.
-AREA_REFERENCES: dict[str, str] = {
-    "visible": "visible_px", "footprint": "footprint_px", "contour": "contour_px",
-}
 
 
 class DatasetError(ValueError):

@@ -9,14 +9,21 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import (
+    CommandParser,
+    add_area_reference,
+    add_no_progress,
+    add_out,
+    add_run_options,
+    add_scheduler,
+    add_tolerance,
+    add_workers,
+)
 from arenabench.interrupts import Interrupted, stop_on_signals
 
-from .dataset import AREA_REFERENCES
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
-from .run_limits import add_run_arguments, run_settings_from_args
+from .run_limits import run_settings_from_args
 
 EPILOG = """\
 examples:
@@ -55,16 +62,15 @@ class _PipelineAction(argparse.Action):
         setattr(namespace, self.dest, items)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The argument parser of ``arenabench sweep``."""
     from arenabench.generator.presets import preset_names
 
-    p = argparse.ArgumentParser(
+    p = CommandParser(
         prog="arenabench sweep",
         description="Robustness sweep: vary preset parameters over a grid (or at random), "
                     "render and score every point in memory, report breakdown points.",
         epilog=EPILOG,
-        formatter_class=HelpFormatter,
     )
     p.add_argument("--preset", default="eyrc",
                    help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
@@ -85,11 +91,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="external command, e.g. 'python3 map.py --image {image}' (repeatable)")
     p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
                    help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line")
-    p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
-                   help="GT area the answer is compared with: visible (the silhouettes a "
-                        "camera-side segmentation sees), footprint (the boxes' floor area) or "
-                        "contour (what cv2.contourArea of the pixelated silhouettes gives)")
+    add_tolerance(p)
+    add_area_reference(p)
     p.add_argument("--threshold", type=float, default=0.9,
                    help="breakdown threshold on the pass rate's lower 95 %% bound (default 0.9)")
     p.add_argument("--breakdown-mode", choices=("marginal", "axis"), default="marginal",
@@ -100,14 +103,12 @@ def build_parser() -> argparse.ArgumentParser:
                       help="write every rendered image and its GT to OUT/images, OUT/gt")
     keep.add_argument("--keep-failures", action="store_true",
                       help="write only images some pipeline failed on")
-    p.add_argument("--out", type=Path, required=True, help="output folder")
-    p.add_argument("--workers", type=int, default=None,
-                   help="local processes (default: cores; 1 = in this process)")
-    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                   help="run on an existing Dask distributed cluster")
+    add_out(p, required=True)
+    add_workers(p, help="local processes (1 = in this process)")
+    add_scheduler(p, help="run on an existing Dask distributed cluster")
     p.add_argument("--no-plots", action="store_true", help="skip plots and sweep.html")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
-    add_run_arguments(p)
+    add_no_progress(p)
+    add_run_options(p)
     return p
 
 
@@ -121,12 +122,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except SystemExit as exc:  # argparse: --help (0) or usage error (2)
+    except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
         return int(exc.code or 0)
     from arenabench.fileio import OutputPathError, check_output_dir
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
-    from arenabench.limits import MAX_WORKERS
 
     from .sweep.grid import parse_varies
     from .sweep.outputs import KeptImageWriter, write_sweep
@@ -141,11 +141,6 @@ def main(argv: list[str] | None = None) -> int:
         return _error("give at least one --vary KEY=SPEC")
     if not args.pipes:
         return _error("give --pipeline NAME|pkg.module:function and/or --cmd TEMPLATE")
-    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
-        return _error(f"--workers must be in [1, {MAX_WORKERS}], got {args.workers}")
-    if args.scheduler is not None and args.workers is not None:
-        return _error("--workers and --scheduler exclude each other (the cluster's workers "
-                      "do the work)")
     try:
         get_preset(args.preset)
         axes = parse_varies(args.vary)

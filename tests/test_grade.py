@@ -328,8 +328,8 @@ def test_ranking_keys_and_deterministic_ties():
 @pytest.mark.parametrize(
     ("extra", "needle"),
     [
-        (["--workers", "0"], "--workers must be >= 1"),
-        (["--timeout", "0"], "--timeout must be > 0"),
+        (["--workers", "0"], "argument --workers: must be an integer in [1, 256], got '0'"),
+        (["--timeout", "0"], "argument --timeout: must be a finite number in (0, 86400], got '0'"),
         (["--formats", "html,pdf"], "--formats must be"),
         (["--cmd", "python3 'unclosed"], "--cmd cannot be split"),
         (["--memory-limit", "lots"], "--memory-limit: not a size"),

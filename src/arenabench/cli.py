@@ -15,6 +15,7 @@ import os
 import sys
 from collections.abc import Callable
 
+from arenabench.cliopts import EXIT_USAGE
 from arenabench.suggest import did_you_mean
 
 #: command name -> (module, one-line description)
@@ -35,7 +36,6 @@ COMMANDS: dict[str, tuple[str, str]] = {
 
 #: Exit status when the reader of stdout went away (128 + SIGPIPE, as a shell reports it).
 EXIT_BROKEN_PIPE = 141
-EXIT_USAGE = 2
 
 
 def _usage() -> str:

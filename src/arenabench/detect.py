@@ -17,31 +17,20 @@ and area 0.0, so graders can parse it).
 
 from __future__ import annotations
 
-import argparse
 import sys
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import EXIT_USAGE, CommandParser
 from arenabench.competition import OBSTACLES_FILE, format_obstacles_txt
 from arenabench.fileio import OutputPathError, check_output_file, write_output_text
 from arenabench.frame import FrameSpec
 
 PROG = "arenabench detect"
-EXIT_OK, EXIT_USAGE, EXIT_MARKERS = 0, 2, 3
+EXIT_OK, EXIT_MARKERS = 0, 3
 
 
-class _UsageError(Exception):
-    pass
-
-
-class _Parser(argparse.ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
-        raise _UsageError(message)
-
-
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The command's argument parser."""
-    p = _Parser(
-        formatter_class=HelpFormatter,
+    p = CommandParser(
         prog=PROG,
         description="Detect the arena markers and obstacles in one overhead image and write "
         "obstacles.txt in the competition's format.",
@@ -85,9 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except _UsageError as exc:
-        return _error(str(exc))
-    except SystemExit as exc:  # --help
+    except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
         return int(exc.code or 0)
 
     if args.indent is not None and args.indent < 0:
