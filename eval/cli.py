@@ -71,6 +71,15 @@ def build_parser() -> CommandParser:
         "--compare", nargs=2, metavar=("OLD", "NEW"), help="compare two report.json files"
     )
     p.add_argument(
+        "--fail-on-regression", action="append", default=[], metavar="METRIC=DELTA",
+        help="with --compare: exit 1 when METRIC got worse by more than DELTA, e.g. "
+        "pass_rate=0.02,area_rel_err.p95=0.01 (comma-separated or repeated)",
+    )
+    p.add_argument(
+        "--name", default=None,
+        help="the --cmd pipeline's name in reports (default: its template)",
+    )
+    p.add_argument(
         "--output",
         choices=OUTPUT_MODES,
         default="obstacles",
@@ -106,6 +115,11 @@ def build_parser() -> CommandParser:
         action="store_true",
         help="do not check images and GT against the sha256 values of manifest.jsonl",
     )
+    p.add_argument(
+        "--skip-damaged", action="store_true",
+        help="leave out image files that cannot be whole images (empty, text, cut short) and "
+        "score the others (default: such a dataset is refused, 'dataset damaged')",
+    )
     return p
 
 
@@ -130,16 +144,22 @@ def _usage_error(parser: CommandParser, message: str) -> int:
     return parser.fail(message)
 
 
-def _run_compare(old: str, new: str) -> int:
-    from .compare import compare, format_comparison
+def _run_compare(old: str, new: str, gate: list[str]) -> int:
+    from .compare import compare, format_comparison, parse_regression_limits, regressions
     from .reports.json_report import read_json
 
     try:
+        limits = parse_regression_limits(gate)
         a, b = read_json(old), read_json(new)
     except ValueError as exc:
         print(f"arenabench eval: error: {exc}", file=sys.stderr)
         return 2
-    print(format_comparison(compare(a, b), old_name=old, new_name=new), end="")
+    cmp = compare(a, b)
+    print(format_comparison(cmp, old_name=old, new_name=new), end="")
+    reasons = regressions(cmp, limits)
+    if reasons:
+        print(f"arenabench eval: FAILED: regression: {'; '.join(reasons)}", file=sys.stderr)
+        return 1
     return 0
 
 
@@ -163,9 +183,15 @@ def _main(argv: list[str] | None) -> int:
     except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
         return int(exc.code or 0)
     if args.compare:
-        return _run_compare(*args.compare)
+        return _run_compare(*args.compare, args.fail_on_regression)
+    if args.fail_on_regression:
+        return _usage_error(parser, "--fail-on-regression goes with --compare OLD NEW")
     if not args.dataset:
         return _usage_error(parser, "a DATASET folder is required (or --compare OLD NEW)")
+    if args.name is not None and not args.cmd:
+        return _usage_error(parser, "--name names a --cmd pipeline (give --cmd TEMPLATE)")
+    if args.name is not None and not args.name.strip():
+        return _usage_error(parser, "--name must not be empty")
     if not args.pipeline and not args.cmd:
         return _usage_error(parser, "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE")
     if args.out is not None:
@@ -185,19 +211,28 @@ def _main(argv: list[str] | None) -> int:
 
     formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
     bad = [f for f in formats if f not in FORMATS]
+    if not formats:
+        return _usage_error(parser, f"--formats {args.formats!r}: no format named (known: "
+                                    f"{', '.join(FORMATS)})")
     if bad:
         return _usage_error(parser, f"--formats: unknown {bad} (known: {', '.join(FORMATS)})")
     try:
         thresholds = parse_thresholds(args.fail_under)
         pipeline = (
-            CommandPipeline(args.cmd, settings=run_settings_from_args(args), output=args.output)
+            CommandPipeline(args.cmd, settings=run_settings_from_args(args), output=args.output,
+                            name=args.name or "")
             if args.cmd
             else make_pipeline(args.pipeline)
         )
-        dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify)
+        dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
+                               skip_damaged=args.skip_damaged)
     except (DatasetError, ValueError) as exc:
         return _usage_error(parser, str(exc))
     _warn_if_incomplete(Path(args.dataset))
+    if dataset.skipped:
+        first, why = dataset.skipped[0]
+        print(f"arenabench eval: warning: {len(dataset.skipped)} damaged image(s) left out "
+              f"(--skip-damaged; {first}: {why})", file=sys.stderr)
     interrupted: EvaluationInterrupted | None = None
     try:
         report = evaluate(

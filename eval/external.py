@@ -242,10 +242,12 @@ def _read_small(path: Path, limit: int) -> bytes:
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     except OSError as exc:
         raise OutputFormatError(f"{OBSTACLES_FILE} cannot be read: {exc.strerror}") from None
+    st = os.fstat(fd)  # before fdopen, which refuses a directory with IsADirectoryError
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file"
+        raise OutputFormatError(f"{OBSTACLES_FILE} is {kind}")
     with os.fdopen(fd, "rb") as fh:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise OutputFormatError(f"{OBSTACLES_FILE} is not a regular file")
         if st.st_size > limit:
             raise OutputFormatError(
                 f"{OBSTACLES_FILE} is {st.st_size} bytes, more than the {limit} allowed"
@@ -363,9 +365,13 @@ class CommandPipeline:
     def _resolved_args(self) -> list[str]:
         out = []
         for arg in self._argv:
-            if "{" not in arg and not arg.startswith("-") and not os.path.isabs(arg):
-                candidate = Path(self.base_dir, arg)
-                if candidate.exists():
+            if arg and "{" not in arg and not arg.startswith("-") and not os.path.isabs(arg):
+                candidate = Path(self.base_dir, arg)  # '' is an argument, never the folder
+                try:
+                    exists = candidate.exists()
+                except OSError:  # e.g. longer than a file name may be: an argument, not a path
+                    exists = False
+                if exists:
                     arg = os.path.abspath(candidate)
             out.append(arg)
         return out

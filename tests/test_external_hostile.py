@@ -366,3 +366,29 @@ def test_a_command_on_path_sees_its_installation_prefix(toy, run_tmp, tmp_path, 
     for r in evaluate(pipe, toy, workers=2, limit=2).images:
         assert r.prediction.status == "ok", (r.prediction.message, r.prediction.stderr)
         assert (r.prediction.count, r.prediction.area) == (1, 10.0)
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_obstacles_txt_that_is_a_directory_is_bad_output(sandbox, toy, run_tmp):
+    settings = RunSettings(limits=RunLimits(timeout_s=30.0), sandbox=sandbox)
+    pipe = CommandPipeline(f"{PY} -c \"import os; os.mkdir('obstacles.txt')\" {{image}}",
+                           settings=settings)
+    images = evaluate(pipe, toy, workers=1, limit=1).images
+    assert [(r.category, r.prediction.message) for r in images] == [
+        ("bad_output", "obstacles.txt is a directory")]
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_long_and_empty_arguments_reach_the_command_as_given(sandbox, toy, run_tmp):
+    long_arg = "x" * 300
+    check = ("import sys, os; a = sys.argv[1:]; "
+             f"ok = a[0] == {long_arg!r} and a[1] == '' and os.path.isfile(a[2]); "
+             "open('obstacles.txt', 'w').write('Obstacles: 0\\nArea: 0.0\\n') if ok "
+             "else sys.exit('args: ' + repr(a)[:200])")
+    settings = RunSettings(limits=RunLimits(timeout_s=30.0), sandbox=sandbox)
+    pipe = CommandPipeline(f"{PY} -c \"{check}\" {long_arg} '' {{image}}", settings=settings)
+    images = evaluate(pipe, toy, workers=1, limit=1).images
+    assert images[0].category in (None, "wrong_count", "area_off"), images[0].prediction.message
+    argv = pipe.argv(Path("/x/image.png"))
+    assert argv[3:5] == [long_arg, ""], argv  # never the working directory's path
+    assert os.getcwd() not in pipe._visible_paths()

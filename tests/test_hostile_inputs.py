@@ -397,7 +397,133 @@ def test_damaged_dataset_is_refused_and_no_verify_skips_the_check(toy, tmp_path,
     assert_clean_error(proc, f"{bad / where}: content does not match", prog="eval")
     proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
                "--no-verify")
-    assert "Traceback" not in proc.stderr and proc.returncode in (0, 1), proc.stderr
+    if damage == "truncate":  # a PNG cut short: damaged whatever the manifest says
+        assert_clean_error(proc, f"dataset damaged: {bad / where}: truncated PNG",
+                           "--skip-damaged", prog="eval")
+    else:
+        assert "Traceback" not in proc.stderr and proc.returncode in (0, 1), proc.stderr
+
+
+@pytest.mark.parametrize("damage", ["truncated", "empty", "text"])
+@pytest.mark.parametrize("verify", [True, False])
+def test_damaged_image_with_matching_hash_is_a_damaged_dataset(toy, tmp_path, damage, verify):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    img = bad / "images" / "000001.png"
+    img.write_bytes({"truncated": img.read_bytes()[:300], "empty": b"",
+                     "text": b"this is not an image\n"}[damage])
+    rehash(bad)  # the manifest agrees with the damaged file
+    why = {"truncated": "truncated PNG", "empty": "empty file", "text": "not an image file"}
+    no_verify = () if verify else ("--no-verify",)
+    out = tmp_path / "out"
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+               "--out", str(out), *no_verify)
+    assert_clean_error(proc, f"dataset damaged: {img}: {why[damage]}", prog="eval")
+    assert not out.exists()
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+               "--out", str(out), "--skip-damaged", *no_verify)
+    assert proc.returncode == 0, proc.stderr
+    assert "1 damaged image(s) left out" in proc.stderr and "Traceback" not in proc.stderr
+    report = strict_json((out / "report.json").read_text())
+    assert [i["id"] for i in report["images"]] == ["000000", "000002"]
+
+
+@pytest.mark.parametrize("where", ["absolute", "dotdot", "symlink"])
+def test_manifest_paths_that_leave_the_dataset_are_refused(toy, tmp_path, where):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    outside = tmp_path / "outside.png"
+    shutil.copyfile(bad / "images" / "000001.png", outside)
+    manifest = bad / "manifest.jsonl"
+    rows = [json.loads(line) for line in manifest.read_text().splitlines()]
+    if where == "absolute":
+        rows[1]["image"] = str(outside)
+    elif where == "dotdot":
+        rows[1]["image"] = "images/../../outside.png"
+    else:
+        (bad / "images" / "000001.png").unlink()
+        (bad / "images" / "000001.png").symlink_to(outside)
+    manifest.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    for extra in ((), ("--no-verify",)):
+        proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress", *extra)
+        assert_clean_error(proc, ":2: image path", "leaves the dataset folder",
+                           "a dataset is a closed folder", prog="eval")
+
+
+def test_gt_area_1e_320_does_not_blame_the_pipeline():
+    from arenabench.eval.metrics import score_image
+    from arenabench.eval.records import Prediction, Truth
+
+    truth = Truth(count=0, area=1e-320, marker_ids=(80, 85, 90, 95))
+    ok = score_image(truth, Prediction(status="ok", count=0, area=0.0,
+                                       marker_ids=(80, 85, 90, 95)))
+    assert ok.passed and ok.area_err_kind == "absolute_px"
+    off = score_image(truth, Prediction(status="ok", count=0, area=5.0,
+                                        marker_ids=(80, 85, 90, 95)))
+    assert off.category == "area_off" and off.area_rel_err == 5.0
+
+
+def test_empty_formats_is_refused(toy, tmp_path):
+    proc = run("eval", str(toy), "--pipeline", "toy_arena:detect", "--formats", " , ",
+               "--out", str(tmp_path / "o"))
+    assert_clean_error(proc, "--formats ' , ': no format named", prog="eval")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("command", ["eval", "sweep", "grade"])
+def test_cmd_template_without_image_is_refused(toy, tmp_path, command):
+    cmd = "python3 map.py --fast"
+    argv = {"eval": ("eval", str(toy), "--cmd", cmd),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--cmd", cmd,
+                      "--out", str(tmp_path / "o")),
+            "grade": ("grade", str(toy), str(tmp_path), "--cmd", cmd,
+                      "--out", str(tmp_path / "o"))}[command]
+    proc = run(*argv, cwd=tmp_path)
+    assert_clean_error(proc, "--cmd 'python3 map.py --fast': the template has no {image}",
+                       prog=command)
+    assert not (tmp_path / "o").exists()
+
+
+def test_cmd_name_and_compare_gate(toy, tmp_path):
+    good, bad = tmp_path / "good", tmp_path / "bad"
+    proc = run("eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(good),
+               "--formats", "json", "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    cmd = f"{{python}} {PIPES / 'liar.py'} --image {{image}} --obstacles 'Obstacles: 7'"
+    proc = run("eval", str(toy), "--cmd", cmd, "--name", "team liar", "--out", str(bad),
+               "--formats", "json", "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((bad / "report.json").read_text())["pipeline"] == "team liar"
+    assert proc.stdout.startswith("team liar: pass rate 0.0 %")
+    ok = run("eval", "--compare", str(good / "report.json"), str(bad / "report.json"))
+    assert ok.returncode == 0  # no gate asked for
+    gated = run("eval", "--compare", str(good / "report.json"), str(bad / "report.json"),
+                "--fail-on-regression", "pass_rate=0.05")
+    assert gated.returncode == 1 and "Traceback" not in gated.stderr
+    assert gated.stderr.strip() == ("arenabench eval: FAILED: regression: pass_rate 1 -> 0 "
+                                    "(worse by 1, more than 0.05)"), gated.stderr
+    better = run("eval", "--compare", str(bad / "report.json"), str(good / "report.json"),
+                 "--fail-on-regression", "pass_rate=0")
+    assert better.returncode == 0, better.stderr
+    typo = run("eval", "--compare", str(good / "report.json"), str(bad / "report.json"),
+               "--fail-on-regression", "pas_rate=0")
+    assert_clean_error(typo, "did you mean 'pass_rate'?", prog="eval")
+    alone = run("eval", str(toy), "--pipeline", "reference", "--name", "x")
+    assert_clean_error(alone, "--name names a --cmd pipeline", prog="eval")
+
+
+def test_detect_into_a_closed_pipe_exits_141_quietly(tmp_path):
+    for module in (("-m", "arenabench", "detect"), ("-m", "arenabench.detect")):
+        proc = subprocess.run(
+            f"{sys.executable} {' '.join(module)} --image {EXAMPLE} --output - | true; "
+            "exit ${PIPESTATUS[0]}", shell=True, executable="/bin/bash", capture_output=True,
+            text=True, timeout=120, cwd=tmp_path)
+        assert proc.returncode == 141, proc.stderr
+        assert proc.stderr == "", proc.stderr
 
 
 def test_manifest_without_hashes_needs_no_verify(toy, tmp_path):

@@ -368,9 +368,39 @@ def add_count(parser: argparse.ArgumentParser, flag: str = "--count", *,
                                     metavar="N", help=help, **kwargs), "add_count")
 
 
-def add_run_options(parser: argparse.ArgumentParser) -> None:
+#: What a ``--cmd`` template must hold: where the image's path goes.
+IMAGE_PLACEHOLDER = "{image}"
+
+
+def _cmd_templates(ns: argparse.Namespace) -> list[str]:
+    cmd = getattr(ns, "cmd", None)
+    pipes = getattr(ns, "pipes", None) or ()  # sweep: (kind, value) in the order given
+    return ([cmd] if isinstance(cmd, str) else []) + [v for k, v in pipes if k == "cmd"]
+
+
+def cmd_template_problem(ns: argparse.Namespace) -> str | None:
+    """A ``--cmd`` template without ``{image}`` (every image would fail the same way) is a
+    usage error, unless ``--image-name`` names the file the command opens by itself."""
+    if getattr(ns, "image_name", None):
+        return None
+    import shlex
+
+    for template in _cmd_templates(ns):
+        try:
+            shlex.split(template)
+        except ValueError:  # unbalanced quotes: the runner's own one-line error says so
+            continue
+        if IMAGE_PLACEHOLDER not in template:
+            return (f"--cmd {template!r}: the template has no {IMAGE_PLACEHOLDER} (the "
+                    "image's path; or give --image-name for a command that opens a fixed name)")
+    return None
+
+
+def add_run_options(parser: CommandParser) -> None:
     """The options of external runs (``--timeout``, the limits, ``--sandbox``, ``--env``);
-    :func:`arenabench.eval.run_limits.run_settings_from_args` reads them."""
+    :func:`arenabench.eval.run_limits.run_settings_from_args` reads them. A ``--cmd``
+    template must hold ``{image}`` (:func:`cmd_template_problem`)."""
+    parser.add_check(cmd_template_problem)
     g = parser.add_argument_group("external command runs (--cmd)")
     _tag(g.add_argument("--timeout", type=TIMEOUT_RULE.argtype("--timeout"),
                         default=DEFAULT_TIMEOUT_S,

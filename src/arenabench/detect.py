@@ -110,6 +110,8 @@ def main(argv: list[str] | None = None) -> int:
     text = format_obstacles_txt(result.marker_ids, result.count, result.total_area)
     try:
         write_output_text(args.output, text)
+    except BrokenPipeError:
+        raise  # the reader went away: arenabench.cli.run exits quietly with 141
     except OSError as exc:
         return _error(f"cannot write {args.output}: {exc.strerror or exc}")
     if args.json:
