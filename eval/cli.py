@@ -9,6 +9,7 @@ written with ``"complete": false``).
 from __future__ import annotations
 
 import sys
+from contextlib import ExitStack
 from pathlib import Path
 
 from arenabench.cliopts import (
@@ -20,6 +21,7 @@ from arenabench.cliopts import (
     add_run_options,
     add_tolerance,
     add_workers,
+    lock_out,
 )
 
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
@@ -165,18 +167,20 @@ def _run_compare(old: str, new: str, gate: list[str]) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``arenabench eval``; returns the exit status."""
+    from contextlib import ExitStack
+
     from arenabench.interrupts import Interrupted, stop_on_signals
 
-    with stop_on_signals():
+    with stop_on_signals(), ExitStack() as held:  # held: the --out lock, until the end
         try:
-            return _main(argv)
+            return _main(argv, held)
         except Interrupted as exc:
             print(f"arenabench eval: interrupted ({exc}); nothing more written",
                   file=sys.stderr)
             return exc.exit_code
 
 
-def _main(argv: list[str] | None) -> int:
+def _main(argv: list[str] | None, held: ExitStack) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
@@ -227,6 +231,12 @@ def _main(argv: list[str] | None) -> int:
         dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
                                skip_damaged=args.skip_damaged)
     except (DatasetError, ValueError) as exc:
+        return _usage_error(parser, str(exc))
+    from arenabench.fileio import FolderLockedError
+
+    try:  # the same lock as generate's: one run at a time writes into --out
+        held.enter_context(lock_out(args.out))
+    except FolderLockedError as exc:
         return _usage_error(parser, str(exc))
     _warn_if_incomplete(Path(args.dataset))
     if dataset.skipped:

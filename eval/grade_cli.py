@@ -23,6 +23,7 @@ from arenabench.cliopts import (
     add_scheduler,
     add_tolerance,
     add_workers,
+    lock_out,
 )
 
 from .pipelines import OUTPUT_MODES
@@ -128,10 +129,14 @@ def main(argv: list[str] | None = None) -> int:
             if msg.startswith(f"{param} "):
                 msg = f"{option}{msg[len(param):]}"
         return _error(msg)
+    from contextlib import ExitStack
+
+    from arenabench.fileio import FolderLockedError
     from arenabench.interrupts import Interrupted, stop_on_signals
 
-    with stop_on_signals():
+    with stop_on_signals(), ExitStack() as held:
         try:
+            held.enter_context(lock_out(args.out))  # generate's lock: one run per --out
             result = grade(dataset, args.submissions, args.out, options=options,
                            workers=args.workers, scheduler=args.scheduler,
                            report_workers=args.report_workers, progress=not args.no_progress,
@@ -140,6 +145,8 @@ def main(argv: list[str] | None = None) -> int:
             return _error(str(exc))
         except OSError as exc:  # e.g. the scheduler cannot be reached
             return _error(f"{type(exc).__name__}: {exc}")
+        except FolderLockedError as exc:
+            return _error(str(exc))
         except Interrupted as exc:
             print(f"{PROG}: {exc}: finished teams stay graded; run the same command again "
                   "to resume", file=sys.stderr)

@@ -19,6 +19,7 @@ from arenabench.cliopts import (
     add_scheduler,
     add_tolerance,
     add_workers,
+    lock_out,
 )
 from arenabench.interrupts import Interrupted, stop_on_signals
 
@@ -166,15 +167,22 @@ def main(argv: list[str] | None = None) -> int:
         )
     except ValueError as exc:
         return _error(str(exc))
+    from contextlib import ExitStack
+
+    from arenabench.fileio import FolderLockedError
+
     writer = KeptImageWriter(args.out)
-    with stop_on_signals() as stop:
+    with stop_on_signals() as stop, ExitStack() as held:
         try:
+            held.enter_context(lock_out(args.out))  # generate's lock: one run per --out
             result = run_sweep(spec, workers=args.workers, scheduler=args.scheduler,
                                progress=not args.no_progress, on_output=writer)
         except (ValueError, SamplingError) as exc:
             return _error(str(exc))
         except OSError as exc:  # e.g. the scheduler cannot be reached
             return _error(f"{type(exc).__name__}: {exc}")
+        except FolderLockedError as exc:
+            return _error(str(exc))
         except Interrupted as exc:  # before the first task or after the last one
             print(f"arenabench sweep: {exc}; nothing written", file=sys.stderr)
             return exc.exit_code

@@ -556,6 +556,27 @@ def test_second_generate_into_a_locked_folder_says_who_holds_it(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == []  # nothing written, lock released
 
 
+@pytest.mark.parametrize("command", ["eval", "sweep", "grade"])
+def test_every_command_writing_a_folder_takes_generates_lock(toy, tmp_path, command):
+    out = tmp_path / "out"
+    teams = tmp_path / "teams"
+    (teams / "a").mkdir(parents=True)
+    (teams / "a" / "map.py").write_text("print('hi')\n")
+    argv = {"eval": ("eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(out)),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+                      "--per-point", "1", "--out", str(out)),
+            "grade": ("grade", str(toy), str(teams), "--out", str(out))}[command]
+    with lock_folder(out, command="arenabench eval (test holder)"):
+        proc = run(*argv, "--no-progress", cwd=tmp_path, timeout=120)
+        err = assert_clean_error(proc, f"--out {out}: {out} is being written by another run",
+                                 f"pid {os.getpid()}", "(test holder)", prog=command)
+        assert sorted(p.name for p in out.iterdir()) == [LOCK_FILE], err
+    if command == "eval":  # free again: the run takes the lock, writes, leaves no lock file
+        proc = run(*argv, "--no-progress", "--formats", "json", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        assert sorted(p.name for p in out.iterdir()) == ["report.json"]
+
+
 def test_resumed_generate_removes_stale_temp_files_and_leaves_no_lock(tmp_path):
     out = tmp_path / "ds"
     proc = run("generate", "--count", "1", "--seed", "4", "--out", str(out), "--no-progress",

@@ -27,7 +27,8 @@ import argparse
 import math
 import re
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -274,6 +275,46 @@ def command_main(parser: CommandParser, argv: list[str] | None,
         return int(body(args) or 0)
     except ValueError as exc:
         return parser.fail(str(exc))
+
+
+@contextmanager
+def lock_out(out: str | Path | None, *, option: str = "--out") -> Iterator[None]:
+    """Hold the exclusive lock of the output folder ``out`` (the one ``generate`` takes,
+    :func:`arenabench.fileio.lock_folder`, ``.arenabench.lock``) while the body writes into
+    it; ``None``: nothing to lock. A folder this creates and leaves empty is removed.
+
+    Raises
+    ------
+    arenabench.fileio.FolderLockedError
+        At once when another run holds it: ``"--out D: D is being written by another run
+        (pid ..., command); wait for it to finish or use another --out"``.
+    """
+    import shlex
+
+    from arenabench.fileio import FolderLockedError, lock_folder
+
+    if out is None:
+        yield
+        return
+    root = Path(out)
+    created = not root.exists()
+    try:
+        try:
+            held = lock_folder(root, command=shlex.join(sys.argv)[:300])
+            held.__enter__()
+        except FolderLockedError as exc:
+            raise FolderLockedError(f"{option} {root}: {exc}; wait for it to finish or use "
+                                    f"another {option}") from None
+        try:
+            yield
+        finally:
+            held.__exit__(None, None, None)
+    finally:
+        try:
+            if created and not any(root.iterdir()):
+                root.rmdir()
+        except OSError:
+            pass
 
 
 def _tag(action: argparse.Action, builder: str) -> argparse.Action:
