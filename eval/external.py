@@ -75,6 +75,7 @@ from arenabench.competition import OBSTACLES_FILE, OutputFormatError, parse_obst
 
 from .records import Prediction, tail
 from .run_limits import RunLimits, RunSettings
+from .stale_runs import run_dir_prefix, sweep_stale_runs
 
 OUTPUT_MODES: tuple[str, ...] = ("obstacles", "json")
 #: Exit status by which ``arenabench detect`` (and any command) says "markers not found".
@@ -156,9 +157,25 @@ def resolve_sandbox(mode: str) -> str:
     return "none"
 
 
-@lru_cache(maxsize=1)
+_CGROUP_PROBE_LOCK = threading.Lock()
+_CGROUP_PARENT: list[str | None] = []  # the probe's answer, once found
+
+
 def pids_cgroup_parent() -> str | None:
-    """A writable pids-cgroup folder where each run gets a child cgroup, or ``None``."""
+    """A writable pids-cgroup folder where each run gets a child cgroup, or ``None``.
+
+    Probed once per process, under a lock (grade calls it from many threads at once) and
+    with a probe folder of a name no other thread or process uses.
+    """
+    with _CGROUP_PROBE_LOCK:
+        if not _CGROUP_PARENT:
+            _CGROUP_PARENT.append(_probe_pids_cgroup_parent())
+        return _CGROUP_PARENT[0]
+
+
+def _probe_pids_cgroup_parent() -> str | None:
+    import uuid
+
     candidates = ["/sys/fs/cgroup/pids"]
     try:
         for line in Path("/proc/self/cgroup").read_text().splitlines():
@@ -172,7 +189,7 @@ def pids_cgroup_parent() -> str | None:
     except OSError:
         pass
     for parent in candidates:
-        probe = os.path.join(parent, f"arenabench-probe-{os.getpid()}")
+        probe = os.path.join(parent, f"arenabench-probe-{os.getpid()}-{uuid.uuid4().hex}")
         try:
             os.mkdir(probe)
         except OSError:
@@ -335,6 +352,7 @@ class CommandPipeline:
         self._executable = self._resolve_executable()
         self.sandbox = resolve_sandbox(self.settings.sandbox)
         self._cgroup = pids_cgroup_parent()
+        sweep_stale_runs(cgroup_parent=self._cgroup)  # what SIGKILLed runs left, once
         if self._cgroup is None and os.getuid() == 0:
             _warn_once("no writable pids cgroup and running as root: --max-procs cannot be "
                        "enforced for external commands")
@@ -473,7 +491,7 @@ class CommandPipeline:
         command's own failures)."""
         if self._stopped:
             return Prediction(status="crash", message="interrupted")
-        rundir = tempfile.mkdtemp(prefix="arenabench-run-")
+        rundir = tempfile.mkdtemp(prefix=run_dir_prefix())  # names its owner: stale_runs
         try:
             return self._run_in(Path(image_path), rundir)
         finally:
