@@ -13,6 +13,7 @@ from contextlib import ExitStack
 from pathlib import Path
 
 from arenabench.cliopts import (
+    EXIT_FAILED,
     CommandParser,
     add_area_reference,
     add_count,
@@ -22,6 +23,7 @@ from arenabench.cliopts import (
     add_tolerance,
     add_workers,
     lock_out,
+    write_failure,
 )
 
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
@@ -265,12 +267,20 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             file=sys.stderr,
         )
         if args.out is not None and report.images:
-            write_reports(report, args.out, formats=formats, dataset=dataset)
+            try:
+                write_reports(report, args.out, formats=formats, dataset=dataset)
+            except OSError as exc:
+                parser.fail(write_failure(exc, args.out))
+                return interrupted.exit_code
             print(f"  partial reports (\"complete\": false) in {args.out}", file=sys.stderr)
         return interrupted.exit_code
     print(headline(report))
     if args.out is not None:
-        written = write_reports(report, args.out, formats=formats, dataset=dataset)
+        try:
+            written = write_reports(report, args.out, formats=formats, dataset=dataset)
+        except OSError as exc:  # ENOSPC: one line, no traceback
+            parser.fail(write_failure(exc, args.out))
+            return EXIT_FAILED
         for fmt, path in written.items():
             print(f"  {fmt:<5} {path}")
     reasons = check_thresholds(report.summary, thresholds)

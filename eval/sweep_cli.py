@@ -20,6 +20,7 @@ from arenabench.cliopts import (
     add_tolerance,
     add_workers,
     lock_out,
+    write_failure,
 )
 from arenabench.interrupts import Interrupted, stop_on_signals
 
@@ -191,6 +192,9 @@ def main(argv: list[str] | None = None) -> int:
                 written = write_sweep(result, args.out, plots=not args.no_plots)
         except Interrupted:
             pass
+        except OSError as exc:  # ENOSPC: one line, no traceback
+            print(f"arenabench sweep: error: {write_failure(exc, args.out)}", file=sys.stderr)
+            return stop.exit_code or 1
     if not result.complete:
         run = result.run
         print(f"arenabench sweep: interrupted by {run['interrupted']}: {run['samples_done']} "

@@ -627,3 +627,27 @@ def test_two_generate_runs_at_once_the_second_is_refused_then_the_first_resumes(
     seeds = {json.loads(p.read_text())["seed"] for p in (out / "gt").glob("*.json")}
     assert seeds == {1} and len(list((out / "gt").glob("*.json"))) == 6
     assert not [p for p in out.rglob(".*") if p.is_file()]  # no temp or lock file left
+
+
+@pytest.fixture()
+def small_disk(tmp_path):
+    """A 40 kB tmpfs (root only): room for report.json, not for report.html."""
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=40k", "tmpfs", str(mnt)],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here: {proc.stderr.strip()}")
+    yield mnt
+    subprocess.run(["umount", str(mnt)], check=True)
+
+
+def test_disk_full_while_writing_reports_is_one_line(toy, small_disk):
+    out = small_disk / "out"
+    proc = run("eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(out),
+               "--no-progress")
+    err = proc.stderr.strip()
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert err.splitlines() == [f"arenabench eval: error: disk full: {out}: No space left on "
+                                "device (free some space or use another --out)"], err
+    assert not [p.name for p in out.iterdir() if p.name.startswith(".")]  # no temp, no lock

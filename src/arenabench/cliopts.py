@@ -317,6 +317,19 @@ def lock_out(out: str | Path | None, *, option: str = "--out") -> Iterator[None]
             pass
 
 
+def write_failure(exc: OSError, where: str | Path) -> str:
+    """The one line for an output that could not be written: ``"disk full: FILE: No space
+    left on device (free some space or use another --out)"`` for ENOSPC / EDQUOT, else
+    ``"cannot write FILE: why"`` (the command then exits with status 1)."""
+    import errno
+
+    name = exc.filename or where
+    why = exc.strerror or str(exc)
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return f"disk full: {name}: {why} (free some space or use another --out)"
+    return f"cannot write {name}: {why}"
+
+
 def _tag(action: argparse.Action, builder: str) -> argparse.Action:
     action.shared_option = builder  # type: ignore[attr-defined]
     return action
