@@ -538,10 +538,12 @@ class CommandPipeline:
                     stdin=subprocess.DEVNULL, stdout=log, stderr=log, close_fds=False,
                 )
             self._live.add(proc)
+        launcher_hung = False
         try:
             try:
                 _wait(proc, lim.timeout_s + LAUNCHER_GRACE_S)
             except subprocess.TimeoutExpired:
+                launcher_hung = True
                 proc.terminate()
                 try:
                     proc.wait(timeout=10)
@@ -556,6 +558,10 @@ class CommandPipeline:
         except (OSError, ValueError, EOFError, TypeError):
             if self._stopped:
                 return Prediction(status="crash", message="interrupted")
+            if launcher_hung:
+                return Prediction(status="timeout", message=(
+                    f"timed out after {lim.timeout_s:g} s; its launcher stopped answering and "
+                    "was killed"), latency_ms=(lim.timeout_s + LAUNCHER_GRACE_S) * 1e3)
             log_text = tail(_decode(Path(rundir, "launcher.log").read_bytes()[-4000:]))
             return Prediction(status="crash",
                               message=f"the launcher failed (status {proc.returncode})",

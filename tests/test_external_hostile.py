@@ -468,3 +468,16 @@ def test_pids_cgroup_probe_is_thread_safe(monkeypatch):
             found = list(pool.map(lambda _: external.pids_cgroup_parent(), range(32)))
         assert set(found) == {first}
     assert not [p for p in os.listdir(first) if p.startswith(f"arenabench-probe-{os.getpid()}")]
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_ptrace_of_the_launcher_is_refused_and_the_timeout_holds(sandbox, toy, run_tmp):
+    import time
+
+    start = time.monotonic()
+    images = _one("ptrace_parent.py", sandbox, toy, timeout_s=2.0)
+    assert time.monotonic() - start < 20
+    for r in images:
+        assert r.category == "timeout", r.prediction.message
+        if sandbox == "none":  # under bwrap its parent is the sandbox's own init: harmless
+            assert "attach -1" in r.prediction.stdout, r.prediction.stdout
