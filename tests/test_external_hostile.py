@@ -481,3 +481,29 @@ def test_ptrace_of_the_launcher_is_refused_and_the_timeout_holds(sandbox, toy, r
         assert r.category == "timeout", r.prediction.message
         if sandbox == "none":  # under bwrap its parent is the sandbox's own init: harmless
             assert "attach -1" in r.prediction.stdout, r.prediction.stdout
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("target", ["harness", "group"])
+def test_sigterm_with_a_command_that_ignores_it_is_not_exit_0(toy, tmp_path, target):
+    script = tmp_path / "ignore_term.py"
+    script.write_text("import signal, time\nsignal.signal(signal.SIGTERM, signal.SIG_IGN)\n"
+                      "time.sleep(60)\n")
+    out = tmp_path / "out"
+    proc = subprocess.Popen(
+        [PY, "-m", "arenabench", "eval", str(toy), "--cmd", f"{PY} {script} {{image}}",
+         "--sandbox", "none", "--workers", "1", "--no-progress", "--out", str(out)],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        # the command itself (its image argument is the private copy, not "{image}")
+        assert wait_for(lambda: processes_with(f"{script} /"), timeout=60)
+        if target == "group":
+            os.killpg(proc.pid, signal.SIGTERM)
+        else:
+            proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        proc.kill()
+    assert proc.returncode == 143, err
+    assert "Traceback" not in err
+    assert wait_for(lambda: not processes_with(f"{script} /"), timeout=10)
