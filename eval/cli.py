@@ -255,6 +255,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             area_reference=args.area_reference,
             executor=args.executor,
             progress=not args.no_progress,
+            timeout_s=args.timeout,
         )
     except ValueError as exc:
         return _usage_error(parser, str(exc))

@@ -127,6 +127,7 @@ def evaluate(
     executor: str = "thread",
     progress: bool = False,
     limit: int | None = None,
+    timeout_s: float | None = None,
 ) -> Report:
     """Run ``pipeline`` on every image of ``dataset`` and score it.
 
@@ -151,6 +152,12 @@ def evaluate(
         plain lines otherwise).
     limit : int, optional
         Evaluate only the first ``limit`` images.
+    timeout_s : float, optional
+        Seconds one image may take with a ``"pkg.module:function"`` pipeline (default: the
+        ``--timeout`` default of external commands). Such a function runs in killable child
+        processes (:class:`~arenabench.eval.isolated.IsolatedCallablePipeline`, whatever
+        ``executor``): ``sys.exit``, ``os._exit``, ``KeyboardInterrupt`` or an endless loop
+        in it fail that image only.
 
     Returns
     -------
@@ -180,9 +187,19 @@ def evaluate(
     samples = data.samples[:limit] if limit else data.samples
     for s in samples:  # a missing reference area is a data error, found before any work
         s.truth(area_reference=area_reference)
-    pipe = make_pipeline(pipeline)
+    isolated = isinstance(pipeline, str) and ":" in pipeline  # a team's function
+    if isolated:
+        from arenabench.limits import DEFAULT_TIMEOUT_S
+
+        from .isolated import IsolatedCallablePipeline
+
+        pipe: Pipeline = IsolatedCallablePipeline(
+            pipeline, timeout_s=DEFAULT_TIMEOUT_S if timeout_s is None else timeout_s)
+    else:
+        pipe = make_pipeline(pipeline)
     n_workers = min(workers or usable_cores(), max(1, len(samples)))
-    use_process = executor == "process" and pipe.in_process and isinstance(pipeline, str)
+    use_process = (executor == "process" and pipe.in_process and isinstance(pipeline, str)
+                   and not isolated)  # an isolated function has its own processes
     pool: Executor
     if use_process:
         pool = ProcessPoolExecutor(
@@ -223,6 +240,9 @@ def evaluate(
             if callable(stop):
                 stop()
             pool.shutdown(wait=True, cancel_futures=True)
+        finally:
+            if isolated:
+                pipe.close()  # type: ignore[attr-defined]
     results = [
         score_sample(s, p, tolerance=tolerance, area_reference=area_reference)
         for s, p in zip(samples, preds, strict=True)

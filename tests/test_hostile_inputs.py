@@ -95,6 +95,29 @@ def test_impossible_answer_of_a_callable_is_bad_output(toy, tmp_path, name):
         assert image["pred"]["area"] is None or math.isfinite(image["pred"]["area"])
 
 
+@pytest.mark.parametrize("executor", ["thread", "process"])
+@pytest.mark.parametrize(
+    ("name", "category", "message"),
+    [
+        ("sys_exit", "crash", "the pipeline called sys.exit(0)"),
+        ("os_exit", "crash", "the pipeline ended its process (exit status 0"),
+        ("keyboard_interrupt", "crash", "the pipeline raised KeyboardInterrupt"),
+        ("endless", "timeout", "timed out after 1.5 s (its process killed)"),
+    ],
+)
+def test_a_callable_that_exits_or_hangs_fails_its_images_only(toy, tmp_path, executor, name,
+                                                               category, message):
+    proc = run("eval", str(toy), "--pipeline", f"hostile_callables:{name}", "--executor",
+               executor, "--timeout", "1.5", "--workers", "2", "--out", str(tmp_path / "o"),
+               "--formats", "json", "--no-progress")
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith(f"hostile_callables:{name}: pass rate 0.0 % (0/3")
+    report = strict_json((tmp_path / "o" / "report.json").read_text())
+    assert [i["category"] for i in report["images"]] == [category] * 3
+    assert all(i["message"].startswith(message) for i in report["images"]), report["images"]
+
+
 @pytest.mark.parametrize(
     ("args", "needle"),
     [
