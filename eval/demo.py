@@ -9,6 +9,7 @@
 
 from __future__ import annotations
 
+import argparse
 import sys
 from pathlib import Path
 
@@ -72,7 +73,19 @@ def main(argv: list[str] | None = None) -> int:
     except OutputPathError as exc:
         print(f"arenabench demo: error: --out {args.out}: {exc}", file=sys.stderr)
         return 2
+    from arenabench.cliopts import lock_out
+    from arenabench.fileio import FolderLockedError
 
+    try:
+        with lock_out(args.out):  # generate's lock: one run at a time writes into --out
+            return _run(args)
+    except FolderLockedError as exc:
+        print(f"arenabench demo: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The demo's steps, with the --out lock held."""
     step = 1
     if args.example is not None:
         rc = _example(args.example, args.out)

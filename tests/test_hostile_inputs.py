@@ -579,7 +579,7 @@ def test_second_generate_into_a_locked_folder_says_who_holds_it(tmp_path):
     assert sorted(p.name for p in out.iterdir()) == []  # nothing written, lock released
 
 
-@pytest.mark.parametrize("command", ["eval", "sweep", "grade"])
+@pytest.mark.parametrize("command", ["eval", "sweep", "grade", "demo"])
 def test_every_command_writing_a_folder_takes_generates_lock(toy, tmp_path, command):
     out = tmp_path / "out"
     teams = tmp_path / "teams"
@@ -588,7 +588,8 @@ def test_every_command_writing_a_folder_takes_generates_lock(toy, tmp_path, comm
     argv = {"eval": ("eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(out)),
             "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
                       "--per-point", "1", "--out", str(out)),
-            "grade": ("grade", str(toy), str(teams), "--out", str(out))}[command]
+            "grade": ("grade", str(toy), str(teams), "--out", str(out)),
+            "demo": ("demo", "--count", "1", "--out", str(out))}[command]
     with lock_folder(out, command="arenabench eval (test holder)"):
         proc = run(*argv, "--no-progress", cwd=tmp_path, timeout=120)
         err = assert_clean_error(proc, f"--out {out}: {out} is being written by another run",
