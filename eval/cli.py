@@ -94,7 +94,8 @@ def build_parser() -> CommandParser:
         "--executor",
         choices=("thread", "process"),
         default="thread",
-        help="pool for in-process pipelines (default thread)",
+        help="pool for the built-in pipelines (default thread); a 'pkg.module:function' "
+        "runs in child processes either way (an exit, a crash or --timeout fails its image)",
     )
     add_tolerance(p)
     add_area_reference(p)
