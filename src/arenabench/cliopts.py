@@ -458,9 +458,8 @@ def add_run_options(parser: CommandParser) -> None:
     g = parser.add_argument_group("external command runs (--cmd)")
     _tag(g.add_argument("--timeout", type=TIMEOUT_RULE.argtype("--timeout"),
                         default=DEFAULT_TIMEOUT_S,
-                        help=f"wall-clock seconds per image (also of a 'pkg.module:function' "
-                        f"pipeline), at most {MAX_TIMEOUT_S:g} (default: %(default)s)"),
-         "add_run_options")
+                        help=f"wall-clock seconds per image, at most {MAX_TIMEOUT_S:g} "
+                        "(default: %(default)s)"), "add_run_options")
     _tag(g.add_argument("--memory-limit", type=_size_type("--memory-limit"),
                         default=format_size(DEFAULT_MEMORY_BYTES),
                         help="address space per process, e.g. 2G, 512M (default: %(default)s)"),
