@@ -256,6 +256,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             area_reference=args.area_reference,
             executor=args.executor,
             progress=not args.no_progress,
+            isolate=True,
             timeout_s=args.timeout,
         )
     except ValueError as exc:

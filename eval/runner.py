@@ -127,6 +127,7 @@ def evaluate(
     executor: str = "thread",
     progress: bool = False,
     limit: int | None = None,
+    isolate: bool = False,
     timeout_s: float | None = None,
 ) -> Report:
     """Run ``pipeline`` on every image of ``dataset`` and score it.
@@ -152,12 +153,15 @@ def evaluate(
         plain lines otherwise).
     limit : int, optional
         Evaluate only the first ``limit`` images.
+    isolate : bool
+        Run a ``"pkg.module:function"`` pipeline in killable child processes
+        (:class:`~arenabench.eval.isolated.IsolatedCallablePipeline`, whatever ``executor``;
+        what ``arenabench eval`` does): ``sys.exit``, ``os._exit``, ``KeyboardInterrupt`` or
+        an endless loop in it fail that image only. The children are started with ``spawn``:
+        a script calling this needs the ``if __name__ == "__main__":`` guard.
     timeout_s : float, optional
-        Seconds one image may take with a ``"pkg.module:function"`` pipeline (default: the
-        ``--timeout`` default of external commands). Such a function runs in killable child
-        processes (:class:`~arenabench.eval.isolated.IsolatedCallablePipeline`, whatever
-        ``executor``): ``sys.exit``, ``os._exit``, ``KeyboardInterrupt`` or an endless loop
-        in it fail that image only.
+        With ``isolate``: seconds one image may take (default: the ``--timeout`` default of
+        external commands).
 
     Returns
     -------
@@ -187,7 +191,7 @@ def evaluate(
     samples = data.samples[:limit] if limit else data.samples
     for s in samples:  # a missing reference area is a data error, found before any work
         s.truth(area_reference=area_reference)
-    isolated = isinstance(pipeline, str) and ":" in pipeline  # a team's function
+    isolated = isolate and isinstance(pipeline, str) and ":" in pipeline  # a team's function
     if isolated:
         from arenabench.limits import DEFAULT_TIMEOUT_S
 
