@@ -269,7 +269,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             f"{report.images_done} of {len(dataset.samples)} images; running commands killed",
             file=sys.stderr,
         )
-        if args.out is not None and report.images:
+        if args.out is not None:  # even with no image finished: never nothing
             try:
                 write_reports(report, args.out, formats=formats, dataset=dataset)
             except OSError as exc:

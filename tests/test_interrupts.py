@@ -340,3 +340,19 @@ def test_second_sigint_grade_exits_130(toy3, tmp_path, delay):
     assert rc == 130, err
     assert "Traceback" not in err
     assert not (out / ".arenabench.lock").exists()
+
+
+@pytest.mark.slow
+def test_eval_stopped_before_any_image_still_writes_empty_partial_reports(toy3, tmp_path):
+    slow = tmp_path / "slow.py"
+    slow.write_text("import time\ntime.sleep(30)\n")
+    out = tmp_path / "out"
+    proc = _arenabench("eval", str(toy3), "--cmd", f"{sys.executable} {slow} {{image}}",
+                       "--workers", "1", "--sandbox", "none", "--no-progress", "--out", str(out))
+    time.sleep(3.0)
+    rc, err = _double_sigint(proc, 0.05)
+    assert rc == 130 and "Traceback" not in err, err
+    report = json.loads((out / "report.json").read_text())
+    assert report["complete"] is False and report["images"] == []
+    assert sorted(p.name for p in out.iterdir()) == [
+        "junit.xml", "report.html", "report.json", "report.md", "results.csv"]
