@@ -35,7 +35,6 @@ from typing import Any
 
 from arenabench.clihelp import HelpFormatter
 from arenabench.competition import DEFAULT_TOLERANCE
-from arenabench.gtrecord import AREA_REFERENCES, DEFAULT_AREA_REFERENCE
 from arenabench.limits import (
     DEFAULT_MAX_FILE_SIZE,
     DEFAULT_MAX_OUTPUT,
@@ -399,6 +398,8 @@ def add_tolerance(parser: argparse.ArgumentParser) -> argparse.Action:
 
 def add_area_reference(parser: argparse.ArgumentParser) -> argparse.Action:
     """``--area-reference {visible,footprint,contour}``."""
+    from arenabench.gtrecord import AREA_REFERENCES, DEFAULT_AREA_REFERENCE  # imports NumPy
+
     return _tag(parser.add_argument(
         "--area-reference", choices=tuple(AREA_REFERENCES), default=DEFAULT_AREA_REFERENCE,
         help="GT area the answer is compared with: visible (the silhouettes a camera-side "
