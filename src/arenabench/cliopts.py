@@ -15,8 +15,10 @@ from the one declaration of that default and checks its value with one :class:`R
     ...
     return p.fail("--thing: why")  # a usage error found after parsing: one line, returns 2
 
-:func:`command_main` wraps a command's body so that ``--help`` and usage errors become exit
-statuses instead of ``SystemExit``. The exit statuses every command shares are declared here.
+A command's ``main`` catches the ``SystemExit`` of :meth:`CommandParser.parse_args` and returns
+its code (0 for ``--help``, 2 for a usage error, the line already printed). The exit statuses
+every command shares are declared here; :func:`lock_out` holds an output folder's lock and
+:func:`write_failure` words a failed write (``disk full: ...``).
 Each builder tags the action it adds (``action.shared_option``), so a test can check that no
 command re-declares a shared option by hand (``tests/test_cliopts.py``).
 """
@@ -257,23 +259,6 @@ class CommandParser(argparse.ArgumentParser):
                 if m.group(1) in action.option_strings or m.group(1) == action.dest:
                     return did_you_mean(m.group(2), [str(c) for c in action.choices or ()])
         return ""
-
-
-def command_main(parser: CommandParser, argv: list[str] | None,
-                 body: Callable[[argparse.Namespace], int]) -> int:
-    """Parse ``argv`` and run ``body(args)``; return the exit status.
-
-    ``--help`` returns 0 and a usage error 2 (one line) instead of raising ``SystemExit``; a
-    :class:`ValueError` escaping ``body`` is a usage error too (its message, one line).
-    """
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:
-        return EXIT_USAGE if exc.code not in (0, None) else EXIT_OK
-    try:
-        return int(body(args) or 0)
-    except ValueError as exc:
-        return parser.fail(str(exc))
 
 
 @contextmanager
