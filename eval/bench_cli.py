@@ -3,12 +3,10 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 import textwrap
-from pathlib import Path
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import CommandParser, add_count, add_out, add_workers
 from arenabench.eval.bench import TARGETS, BenchConfig, BenchResult, target_met
 
 #: (key, label, unit) rows of the table, in the order of docs/benchmark.md.
@@ -96,26 +94,22 @@ def format_table(result: BenchResult, *, quick: bool = False) -> str:
     return "\n".join(textwrap.fill(line, 100) if len(line) > 100 else line for line in out)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The ``arenabench bench`` argument parser."""
-    p = argparse.ArgumentParser(
-        formatter_class=HelpFormatter,
+    p = CommandParser(
         prog="arenabench bench",
         description="Measure generation and scoring throughput on this machine (a full run "
         "takes about 1.5 minutes on 2 idle cores; --quick takes seconds): prints a table and "
         "writes OUT/bench.json.",
     )
     d = BenchConfig()
-    p.add_argument("--out", type=Path, default=Path("."), help="folder of bench.json (default .)")
-    p.add_argument("--count", type=int, default=d.count,
-                   help=f"scenes generated / scored (default {d.count})")
-    p.add_argument("--sweep-count", type=int, default=d.sweep_count,
-                   help=f"scenes of the streaming sweep (default {d.sweep_count})")
-    p.add_argument("--naive-count", type=int, default=d.naive_count,
-                   help=f"scenes of the naive baseline (default {d.naive_count})")
-    p.add_argument("--workers", type=int, default=None, help="processes (default: the cores)")
-    p.add_argument("--rss-renders", type=int, default=d.rss_renders,
-                   help=f"consecutive renders of the memory check (default {d.rss_renders})")
+    add_out(p, default=".", help="folder of bench.json")
+    add_count(p, default=d.count, help="scenes generated / scored")
+    add_count(p, "--sweep-count", default=d.sweep_count, help="scenes of the streaming sweep")
+    add_count(p, "--naive-count", default=d.naive_count, help="scenes of the naive baseline")
+    add_workers(p, help="processes")
+    add_count(p, "--rss-renders", default=d.rss_renders,
+              help="consecutive renders of the memory check")
     p.add_argument("--quick", action="store_true",
                    help="tiny counts (seconds; checks that everything runs, figures meaningless)")
     return p

@@ -18,10 +18,17 @@ import os
 import sys
 from pathlib import Path
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import (
+    EXIT_USAGE,
+    CommandParser,
+    add_count,
+    add_no_progress,
+    add_out,
+    add_run_options,
+    add_workers,
+)
 
 from .phase_check import add_phase_check_argument
-from .run_limits import add_run_arguments
 
 PROG = "arenabench check"
 #: Twin scenes a check runs on by default.
@@ -51,17 +58,17 @@ exit status: 0 pass rate >= --fail-under, 1 below it, 2 bad input, 130/143 inter
 """
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The argument parser of ``arenabench check``."""
-    p = argparse.ArgumentParser(
+    p = CommandParser(
         prog=PROG,
         description="Know before you submit: run a competition script on hidden-test twin "
         "scenes, tell robust failures from luck, and name the strongest cause.",
-        epilog=EPILOG, formatter_class=HelpFormatter,
+        epilog=EPILOG,
     )
     p.add_argument("script", help="the competition script (map.py)")
-    p.add_argument("--count", type=int, default=DEFAULT_COUNT,
-                   help="twin scenes (default: %(default)s)")
+    add_count(p, maximum=MAX_COUNT, default=DEFAULT_COUNT,
+              help=f"twin scenes (default: {DEFAULT_COUNT})")
     p.add_argument("--seed", type=int, default=0, help="scene seed (default: %(default)s)")
     p.add_argument("--preset", default=DEFAULT_PRESET,
                    help="scene preset (default: %(default)s, the hidden-test twin)")
@@ -70,13 +77,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--python", default="{python}",
                    help="interpreter that runs the script (default: the one running "
                    "arenabench)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="folder for the report files (default: the cache's reports/ folder)")
-    p.add_argument("--workers", type=int, default=None,
-                   help="scripts run at once (default: cores)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_out(p, help="folder for the report files (default: the cache's reports/ folder)")
+    add_workers(p, help="scripts run at once")
+    add_no_progress(p)
     add_phase_check_argument(p)
-    add_run_arguments(p)
+    add_run_options(p)
     return p
 
 
@@ -102,7 +107,7 @@ def _report_dir(script: Path) -> Path:
 
 def _error(message: str) -> int:
     print(f"{PROG}: error: {message}", file=sys.stderr)
-    return 2
+    return EXIT_USAGE
 
 
 def _validate(args: argparse.Namespace) -> str | None:
@@ -116,14 +121,10 @@ def _validate(args: argparse.Namespace) -> str | None:
         return f"{args.script}: not a file"
     if not os.access(script, os.R_OK):
         return f"{args.script}: not readable"
-    if not 1 <= args.count <= MAX_COUNT:
-        return f"--count must be in [1, {MAX_COUNT}], got {args.count}"
     if args.seed < 0:
         return f"--seed must be >= 0, got {args.seed}"
     if not (math.isfinite(args.fail_under) and 0.0 <= args.fail_under <= 1.0):
         return f"--fail-under must be a pass rate in [0, 1], got {args.fail_under}"
-    if args.workers is not None and args.workers < 1:
-        return f"--workers must be >= 1, got {args.workers}"
     try:
         get_preset(args.preset)
     except ValueError as exc:
@@ -229,14 +230,22 @@ def _main(argv: list[str] | None) -> int:
     print(f"{PROG}: {what} twin set {twin} ({args.count} scenes of {args.preset}, seed "
           f"{args.seed})")
     phases = resolve_phases(args.phase_check, [args.preset])
+    from arenabench.cliopts import lock_out
+    from arenabench.fileio import FolderLockedError
+
     try:
-        report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
-                          phases=phases)
-    except EvaluationInterrupted as exc:
-        print(f"{PROG}: interrupted after {exc.report.images_done} images; running scripts "
-              "killed", file=sys.stderr)
-        return exc.exit_code
-    written = write_reports(report, out, dataset=dataset)
+        with lock_out(out):  # one run at a time writes into the report folder
+            try:
+                report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
+                                  phases=phases)
+            except EvaluationInterrupted as exc:  # partial reports, marked INCOMPLETE
+                write_reports(exc.report, out, dataset=dataset)
+                print(f"{PROG}: interrupted after {exc.report.images_done} images; running "
+                      f"scripts killed; partial report in {out}", file=sys.stderr)
+                return exc.exit_code
+            written = write_reports(report, out, dataset=dataset)
+    except FolderLockedError as exc:
+        return _error(str(exc))
     for line in verdict_lines(report, fail_under=args.fail_under, phases=phases):
         print(line)
     print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")

@@ -8,18 +8,27 @@ written with ``"complete": false``).
 
 from __future__ import annotations
 
-import argparse
-import math
 import sys
+from contextlib import ExitStack
 from pathlib import Path
 
-from arenabench.clihelp import HelpFormatter
-from arenabench.limits import MAX_WORKERS
+from arenabench.cliopts import (
+    EXIT_FAILED,
+    CommandParser,
+    add_area_reference,
+    add_count,
+    add_no_progress,
+    add_out,
+    add_run_options,
+    add_tolerance,
+    add_workers,
+    lock_out,
+    write_failure,
+)
 
-from .dataset import AREA_REFERENCES
 from .phase_check import add_phase_check_argument
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
-from .run_limits import add_run_arguments, run_settings_from_args
+from .run_limits import run_settings_from_args
 
 EPILOG = """\
 examples:
@@ -46,13 +55,12 @@ exit status: 0 ok, 1 a threshold missed, 2 usage error, 130/143 interrupted (SIG
 """
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The argument parser of ``arenabench eval``."""
-    p = argparse.ArgumentParser(
+    p = CommandParser(
         prog="arenabench eval",
         description="Score an obstacle-detection pipeline on a dataset written by the generator.",
         epilog=EPILOG,
-        formatter_class=HelpFormatter,
     )
     p.add_argument("dataset", nargs="?", help="dataset folder (holds manifest.jsonl and gt/)")
     src = p.add_mutually_exclusive_group()
@@ -68,26 +76,31 @@ def build_parser() -> argparse.ArgumentParser:
         "--compare", nargs=2, metavar=("OLD", "NEW"), help="compare two report.json files"
     )
     p.add_argument(
+        "--fail-on-regression", action="append", default=[], metavar="METRIC=DELTA",
+        help="with --compare: exit 1 when METRIC got worse by more than DELTA, e.g. "
+        "pass_rate=0.02,area_rel_err.p95=0.01 (comma-separated or repeated)",
+    )
+    p.add_argument(
+        "--name", default=None,
+        help="the --cmd pipeline's name in reports (default: its template)",
+    )
+    p.add_argument(
         "--output",
         choices=OUTPUT_MODES,
         default="obstacles",
         help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line",
     )
-    p.add_argument("--workers", type=int, default=None, help="parallel workers (default: cores)")
+    add_workers(p, help="parallel workers")
     p.add_argument(
         "--executor",
         choices=("thread", "process"),
         default="thread",
-        help="pool for in-process pipelines (default thread)",
+        help="pool for the built-in pipelines (default thread); a 'pkg.module:function' "
+        "runs in child processes either way (an exit, a crash or --timeout fails its image)",
     )
-    p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument(
-        "--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
-        help="GT area the answer is compared with: visible (the silhouettes a camera-side "
-        "segmentation sees), footprint (the boxes' floor area) or contour (what "
-        "cv2.contourArea of the pixelated silhouettes gives, about half a perimeter less)",
-    )
-    p.add_argument("--out", type=Path, default=None, help="folder for the report files")
+    add_tolerance(p)
+    add_area_reference(p)
+    add_out(p, help="folder for the report files")
     p.add_argument(
         "--formats",
         default="json,csv,md,html,junit",
@@ -100,14 +113,19 @@ def build_parser() -> argparse.ArgumentParser:
         metavar="METRIC=VALUE",
         help="threshold(s); see below",
     )
-    p.add_argument("--limit", type=int, default=None, help="evaluate only the first N images")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_count(p, "--limit", help="evaluate only the first N images")
+    add_no_progress(p)
     add_phase_check_argument(p)
-    add_run_arguments(p)
+    add_run_options(p)
     p.add_argument(
         "--no-verify",
         action="store_true",
         help="do not check images and GT against the sha256 values of manifest.jsonl",
+    )
+    p.add_argument(
+        "--skip-damaged", action="store_true",
+        help="leave out image files that cannot be whole images (empty, text, cut short) and "
+        "score the others (default: such a dataset is refused, 'dataset damaged')",
     )
     return p
 
@@ -129,57 +147,62 @@ def _warn_if_incomplete(root: Path) -> None:
               file=sys.stderr)
 
 
-def _usage_error(parser: argparse.ArgumentParser, message: str) -> int:
-    print(f"arenabench eval: error: {message}", file=sys.stderr)
-    return 2
+def _usage_error(parser: CommandParser, message: str) -> int:
+    return parser.fail(message)
 
 
-def _run_compare(old: str, new: str) -> int:
-    from .compare import compare, format_comparison
+def _run_compare(old: str, new: str, gate: list[str]) -> int:
+    from .compare import compare, format_comparison, parse_regression_limits, regressions
     from .reports.json_report import read_json
 
     try:
+        limits = parse_regression_limits(gate)
         a, b = read_json(old), read_json(new)
     except ValueError as exc:
         print(f"arenabench eval: error: {exc}", file=sys.stderr)
         return 2
-    print(format_comparison(compare(a, b), old_name=old, new_name=new), end="")
+    cmp = compare(a, b)
+    print(format_comparison(cmp, old_name=old, new_name=new), end="")
+    reasons = regressions(cmp, limits)
+    if reasons:
+        print(f"arenabench eval: FAILED: regression: {'; '.join(reasons)}", file=sys.stderr)
+        return 1
     return 0
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``arenabench eval``; returns the exit status."""
+    from contextlib import ExitStack
+
     from arenabench.interrupts import Interrupted, stop_on_signals
 
-    with stop_on_signals():
+    with stop_on_signals(), ExitStack() as held:  # held: the --out lock, until the end
         try:
-            return _main(argv)
+            return _main(argv, held)
         except Interrupted as exc:
             print(f"arenabench eval: interrupted ({exc}); nothing more written",
                   file=sys.stderr)
             return exc.exit_code
 
 
-def _main(argv: list[str] | None) -> int:
+def _main(argv: list[str] | None, held: ExitStack) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except SystemExit as exc:  # argparse: --help (0) or usage error (2)
+    except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
         return int(exc.code or 0)
     if args.compare:
-        return _run_compare(*args.compare)
+        return _run_compare(*args.compare, args.fail_on_regression)
+    if args.fail_on_regression:
+        return _usage_error(parser, "--fail-on-regression goes with --compare OLD NEW")
     if not args.dataset:
         return _usage_error(parser, "a DATASET folder is required (or --compare OLD NEW)")
+    if args.name is not None and not args.cmd:
+        return _usage_error(parser, "--name names a --cmd pipeline (give --cmd TEMPLATE)")
+    if args.name is not None and not args.name.strip():
+        return _usage_error(parser, "--name must not be empty")
     if not args.pipeline and not args.cmd:
         return _usage_error(parser, "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE")
-    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
-        return _usage_error(parser, f"--workers must be in [1, {MAX_WORKERS}], got {args.workers}")
-    if args.limit is not None and args.limit < 1:
-        return _usage_error(parser, f"--limit must be >= 1, got {args.limit}")
-    if not (math.isfinite(args.tolerance) and args.tolerance >= 0):
-        return _usage_error(
-            parser, f"--tolerance must be a finite number >= 0, got {args.tolerance}"
-        )
     if args.out is not None:
         from arenabench.fileio import OutputPathError, check_output_dir
 
@@ -198,19 +221,34 @@ def _main(argv: list[str] | None) -> int:
 
     formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
     bad = [f for f in formats if f not in FORMATS]
+    if not formats:
+        return _usage_error(parser, f"--formats {args.formats!r}: no format named (known: "
+                                    f"{', '.join(FORMATS)})")
     if bad:
         return _usage_error(parser, f"--formats: unknown {bad} (known: {', '.join(FORMATS)})")
     try:
         thresholds = parse_thresholds(args.fail_under)
         pipeline = (
-            CommandPipeline(args.cmd, settings=run_settings_from_args(args), output=args.output)
+            CommandPipeline(args.cmd, settings=run_settings_from_args(args), output=args.output,
+                            name=args.name or "")
             if args.cmd
             else make_pipeline(args.pipeline)
         )
-        dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify)
+        dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
+                               skip_damaged=args.skip_damaged)
     except (DatasetError, ValueError) as exc:
         return _usage_error(parser, str(exc))
+    from arenabench.fileio import FolderLockedError
+
+    try:  # the same lock as generate's: one run at a time writes into --out
+        held.enter_context(lock_out(args.out))
+    except FolderLockedError as exc:
+        return _usage_error(parser, str(exc))
     _warn_if_incomplete(Path(args.dataset))
+    if dataset.skipped:
+        first, why = dataset.skipped[0]
+        print(f"arenabench eval: warning: {len(dataset.skipped)} damaged image(s) left out "
+              f"(--skip-damaged; {first}: {why})", file=sys.stderr)
     interrupted: EvaluationInterrupted | None = None
     try:
         report = evaluate(
@@ -223,6 +261,8 @@ def _main(argv: list[str] | None) -> int:
             progress=not args.no_progress,
             phases=resolve_phases(args.phase_check,
                                   sorted({s.gt.preset or "" for s in dataset.samples})),
+            isolate=True,
+            timeout_s=args.timeout,
         )
     except ValueError as exc:
         return _usage_error(parser, str(exc))
@@ -234,13 +274,21 @@ def _main(argv: list[str] | None) -> int:
             f"{report.images_done} of {len(dataset.samples)} images; running commands killed",
             file=sys.stderr,
         )
-        if args.out is not None and report.images:
-            write_reports(report, args.out, formats=formats, dataset=dataset)
+        if args.out is not None:  # even with no image finished: never nothing
+            try:
+                write_reports(report, args.out, formats=formats, dataset=dataset)
+            except OSError as exc:
+                parser.fail(write_failure(exc, args.out))
+                return interrupted.exit_code
             print(f"  partial reports (\"complete\": false) in {args.out}", file=sys.stderr)
         return interrupted.exit_code
     print(headline(report))
     if args.out is not None:
-        written = write_reports(report, args.out, formats=formats, dataset=dataset)
+        try:
+            written = write_reports(report, args.out, formats=formats, dataset=dataset)
+        except OSError as exc:  # ENOSPC: one line, no traceback
+            parser.fail(write_failure(exc, args.out))
+            return EXIT_FAILED
         for fmt, path in written.items():
             print(f"  {fmt:<5} {path}")
     reasons = check_thresholds(report.summary, thresholds)

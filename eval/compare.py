@@ -88,3 +88,52 @@ def format_comparison(cmp: Comparison, *, old_name: str = "old", new_name: str =
     if cmp.only_old or cmp.only_new:
         lines.append(f"images only in old: {len(cmp.only_old)}; only in new: {len(cmp.only_new)}")
     return "\n".join(lines) + "\n"
+
+
+def parse_regression_limits(specs: list[str]) -> dict[str, float]:
+    """Parse ``--fail-on-regression`` specs, ``metric=delta`` (comma-separated or repeated):
+    the largest worsening of ``metric`` (in its own units) that still passes.
+
+    Raises
+    ------
+    ValueError
+        Naming the bad spec, metric (with a "did you mean" hint) or value.
+    """
+    import math
+
+    from arenabench.suggest import did_you_mean
+
+    known = [name for name, _, _ in COMPARED_METRICS]
+    out: dict[str, float] = {}
+    for spec in specs:
+        for part in filter(None, (p.strip() for p in spec.split(","))):
+            name, sep, raw = part.partition("=")
+            name = name.strip()
+            if not sep:
+                raise ValueError(f"--fail-on-regression expects metric=delta, got {part!r}")
+            if name not in known:
+                hint = did_you_mean(name, known) or f" (known: {', '.join(known)})"
+                raise ValueError(f"--fail-on-regression: unknown metric {name!r}{hint}")
+            try:
+                value = float(raw)
+            except ValueError:
+                value = math.nan
+            if not (math.isfinite(value) and value >= 0):
+                raise ValueError(f"--fail-on-regression: {name} must be a finite number >= 0, "
+                                 f"got {raw!r}")
+            out[name] = value
+    return out
+
+
+def regressions(cmp: Comparison, limits: dict[str, float]) -> list[str]:
+    """One reason per metric of ``limits`` that got worse by more than its delta (a metric
+    missing from either report is not judged)."""
+    reasons = []
+    for name, old, new, higher_is_better in cmp.metrics:
+        if name not in limits or not all(isinstance(v, (int, float)) for v in (old, new)):
+            continue
+        worse = (old - new) if higher_is_better else (new - old)
+        if worse > limits[name]:
+            reasons.append(f"{name} {fmt(old)} -> {fmt(new)} (worse by {worse:.4g}, more than "
+                           f"{limits[name]:g})")
+    return reasons

@@ -4,21 +4,19 @@
 from __future__ import annotations
 
 import json
+import os
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from arenabench.fileio import sha256_bytes, sha256_file
+from arenabench.gtrecord import AREA_REFERENCES as AREA_REFERENCES  # declared there
+from arenabench.gtrecord import DEFAULT_AREA_REFERENCE as DEFAULT_AREA_REFERENCE
 from arenabench.gtrecord import GroundTruth
+from arenabench.imageio import image_file_problem
 from arenabench.schemas import gt_problem
 
 from .records import Truth
-
-#: ``--area-reference`` name -> GT ``area`` field. ``contour_px`` is absent from GT files
-#: written before generator version 4.
-AREA_REFERENCES: dict[str, str] = {
-    "visible": "visible_px", "footprint": "footprint_px", "contour": "contour_px",
-}
 
 
 class DatasetError(ValueError):
@@ -83,6 +81,8 @@ class Dataset:
 
     root: Path
     samples: tuple[DatasetItem, ...]
+    #: (manifest id, why) of the damaged images left out (``load_dataset(skip_damaged=True)``)
+    skipped: tuple[tuple[str, str], ...] = ()
 
     @property
     def name(self) -> str:
@@ -134,7 +134,8 @@ def validate_gt(gt: Any, path: Path) -> None:
 
 
 def load_dataset(
-    root: str | Path, *, limit: int | None = None, verify: bool = True
+    root: str | Path, *, limit: int | None = None, verify: bool = True,
+    skip_damaged: bool = False,
 ) -> Dataset:
     """Read and validate a dataset folder.
 
@@ -149,6 +150,14 @@ def load_dataset(
         manifest entry (default). A truncated, corrupt or swapped file is a
         :class:`DatasetError` naming it, before any image is scored. The GT bytes are hashed
         as they are parsed (read once); images are hashed in chunks.
+    skip_damaged : bool, keyword-only
+        An image file that cannot be a whole image (empty, text, a PNG or JPEG cut short:
+        :func:`arenabench.imageio.image_file_problem`; also with a matching SHA-256 or
+        without ``verify``) is a :class:`DatasetError` ("dataset damaged"); with
+        ``skip_damaged`` it is left out and listed in :attr:`Dataset.skipped`.
+
+    A manifest path that leaves the dataset folder (absolute, ``..``, or a symbolic link out
+    of it) is a :class:`DatasetError`: a dataset is a closed folder.
 
     Returns
     -------
@@ -171,6 +180,7 @@ def load_dataset(
     if not manifest.is_file():
         raise DatasetError(f"{manifest}: missing (is {base} a dataset written by the generator?)")
     samples: list[DatasetItem] = []
+    skipped: list[tuple[str, str]] = []
     seen: set[str] = set()
     for lineno, line in enumerate(manifest.read_text(encoding="utf-8").splitlines(), 1):
         if not line.strip():
@@ -195,6 +205,12 @@ def load_dataset(
                         f"{where}: field {key!r} missing or not a SHA-256 hex digest "
                         "(--no-verify skips the check)"
                     )
+        for key in ("image", "gt"):
+            rel = entry[key]
+            inside = not os.path.isabs(rel) and (base / rel).resolve().is_relative_to(base)
+            if not inside:
+                raise DatasetError(f"{where}: {key} path {rel!r} leaves the dataset folder "
+                                   f"{shown} (a dataset is a closed folder)")
         image_path, gt_path = base / entry["image"], base / entry["gt"]
         shown_image, shown_gt = shown / entry["image"], shown / entry["gt"]
         for what, path, shown_path in (("image", image_path, shown_image),
@@ -217,6 +233,13 @@ def load_dataset(
             if digest != entry["image_sha256"]:
                 raise _fail(shown_image, "content does not match image_sha256 in manifest.jsonl "
                             "(truncated, corrupt or replaced; --no-verify skips the check)")
+        damage = image_file_problem(image_path)
+        if damage is not None:
+            if not skip_damaged:
+                raise DatasetError(f"dataset damaged: {shown_image}: {damage} (--skip-damaged "
+                                   "scores the other images)")
+            skipped.append((entry["id"], damage))
+            continue
         try:
             gt = json.loads(gt_bytes.decode("utf-8"))
         except UnicodeDecodeError:
@@ -237,5 +260,6 @@ def load_dataset(
         if limit is not None and len(samples) >= limit:
             break
     if not samples:
-        raise DatasetError(f"{manifest}: no entries")
-    return Dataset(root=base, samples=tuple(samples))
+        more = f" ({len(skipped)} damaged images left out)" if skipped else ""
+        raise DatasetError(f"{manifest}: no entries{more}")
+    return Dataset(root=base, samples=tuple(samples), skipped=tuple(skipped))

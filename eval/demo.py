@@ -13,26 +13,25 @@ import argparse
 import sys
 from pathlib import Path
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import CommandParser, add_count, add_no_progress, add_out, add_workers
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The argument parser of ``arenabench demo``."""
-    p = argparse.ArgumentParser(
-        formatter_class=HelpFormatter,
+    p = CommandParser(
         prog="arenabench demo",
         description="Generate a small eyrc dataset, evaluate the reference pipeline on it and "
         "write report.json/.csv/.md/.html and junit.xml. With --example, first run the "
         "pipeline on one real image and write OUT/obstacles.txt.",
     )
-    p.add_argument("--out", type=Path, default=Path("demo-out"), help="output folder")
-    p.add_argument("--count", type=int, default=24, help="images (default 24)")
+    add_out(p, default="demo-out")
+    add_count(p, default=24, help="images")
     p.add_argument("--seed", type=int, default=0, help="generator seed (default 0)")
     p.add_argument("--pipeline", default="reference", help="pipeline to score (default reference)")
-    p.add_argument("--workers", type=int, default=None, help="parallel workers (default: cores)")
+    add_workers(p)
     p.add_argument("--example", type=Path, default=None, metavar="IMAGE",
                    help="first detect on this image and write OUT/obstacles.txt")
-    p.add_argument("--no-progress", action="store_true", help="no progress output")
+    add_no_progress(p)
     return p
 
 
@@ -81,7 +80,19 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"arenabench demo: error: --pipeline: {exc}", file=sys.stderr)
         return 2
+    from arenabench.cliopts import lock_out
+    from arenabench.fileio import FolderLockedError
 
+    try:
+        with lock_out(args.out):  # generate's lock: one run at a time writes into --out
+            return _run(args)
+    except FolderLockedError as exc:
+        print(f"arenabench demo: error: {exc}", file=sys.stderr)
+        return 2
+
+
+def _run(args: argparse.Namespace) -> int:
+    """The demo's steps, with the --out lock held."""
     step = 1
     if args.example is not None:
         rc = _example(args.example, args.out)

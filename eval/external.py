@@ -86,6 +86,7 @@ from arenabench.competition import (
 
 from .records import Prediction, tail
 from .run_limits import RunLimits, RunSettings
+from .stale_runs import run_dir_prefix, sweep_stale_runs
 
 OUTPUT_MODES: tuple[str, ...] = ("obstacles", "json")
 #: Largest ``obstacles.txt`` read; a larger one is ``bad_output``.
@@ -165,9 +166,25 @@ def resolve_sandbox(mode: str) -> str:
     return "none"
 
 
-@lru_cache(maxsize=1)
+_CGROUP_PROBE_LOCK = threading.Lock()
+_CGROUP_PARENT: list[str | None] = []  # the probe's answer, once found
+
+
 def pids_cgroup_parent() -> str | None:
-    """A writable pids-cgroup folder where each run gets a child cgroup, or ``None``."""
+    """A writable pids-cgroup folder where each run gets a child cgroup, or ``None``.
+
+    Probed once per process, under a lock (grade calls it from many threads at once) and
+    with a probe folder of a name no other thread or process uses.
+    """
+    with _CGROUP_PROBE_LOCK:
+        if not _CGROUP_PARENT:
+            _CGROUP_PARENT.append(_probe_pids_cgroup_parent())
+        return _CGROUP_PARENT[0]
+
+
+def _probe_pids_cgroup_parent() -> str | None:
+    import uuid
+
     candidates = ["/sys/fs/cgroup/pids"]
     try:
         for line in Path("/proc/self/cgroup").read_text().splitlines():
@@ -181,7 +198,7 @@ def pids_cgroup_parent() -> str | None:
     except OSError:
         pass
     for parent in candidates:
-        probe = os.path.join(parent, f"arenabench-probe-{os.getpid()}")
+        probe = os.path.join(parent, f"arenabench-probe-{os.getpid()}-{uuid.uuid4().hex}")
         try:
             os.mkdir(probe)
         except OSError:
@@ -219,10 +236,12 @@ def _read_small(path: Path, limit: int) -> bytes:
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     except OSError as exc:
         raise OutputFormatError(f"{OBSTACLES_FILE} cannot be read: {exc.strerror}") from None
+    st = os.fstat(fd)  # before fdopen, which refuses a directory with IsADirectoryError
+    if not stat.S_ISREG(st.st_mode):
+        os.close(fd)
+        kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file"
+        raise OutputFormatError(f"{OBSTACLES_FILE} is {kind}")
     with os.fdopen(fd, "rb") as fh:
-        st = os.fstat(fd)
-        if not stat.S_ISREG(st.st_mode):
-            raise OutputFormatError(f"{OBSTACLES_FILE} is not a regular file")
         if st.st_size > limit:
             raise OutputFormatError(
                 f"{OBSTACLES_FILE} is {st.st_size} bytes, more than the {limit} allowed"
@@ -321,6 +340,7 @@ class CommandPipeline:
         self._executable = self._resolve_executable()
         self.sandbox = resolve_sandbox(self.settings.sandbox)
         self._cgroup = pids_cgroup_parent()
+        sweep_stale_runs(cgroup_parent=self._cgroup)  # what SIGKILLed runs left, once
         if self._cgroup is None and os.getuid() == 0:
             _warn_once("no writable pids cgroup and running as root: --max-procs cannot be "
                        "enforced for external commands")
@@ -351,9 +371,13 @@ class CommandPipeline:
     def _resolved_args(self) -> list[str]:
         out = []
         for arg in self._argv:
-            if "{" not in arg and not arg.startswith("-") and not os.path.isabs(arg):
-                candidate = Path(self.base_dir, arg)
-                if candidate.exists():
+            if arg and "{" not in arg and not arg.startswith("-") and not os.path.isabs(arg):
+                candidate = Path(self.base_dir, arg)  # '' is an argument, never the folder
+                try:
+                    exists = candidate.exists()
+                except OSError:  # e.g. longer than a file name may be: an argument, not a path
+                    exists = False
+                if exists:
                     arg = os.path.abspath(candidate)
             out.append(arg)
         return out
@@ -464,7 +488,7 @@ class CommandPipeline:
         command's own failures)."""
         if self._stopped:
             return Prediction(status="crash", message="interrupted")
-        rundir = tempfile.mkdtemp(prefix="arenabench-run-")
+        rundir = tempfile.mkdtemp(prefix=run_dir_prefix())  # names its owner: stale_runs
         try:
             return self._run_in(Path(image_path), rundir)
         finally:
@@ -513,10 +537,12 @@ class CommandPipeline:
                     stdin=subprocess.DEVNULL, stdout=log, stderr=log, close_fds=False,
                 )
             self._live.add(proc)
+        launcher_hung = False
         try:
             try:
                 _wait(proc, lim.timeout_s + LAUNCHER_GRACE_S)
             except subprocess.TimeoutExpired:
+                launcher_hung = True
                 proc.terminate()
                 try:
                     proc.wait(timeout=10)
@@ -531,6 +557,10 @@ class CommandPipeline:
         except (OSError, ValueError, EOFError, TypeError):
             if self._stopped:
                 return Prediction(status="crash", message="interrupted")
+            if launcher_hung:
+                return Prediction(status="timeout", message=(
+                    f"timed out after {lim.timeout_s:g} s; its launcher stopped answering and "
+                    "was killed"), latency_ms=(lim.timeout_s + LAUNCHER_GRACE_S) * 1e3)
             log_text = tail(_decode(Path(rundir, "launcher.log").read_bytes()[-4000:]))
             return Prediction(status="crash",
                               message=f"the launcher failed (status {proc.returncode})",

@@ -12,9 +12,22 @@ finished stay graded: run the same command again to resume).
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
+
+from arenabench.cliopts import (
+    EXIT_USAGE,
+    WORKERS_RULE,
+    CommandParser,
+    add_area_reference,
+    add_no_progress,
+    add_out,
+    add_run_options,
+    add_scheduler,
+    add_tolerance,
+    add_workers,
+    lock_out,
+)
 
 from .phase_check import add_phase_check_argument
 from .pipelines import OUTPUT_MODES
@@ -59,40 +72,35 @@ a fresh machine: docs/grading.md.
 """
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The argument parser of ``arenabench grade``."""
-    from .dataset import AREA_REFERENCES
     from .grade.runner import DEFAULT_COMMAND
     from .reports import FORMATS
-    from .run_limits import add_run_arguments
 
-    p = argparse.ArgumentParser(
+    p = CommandParser(
         prog=PROG,
         description="Grade many teams' submissions on one dataset and rank them.",
         epilog=EPILOG,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("dataset", help="dataset folder (holds manifest.jsonl and gt/)")
     p.add_argument("submissions", help="folder with one sub-folder per team")
-    p.add_argument("--out", type=Path, required=True, help="output folder")
+    add_out(p, required=True)
     p.add_argument("--cmd", default=DEFAULT_COMMAND,
                    help="command template per team and image (default: %(default)r)")
     p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
                    help="how the command answers: obstacles.txt in its cwd (default) or a "
                         "JSON line")
-    p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
-                   help="GT area the answer is compared with (default: %(default)s)")
+    add_tolerance(p)
+    add_area_reference(p)
     p.add_argument("--formats", default=",".join(FORMATS),
                    help="report files per team (default: %(default)s)")
-    p.add_argument("--workers", type=int, default=None,
-                   help="commands run at once here (default: cores)")
-    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                   help="run on an existing Dask cluster (dataset and submissions at the same "
-                        "paths on every worker; see docs/scale-out.md)")
-    p.add_argument("--report-workers", type=int, default=None,
+    add_scheduler(p, help="run on an existing Dask cluster (dataset and submissions at the "
+                  "same paths on every worker; see docs/scale-out.md)")
+    add_workers(p, help="commands run at once here")
+    p.add_argument("--report-workers", type=WORKERS_RULE.argtype("--report-workers"),
+                   default=None, metavar="N",
                    help="processes here writing the teams' reports (default: cores)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_no_progress(p)
     p.add_argument("--allow-guessable-seed", action="store_true",
                    help="grade a set generated with a seed below 2**64 (a submission can "
                         "re-render it and read its answers)")
@@ -100,7 +108,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help="a known-good submission for the preflight (default: the built-in "
                         "reference detector as a competition script)")
     add_phase_check_argument(p)
-    add_run_arguments(p)
+    add_run_options(p)
     return p
 
 
@@ -109,8 +117,8 @@ _OPTION_NAMES = {"command": "--cmd", "formats": "--formats", "tolerance": "--tol
 
 
 def _error(message: str) -> int:
-    print(f"{PROG}: error: {message}", file=sys.stderr)
-    return 2
+    print(f"{PROG}: error: {' '.join(message.split())}", file=sys.stderr)
+    return EXIT_USAGE
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -118,20 +126,12 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except SystemExit as exc:  # argparse: --help (0) or usage error (2)
+    except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
         return int(exc.code or 0)
-    if args.workers is not None and args.workers < 1:
-        return _error(f"--workers must be >= 1, got {args.workers}")
-    if args.report_workers is not None and args.report_workers < 1:
-        return _error(f"--report-workers must be >= 1, got {args.report_workers}")
     if args.reference is not None and not Path(args.reference).is_dir():
         return _error(f"--reference {args.reference}: not a folder (a known-good submission)")
-    if args.scheduler is not None and args.workers is not None:
-        return _error("--workers and --scheduler exclude each other (the cluster's workers "
-                      "run the commands)")
 
     from arenabench.fileio import OutputPathError, check_output_dir
-    from arenabench.limits import MAX_WORKERS, check_at_most
 
     from .dataset import DatasetError, load_dataset
     from .grade.runner import GradeOptions, check_out_dir, grade
@@ -145,10 +145,6 @@ def main(argv: list[str] | None = None) -> int:
     except OutputPathError as exc:
         return _error(f"--out {args.out}: {exc}")
     try:
-        for option, value in (("--workers", args.workers),
-                              ("--report-workers", args.report_workers)):
-            if value is not None:
-                check_at_most(value, MAX_WORKERS, option)
         dataset = load_dataset(args.dataset)
         phases = resolve_phases(args.phase_check,
                                 sorted({s.gt.preset or "" for s in dataset.samples}))
@@ -164,10 +160,14 @@ def main(argv: list[str] | None = None) -> int:
             if msg.startswith(f"{param} "):
                 msg = f"{option}{msg[len(param):]}"
         return _error(msg)
+    from contextlib import ExitStack
+
+    from arenabench.fileio import FolderLockedError
     from arenabench.interrupts import Interrupted, stop_on_signals
 
-    with stop_on_signals():
+    with stop_on_signals(), ExitStack() as held:
         try:
+            held.enter_context(lock_out(args.out))  # generate's lock: one run per --out
             result = grade(dataset, args.submissions, args.out, options=options,
                            workers=args.workers, scheduler=args.scheduler,
                            report_workers=args.report_workers, progress=not args.no_progress,
@@ -177,6 +177,8 @@ def main(argv: list[str] | None = None) -> int:
             return _error(str(exc))
         except OSError as exc:  # e.g. the scheduler cannot be reached
             return _error(f"{type(exc).__name__}: {exc}")
+        except FolderLockedError as exc:
+            return _error(str(exc))
         except Interrupted as exc:
             print(f"{PROG}: {exc}: finished teams stay graded; run the same command again "
                   "to resume", file=sys.stderr)

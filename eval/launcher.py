@@ -35,6 +35,9 @@ import sys
 import time
 
 PR_SET_PDEATHSIG = 1
+PR_SET_DUMPABLE = 4
+PR_CAPBSET_DROP = 24
+CAP_SYS_PTRACE = 19
 PR_SET_CHILD_SUBREAPER = 36
 
 _stop_signal: int | None = None
@@ -197,6 +200,7 @@ def _child_setup(cfg: dict, cgroup: str | None) -> None:
         with open(os.path.join(cgroup, "cgroup.procs"), "w") as fh:
             fh.write("0")
     _prctl(PR_SET_PDEATHSIG, signal.SIGKILL)
+    _LIBC.prctl(PR_CAPBSET_DROP, CAP_SYS_PTRACE, 0, 0, 0)  # EPERM without it: nothing to drop
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
     resource.setrlimit(resource.RLIMIT_AS, (cfg["memory_bytes"], cfg["memory_bytes"]))
     resource.setrlimit(resource.RLIMIT_FSIZE, (cfg["max_file_size"], cfg["max_file_size"]))
@@ -373,6 +377,9 @@ def main(argv: list[str]) -> int:
     try:
         _prctl(PR_SET_CHILD_SUBREAPER, 1)
         _prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        # not ptrace-attachable by the command it runs (which would stop the launcher and
+        # with it the timeout): non-dumpable, and the command loses CAP_SYS_PTRACE
+        _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
         if os.getppid() != cfg["parent_pid"]:  # the harness died before PDEATHSIG was set
             _rmtree(cfg["rundir"])
             return 128 + signal.SIGTERM

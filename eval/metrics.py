@@ -16,11 +16,14 @@ from collections.abc import Sequence
 
 import numpy as np
 
+# DEFAULT_TOLERANCE is declared with the competition rules; imported from here too
+from arenabench.competition import DEFAULT_TOLERANCE as DEFAULT_TOLERANCE
 from arenabench.competition import OutputFormatError, check_area, check_count
 
 from .records import CATEGORIES, ImageScore, Prediction, Summary, Truth
 
-DEFAULT_TOLERANCE = 0.05
+#: A GT area below this (px², a millionth of a pixel) is 0 in effect: its error is absolute.
+ZERO_AREA_PX = 1e-6
 
 
 def wilson_interval(successes: int, n: int, *, z: float = 1.959963984540054) -> tuple[float, float]:
@@ -59,10 +62,11 @@ def area_error(pred_area: float, gt_area: float) -> tuple[float, str]:
     -------
     (float, str)
         ``((pred - gt) / gt, "relative")``, or ``(pred - gt, "absolute_px")`` when
-        ``gt_area == 0``.
+        ``gt_area`` is below :data:`ZERO_AREA_PX` (0, or ``1e-320``, whose relative error
+        would overflow and blame the pipeline).
     """
-    if gt_area == 0:
-        return float(pred_area) - 0.0, "absolute_px"
+    if abs(float(gt_area)) < ZERO_AREA_PX:
+        return float(pred_area) - float(gt_area), "absolute_px"
     return (float(pred_area) - float(gt_area)) / float(gt_area), "relative"
 
 

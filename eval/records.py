@@ -9,6 +9,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any
 
+from arenabench.competition import DEFAULT_TOLERANCE
+
 REPORT_SCHEMA = "arenabench.report/1"
 
 #: Pipeline statuses. ``ok`` and ``markers_not_found`` come from the pipeline itself; the
@@ -388,7 +390,7 @@ class Report:
             pipeline=str(d.get("pipeline", "")),
             dataset=str(d.get("dataset", "")),
             area_reference=str(d.get("area_reference", "visible")),
-            tolerance=float(d.get("tolerance", 0.05)),
+            tolerance=float(d.get("tolerance", DEFAULT_TOLERANCE)),
             summary=Summary.from_dict(d["summary"]),
             images=tuple(ImageResult.from_dict(i) for i in d.get("images", [])),
             breakdown=dict(d.get("breakdown", {})),

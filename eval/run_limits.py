@@ -3,7 +3,8 @@
 ``eval``, ``sweep`` and ``grade`` all run untrusted commands; their command-line options and
 the values the runner enforces come from here, so a limit is declared in one place.
 
-This module holds the *declaration* (dataclass, defaults, parsing, argparse options); the
+This module holds the *declaration* (dataclasses, defaults); the options and their rules are
+added by :func:`arenabench.cliopts.add_run_options`; the
 enforcement lives in :mod:`arenabench.eval.external` (``CommandPipeline``), where a run that
 hits the memory, process or file-size limit gets the failure category ``limit``.
 """
@@ -15,45 +16,26 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 
-#: How external commands are contained: ``auto`` uses bubblewrap when it is installed and
-#: works (else ``none``, with a warning), ``bwrap`` requires it, ``none`` runs without
-#: namespaces (private directory, limits and process cleanup still apply).
-SANDBOX_MODES: tuple[str, ...] = ("auto", "bwrap", "none")
+from arenabench.cliopts import (
+    BYTES_RULE,
+    DEFAULT_SANDBOX,
+    MAX_PROCS_RULE,
+    SANDBOX_MODES,
+    TIMEOUT_RULE,
+    format_size,
+    parse_size,
+)
+from arenabench.limits import (
+    DEFAULT_MAX_FILE_SIZE,
+    DEFAULT_MAX_OUTPUT,
+    DEFAULT_MAX_PROCS,
+    DEFAULT_MEMORY_BYTES,
+    DEFAULT_TIMEOUT_S,
+)
 
-_SIZE_RE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgGtT]?)(?:i?[bB])?\s*$")
-_SIZE_UNITS = {"": 1, "k": 1024, "m": 1024**2, "g": 1024**3, "t": 1024**4}
+__all__ = ["SANDBOX_MODES", "RunLimits", "RunSettings", "format_size", "parse_size",
+           "run_settings_from_args"]
 
-
-def parse_size(text: str, *, name: str) -> int:
-    """Parse ``"2G"``, ``"64M"``, ``"512k"`` or a plain byte count into bytes.
-
-    Parameters
-    ----------
-    text : str
-        The size; suffixes k/M/G/T are powers of 1024, an optional trailing ``B``/``iB``.
-    name : str
-        Option name for the error message.
-
-    Raises
-    ------
-    ValueError
-        Naming ``name`` and the value, when it is not a positive size.
-    """
-    m = _SIZE_RE.match(str(text))
-    if not m:
-        raise ValueError(f"{name}: not a size: {text!r} (use e.g. 2G, 64M, 1048576)")
-    value = int(float(m.group(1)) * _SIZE_UNITS[m.group(2).lower()])
-    if value <= 0:
-        raise ValueError(f"{name}: must be > 0, got {text!r}")
-    return value
-
-
-def format_size(value: int) -> str:
-    """The shortest exact spelling :func:`parse_size` reads back (``2147483648`` -> ``"2G"``)."""
-    for suffix, unit in (("T", 1024**4), ("G", 1024**3), ("M", 1024**2), ("k", 1024)):
-        if value % unit == 0:
-            return f"{value // unit}{suffix}"
-    return str(value)
 
 
 @dataclass(frozen=True)
@@ -75,19 +57,21 @@ class RunLimits:
         Bytes of stdout and of stderr kept (the tail); more is discarded, not held in memory.
     """
 
-    timeout_s: float = 60.0
-    memory_bytes: int = 2 * 1024**3
-    max_procs: int = 64
-    max_file_size: int = 64 * 1024**2
-    max_output: int = 1024**2
+    timeout_s: float = DEFAULT_TIMEOUT_S
+    memory_bytes: int = DEFAULT_MEMORY_BYTES
+    max_procs: int = DEFAULT_MAX_PROCS
+    max_file_size: int = DEFAULT_MAX_FILE_SIZE
+    max_output: int = DEFAULT_MAX_OUTPUT
 
-    def __post_init__(self) -> None:
-        if not self.timeout_s > 0:  # also refuses NaN
-            raise ValueError(f"timeout_s must be > 0, got {self.timeout_s!r}")
-        for name in ("memory_bytes", "max_procs", "max_file_size", "max_output"):
+    def __post_init__(self) -> None:  # the rules of the command-line options
+        TIMEOUT_RULE.check(self.timeout_s, name="timeout_s")
+        MAX_PROCS_RULE.check(self.max_procs, name="max_procs")
+        for name in ("memory_bytes", "max_file_size", "max_output", "max_procs"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, int) or value <= 0:
+            if isinstance(value, bool) or not isinstance(value, int):
                 raise ValueError(f"{name} must be a positive integer, got {value!r}")
+            if name != "max_procs":
+                BYTES_RULE.check(value, name=name)
 
 
 @dataclass(frozen=True)
@@ -107,7 +91,7 @@ class RunSettings:
     """
 
     limits: RunLimits = field(default_factory=RunLimits)
-    sandbox: str = "auto"
+    sandbox: str = DEFAULT_SANDBOX
     image_name: str | None = None
     env: Mapping[str, str] = field(default_factory=dict)
 
@@ -134,7 +118,7 @@ class RunSettings:
         limits = RunLimits(**{k: d[k] for k in names if k in d})  # type: ignore[arg-type]
         return cls(
             limits=limits,
-            sandbox=str(d.get("sandbox", "auto")),
+            sandbox=str(d.get("sandbox", DEFAULT_SANDBOX)),
             image_name=d.get("image_name"),  # type: ignore[arg-type]
             env=dict(d.get("env") or {}),  # type: ignore[call-overload]
         )
@@ -148,48 +132,9 @@ class RunSettings:
             raise ValueError(f"image_name must be a plain file name, got {self.image_name!r}")
 
 
-def add_run_arguments(parser: argparse.ArgumentParser) -> None:
-    """Add the options of external runs (``--timeout``, limits, sandbox, env) to ``parser``."""
-    d = RunLimits()
-    g = parser.add_argument_group("external command runs (--cmd)")
-    g.add_argument(
-        "--timeout", type=float, default=d.timeout_s,
-        help="wall-clock seconds per image (default: %(default)s)",
-    )
-    g.add_argument(
-        "--memory-limit", default=format_size(d.memory_bytes),
-        help="address space per process, e.g. 2G, 512M (default: %(default)s)",
-    )
-    g.add_argument(
-        "--max-procs", type=int, default=d.max_procs,
-        help="processes a run may have at once (default: %(default)s)",
-    )
-    g.add_argument(
-        "--max-file-size", default=format_size(d.max_file_size),
-        help="largest file a run may write (default: %(default)s)",
-    )
-    g.add_argument(
-        "--max-output", default=format_size(d.max_output),
-        help="bytes of stdout and of stderr kept per run, the tail (default: %(default)s)",
-    )
-    g.add_argument(
-        "--sandbox", choices=SANDBOX_MODES, default="auto",
-        help="auto: bubblewrap when it works here (else a warning and none); bwrap: require "
-        "it; none: no namespaces (default: %(default)s)",
-    )
-    g.add_argument(
-        "--image-name", default=None,
-        help="file name of the image copy the command sees (default: image + its extension)",
-    )
-    g.add_argument(
-        "--env", action="append", default=[], metavar="K=V",
-        help="environment variable for the command (repeatable); nothing else is passed on "
-        "besides PATH, HOME, LANG, LC_ALL and TMPDIR",
-    )
-
-
 def run_settings_from_args(args: argparse.Namespace) -> RunSettings:
-    """Build :class:`RunSettings` from options added by :func:`add_run_arguments`.
+    """Build :class:`RunSettings` from options added by
+    :func:`arenabench.cliopts.add_run_options` (already checked by their rules).
 
     Raises
     ------
@@ -202,10 +147,6 @@ def run_settings_from_args(args: argparse.Namespace) -> RunSettings:
         if not sep or not key or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", key):
             raise ValueError(f"--env: expected K=V with a valid variable name, got {item!r}")
         env[key] = value
-    if args.max_procs is not None and args.max_procs < 1:
-        raise ValueError(f"--max-procs must be >= 1, got {args.max_procs}")
-    if not args.timeout > 0:
-        raise ValueError(f"--timeout must be > 0, got {args.timeout}")
     limits = RunLimits(
         timeout_s=args.timeout,
         memory_bytes=parse_size(args.memory_limit, name="--memory-limit"),

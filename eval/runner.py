@@ -138,6 +138,8 @@ def evaluate(
     progress: bool = False,
     limit: int | None = None,
     phases: int = 0,
+    isolate: bool = False,
+    timeout_s: float | None = None,
 ) -> Report:
     """Run ``pipeline`` on every image of ``dataset`` and score it.
 
@@ -165,6 +167,15 @@ def evaluate(
     phases : int
         Phase check (:mod:`arenabench.eval.phase_check`): re-render each failing image's
         scene at this many sub-pixel offsets and re-run the pipeline on each; 0 = off.
+    isolate : bool
+        Run a ``"pkg.module:function"`` pipeline in killable child processes
+        (:class:`~arenabench.eval.isolated.IsolatedCallablePipeline`, whatever ``executor``;
+        what ``arenabench eval`` does): ``sys.exit``, ``os._exit``, ``KeyboardInterrupt`` or
+        an endless loop in it fail that image only. The children are started with ``spawn``:
+        a script calling this needs the ``if __name__ == "__main__":`` guard.
+    timeout_s : float, optional
+        With ``isolate``: seconds one image may take (default: the ``--timeout`` default of
+        external commands).
 
     Returns
     -------
@@ -194,9 +205,19 @@ def evaluate(
     samples = data.samples[:limit] if limit else data.samples
     for s in samples:  # a missing reference area is a data error, found before any work
         s.truth(area_reference=area_reference)
-    pipe = make_pipeline(pipeline)
+    isolated = isolate and isinstance(pipeline, str) and ":" in pipeline  # a team's function
+    if isolated:
+        from arenabench.limits import DEFAULT_TIMEOUT_S
+
+        from .isolated import IsolatedCallablePipeline
+
+        pipe: Pipeline = IsolatedCallablePipeline(
+            pipeline, timeout_s=DEFAULT_TIMEOUT_S if timeout_s is None else timeout_s)
+    else:
+        pipe = make_pipeline(pipeline)
     n_workers = min(workers or usable_cores(), max(1, len(samples)))
-    use_process = executor == "process" and pipe.in_process and isinstance(pipeline, str)
+    use_process = (executor == "process" and pipe.in_process and isinstance(pipeline, str)
+                   and not isolated)  # an isolated function has its own processes
     pool: Executor
     if use_process:
         pool = ProcessPoolExecutor(
@@ -237,6 +258,9 @@ def evaluate(
             if callable(stop):
                 stop()
             pool.shutdown(wait=True, cancel_futures=True)
+        finally:
+            if isolated:
+                pipe.close()  # type: ignore[attr-defined]
     results = [
         score_sample(s, p, tolerance=tolerance, area_reference=area_reference)
         for s, p in zip(samples, preds, strict=True)

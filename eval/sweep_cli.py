@@ -9,15 +9,24 @@ from __future__ import annotations
 
 import argparse
 import sys
-from pathlib import Path
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import (
+    CommandParser,
+    add_area_reference,
+    add_no_progress,
+    add_out,
+    add_run_options,
+    add_scheduler,
+    add_tolerance,
+    add_workers,
+    lock_out,
+    write_failure,
+)
 from arenabench.interrupts import Interrupted, stop_on_signals
 
-from .dataset import AREA_REFERENCES
 from .phase_check import add_phase_check_argument, resolve_phases
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
-from .run_limits import add_run_arguments, run_settings_from_args
+from .run_limits import run_settings_from_args
 
 EPILOG = """\
 examples:
@@ -56,16 +65,15 @@ class _PipelineAction(argparse.Action):
         setattr(namespace, self.dest, items)
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The argument parser of ``arenabench sweep``."""
     from arenabench.generator.presets import preset_names
 
-    p = argparse.ArgumentParser(
+    p = CommandParser(
         prog="arenabench sweep",
         description="Robustness sweep: vary preset parameters over a grid (or at random), "
                     "render and score every point in memory, report breakdown points.",
         epilog=EPILOG,
-        formatter_class=HelpFormatter,
     )
     p.add_argument("--preset", default="eyrc",
                    help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
@@ -86,11 +94,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="external command, e.g. 'python3 map.py --image {image}' (repeatable)")
     p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
                    help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line")
-    p.add_argument("--tolerance", type=float, default=0.05, help="max |area_rel_err| to pass")
-    p.add_argument("--area-reference", choices=tuple(AREA_REFERENCES), default="visible",
-                   help="GT area the answer is compared with: visible (the silhouettes a "
-                        "camera-side segmentation sees), footprint (the boxes' floor area) or "
-                        "contour (what cv2.contourArea of the pixelated silhouettes gives)")
+    add_tolerance(p)
+    add_area_reference(p)
     p.add_argument("--threshold", type=float, default=0.9,
                    help="breakdown threshold on the pass rate's lower 95 %% bound (default 0.9)")
     p.add_argument("--breakdown-mode", choices=("marginal", "axis"), default="marginal",
@@ -101,15 +106,13 @@ def build_parser() -> argparse.ArgumentParser:
                       help="write every rendered image and its GT to OUT/images, OUT/gt")
     keep.add_argument("--keep-failures", action="store_true",
                       help="write only images some pipeline failed on")
-    p.add_argument("--out", type=Path, required=True, help="output folder")
-    p.add_argument("--workers", type=int, default=None,
-                   help="local processes (default: cores; 1 = in this process)")
-    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                   help="run on an existing Dask distributed cluster")
+    add_out(p, required=True)
+    add_workers(p, help="local processes (1 = in this process)")
+    add_scheduler(p, help="run on an existing Dask distributed cluster")
     p.add_argument("--no-plots", action="store_true", help="skip plots and sweep.html")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_no_progress(p)
     add_phase_check_argument(p)
-    add_run_arguments(p)
+    add_run_options(p)
     return p
 
 
@@ -123,12 +126,11 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except SystemExit as exc:  # argparse: --help (0) or usage error (2)
+    except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
         return int(exc.code or 0)
     from arenabench.fileio import OutputPathError, check_output_dir
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
-    from arenabench.limits import MAX_WORKERS
 
     from .sweep.grid import parse_varies
     from .sweep.outputs import KeptImageWriter, write_sweep
@@ -143,11 +145,6 @@ def main(argv: list[str] | None = None) -> int:
         return _error("give at least one --vary KEY=SPEC")
     if not args.pipes:
         return _error("give --pipeline NAME|pkg.module:function and/or --cmd TEMPLATE")
-    if args.workers is not None and not 1 <= args.workers <= MAX_WORKERS:
-        return _error(f"--workers must be in [1, {MAX_WORKERS}], got {args.workers}")
-    if args.scheduler is not None and args.workers is not None:
-        return _error("--workers and --scheduler exclude each other (the cluster's workers "
-                      "do the work)")
     try:
         get_preset(args.preset)
         axes = parse_varies(args.vary)
@@ -181,15 +178,22 @@ def main(argv: list[str] | None = None) -> int:
             require_offscreen_gl()
         except OffscreenGLError as exc:
             return _error(str(exc))
+    from contextlib import ExitStack
+
+    from arenabench.fileio import FolderLockedError
+
     writer = KeptImageWriter(args.out)
-    with stop_on_signals() as stop:
+    with stop_on_signals() as stop, ExitStack() as held:
         try:
+            held.enter_context(lock_out(args.out))  # generate's lock: one run per --out
             result = run_sweep(spec, workers=args.workers, scheduler=args.scheduler,
                                progress=not args.no_progress, on_output=writer)
         except (ValueError, SamplingError) as exc:
             return _error(str(exc))
         except OSError as exc:  # e.g. the scheduler cannot be reached
             return _error(f"{type(exc).__name__}: {exc}")
+        except FolderLockedError as exc:
+            return _error(str(exc))
         except Interrupted as exc:  # before the first task or after the last one
             print(f"arenabench sweep: {exc}; nothing written", file=sys.stderr)
             return exc.exit_code
@@ -198,6 +202,9 @@ def main(argv: list[str] | None = None) -> int:
                 written = write_sweep(result, args.out, plots=not args.no_plots)
         except Interrupted:
             pass
+        except OSError as exc:  # ENOSPC: one line, no traceback
+            print(f"arenabench sweep: error: {write_failure(exc, args.out)}", file=sys.stderr)
+            return stop.exit_code or 1
     if not result.complete:
         run = result.run
         print(f"arenabench sweep: interrupted by {run['interrupted']}: {run['samples_done']} "

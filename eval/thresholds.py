@@ -12,6 +12,8 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
+from arenabench.suggest import did_you_mean
+
 from .compare import lookup
 from .records import CATEGORIES, Summary
 
@@ -76,7 +78,8 @@ def parse_thresholds(specs: Iterable[str]) -> list[Threshold]:
                 raise ValueError(f"--fail-under expects metric=value, got {part!r}")
             if name not in MINIMUMS and name not in MAXIMUMS:
                 known = ", ".join((*MINIMUMS, *MAXIMUMS))
-                raise ValueError(f"--fail-under: unknown metric {name!r} (known: {known})")
+                hint = did_you_mean(name, (*MINIMUMS, *MAXIMUMS)) or f" (known: {known})"
+                raise ValueError(f"--fail-under: unknown metric {name!r}{hint}")
             try:
                 value = float(raw)
             except ValueError:

@@ -2,18 +2,23 @@
 
 from __future__ import annotations
 
-import argparse
 import os
 import sys
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import (
+    CommandParser,
+    add_count,
+    add_no_progress,
+    add_out,
+    add_scheduler,
+    add_workers,
+)
 from arenabench.generator.presets import preset_names
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The ``arenabench generate`` argument parser."""
-    p = argparse.ArgumentParser(
-        formatter_class=HelpFormatter,
+    p = CommandParser(
         prog="arenabench generate",
         description="Render COUNT scenes of a preset into OUT (images/, gt/, manifest.jsonl, "
                     "dataset.json, coco.json). Re-running with the same arguments resumes or "
@@ -23,23 +28,20 @@ def build_parser() -> argparse.ArgumentParser:
     )
     p.add_argument("--preset", default="eyrc",
                    help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
-    p.add_argument("--count", type=int, required=True, help="number of scenes")
+    add_count(p, required=True, help="number of scenes")
     p.add_argument("--seed", default="0",
                    help="run seed: an integer >= 0 (default 0), or 'random': 128 bits from "
                         "the operating system, printed and recorded in dataset.json (use it "
                         "for a hidden grading set: a small seed lets a submission re-render "
                         "the set and read its answers)")
-    p.add_argument("--out", required=True, help="output directory")
+    add_out(p, required=True, help="output directory")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a preset parameter, e.g. camera.tilt_deg=10:30 or "
                         "obstacles.count=3 (repeatable; see 'arenabench presets --params')")
-    p.add_argument("--workers", type=int, default=os.cpu_count() or 1,
-                   help="rendering processes (default: the machine's cores); the output does "
-                        "not depend on it")
-    p.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
-                   help="render on this Dask cluster instead (files are written here, the same "
-                        "bytes as a local run; see docs/scale-out.md)")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_workers(p, help="rendering processes; the output does not depend on it")
+    add_scheduler(p, help="render on this Dask cluster instead (files are written here, the "
+                  "same bytes as a local run; see docs/scale-out.md)")
+    add_no_progress(p)
     return p
 
 
@@ -75,7 +77,8 @@ def main(argv: list[str] | None = None) -> int:
             overrides = parse_overrides(args.overrides)
             result = generate_dataset(
                 args.out, preset=args.preset, count=args.count, seed=seed,
-                overrides=overrides, workers=args.workers, scheduler=args.scheduler,
+                overrides=overrides, workers=args.workers or 1,  # None: --scheduler
+                scheduler=args.scheduler,
                 progress=not args.no_progress,
             )
         except (GenerateError, SamplingError, ValueError, OffscreenGLError) as exc:

@@ -6,14 +6,13 @@ same index), captioned with its id and ground-truth count and visible area.
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import CommandParser, add_count, add_no_progress, add_out
 from arenabench.fileio import atomic_write_bytes
 from arenabench.limits import MAX_IMAGE_SIDE_PX, check_at_most
 
@@ -137,24 +136,27 @@ def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
     return tile_images(images, captions, columns=columns, tile=tile)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run ``arenabench contact-sheet``; returns 0, or 2 on a usage error."""
-    p = argparse.ArgumentParser(
-        formatter_class=HelpFormatter,
+def build_parser() -> CommandParser:
+    """The ``arenabench contact-sheet`` argument parser."""
+    p = CommandParser(
         prog="arenabench contact-sheet",
         description="Render the first COUNT scenes of a preset and tile them into one image.",
     )
     p.add_argument("--preset", default="eyrc", help="scene preset (default eyrc)")
-    p.add_argument("--count", type=int, default=16, help="scenes (default 16)")
+    add_count(p, default=16, help="scenes")
     p.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a preset parameter (repeatable)")
     p.add_argument("--columns", type=int, default=4, help="tiles per row (default 4)")
     p.add_argument("--tile", type=int, default=320, help="tile side in px (default 320)")
-    p.add_argument("--out", type=Path, default=None,
-                   help="output image (.jpg or .png; default contact-PRESET.jpg)")
-    p.add_argument("--no-progress", action="store_true", help="no progress output")
-    args = p.parse_args(argv)
+    add_out(p, help="output image (.jpg or .png; default contact-PRESET.jpg)")
+    add_no_progress(p)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``arenabench contact-sheet``; returns 0, or 2 on a usage error."""
+    args = build_parser().parse_args(argv)
     from arenabench.fileio import OutputPathError, check_output_file
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError

@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import CommandParser, add_count, add_out
+from arenabench.limits import MAX_REFINE_ROUNDS
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The ``arenabench fit`` argument parser."""
-    p = argparse.ArgumentParser(
-        formatter_class=HelpFormatter,
+    p = CommandParser(
         prog="arenabench fit",
         description="Fit a scene (camera from the four markers, boxes, colours, lighting) to "
                     "IMAGE and write it as a scene file for 'arenabench render'. The arena is "
@@ -20,12 +19,12 @@ def build_parser() -> argparse.ArgumentParser:
                     "--arena-side a procedural arena of that side, the marker size fitted.",
     )
     p.add_argument("image", help="overhead image of the arena (PNG/JPEG)")
-    p.add_argument("--out", required=True, help="scene file to write (JSON)")
+    add_out(p, required=True, help="scene file to write (JSON)")
     p.add_argument("--arena-side", type=float, default=None,
                    help="fit a procedural arena with this border square side in m instead of "
                         "the competition texture")
-    p.add_argument("--refine-rounds", type=int, default=1,
-                   help="SSIM refinement rounds of the margin and border width (default 1)")
+    add_count(p, "--refine-rounds", default=1, minimum=0, maximum=MAX_REFINE_ROUNDS,
+              help="SSIM refinement rounds of the margin and border width")
     p.add_argument("--report", action="store_true",
                    help="also print the fit as JSON (fov, reprojection error, SSIM, MAD)")
     return p

@@ -2,23 +2,26 @@
 
 from __future__ import annotations
 
-import argparse
 import sys
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import CommandParser
 from arenabench.generator.presets import PARAMETERS, PRESETS, format_value
 from arenabench.suggest import did_you_mean
 
 
-def main(argv: list[str] | None = None) -> int:
-    """List presets (default), show one (``--show NAME``) or list parameters (``--params``)."""
-    p = argparse.ArgumentParser(prog="arenabench presets",
-                                description="List scene presets and their parameters.",
-                                formatter_class=HelpFormatter)
+def build_parser() -> CommandParser:
+    """The ``arenabench presets`` argument parser."""
+    p = CommandParser(prog="arenabench presets",
+                      description="List scene presets and their parameters.")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--show", metavar="NAME", help="print every parameter of preset NAME")
     g.add_argument("--params", action="store_true", help="list every parameter with its help")
-    args = p.parse_args(argv)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    """List presets (default), show one (``--show NAME``) or list parameters (``--params``)."""
+    args = build_parser().parse_args(argv)
     if args.show:
         if args.show not in PRESETS:
             print(f"arenabench presets: error: unknown preset {args.show!r}"

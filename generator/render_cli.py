@@ -8,12 +8,11 @@ Scene files are :meth:`Scene.to_dict` JSON, e.g. the fitted
 
 from __future__ import annotations
 
-import argparse
 import sys
 from pathlib import Path
 from typing import Any
 
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import CommandParser, add_out
 from arenabench.generator.scene import Scene, load_scene
 
 __all__ = ["load_scene", "render_scene_files", "scene_gt_record"]
@@ -51,17 +50,16 @@ def render_scene_files(scene: Scene, out: str | Path, *, source: str = "scene") 
     return image
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The ``arenabench render`` argument parser."""
-    p = argparse.ArgumentParser(
-        formatter_class=HelpFormatter,
+    p = CommandParser(
         prog="arenabench render",
         description="Render a scene file (JSON, e.g. from 'arenabench fit') with its ground "
                     "truth: DIR/images/000000.png, DIR/gt/000000.json and "
                     "DIR/manifest.jsonl ('arenabench eval DIR' scores it).",
     )
     p.add_argument("scene", help="scene file (JSON)")
-    p.add_argument("--out", required=True, help="output directory")
+    add_out(p, required=True, help="output directory")
     return p
 
 

@@ -88,9 +88,9 @@ def test_full_table_judges_targets():
 
 
 @pytest.mark.parametrize("argv, fragment", [
-    (["--count", "0"], "count must be an integer >= 1"),
-    (["--workers", "0"], "workers must be an integer >= 1"),
-    (["--rss-renders", "-3"], "rss_renders must be an integer >= 1"),
+    (["--count", "0"], "argument --count: must be an integer in [1, 1000000]"),
+    (["--workers", "0"], "argument --workers: must be an integer in [1, 256]"),
+    (["--rss-renders", "-3"], "argument --rss-renders: must be an integer in [1, 1000000]"),
 ])
 def test_usage_errors_exit_2(argv, fragment, capsys, tmp_path):
     assert main([*argv, "--out", str(tmp_path)]) == 2

@@ -75,7 +75,7 @@ def test_crashing_command_is_a_crash_with_its_stderr(toy, tmp_path, capsys):
         [
             str(toy),
             "--cmd",
-            f"{PY} {PIPES / 'crash.py'}",
+            f"{PY} {PIPES / 'crash.py'} {{image}}",
             "--out",
             str(tmp_path),
             "--fail-under",

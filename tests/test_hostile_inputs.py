@@ -95,6 +95,29 @@ def test_impossible_answer_of_a_callable_is_bad_output(toy, tmp_path, name):
         assert image["pred"]["area"] is None or math.isfinite(image["pred"]["area"])
 
 
+@pytest.mark.parametrize("executor", ["thread", "process"])
+@pytest.mark.parametrize(
+    ("name", "category", "message"),
+    [
+        ("sys_exit", "crash", "the pipeline called sys.exit(0)"),
+        ("os_exit", "crash", "the pipeline ended its process (exit status 0"),
+        ("keyboard_interrupt", "crash", "the pipeline raised KeyboardInterrupt"),
+        ("endless", "timeout", "timed out after 1.5 s (its process killed)"),
+    ],
+)
+def test_a_callable_that_exits_or_hangs_fails_its_images_only(toy, tmp_path, executor, name,
+                                                               category, message):
+    proc = run("eval", str(toy), "--pipeline", f"hostile_callables:{name}", "--executor",
+               executor, "--timeout", "1.5", "--workers", "2", "--out", str(tmp_path / "o"),
+               "--formats", "json", "--no-progress")
+    assert "Traceback" not in proc.stderr, proc.stderr
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith(f"hostile_callables:{name}: pass rate 0.0 % (0/3")
+    report = strict_json((tmp_path / "o" / "report.json").read_text())
+    assert [i["category"] for i in report["images"]] == [category] * 3
+    assert all(i["message"].startswith(message) for i in report["images"]), report["images"]
+
+
 @pytest.mark.parametrize(
     ("args", "needle"),
     [
@@ -282,7 +305,7 @@ def test_unwritable_out_is_refused_before_any_work(toy, tmp_path, command, where
 @pytest.mark.parametrize(
     ("argv", "needle"),
     [
-        (("generate", "--count", str(10**12)), "exceeds the limit of 1000000"),
+        (("generate", "--count", str(10**12)), "--count: must be an integer in [1, 1000000]"),
         (("generate", "--count", "1", "--set", "camera.width=200000"), "out of range [16, 8192]"),
         (("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
           "--per-point", str(10**12)), "exceeds the limit of 1000000"),
@@ -291,14 +314,14 @@ def test_unwritable_out_is_refused_before_any_work(toy, tmp_path, command, where
         (("sweep", "--vary", "camera.yaw_deg=0:99.99:0.01", "--vary",
           "lighting.ambient=0:0.9999:0.0001", "--vary", "camera.roll_deg=0:9.999:0.001",
           "--pipeline", "reference", "--per-point", "1"), "exceeds the limit of 1000000"),
-        (("contact-sheet", "--count", str(10**12)), "exceeds the limit of 8192"),
+        (("contact-sheet", "--count", str(10**12)), "[1, 1000000]"),
         (("contact-sheet", "--tile", "200000"), "tile = 200000 exceeds the limit of 8192"),
         (("detect", "--image", str(EXAMPLE), "--frame-size", "200000"), "[16, 8192]"),
-        (("generate", "--count", "1", "--workers", str(10**12)), "exceeds the limit of 256"),
+        (("generate", "--count", "1", "--workers", str(10**12)), "in [1, 256]"),
         (("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
           "--workers", str(10**12)), "in [1, 256]"),
         (("eval", ".", "--pipeline", "reference", "--workers", str(10**12)), "in [1, 256]"),
-        (("eval", ".", "--pipeline", "reference", "--tolerance", "nan"), "finite number >= 0"),
+        (("eval", ".", "--pipeline", "reference", "--tolerance", "nan"), "finite number in [0, 1]"),
         (("eval", ".", "--pipeline", "reference", "--fail-under", "pass_rate=nan"),
          "not finite"),
     ],
@@ -397,7 +420,133 @@ def test_damaged_dataset_is_refused_and_no_verify_skips_the_check(toy, tmp_path,
     assert_clean_error(proc, f"{bad / where}: content does not match", prog="eval")
     proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
                "--no-verify")
-    assert "Traceback" not in proc.stderr and proc.returncode in (0, 1), proc.stderr
+    if damage == "truncate":  # a PNG cut short: damaged whatever the manifest says
+        assert_clean_error(proc, f"dataset damaged: {bad / where}: truncated PNG",
+                           "--skip-damaged", prog="eval")
+    else:
+        assert "Traceback" not in proc.stderr and proc.returncode in (0, 1), proc.stderr
+
+
+@pytest.mark.parametrize("damage", ["truncated", "empty", "text"])
+@pytest.mark.parametrize("verify", [True, False])
+def test_damaged_image_with_matching_hash_is_a_damaged_dataset(toy, tmp_path, damage, verify):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    img = bad / "images" / "000001.png"
+    img.write_bytes({"truncated": img.read_bytes()[:300], "empty": b"",
+                     "text": b"this is not an image\n"}[damage])
+    rehash(bad)  # the manifest agrees with the damaged file
+    why = {"truncated": "truncated PNG", "empty": "empty file", "text": "not an image file"}
+    no_verify = () if verify else ("--no-verify",)
+    out = tmp_path / "out"
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+               "--out", str(out), *no_verify)
+    assert_clean_error(proc, f"dataset damaged: {img}: {why[damage]}", prog="eval")
+    assert not out.exists()
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+               "--out", str(out), "--skip-damaged", *no_verify)
+    assert proc.returncode == 0, proc.stderr
+    assert "1 damaged image(s) left out" in proc.stderr and "Traceback" not in proc.stderr
+    report = strict_json((out / "report.json").read_text())
+    assert [i["id"] for i in report["images"]] == ["000000", "000002"]
+
+
+@pytest.mark.parametrize("where", ["absolute", "dotdot", "symlink"])
+def test_manifest_paths_that_leave_the_dataset_are_refused(toy, tmp_path, where):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    outside = tmp_path / "outside.png"
+    shutil.copyfile(bad / "images" / "000001.png", outside)
+    manifest = bad / "manifest.jsonl"
+    rows = [json.loads(line) for line in manifest.read_text().splitlines()]
+    if where == "absolute":
+        rows[1]["image"] = str(outside)
+    elif where == "dotdot":
+        rows[1]["image"] = "images/../../outside.png"
+    else:
+        (bad / "images" / "000001.png").unlink()
+        (bad / "images" / "000001.png").symlink_to(outside)
+    manifest.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    for extra in ((), ("--no-verify",)):
+        proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress", *extra)
+        assert_clean_error(proc, ":2: image path", "leaves the dataset folder",
+                           "a dataset is a closed folder", prog="eval")
+
+
+def test_gt_area_1e_320_does_not_blame_the_pipeline():
+    from arenabench.eval.metrics import score_image
+    from arenabench.eval.records import Prediction, Truth
+
+    truth = Truth(count=0, area=1e-320, marker_ids=(80, 85, 90, 95))
+    ok = score_image(truth, Prediction(status="ok", count=0, area=0.0,
+                                       marker_ids=(80, 85, 90, 95)))
+    assert ok.passed and ok.area_err_kind == "absolute_px"
+    off = score_image(truth, Prediction(status="ok", count=0, area=5.0,
+                                        marker_ids=(80, 85, 90, 95)))
+    assert off.category == "area_off" and off.area_rel_err == 5.0
+
+
+def test_empty_formats_is_refused(toy, tmp_path):
+    proc = run("eval", str(toy), "--pipeline", "toy_arena:detect", "--formats", " , ",
+               "--out", str(tmp_path / "o"))
+    assert_clean_error(proc, "--formats ' , ': no format named", prog="eval")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("command", ["eval", "sweep", "grade"])
+def test_cmd_template_without_image_is_refused(toy, tmp_path, command):
+    cmd = "python3 map.py --fast"
+    argv = {"eval": ("eval", str(toy), "--cmd", cmd),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--cmd", cmd,
+                      "--out", str(tmp_path / "o")),
+            "grade": ("grade", str(toy), str(tmp_path), "--cmd", cmd,
+                      "--out", str(tmp_path / "o"))}[command]
+    proc = run(*argv, cwd=tmp_path)
+    assert_clean_error(proc, "--cmd 'python3 map.py --fast': the template has no {image}",
+                       prog=command)
+    assert not (tmp_path / "o").exists()
+
+
+def test_cmd_name_and_compare_gate(toy, tmp_path):
+    good, bad = tmp_path / "good", tmp_path / "bad"
+    proc = run("eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(good),
+               "--formats", "json", "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    cmd = f"{{python}} {PIPES / 'liar.py'} --image {{image}} --obstacles 'Obstacles: 7'"
+    proc = run("eval", str(toy), "--cmd", cmd, "--name", "team liar", "--out", str(bad),
+               "--formats", "json", "--no-progress")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads((bad / "report.json").read_text())["pipeline"] == "team liar"
+    assert proc.stdout.startswith("team liar: pass rate 0.0 %")
+    ok = run("eval", "--compare", str(good / "report.json"), str(bad / "report.json"))
+    assert ok.returncode == 0  # no gate asked for
+    gated = run("eval", "--compare", str(good / "report.json"), str(bad / "report.json"),
+                "--fail-on-regression", "pass_rate=0.05")
+    assert gated.returncode == 1 and "Traceback" not in gated.stderr
+    assert gated.stderr.strip() == ("arenabench eval: FAILED: regression: pass_rate 1 -> 0 "
+                                    "(worse by 1, more than 0.05)"), gated.stderr
+    better = run("eval", "--compare", str(bad / "report.json"), str(good / "report.json"),
+                 "--fail-on-regression", "pass_rate=0")
+    assert better.returncode == 0, better.stderr
+    typo = run("eval", "--compare", str(good / "report.json"), str(bad / "report.json"),
+               "--fail-on-regression", "pas_rate=0")
+    assert_clean_error(typo, "did you mean 'pass_rate'?", prog="eval")
+    alone = run("eval", str(toy), "--pipeline", "reference", "--name", "x")
+    assert_clean_error(alone, "--name names a --cmd pipeline", prog="eval")
+
+
+def test_detect_into_a_closed_pipe_exits_141_quietly(tmp_path):
+    for module in (("-m", "arenabench", "detect"), ("-m", "arenabench.detect")):
+        proc = subprocess.run(
+            f"{sys.executable} {' '.join(module)} --image {EXAMPLE} --output - | true; "
+            "exit ${PIPESTATUS[0]}", shell=True, executable="/bin/bash", capture_output=True,
+            text=True, timeout=120, cwd=tmp_path)
+        assert proc.returncode == 141, proc.stderr
+        assert proc.stderr == "", proc.stderr
 
 
 def test_manifest_without_hashes_needs_no_verify(toy, tmp_path):
@@ -428,6 +577,28 @@ def test_second_generate_into_a_locked_folder_says_who_holds_it(tmp_path):
                              "(test holder)", prog="generate")
     assert "--out" in err
     assert sorted(p.name for p in out.iterdir()) == []  # nothing written, lock released
+
+
+@pytest.mark.parametrize("command", ["eval", "sweep", "grade", "demo"])
+def test_every_command_writing_a_folder_takes_generates_lock(toy, tmp_path, command):
+    out = tmp_path / "out"
+    teams = tmp_path / "teams"
+    (teams / "a").mkdir(parents=True)
+    (teams / "a" / "map.py").write_text("print('hi')\n")
+    argv = {"eval": ("eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(out)),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+                      "--per-point", "1", "--out", str(out)),
+            "grade": ("grade", str(toy), str(teams), "--out", str(out)),
+            "demo": ("demo", "--count", "1", "--out", str(out))}[command]
+    with lock_folder(out, command="arenabench eval (test holder)"):
+        proc = run(*argv, "--no-progress", cwd=tmp_path, timeout=120)
+        err = assert_clean_error(proc, f"--out {out}: {out} is being written by another run",
+                                 f"pid {os.getpid()}", "(test holder)", prog=command)
+        assert sorted(p.name for p in out.iterdir()) == [LOCK_FILE], err
+    if command == "eval":  # free again: the run takes the lock, writes, leaves no lock file
+        proc = run(*argv, "--no-progress", "--formats", "json", cwd=tmp_path)
+        assert proc.returncode == 0, proc.stderr
+        assert sorted(p.name for p in out.iterdir()) == ["report.json"]
 
 
 def test_resumed_generate_removes_stale_temp_files_and_leaves_no_lock(tmp_path):
@@ -641,3 +812,25 @@ def test_render_into_a_generated_dataset_is_refused(toy, tmp_path):
     proc = run("render", str(scene), "--out", str(ds), timeout=120)
     assert_clean_error(proc, "holds a generated dataset", prog="render")
     assert {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()} == before
+@pytest.fixture()
+def small_disk(tmp_path):
+    """A 40 kB tmpfs (root only): room for report.json, not for report.html."""
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    proc = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=40k", "tmpfs", str(mnt)],
+                          capture_output=True, text=True)
+    if proc.returncode != 0:
+        pytest.skip(f"cannot mount a small tmpfs here: {proc.stderr.strip()}")
+    yield mnt
+    subprocess.run(["umount", str(mnt)], check=True)
+
+
+def test_disk_full_while_writing_reports_is_one_line(toy, small_disk):
+    out = small_disk / "out"
+    proc = run("eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(out),
+               "--no-progress")
+    err = proc.stderr.strip()
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert err.splitlines() == [f"arenabench eval: error: disk full: {out}: No space left on "
+                                "device (free some space or use another --out)"], err
+    assert not [p.name for p in out.iterdir() if p.name.startswith(".")]  # no temp, no lock

@@ -266,3 +266,93 @@ def test_sweep_on_a_dask_cluster_stops_and_cancels_its_tasks(tmp_path):
             time.sleep(0.2)
         assert client.run_on_scheduler(tasks_left) == 0
         assert len(client.scheduler_info()["workers"]) == 1  # the cluster's own workers stay
+
+
+# ------------------------------------------------------------- a second Ctrl-C (the user insists)
+
+
+def _double_sigint(proc: subprocess.Popen, delay: float) -> tuple[int, str]:
+    proc.send_signal(signal.SIGINT)
+    time.sleep(delay)
+    proc.send_signal(signal.SIGINT)
+    try:
+        _, err = proc.communicate(timeout=120)
+    except subprocess.TimeoutExpired:
+        proc.kill()
+        _, err = proc.communicate()
+    return proc.returncode, err
+
+
+@pytest.fixture(scope="module")
+def toy3(tmp_path_factory):
+    sys.path.insert(0, str(Path(__file__).resolve().parent / "pipelines"))
+    import toy_arena
+
+    return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("dbl") / "toy", n=3, seed=2)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay", [0.05, 0.3])
+def test_second_sigint_eval_cmd_still_writes_every_partial_report(toy3, tmp_path, delay):
+    slow = tmp_path / "slow.py"
+    slow.write_text("import time\ntime.sleep(1.5)\n"
+                    "open('obstacles.txt', 'w').write('Obstacles: 0\\nArea: 0.0\\n')\n")
+    out = tmp_path / "out"
+    proc = _arenabench("eval", str(toy3), "--cmd", f"{sys.executable} {slow} {{image}}",
+                       "--workers", "1", "--sandbox", "none", "--no-progress", "--out", str(out))
+    time.sleep(3.5)  # one image done (1.5 s each, after a start of about 1 s)
+    assert proc.poll() is None
+    rc, err = _double_sigint(proc, delay)
+    assert rc == 130, err
+    assert "Traceback" not in err
+    assert sorted(p.name for p in out.iterdir()) == [
+        "junit.xml", "report.html", "report.json", "report.md", "results.csv"], err
+    report = json.loads((out / "report.json").read_text())
+    assert report["complete"] is False and len(report["images"]) >= 1
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay", [0.05, 0.3])
+def test_second_sigint_generate_exits_130_and_resumes(tmp_path, delay):
+    out = tmp_path / "ds"
+    proc = _arenabench(*_generate_args(out, 1))
+    _wait_until(proc, lambda: _count(out / "images") >= 3)
+    rc, err = _double_sigint(proc, delay)
+    assert rc == 130, err
+    assert "Traceback" not in err
+    meta = json.loads((out / "dataset.json").read_text())
+    assert meta["complete"] is False
+    assert len((out / "manifest.jsonl").read_text().splitlines()) == meta["finished"]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("delay", [0.05, 0.3])
+def test_second_sigint_grade_exits_130(toy3, tmp_path, delay):
+    teams = tmp_path / "teams"
+    for team in ("a", "b"):
+        (teams / team).mkdir(parents=True)
+        (teams / team / "map.py").write_text("import time\ntime.sleep(1.5)\n")
+    out = tmp_path / "out"
+    proc = _arenabench("grade", str(toy3), str(teams), "--out", str(out), "--workers", "2",
+                       "--sandbox", "none", "--no-progress")
+    time.sleep(3.0)
+    rc, err = _double_sigint(proc, delay)
+    assert rc == 130, err
+    assert "Traceback" not in err
+    assert not (out / ".arenabench.lock").exists()
+
+
+@pytest.mark.slow
+def test_eval_stopped_before_any_image_still_writes_empty_partial_reports(toy3, tmp_path):
+    slow = tmp_path / "slow.py"
+    slow.write_text("import time\ntime.sleep(30)\n")
+    out = tmp_path / "out"
+    proc = _arenabench("eval", str(toy3), "--cmd", f"{sys.executable} {slow} {{image}}",
+                       "--workers", "1", "--sandbox", "none", "--no-progress", "--out", str(out))
+    time.sleep(3.0)
+    rc, err = _double_sigint(proc, 0.05)
+    assert rc == 130 and "Traceback" not in err, err
+    report = json.loads((out / "report.json").read_text())
+    assert report["complete"] is False and report["images"] == []
+    assert sorted(p.name for p in out.iterdir()) == [
+        "junit.xml", "report.html", "report.json", "report.md", "results.csv"]

@@ -34,7 +34,13 @@ from pathlib import Path
 from typing import Any
 
 from arenabench import __version__
-from arenabench.fileio import atomic_write_json, dumps_json, sha256_bytes, sha256_file
+from arenabench.fileio import (
+    LOCK_FILE,
+    atomic_write_json,
+    dumps_json,
+    sha256_bytes,
+    sha256_file,
+)
 from arenabench.workers import init_worker, process_state, usable_cores
 
 from ..dataset import AREA_REFERENCES, Dataset, load_dataset
@@ -305,7 +311,8 @@ def check_out_dir(out: Path, submissions: Path) -> None:
                          "(submissions are read-only inputs)")
     if out.exists() and not out.is_dir():
         raise ValueError(f"--out {out}: exists and is not a folder")
-    if out.is_dir() and any(out.iterdir()) and not (out / TEAMS_DIR).is_dir():
+    if (out.is_dir() and any(p.name != LOCK_FILE for p in out.iterdir())
+            and not (out / TEAMS_DIR).is_dir()):
         raise ValueError(f"--out {out}: not empty and not the output of an earlier "
                          "'arenabench grade' (no teams/ folder): use another folder")
 

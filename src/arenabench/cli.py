@@ -15,6 +15,7 @@ import os
 import sys
 from collections.abc import Callable
 
+from arenabench.cliopts import EXIT_USAGE
 from arenabench.suggest import did_you_mean
 
 #: command name -> (module, one-line description)
@@ -36,7 +37,6 @@ COMMANDS: dict[str, tuple[str, str]] = {
 
 #: Exit status when the reader of stdout went away (128 + SIGPIPE, as a shell reports it).
 EXIT_BROKEN_PIPE = 141
-EXIT_USAGE = 2
 
 
 def _usage() -> str:
@@ -103,6 +103,12 @@ def run(entry: Callable[[], int | None]) -> int:
         rc = int(entry() or 0)
         sys.stdout.flush()
         return rc
+    except KeyboardInterrupt:  # Ctrl-C outside a command's own handling (or after it)
+        import signal
+
+        from arenabench.interrupts import exit_code
+
+        return exit_code(signal.SIGINT)
     except BrokenPipeError:
         # Python flushes stdout again at exit: point it at /dev/null so that flush is silent.
         try:
@@ -120,7 +126,23 @@ def main(argv: list[str] | None = None) -> int:
     ``COMMAND --help``; an unknown command gets a "did you mean" hint.
     """
     args = list(sys.argv[1:] if argv is None else argv)
-    return run(lambda: _dispatch(args))
+    rc = run(lambda: _dispatch(args))
+    if argv is None:  # the process's entry point: the status is decided, the process ends
+        _ignore_late_stop_signals()
+    return rc
+
+
+def _ignore_late_stop_signals() -> None:
+    """A Ctrl-C or SIGTERM after the command has returned (while the interpreter shuts down:
+    its pools, OpenGL) must not turn the decided status into a traceback or death by signal
+    (a second Ctrl-C 50 ms after the first)."""
+    import signal
+
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        try:
+            signal.signal(sig, signal.SIG_IGN)
+        except (OSError, ValueError):  # not the main thread
+            pass
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -53,17 +53,3 @@ class HelpFormatter(argparse.HelpFormatter):
         if shown and "default" not in text:
             text = f"{text} (default: %(default)s)".strip()
         return text
-
-
-class ArgumentParser(argparse.ArgumentParser):
-    """:class:`argparse.ArgumentParser` whose "invalid choice" error adds a did-you-mean hint
-    (``--profile refrence``: ``(did you mean 'reference'?)``)."""
-
-    def _check_value(self, action: argparse.Action, value: object) -> None:
-        try:
-            super()._check_value(action, value)
-        except argparse.ArgumentError as exc:
-            from arenabench.suggest import did_you_mean
-
-            hint = did_you_mean(str(value), [str(c) for c in action.choices or ()])
-            raise argparse.ArgumentError(action, f"{exc.message}{hint}") from None

@@ -18,6 +18,10 @@ from typing import Any
 
 OBSTACLES_FILE = "obstacles.txt"
 
+#: Largest ``|area_rel_err|`` of a passing answer unless ``--tolerance`` says otherwise
+#: (every command and report reads it from here).
+DEFAULT_TOLERANCE = 0.05
+
 # Also matches nan / inf spellings, so that they are refused by name rather than as "unrecognised".
 _NUMBER = r"[-+]?(?:(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?|nan|inf(?:inity)?)"
 _RE_IDS = re.compile(r"^\s*aruco\s*ids?\s*:\s*\[?([^\]]*)\]?\s*$", re.IGNORECASE)

@@ -17,10 +17,9 @@ and area 0.0, so graders can parse it).
 
 from __future__ import annotations
 
-import argparse
 import sys
 
-from arenabench.clihelp import ArgumentParser, HelpFormatter
+from arenabench.cliopts import EXIT_USAGE, CommandParser
 from arenabench.competition import (
     EXIT_MARKERS_NOT_FOUND,
     OBSTACLES_FILE,
@@ -31,22 +30,12 @@ from arenabench.frame import FrameSpec
 from arenabench.pipeline.config import PROFILES
 
 PROG = "arenabench detect"
-EXIT_OK, EXIT_USAGE, EXIT_MARKERS = 0, 2, EXIT_MARKERS_NOT_FOUND
+EXIT_OK, EXIT_MARKERS = 0, EXIT_MARKERS_NOT_FOUND
 
 
-class _UsageError(Exception):
-    pass
-
-
-class _Parser(ArgumentParser):
-    def error(self, message: str) -> None:  # type: ignore[override]
-        raise _UsageError(message)
-
-
-def build_parser() -> argparse.ArgumentParser:
+def build_parser() -> CommandParser:
     """The command's argument parser."""
-    p = _Parser(
-        formatter_class=HelpFormatter,
+    p = CommandParser(
         prog=PROG,
         description="Detect the arena markers and obstacles in one overhead image and write "
         "obstacles.txt in the competition's format.",
@@ -90,9 +79,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = build_parser()
     try:
         args = parser.parse_args(argv)
-    except _UsageError as exc:
-        return _error(str(exc))
-    except SystemExit as exc:  # --help
+    except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
         return int(exc.code or 0)
 
     if args.indent is not None and args.indent < 0:
@@ -128,6 +115,8 @@ def main(argv: list[str] | None = None) -> int:
     text = format_obstacles_txt(result.marker_ids, result.count, result.total_area)
     try:
         write_output_text(args.output, text)
+    except BrokenPipeError:
+        raise  # the reader went away: arenabench.cli.run exits quietly with 141
     except OSError as exc:
         return _error(f"cannot write {args.output}: {exc.strerror or exc}")
     if args.json:

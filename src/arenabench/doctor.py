@@ -12,7 +12,6 @@ command that fixes it. Exit status 0 when all is well, 1 otherwise (2 for bad op
 
 from __future__ import annotations
 
-import argparse
 import importlib.metadata
 import importlib.util
 import json
@@ -23,7 +22,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from arenabench import glplatform
-from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import TIMEOUT_RULE, CommandParser
 
 PROG = "arenabench doctor"
 #: How to install the pinned pyrender release.
@@ -333,19 +332,25 @@ def run_checks(*, context: bool = True, timeout: float = 60.0) -> DoctorReport:
     return DoctorReport(checks)
 
 
-def main(argv: list[str] | None = None) -> int:
-    """Run ``arenabench doctor``; 0 when all checks pass, 1 otherwise, 2 on bad options."""
-    parser = argparse.ArgumentParser(
-        prog=PROG, formatter_class=HelpFormatter,
+def build_parser() -> CommandParser:
+    """The ``arenabench doctor`` argument parser."""
+    parser = CommandParser(
+        prog=PROG,
         description="Is this machine ready to detect (OpenCV) and to render (pyrender)? "
         "Checks Python, OpenCV with aruco, pyrender, an off-screen OpenGL context, the "
         "bubblewrap sandbox that 'grade' requires and (a warning only) a headless browser; "
         "exit status 0 when every required check passes, 1 otherwise.")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
-    parser.add_argument("--timeout", type=float, default=60.0,
+    parser.add_argument("--timeout", type=TIMEOUT_RULE.argtype("--timeout"), default=60.0,
                         help="seconds allowed for creating the OpenGL context (default 60)")
     parser.add_argument("--no-context", action="store_true",
                         help="skip creating an off-screen OpenGL context")
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run ``arenabench doctor``; 0 when all checks pass, 1 otherwise, 2 on bad options."""
+    parser = build_parser()
     try:
         args = parser.parse_args(argv)
     except SystemExit as exc:

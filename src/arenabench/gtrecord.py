@@ -125,6 +125,16 @@ class AreaRecord(_Record):
     extra: Mapping[str, Any] = field(default_factory=dict)
 
 
+#: ``--area-reference`` name -> the GT ``area`` field (:class:`AreaRecord`) an answer is
+#: compared with. ``contour_px`` is absent from GT files written before generator version 4.
+AREA_REFERENCES: dict[str, str] = {
+    "visible": "visible_px", "footprint": "footprint_px", "contour": "contour_px",
+}
+
+#: The area reference of every command unless ``--area-reference`` says otherwise.
+DEFAULT_AREA_REFERENCE = "visible"
+
+
 @dataclass(frozen=True)
 class FrameRecord(_Record):
     """GT ``frame``: the rectified frame the homography maps to (``size`` [w, h] px and

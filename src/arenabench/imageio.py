@@ -40,6 +40,38 @@ def _check_complete(data: bytes, name: str) -> None:
             raise ImageLoadError(f"{name}: truncated JPEG (no end-of-image marker)")
 
 
+#: Leading bytes of the formats :func:`image_file_problem` knows without asking OpenCV.
+_MAGICS = (_PNG_MAGIC, _JPEG_MAGIC, b"BM", b"II*\x00", b"MM\x00*", b"RIFF", b"P1", b"P2", b"P3",
+           b"P4", b"P5", b"P6", b"\x00\x00\x00\x0cjP  ", b"\xff\x4f\xff\x51")
+
+
+def image_file_problem(path: str | os.PathLike[str]) -> str | None:
+    """Why the image file at ``path`` cannot be a whole image, from its first and last bytes
+    only (cheap: no decoding), or ``None``.
+
+    Finds an empty file, a file that is no known image format (text, say), and a PNG or JPEG
+    cut short (the rules of :func:`decode_image`).
+    """
+    p = Path(path)
+    try:
+        size = p.stat().st_size
+        with open(p, "rb") as fh:
+            head = fh.read(16)
+            fh.seek(max(0, size - 256))
+            tail = fh.read(256)
+    except OSError as exc:
+        return f"cannot read ({exc.strerror or exc})"
+    if size == 0:
+        return "empty file"
+    if not head.startswith(_MAGICS) and not cv2.haveImageReader(str(p)):
+        return "not an image file (no known image format)"
+    try:
+        _check_complete(head + tail if size > 16 else head, "image")
+    except ImageLoadError as exc:
+        return str(exc).removeprefix("image: ")
+    return None
+
+
 def to_bgr8(image: np.ndarray, *, name: str = "image") -> np.ndarray:
     """Convert a decoded image to BGR uint8 with three channels.
 

@@ -17,7 +17,9 @@ The first SIGINT or SIGTERM raises :class:`Interrupted` in the main thread, wher
 ``finally`` blocks: pools are shut down, subprocesses killed, temporary files removed.
 :class:`Interrupted` derives from ``BaseException``, so ``except Exception`` does not swallow
 it. ``with stop.deferred():`` holds it back while a block runs and raises it when the block
-ends. A second signal exits at once with the same status (the user insists). A signal ignored
+ends. A second signal does not cut the unwinding short: what finished is still written (partial
+reports take a second or two; one line on stderr says so); a third exits at once with the same
+status (the user insists). A signal ignored
 when the block is entered (``nohup``, a background job of a non-interactive shell) stays
 ignored. Exit statuses follow the shell's convention for a process ended by a signal:
 128 + the signal number.
@@ -45,6 +47,9 @@ from contextlib import contextmanager
 
 #: The signals that stop a command.
 STOP_SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM)
+#: The stop signal that exits at once, without writing what finished (the first unwinds,
+#: the second is noted while the partial outputs are written).
+INSIST_SIGNALS = 3
 #: Seconds :func:`stop_workers` waits after SIGTERM before it sends SIGKILL.
 WORKER_GRACE_S = 3.0
 
@@ -88,6 +93,7 @@ class StopRequest:
 
     def __init__(self) -> None:
         self.signum: int | None = None
+        self.count = 0
         self._raised = False
         self._deferring = 0
 
@@ -124,8 +130,16 @@ class StopRequest:
             self.check()
 
     def _handle(self, signum: int, frame) -> None:
-        if self.signum is not None:  # a second signal: leave now
-            os._exit(exit_code(signum))
+        self.count += 1
+        if self.count >= INSIST_SIGNALS:  # the user insists: leave now
+            os._exit(exit_code(self.signum or signum))
+        if self.signum is not None:  # a second signal: finish writing what finished
+            try:
+                os.write(2, f"arenabench: {signal_name(signum)} again: writing what finished; "
+                         "once more to leave at once\n".encode())
+            except OSError:
+                pass
+            return
         self.signum = int(signum)
         if not self._deferring:
             self.check()

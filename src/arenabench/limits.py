@@ -46,3 +46,25 @@ def check_at_most(value: int, limit: int, what: str) -> None:
     """
     if value > limit:
         raise ValueError(f"{what} = {value} exceeds the limit of {limit}")
+
+#: Defaults of an external run's limits (``eval``/``sweep``/``grade`` ``--timeout``,
+#: ``--memory-limit``, ``--max-procs``, ``--max-file-size``, ``--max-output``; the fields of
+#: :class:`arenabench.eval.run_limits.RunLimits`).
+DEFAULT_TIMEOUT_S = 60.0
+DEFAULT_MEMORY_BYTES = 2 * 1024**3
+DEFAULT_MAX_PROCS = 64
+DEFAULT_MAX_FILE_SIZE = 64 * 1024**2
+DEFAULT_MAX_OUTPUT = 1024**2
+
+#: Longest wall-clock time one external run may be given (``--timeout``, seconds): a day.
+MAX_TIMEOUT_S = 86400.0
+
+#: Largest byte size of a run limit (``--memory-limit``, ``--max-file-size``,
+#: ``--max-output``): 1 PiB, well inside ``rlim_t``.
+MAX_RUN_BYTES = 1024**5
+
+#: Most processes one external run may be allowed at once (``--max-procs``).
+MAX_RUN_PROCS = 65536
+
+#: Most SSIM refinement rounds of ``fit`` (``--refine-rounds``).
+MAX_REFINE_ROUNDS = 100

@@ -1,0 +1,167 @@
+"""In-process pipelines named ``"pkg.module:function"``, each run in a child process that can be
+killed and replaced.
+
+A team's Python function is as untrusted as its ``map.py``: ``sys.exit(0)``, ``os._exit(0)``,
+a ``KeyboardInterrupt`` or an endless loop inside it must fail that image only (``crash`` or
+``timeout``), never end the harness or hang it. :class:`IsolatedCallablePipeline` keeps one
+child process per worker thread (started with ``spawn``, SIGINT ignored, dying with this
+process); the child imports the function once and calls it on each image it is sent. A child
+that exits or overruns ``timeout_s`` is killed, the image is categorised, and the next image
+gets a fresh child.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from .records import Prediction
+
+#: Seconds a child may take to start and import the pipeline's module.
+START_TIMEOUT_S = 120.0
+
+
+def _serve(conn: Any, spec: str, parent_pid: int) -> None:
+    """The child: import ``spec`` once, then answer each image path with a Prediction."""
+    from arenabench.workers import init_worker
+
+    init_worker(parent_pid=parent_pid)
+    from .pipelines import CallablePipeline
+
+    try:
+        pipe = CallablePipeline(spec)
+    except BaseException as exc:
+        conn.send(("error", f"{type(exc).__name__}: {exc}"))
+        return
+    conn.send(("ready", ""))
+    while True:
+        try:
+            path = conn.recv()
+        except (EOFError, OSError):
+            return
+        start = time.perf_counter()
+        try:
+            pred = pipe.run(Path(path))
+        except SystemExit as exc:  # sys.exit() inside the pipeline: that image fails
+            pred = Prediction(status="crash", latency_ms=(time.perf_counter() - start) * 1e3,
+                              message=f"the pipeline called sys.exit({exc.code!r})")
+        except KeyboardInterrupt:
+            pred = Prediction(status="crash", latency_ms=(time.perf_counter() - start) * 1e3,
+                              message="the pipeline raised KeyboardInterrupt")
+        conn.send(pred)
+
+
+@dataclass(eq=False)
+class _Child:
+    process: Any
+    conn: Any
+
+
+@dataclass
+class IsolatedCallablePipeline:
+    """A ``"pkg.module:function"`` pipeline run in killable child processes.
+
+    Parameters
+    ----------
+    spec : str
+        ``"pkg.module:function"`` (checked here: it must import in this process too).
+    timeout_s : float, keyword-only
+        Seconds one image may take; then the child is killed and the image is ``timeout``.
+    """
+
+    spec: str
+    timeout_s: float = 60.0
+    in_process: bool = field(default=True, init=False)
+
+    def __post_init__(self) -> None:
+        from .pipelines import CallablePipeline
+
+        self.name = CallablePipeline(self.spec).name  # import errors: one line, now
+        self._local = threading.local()
+        self._lock = threading.Lock()
+        self._children: set[_Child] = set()
+        self._stopped = False
+
+    def _start(self) -> _Child:
+        from arenabench.interrupts import children_ignore_sigint
+
+        ctx = multiprocessing.get_context("spawn")
+        ours, theirs = ctx.Pipe()
+        with children_ignore_sigint():
+            # not a daemon, so the function may start processes of its own; it dies with
+            # this process (init_worker) and close() ends it
+            process = ctx.Process(target=_serve, args=(theirs, self.spec, os.getpid()),
+                                  daemon=False, name=f"arenabench-pipeline {self.spec}")
+            process.start()
+        theirs.close()
+        child = _Child(process, ours)
+        with self._lock:
+            self._children.add(child)
+        if not ours.poll(START_TIMEOUT_S):
+            self._kill(child)
+            raise RuntimeError(f"pipeline {self.spec!r}: its process did not start in "
+                               f"{START_TIMEOUT_S:g} s")
+        try:
+            kind, message = ours.recv()
+        except (EOFError, OSError):
+            kind, message = "error", f"its process exited ({process.exitcode})"
+        if kind != "ready":
+            self._kill(child)
+            raise RuntimeError(f"pipeline {self.spec!r}: {message}")
+        return child
+
+    def _kill(self, child: _Child) -> None:
+        with self._lock:
+            self._children.discard(child)
+        if child.process.is_alive():
+            child.process.kill()
+        child.process.join(5)
+        child.conn.close()
+        if getattr(self._local, "child", None) is child:
+            self._local.child = None
+
+    def run(self, image_path: Path) -> Prediction:
+        """Run the function on one image in this thread's child (started on first use)."""
+        if self._stopped:
+            return Prediction(status="crash", message="interrupted")
+        child = getattr(self._local, "child", None)
+        if child is None or not child.process.is_alive():
+            try:
+                child = self._local.child = self._start()
+            except RuntimeError as exc:
+                return Prediction(status="crash", message=str(exc)[:500])
+        start = time.perf_counter()
+        try:
+            child.conn.send(str(image_path))
+            if not child.conn.poll(self.timeout_s):
+                self._kill(child)
+                return Prediction(status="timeout", latency_ms=self.timeout_s * 1e3,
+                                  message=f"timed out after {self.timeout_s:g} s (its process "
+                                          "killed)")
+            return child.conn.recv()
+        except (EOFError, OSError, BrokenPipeError):
+            child.process.join(5)
+            code = child.process.exitcode
+            self._kill(child)
+            why = (f"killed by signal {-code}" if code is not None and code < 0
+                   else f"exit status {code}")
+            return Prediction(status="crash", latency_ms=(time.perf_counter() - start) * 1e3,
+                              message=f"the pipeline ended its process ({why}; os._exit or a "
+                                      "fatal error)")
+
+    def stop(self) -> None:
+        """Kill every child (an interrupted run)."""
+        self._stopped = True
+        with self._lock:
+            children = list(self._children)
+        for child in children:
+            self._kill(child)
+
+    def close(self) -> None:
+        """End the children (the run is over)."""
+        self.stop()

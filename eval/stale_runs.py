@@ -1,0 +1,120 @@
+"""Sweeping what killed runs of external commands left behind.
+
+A run's private directory is ``$TMPDIR/arenabench-run-<harness pid>-XXXX`` and its pids cgroup
+``<parent>/arenabench-run-<launcher pid>``; both are removed when the run ends. When the whole
+process group is killed with SIGKILL (harness and launchers together) nothing is left to
+remove them, so the next run that starts external commands removes those whose owner process
+is gone (:func:`sweep_stale_runs`, once per process). A folder whose pid is alive is never
+touched (even if the pid was reused: then it stays until the next sweep).
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+import tempfile
+import threading
+from pathlib import Path
+
+#: Name prefix of run directories and run cgroups.
+RUN_PREFIX = "arenabench-run-"
+
+_RUN_DIR = re.compile(rf"^{RUN_PREFIX}(\d+)-")
+_RUN_CGROUP = re.compile(rf"^{RUN_PREFIX}(\d+)$")
+_SWEPT = threading.Event()
+_LOCK = threading.Lock()
+
+
+def run_dir_prefix() -> str:
+    """``mkdtemp`` prefix of this process's run directories (names the owner pid)."""
+    return f"{RUN_PREFIX}{os.getpid()}-"
+
+
+def _alive(pid: int) -> bool:
+    """Whether ``pid`` runs (a zombie, killed but not yet reaped by whoever adopted it, does
+    not)."""
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except PermissionError:  # someone else's process: alive
+        return True
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except (OSError, IndexError):
+        return True
+    return state not in ("Z", "X")
+
+
+def sweep_stale_runs(*, tmpdir: str | None = None, cgroup_parent: str | None = None,
+                     force: bool = False) -> list[str]:
+    """Remove run directories under ``tmpdir`` (default: :func:`tempfile.gettempdir`) and
+    run cgroups under ``cgroup_parent`` whose owner pid is gone; once per process unless
+    ``force``.
+
+    Returns
+    -------
+    list of str
+        The paths removed.
+    """
+    with _LOCK:
+        if _SWEPT.is_set() and not force:
+            return []
+        _SWEPT.set()
+    removed: list[str] = []
+    root = Path(tmpdir or tempfile.gettempdir())
+    try:
+        entries = list(root.iterdir())
+    except OSError:
+        entries = []
+    for entry in entries:
+        m = _RUN_DIR.match(entry.name)
+        if not m or int(m.group(1)) == os.getpid() or _alive(int(m.group(1))):
+            continue
+        try:
+            if entry.is_dir() and not entry.is_symlink() and entry.stat().st_uid == os.getuid():
+                shutil.rmtree(entry, ignore_errors=True)
+                if not entry.exists():
+                    removed.append(str(entry))
+        except OSError:
+            continue
+    if cgroup_parent:
+        try:
+            groups = list(Path(cgroup_parent).iterdir())
+        except OSError:
+            groups = []
+        for group in groups:
+            m = _RUN_CGROUP.match(group.name)
+            if not m or _alive(int(m.group(1))):
+                continue
+            if _remove_cgroup(group):
+                removed.append(str(group))
+    return removed
+
+
+def _remove_cgroup(group: Path) -> bool:
+    """SIGKILL what is left in ``group`` (orphans of a dead launcher; not our children, so
+    never reaped here) and remove it; ``False`` when it stays."""
+    import signal
+    import time
+
+    for _ in range(100):
+        try:
+            os.rmdir(group)
+            return True
+        except FileNotFoundError:
+            return False
+        except OSError:
+            pass
+        try:
+            pids = [int(p) for p in (group / "cgroup.procs").read_text().split()]
+        except (OSError, ValueError):
+            return False
+        for pid in pids:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+        time.sleep(0.01)
+    return False

@@ -1,0 +1,474 @@
+"""Every command's parser and shared options, declared once.
+
+A command builds its parser as :class:`CommandParser` (one help formatter, one line per usage
+error, "did you mean" for mistyped options and choices, exit status 2) and adds the options
+that several commands share with the ``add_*`` builders below; each builder takes its default
+from the one declaration of that default and checks its value with one :class:`Rule`, so
+``--timeout inf`` is refused with the same line by ``eval``, ``sweep`` and ``grade``::
+
+    p = CommandParser(prog="arenabench mycmd", description="...")
+    add_out(p, required=True)
+    add_workers(p, help="local processes")
+    add_scheduler(p)
+    add_no_progress(p)
+    args = p.parse_args(argv)      # usage error: one line on stderr, SystemExit(2)
+    ...
+    return p.fail("--thing: why")  # a usage error found after parsing: one line, returns 2
+
+A command's ``main`` catches the ``SystemExit`` of :meth:`CommandParser.parse_args` and returns
+its code (0 for ``--help``, 2 for a usage error, the line already printed). The exit statuses
+every command shares are declared here; :func:`lock_out` holds an output folder's lock and
+:func:`write_failure` words a failed write (``disk full: ...``).
+Each builder tags the action it adds (``action.shared_option``), so a test can check that no
+command re-declares a shared option by hand (``tests/test_cliopts.py``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import re
+import sys
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from arenabench.clihelp import HelpFormatter
+from arenabench.competition import DEFAULT_TOLERANCE
+from arenabench.limits import (
+    DEFAULT_MAX_FILE_SIZE,
+    DEFAULT_MAX_OUTPUT,
+    DEFAULT_MAX_PROCS,
+    DEFAULT_MEMORY_BYTES,
+    DEFAULT_TIMEOUT_S,
+    MAX_DATASET_SCENES,
+    MAX_RUN_BYTES,
+    MAX_RUN_PROCS,
+    MAX_TIMEOUT_S,
+    MAX_WORKERS,
+)
+from arenabench.suggest import did_you_mean
+
+#: Exit statuses shared by every command (interruptions: 128 + the signal, see
+#: :mod:`arenabench.interrupts`; a closed stdout: 141, see :mod:`arenabench.cli`).
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_USAGE = 2
+
+#: Options that more than one command has; each is added by the builder of the same name.
+SHARED_OPTIONS: tuple[str, ...] = (
+    "--out", "--workers", "--scheduler", "--no-progress", "--tolerance", "--area-reference",
+    "--timeout", "--memory-limit", "--max-file-size", "--max-output", "--max-procs",
+    "--sandbox", "--count",
+)
+
+
+# ------------------------------------------------------------------------------------ rules
+
+
+@dataclass(frozen=True)
+class Rule:
+    """One validation rule of a number: its kind and closed (or left-open) bounds.
+
+    Parameters
+    ----------
+    kind : {"int", "float"}
+        ``float`` values must also be finite.
+    lo, hi : float
+        Bounds; ``hi`` is always included, ``lo`` unless ``lo_open``.
+    lo_open : bool
+        ``lo`` itself is refused (``--timeout`` must be > 0).
+    """
+
+    kind: str
+    lo: float
+    hi: float
+    lo_open: bool = False
+
+    def describe(self) -> str:
+        """``"an integer in [1, 256]"`` / ``"a finite number in (0, 86400]"``."""
+        what = "an integer" if self.kind == "int" else "a finite number"
+        lo, hi = ((int(self.lo), int(self.hi)) if self.kind == "int"
+                  else (f"{self.lo:g}", f"{self.hi:g}"))
+        return f"{what} in {'(' if self.lo_open else '['}{lo}, {hi}]"
+
+    def check(self, value: Any, *, name: str) -> int | float:
+        """``value`` as an int or float when it keeps the rule.
+
+        Raises
+        ------
+        ValueError
+            ``"<name> must be <describe()>, got <value>"``.
+        """
+        try:
+            if isinstance(value, bool):
+                raise ValueError
+            if self.kind == "int":
+                number: int | float = int(value) if isinstance(value, int) else int(str(value))
+            else:
+                number = float(value)
+        except (TypeError, ValueError, OverflowError):
+            raise ValueError(f"{name} must be {self.describe()}, got {value!r}") from None
+        ok = (math.isfinite(number) and (number > self.lo if self.lo_open else number >= self.lo)
+              and number <= self.hi)
+        if not ok:
+            raise ValueError(f"{name} must be {self.describe()}, got {value!r}")
+        return number
+
+    def argtype(self, name: str) -> Callable[[str], int | float]:
+        """The ``type=`` of an argparse option that keeps this rule."""
+
+        def convert(text: str) -> int | float:
+            try:
+                return self.check(text, name=name)
+            except ValueError:
+                raise argparse.ArgumentTypeError(
+                    f"must be {self.describe()}, got {text!r}") from None
+
+        convert.__name__ = name.lstrip("-").replace("-", "_")
+        return convert
+
+
+#: ``--workers`` of every command.
+WORKERS_RULE = Rule("int", 1, MAX_WORKERS)
+#: ``--tolerance``: the largest passing ``|area_rel_err|``, a fraction.
+TOLERANCE_RULE = Rule("float", 0.0, 1.0)
+#: ``--timeout``: seconds per image of an external run.
+TIMEOUT_RULE = Rule("float", 0.0, MAX_TIMEOUT_S, lo_open=True)
+#: ``--max-procs``: processes one external run may have at once.
+MAX_PROCS_RULE = Rule("int", 1, MAX_RUN_PROCS)
+#: Byte sizes of run limits (``--memory-limit``, ``--max-file-size``, ``--max-output``).
+BYTES_RULE = Rule("int", 1, MAX_RUN_BYTES)
+
+#: How external commands are contained: ``auto`` uses bubblewrap when it is installed and
+#: works (else ``none``, with a warning), ``bwrap`` requires it, ``none`` runs without
+#: namespaces (private directory, limits and process cleanup still apply).
+SANDBOX_MODES: tuple[str, ...] = ("auto", "bwrap", "none")
+DEFAULT_SANDBOX = "auto"
+
+_SIZE_RE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgGtTpP]?)(?:i?[bB])?\s*$")
+_SIZE_UNITS = {"": 1, "k": 1024, "m": 1024**2, "g": 1024**3, "t": 1024**4, "p": 1024**5}
+
+
+def parse_size(text: str | int, *, name: str) -> int:
+    """Parse ``"2G"``, ``"64M"``, ``"512k"`` or a plain byte count into bytes (at most
+    :data:`~arenabench.limits.MAX_RUN_BYTES`).
+
+    Parameters
+    ----------
+    text : str or int
+        The size; suffixes k/M/G/T/P are powers of 1024, an optional trailing ``B``/``iB``.
+    name : str, keyword-only
+        Option name for the error message.
+
+    Raises
+    ------
+    ValueError
+        Naming ``name`` and the value, when it is not a size in [1 byte, 1P].
+    """
+    if isinstance(text, int) and not isinstance(text, bool):
+        return int(BYTES_RULE.check(text, name=name))
+    m = _SIZE_RE.match(str(text))
+    if not m:
+        raise ValueError(f"{name}: not a size: {text!r} (use e.g. 2G, 64M, 1048576)")
+    value = int(float(m.group(1)) * _SIZE_UNITS[m.group(2).lower()])
+    if not 1 <= value <= MAX_RUN_BYTES:
+        raise ValueError(f"{name} must be a size in [1, 1P] bytes, got {text!r}")
+    return value
+
+
+def format_size(value: int) -> str:
+    """The shortest exact spelling :func:`parse_size` reads back (``2147483648`` -> ``"2G"``)."""
+    for suffix, unit in (("P", 1024**5), ("T", 1024**4), ("G", 1024**3), ("M", 1024**2),
+                         ("k", 1024)):
+        if value % unit == 0:
+            return f"{value // unit}{suffix}"
+    return str(value)
+
+
+def _size_type(name: str) -> Callable[[str], int]:
+    def convert(text: str) -> int:
+        try:
+            return parse_size(text, name=name)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc).removeprefix(f"{name}: ")
+                                             .removeprefix(f"{name} ")) from None
+
+    convert.__name__ = "size"
+    return convert
+
+
+# ----------------------------------------------------------------------------------- parser
+
+
+class CommandParser(argparse.ArgumentParser):
+    """The argument parser of every ``arenabench`` command.
+
+    The same help formatter (:class:`~arenabench.clihelp.HelpFormatter`); a usage error is one
+    line on stderr, ``<prog>: error: <message>``, with a "did you mean" hint for a mistyped
+    option or choice, and exit status 2 (``SystemExit(2)`` from :meth:`parse_args`; after
+    parsing, :meth:`fail` prints the same line and returns 2). Checks that span options run
+    after parsing (:meth:`add_check`): ``--workers`` with ``--scheduler`` is refused, and
+    ``--workers`` not given becomes the usable cores unless a ``--scheduler`` is given.
+    """
+
+    def __init__(self, *args: Any, **kwargs: Any) -> None:
+        kwargs.setdefault("formatter_class", HelpFormatter)
+        super().__init__(*args, **kwargs)
+        self._checks: list[Callable[[argparse.Namespace], str | None]] = []
+
+    def add_check(self, check: Callable[[argparse.Namespace], str | None]) -> None:
+        """Run ``check(namespace)`` after parsing; a string it returns is a usage error."""
+        self._checks.append(check)
+
+    def parse_known_args(self, args=None, namespace=None):  # type: ignore[override]
+        namespace, extras = super().parse_known_args(args, namespace)
+        for check in self._checks:
+            problem = check(namespace)
+            if problem:
+                self.error(problem)
+        return namespace, extras
+
+    def error(self, message: str) -> None:  # type: ignore[override]
+        """Print one line naming the problem (with a hint) and exit with status 2."""
+        self.fail(message + self._hint(message))
+        raise SystemExit(EXIT_USAGE)
+
+    def fail(self, message: str) -> int:
+        """Print ``<prog>: error: <message>`` (one line) on stderr; return 2."""
+        print(f"{self.prog}: error: {' '.join(str(message).split())}", file=sys.stderr)
+        return EXIT_USAGE
+
+    def _options(self) -> list[str]:
+        return [s for a in self._actions for s in a.option_strings if s.startswith("--")]
+
+    def _hint(self, message: str) -> str:
+        m = re.match(r"unrecognized arguments: (.*)$", message)
+        if m:
+            for word in m.group(1).split():
+                if word.startswith("--"):
+                    hint = did_you_mean(word.split("=", 1)[0], self._options())
+                    if hint:
+                        return hint
+            return ""
+        m = re.match(r"argument (\S+?)(?:/\S+)?: invalid choice: '(.*)' \(choose from", message)
+        if m:
+            for action in self._actions:
+                if m.group(1) in action.option_strings or m.group(1) == action.dest:
+                    return did_you_mean(m.group(2), [str(c) for c in action.choices or ()])
+        return ""
+
+
+@contextmanager
+def lock_out(out: str | Path | None, *, option: str = "--out") -> Iterator[None]:
+    """Hold the exclusive lock of the output folder ``out`` (the one ``generate`` takes,
+    :func:`arenabench.fileio.lock_folder`, ``.arenabench.lock``) while the body writes into
+    it; ``None``: nothing to lock. A folder this creates and leaves empty is removed.
+
+    Raises
+    ------
+    arenabench.fileio.FolderLockedError
+        At once when another run holds it: ``"--out D: D is being written by another run
+        (pid ..., command); wait for it to finish or use another --out"``.
+    """
+    import shlex
+
+    from arenabench.fileio import FolderLockedError, lock_folder
+
+    if out is None:
+        yield
+        return
+    root = Path(out)
+    created = not root.exists()
+    try:
+        try:
+            held = lock_folder(root, command=shlex.join(sys.argv)[:300])
+            held.__enter__()
+        except FolderLockedError as exc:
+            raise FolderLockedError(f"{option} {root}: {exc}; wait for it to finish or use "
+                                    f"another {option}") from None
+        try:
+            yield
+        finally:
+            held.__exit__(None, None, None)
+    finally:
+        try:
+            if created and not any(root.iterdir()):
+                root.rmdir()
+        except OSError:
+            pass
+
+
+def write_failure(exc: OSError, where: str | Path) -> str:
+    """The one line for an output that could not be written: ``"disk full: FILE: No space
+    left on device (free some space or use another --out)"`` for ENOSPC / EDQUOT, else
+    ``"cannot write FILE: why"`` (the command then exits with status 1)."""
+    import errno
+
+    name = exc.filename or where
+    why = exc.strerror or str(exc)
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return f"disk full: {name}: {why} (free some space or use another --out)"
+    return f"cannot write {name}: {why}"
+
+
+def _tag(action: argparse.Action, builder: str) -> argparse.Action:
+    action.shared_option = builder  # type: ignore[attr-defined]
+    return action
+
+
+# --------------------------------------------------------------------------------- builders
+
+
+def add_out(parser: argparse.ArgumentParser, *, required: bool = False,
+            default: str | Path | None = None, help: str = "output folder") -> argparse.Action:
+    """``--out PATH`` (a :class:`~pathlib.Path`)."""
+    kwargs: dict[str, Any] = {"required": True} if required else {
+        "default": None if default is None else Path(default)}
+    return _tag(parser.add_argument("--out", type=Path, help=help, **kwargs), "add_out")
+
+
+def add_workers(parser: CommandParser, *, help: str = "parallel workers") -> argparse.Action:
+    """``--workers N``: an integer in [1, MAX_WORKERS]; not given, the usable cores
+    (:func:`arenabench.workers.usable_cores`), or ``None`` when ``--scheduler`` is given."""
+    from arenabench.workers import usable_cores
+
+    action = parser.add_argument(
+        "--workers", type=WORKERS_RULE.argtype("--workers"), default=None, metavar="N",
+        help=f"{help} (default: the usable cores, {usable_cores()}; at most {MAX_WORKERS})",
+    )
+
+    def fill(ns: argparse.Namespace) -> str | None:
+        if ns.workers is None and getattr(ns, "scheduler", None) is None:
+            ns.workers = usable_cores()
+        return None
+
+    parser.add_check(fill)
+    return _tag(action, "add_workers")
+
+
+def add_scheduler(parser: CommandParser, *, help: str = "run on an existing Dask cluster "
+                  "(see docs/scale-out.md)") -> argparse.Action:
+    """``--scheduler tcp://HOST:PORT``; with ``--workers`` a usage error (the cluster's
+    workers do the work). Add it before :func:`add_workers`."""
+    action = parser.add_argument("--scheduler", default=None, metavar="tcp://HOST:PORT",
+                                 help=help)
+
+    def exclusive(ns: argparse.Namespace) -> str | None:
+        if ns.scheduler is not None and getattr(ns, "workers", None) is not None:
+            return ("--workers and --scheduler exclude each other (the cluster's workers do "
+                    "the work)")
+        return None
+
+    parser.add_check(exclusive)
+    return _tag(action, "add_scheduler")
+
+
+def add_no_progress(parser: argparse.ArgumentParser, *,
+                    help: str = "no progress output") -> argparse.Action:
+    """``--no-progress``."""
+    return _tag(parser.add_argument("--no-progress", action="store_true", help=help),
+                "add_no_progress")
+
+
+def add_tolerance(parser: argparse.ArgumentParser) -> argparse.Action:
+    """``--tolerance X``: largest passing ``|area_rel_err|``, finite, in [0, 1]; default
+    :data:`arenabench.competition.DEFAULT_TOLERANCE`."""
+    return _tag(parser.add_argument(
+        "--tolerance", type=TOLERANCE_RULE.argtype("--tolerance"), default=DEFAULT_TOLERANCE,
+        help="max |area_rel_err| to pass"), "add_tolerance")
+
+
+def add_area_reference(parser: argparse.ArgumentParser) -> argparse.Action:
+    """``--area-reference {visible,footprint,contour}``."""
+    from arenabench.gtrecord import AREA_REFERENCES, DEFAULT_AREA_REFERENCE  # imports NumPy
+
+    return _tag(parser.add_argument(
+        "--area-reference", choices=tuple(AREA_REFERENCES), default=DEFAULT_AREA_REFERENCE,
+        help="GT area the answer is compared with: visible (the silhouettes a camera-side "
+        "segmentation sees), footprint (the boxes' floor area) or contour (what "
+        "cv2.contourArea of the pixelated silhouettes gives, about half a perimeter less)"),
+        "add_area_reference")
+
+
+def count_rule(maximum: int, *, minimum: int = 1) -> Rule:
+    """The rule of a count option: an integer in [minimum, maximum]."""
+    return Rule("int", minimum, maximum)
+
+
+def add_count(parser: argparse.ArgumentParser, flag: str = "--count", *,
+              maximum: int = MAX_DATASET_SCENES, minimum: int = 1, default: int | None = None,
+              required: bool = False, help: str = "number of scenes") -> argparse.Action:
+    """A count option (``--count``, ``--rss-renders``, ``--refine-rounds``...): an integer in
+    [minimum, maximum]."""
+    kwargs: dict[str, Any] = {"required": True} if required else {"default": default}
+    return _tag(parser.add_argument(flag, type=count_rule(maximum, minimum=minimum).argtype(flag),
+                                    metavar="N", help=help, **kwargs), "add_count")
+
+
+#: What a ``--cmd`` template must hold: where the image's path goes.
+IMAGE_PLACEHOLDER = "{image}"
+
+
+def _cmd_templates(ns: argparse.Namespace) -> list[str]:
+    cmd = getattr(ns, "cmd", None)
+    pipes = getattr(ns, "pipes", None) or ()  # sweep: (kind, value) in the order given
+    return ([cmd] if isinstance(cmd, str) else []) + [v for k, v in pipes if k == "cmd"]
+
+
+def cmd_template_problem(ns: argparse.Namespace) -> str | None:
+    """A ``--cmd`` template without ``{image}`` (every image would fail the same way) is a
+    usage error, unless ``--image-name`` names the file the command opens by itself."""
+    if getattr(ns, "image_name", None):
+        return None
+    import shlex
+
+    for template in _cmd_templates(ns):
+        try:
+            shlex.split(template)
+        except ValueError:  # unbalanced quotes: the runner's own one-line error says so
+            continue
+        if IMAGE_PLACEHOLDER not in template:
+            return (f"--cmd {template!r}: the template has no {IMAGE_PLACEHOLDER} (the "
+                    "image's path; or give --image-name for a command that opens a fixed name)")
+    return None
+
+
+def add_run_options(parser: CommandParser) -> None:
+    """The options of external runs (``--timeout``, the limits, ``--sandbox``, ``--env``);
+    :func:`arenabench.eval.run_limits.run_settings_from_args` reads them. A ``--cmd``
+    template must hold ``{image}`` (:func:`cmd_template_problem`)."""
+    parser.add_check(cmd_template_problem)
+    g = parser.add_argument_group("external command runs (--cmd)")
+    _tag(g.add_argument("--timeout", type=TIMEOUT_RULE.argtype("--timeout"),
+                        default=DEFAULT_TIMEOUT_S,
+                        help=f"wall-clock seconds per image, at most {MAX_TIMEOUT_S:g} "
+                        "(default: %(default)s)"), "add_run_options")
+    _tag(g.add_argument("--memory-limit", type=_size_type("--memory-limit"),
+                        default=format_size(DEFAULT_MEMORY_BYTES),
+                        help="address space per process, e.g. 2G, 512M (default: %(default)s)"),
+         "add_run_options")
+    _tag(g.add_argument("--max-procs", type=MAX_PROCS_RULE.argtype("--max-procs"),
+                        default=DEFAULT_MAX_PROCS,
+                        help="processes a run may have at once (default: %(default)s)"),
+         "add_run_options")
+    _tag(g.add_argument("--max-file-size", type=_size_type("--max-file-size"),
+                        default=format_size(DEFAULT_MAX_FILE_SIZE),
+                        help="largest file a run may write (default: %(default)s)"),
+         "add_run_options")
+    _tag(g.add_argument("--max-output", type=_size_type("--max-output"),
+                        default=format_size(DEFAULT_MAX_OUTPUT),
+                        help="bytes of stdout and of stderr kept per run, the tail "
+                        "(default: %(default)s)"), "add_run_options")
+    _tag(g.add_argument("--sandbox", choices=SANDBOX_MODES, default=DEFAULT_SANDBOX,
+                        help="auto: bubblewrap when it works here (else a warning and none); "
+                        "bwrap: require it; none: no namespaces (default: %(default)s)"),
+         "add_run_options")
+    g.add_argument("--image-name", default=None,
+                   help="file name of the image copy the command sees (default: image + its "
+                   "extension)")
+    g.add_argument("--env", action="append", default=[], metavar="K=V",
+                   help="environment variable for the command (repeatable); nothing else is "
+                   "passed on besides PATH, HOME, LANG, LC_ALL and TMPDIR")

@@ -1,0 +1,139 @@
+"""Every command's parser is a :class:`CommandParser` and takes its shared options from the
+builders of :mod:`arenabench.cliopts` (defaults equal to their one declaration); each option
+keeps one rule, refused with one line naming the option and the value (exit 2)."""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import subprocess
+import sys
+
+import pytest
+
+from arenabench.cli import COMMANDS
+from arenabench.clihelp import HelpFormatter
+from arenabench.cliopts import (
+    DEFAULT_SANDBOX,
+    SHARED_OPTIONS,
+    CommandParser,
+    format_size,
+    parse_size,
+)
+from arenabench.competition import DEFAULT_TOLERANCE
+from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
+from arenabench.limits import (
+    DEFAULT_MAX_FILE_SIZE,
+    DEFAULT_MAX_OUTPUT,
+    DEFAULT_MAX_PROCS,
+    DEFAULT_MEMORY_BYTES,
+    DEFAULT_TIMEOUT_S,
+    MAX_WORKERS,
+)
+from arenabench.workers import usable_cores
+
+#: (command, option) pairs that share a name but not the meaning: doctor's --timeout is the
+#: seconds allowed for an OpenGL context, not a run's limit (it still keeps TIMEOUT_RULE).
+NOT_SHARED = {("doctor", "--timeout")}
+
+#: What each shared option must default to: its one declaration.
+DECLARED = {
+    "--tolerance": DEFAULT_TOLERANCE,
+    "--area-reference": DEFAULT_AREA_REFERENCE,
+    "--timeout": DEFAULT_TIMEOUT_S,
+    "--memory-limit": format_size(DEFAULT_MEMORY_BYTES),
+    "--max-procs": DEFAULT_MAX_PROCS,
+    "--max-file-size": format_size(DEFAULT_MAX_FILE_SIZE),
+    "--max-output": format_size(DEFAULT_MAX_OUTPUT),
+    "--sandbox": DEFAULT_SANDBOX,
+    "--no-progress": False,
+    "--scheduler": None,
+}
+
+
+def _parser(name: str) -> argparse.ArgumentParser:
+    module = importlib.import_module(COMMANDS[name][0])
+    return module.build_parser()
+
+
+@pytest.mark.parametrize("name", sorted(COMMANDS))
+def test_every_command_uses_the_shared_parser_and_builders(name):
+    parser = _parser(name)
+    assert isinstance(parser, CommandParser), name
+    assert parser.formatter_class is HelpFormatter, name
+    for action in parser._actions:
+        for option in action.option_strings:
+            if option not in SHARED_OPTIONS or (name, option) in NOT_SHARED:
+                continue
+            assert getattr(action, "shared_option", None), \
+                f"{name} {option}: declared by hand, not by a cliopts builder"
+            if option in DECLARED:
+                assert action.default == DECLARED[option], (name, option, action.default)
+
+
+@pytest.mark.parametrize("name", ["eval", "grade", "sweep", "generate", "bench", "demo"])
+def test_workers_default_to_the_usable_cores_everywhere(name, tmp_path):
+    required = {"eval": ["d", "--pipeline", "reference"], "grade": ["d", "s", "--out", "o"],
+                "sweep": ["--out", "o"], "generate": ["--count", "1", "--out", "o"]}
+    args = _parser(name).parse_args(required.get(name, []))
+    assert args.workers == usable_cores()
+
+
+@pytest.mark.parametrize("name", ["grade", "sweep", "generate"])
+def test_workers_with_scheduler_is_one_rule(name, capsys):
+    required = {"grade": ["d", "s", "--out", "o"], "sweep": ["--out", "o"],
+                "generate": ["--count", "1", "--out", "o"]}[name]
+    parser = _parser(name)
+    assert parser.parse_args([*required, "--scheduler", "tcp://h:1"]).workers is None
+    with pytest.raises(SystemExit) as exc:
+        parser.parse_args([*required, "--scheduler", "tcp://h:1", "--workers", "2"])
+    assert exc.value.code == 2
+    err = capsys.readouterr().err.strip()
+    assert err == (f"arenabench {name}: error: --workers and --scheduler exclude each other "
+                   "(the cluster's workers do the work)")
+
+
+def test_size_rule():
+    assert parse_size("2G", name="--x") == 2 * 1024**3
+    assert format_size(parse_size("1P", name="--x")) == "1P"
+    for bad in ("99999999T", "0", "2P", "1e309", "inf", "-1"):
+        with pytest.raises(ValueError, match="--x"):
+            parse_size(bad, name="--x")
+
+
+@pytest.mark.parametrize(
+    ("argv", "needle"),
+    [
+        (("eval", ".", "--pipeline", "reference", "--timeout", "inf"),
+         "argument --timeout: must be a finite number in (0, 86400], got 'inf'"),
+        (("grade", ".", ".", "--out", "o", "--timeout", "1e309"), "got '1e309'"),
+        (("sweep", "--out", "o", "--timeout", "1e12"), "got '1e12'"),
+        (("eval", ".", "--pipeline", "reference", "--memory-limit", "99999999T"),
+         "argument --memory-limit: must be a size in [1, 1P] bytes, got '99999999T'"),
+        (("grade", ".", ".", "--out", "o", "--max-file-size", "99999999T"), "--max-file-size"),
+        (("grade", ".", ".", "--out", "o", "--tolerance", "inf"),
+         "argument --tolerance: must be a finite number in [0, 1], got 'inf'"),
+        (("grade", ".", ".", "--out", "o", "--tolerance", "1e309"), "got '1e309'"),
+        (("grade", ".", ".", "--out", "o", "--workers", "100000"),
+         f"argument --workers: must be an integer in [1, {MAX_WORKERS}], got '100000'"),
+        (("generate", "--count", "0", "--out", "o"),
+         "argument --count: must be an integer in [1, 1000000], got '0'"),
+        (("bench", "--rss-renders", "-1"), "argument --rss-renders: must be an integer"),
+        (("fit", "x.png", "--out", "s.json", "--refine-rounds", "1000000000"),
+         "argument --refine-rounds: must be an integer in [0, 100]"),
+        (("eval", ".", "--pipeline", "reference", "--max-procs", "0"), "--max-procs"),
+        (("eval", ".", "--pipeline", "reference", "--wokers", "2"),
+         "did you mean '--workers'?"),
+        (("detect", "--image", "x.png", "--profile", "sed"), "did you mean 'seed'?"),
+        (("eval", ".", "--pipeline", "reference", "--fail-under", "pas_rate=1"),
+         "did you mean 'pass_rate'?"),
+    ],
+)
+def test_one_rule_per_option_one_line(argv, needle, tmp_path):
+    proc = subprocess.run([sys.executable, "-m", "arenabench", *argv], capture_output=True,
+                          text=True, timeout=120, cwd=tmp_path)
+    err = proc.stderr.strip()
+    assert proc.returncode == 2, (proc.returncode, err)
+    assert len(err.splitlines()) == 1 and "Traceback" not in err, err
+    assert err.startswith(f"arenabench {argv[0]}: error: ") and needle in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
