@@ -83,7 +83,8 @@ def test_a_crashing_script_fails_with_its_message(cache, tmp_path):
 @pytest.mark.parametrize(("args", "needle"), [
     (["missing.py"], "missing.py: no such file"),
     (["{pipelines}"], "not a file"),
-    (["{pipelines}/crash.py", "--count", "0"], "--count must be in [1, "),
+    (["{pipelines}/crash.py", "--count", "0"], "argument --count: must be an integer in [1, "),
+    (["{pipelines}/crash.py", "--workers", "0"], "argument --workers: must be an integer in [1, "),
     (["{pipelines}/crash.py", "--preset", "nope"], "--preset: unknown preset 'nope'"),
     (["{pipelines}/crash.py", "--fail-under", "1.5"], "--fail-under must be a pass rate"),
     (["{pipelines}/crash.py", "--phase-check", "zero"], "--phase-check"),
