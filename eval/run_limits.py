@@ -104,15 +104,21 @@ class RunSettings:
     env : mapping
         Extra environment variables (``--env K=V``); the rest of the environment is not
         passed through.
+    warm : bool
+        Run a Python script through a warm interpreter of its command (a fork server, see
+        :mod:`arenabench.eval.warm_client`); ``False`` (``--no-warm``): a new process per
+        image. It does not change what a script computes, so it is not in :meth:`to_dict`.
     """
 
     limits: RunLimits = field(default_factory=RunLimits)
     sandbox: str = "auto"
     image_name: str | None = None
     env: Mapping[str, str] = field(default_factory=dict)
+    warm: bool = True
 
     def __hash__(self) -> int:  # env is a dict: hash its items (settings key worker caches)
-        return hash((self.limits, self.sandbox, self.image_name, tuple(sorted(self.env.items()))))
+        return hash((self.limits, self.sandbox, self.image_name, tuple(sorted(self.env.items())),
+                     self.warm))
 
     def to_dict(self) -> dict[str, object]:
         """JSON form (records of sweeps and gradings)."""
@@ -186,6 +192,12 @@ def add_run_arguments(parser: argparse.ArgumentParser) -> None:
         help="environment variable for the command (repeatable); nothing else is passed on "
         "besides PATH, HOME, LANG, LC_ALL and TMPDIR",
     )
+    g.add_argument(
+        "--no-warm", dest="warm", action="store_false",
+        help="start a new Python process per image for a Python script (default: one warm "
+        "interpreter per command, which forks a fresh process per image; see "
+        "docs/warm-interpreter.md)",
+    )
 
 
 def run_settings_from_args(args: argparse.Namespace) -> RunSettings:
@@ -213,4 +225,5 @@ def run_settings_from_args(args: argparse.Namespace) -> RunSettings:
         max_file_size=parse_size(args.max_file_size, name="--max-file-size"),
         max_output=parse_size(args.max_output, name="--max-output"),
     )
-    return RunSettings(limits=limits, sandbox=args.sandbox, image_name=args.image_name, env=env)
+    return RunSettings(limits=limits, sandbox=args.sandbox, image_name=args.image_name, env=env,
+                       warm=getattr(args, "warm", True))

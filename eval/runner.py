@@ -223,6 +223,9 @@ def evaluate(
             if callable(stop):
                 stop()
             pool.shutdown(wait=True, cancel_futures=True)
+    close = getattr(pipe, "close", None)  # a command's warm servers end with the evaluation
+    if callable(close):
+        close()
     results = [
         score_sample(s, p, tolerance=tolerance, area_reference=area_reference)
         for s, p in zip(samples, preds, strict=True)
