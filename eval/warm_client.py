@@ -251,6 +251,7 @@ class WarmServer:
         if self.isolate:
             view = f"{WARM_DIR}/{token}"
             cmd, env = pipe.argv(image_path), pipe._env(SANDBOX_DIR, "/tmp")
+            env["PWD"] = SANDBOX_DIR  # as bubblewrap's --chdir sets it
             cgroup_parent = CGROUP_DIR if self.cgroup else None
         else:
             view = rundir

@@ -28,6 +28,7 @@ streams flushed) and its exit status. The server never runs a script's code itse
 
 import ast
 import ctypes
+import fcntl
 import json
 import os
 import select
@@ -174,8 +175,6 @@ def _enter_private_namespaces(cfg):
         _check(_LIBC.mount(b"tmpfs", hidden.encode(), b"tmpfs",
                            MS_RDONLY | MS_NOSUID | MS_NODEV, b"size=4k"), f"hide {hidden}")
     try:
-        import fcntl
-
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
             # SIOCSIFFLAGS: IFF_UP | IFF_LOOPBACK | IFF_RUNNING, as bubblewrap does
             fcntl.ioctl(s.fileno(), 0x8914, struct.pack("16sH14x", b"lo", 0x1 | 0x8 | 0x40))
@@ -261,6 +260,7 @@ def become_script(cfg):
         _enter_private_namespaces(cfg)
     os.environ.clear()
     os.environ.update(cfg["env"])
+    os.environ.update(cfg["warm_env_changes"])  # what the preloaded imports set (cv2)
     _python_signal_defaults()
     for name, reset in (("tempfile", lambda m: setattr(m, "tempdir", None)),
                         ("random", lambda m: m.seed()),
@@ -390,13 +390,16 @@ def main():
     names = ["numpy", "cv2"]
     if config.get("script"):
         names += _top_level_imports(config["script"])
+    before = dict(os.environ)
     _preload(names, config.get("private_dirs", []))
+    env_changes = {k: v for k, v in os.environ.items() if before.get(k) != v}
     isolation = _probe_isolation() if config["isolate"] else ""
     _send(sock, {"ready": True, "isolation": isolation, "pid": os.getpid()})
     try:
         _serve(sock, launcher)
     except _BecomeRunManager as become:
         sock.close()
+        become.message["cfg"]["warm_env_changes"] = env_changes
         code = _run_manager(launcher, become.message)
         os._exit(code)
     return 0
