@@ -149,7 +149,8 @@ class WarmServer:
         python = pipe._executable or sys.executable
         ours, theirs = socket.socketpair()
         self.sock = ours
-        server = [python, "-c", SERVER_SOURCE.read_text(), str(theirs.fileno())]
+        # the folder on its command line names the server in ps (and in the tests)
+        server = [python, "-c", SERVER_SOURCE.read_text(), str(theirs.fileno()), self.home]
         if self.isolate:
             if pipe._cgroup:
                 cg = os.path.join(pipe._cgroup, f"arenabench-warm-{os.getpid()}-{next(_counter)}")

@@ -77,6 +77,24 @@ def _rmtree(path):
         time.sleep(0.02)
 
 
+def _remove_cgroup(cgroup):
+    """Remove the server's cgroup and the runs' cgroups left in it (all empty by now)."""
+    for _ in range(100):
+        try:
+            for entry in os.scandir(cgroup):
+                if entry.is_dir(follow_symlinks=False):
+                    try:
+                        os.rmdir(entry.path)
+                    except OSError:
+                        pass
+            os.rmdir(cgroup)
+            return
+        except FileNotFoundError:
+            return
+        except OSError:
+            time.sleep(0.02)
+
+
 def main(argv):
     """Entry point (see the module docstring); returns the command's exit status."""
     parent, home, cgroup, fd, cmd = int(argv[1]), argv[2], argv[3], int(argv[4]), argv[6:]
@@ -106,14 +124,7 @@ def main(argv):
     _reap_all(5.0)
     _rmtree(home)
     if cgroup != "-":
-        for _ in range(100):
-            try:
-                os.rmdir(cgroup)
-                break
-            except FileNotFoundError:
-                break
-            except OSError:
-                time.sleep(0.02)
+        _remove_cgroup(cgroup)
     return os.waitstatus_to_exitcode(status) if status else 0
 
 

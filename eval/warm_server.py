@@ -1,6 +1,6 @@
 """The warm interpreter (fork server) of a Python ``--cmd``: the code that runs in the sandbox.
 
-Started by :mod:`arenabench.eval.warm_client` as ``PYTHON -c <this source> FD``
+Started by :mod:`arenabench.eval.warm_client` as ``PYTHON -c <this source> FD FOLDER``
 with the command's own interpreter, inside the same bubblewrap sandbox as a cold run (or
 with ``--sandbox none`` without one). Standard library only, besides the modules it preloads
 (``numpy``, ``cv2`` and the standard-library or installed modules the script's top-level
@@ -375,7 +375,7 @@ def _serve(sock, launcher):
 
 
 def main():
-    """Entry point: ``python -c <source> FD``."""
+    """Entry point: ``python -c <source> FD FOLDER`` (the folder only names it in ps)."""
     sock = socket.socket(fileno=int(sys.argv[1]))
     for s in (signal.SIGINT, signal.SIGHUP, signal.SIGTERM):
         signal.signal(s, signal.SIG_IGN)  # the harness ends the server by closing the socket

@@ -132,3 +132,79 @@ def test_no_warm_is_an_option_of_eval_sweep_and_grade(module, argv):
     parser = importlib.import_module(module).build_parser()
     assert run_settings_from_args(parser.parse_args([*argv, "--no-warm"])).warm is False
     assert run_settings_from_args(parser.parse_args(argv)).warm is True
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_sigkill_of_the_harness_ends_the_server_and_its_runs(sandbox, toy, tmp_path):
+    import subprocess
+
+    from hostile_util import processes_with, wait_for
+
+    marker = f"warm-sigkill-{os.getpid()}-{sandbox}"
+    tmpdir = tmp_path / "tmp"
+    tmpdir.mkdir()
+    argv = [PY, "-m", "arenabench", "eval", str(toy), "--cmd",
+            f"{PY} {PIPES / 'hostile' / 'hang_on.py'} --image {{image}}", "--env", "HANG=all",
+            "--env", f"MARKER={marker}", "--workers", "2", "--no-progress", "--formats", "json",
+            "--out", str(tmp_path / "out"), "--sandbox", sandbox]
+    proc = subprocess.Popen(argv, env={**os.environ, "TMPDIR": str(tmpdir)},
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        assert wait_for(lambda: len(processes_with(f"{marker}:child")) >= 4, timeout=60)
+        servers = [p for p in processes_with("arenabench-warm-") if p in
+                   processes_with(str(tmpdir))]
+        assert servers, "no warm server ran the command"
+        proc.kill()
+        proc.wait()
+    finally:
+        proc.kill()
+    assert wait_for(lambda: not processes_with(f"{marker}:child"), timeout=10)
+    assert wait_for(lambda: not processes_with(str(tmpdir)), timeout=10)  # keeper, server
+    assert wait_for(lambda: not list(tmpdir.iterdir()), timeout=10), list(tmpdir.iterdir())
+
+
+class _KeepAnswer(CommandPipeline):
+    """A command whose ``obstacles.txt`` bytes are kept (read where the harness reads it)."""
+
+    def _interpret(self, result, stdout, stderr, workdir):
+        path = Path(workdir, "obstacles.txt")
+        self.answers[_sha(Path(workdir, "image.png"))] = (
+            path.read_bytes() if path.exists() else None, result["rc"], stdout, stderr)
+        return super()._interpret(result, stdout, stderr, workdir)
+
+
+@pytest.fixture(scope="module")
+def twin50(tmp_path_factory):
+    from arenabench.generator.cli import main as generate_main
+
+    data = tmp_path_factory.mktemp("twin") / "eyrc"
+    assert generate_main(["--preset", "eyrc", "--count", "50", "--seed", "11", "--out",
+                          str(data), "--no-progress", "--workers", "2"]) == 0
+    return sorted((data / "images").iterdir())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_competition_styles_answer_byte_for_byte_the_same_warm_and_cold(sandbox, twin50,
+                                                                         run_tmp):
+    from concurrent.futures import ThreadPoolExecutor
+
+    from pass_rates import STYLES
+
+    for style in STYLES:
+        answers = {}
+        for warm in (False, True):
+            pipe = _KeepAnswer(f"{PY} {PIPES / style}.py --image {{image}}",
+                               settings=RunSettings(sandbox=sandbox, warm=warm))
+            pipe.answers = {}
+            with ThreadPoolExecutor(2) as pool:
+                preds = list(pool.map(pipe.run, twin50))
+            assert all(p.status in ("ok", "markers_not_found") for p in preds), style
+            assert (pipe._warm is not None) == warm
+            assert warm_client._servers if warm else True
+            answers[warm] = pipe.answers
+            pipe.close()
+        assert len(answers[True]) == len(twin50), style
+        assert answers[True] == answers[False], style
+        assert all(a[0] is not None for a in answers[True].values()), style
