@@ -32,6 +32,9 @@ size (1000 x 1000):
    through the command's warm interpreter (server start and end included);
    ``script_warm_vs_inprocess`` and ``script_cold_vs_inprocess`` are the ratios
    (``script_runs`` images, one at a time, sandbox ``auto``).
+10. ``markerless_*_ms``: CPU ms of the reference pipeline (:func:`arenabench.detect`) giving
+    up on a 1000 x 1000 image without markers: only boxes, Gaussian noise, blank (median of
+    ``markerless_runs`` runs each).
 
 Items 2, 4 and 5 run on ``workers`` spawned processes that are started and warmed up
 (one renderer each) before the clock starts; item 3 on started processes (modules imported)
@@ -72,6 +75,8 @@ TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("worker_rss_growth_mb", "<", 20.0, "MB"),
     ("sandbox_overhead_ms", "<=", 50.0, "ms"),
     ("script_warm_vs_inprocess", "<=", 1.5, "x"),
+    ("markerless_boxes_ms", "<=", 50.0, "ms"),
+    ("markerless_noise_ms", "<=", 50.0, "ms"),
 )
 
 #: The streaming sweep's varied parameter (item 6): Gaussian sensor noise, off to strong.
@@ -84,6 +89,7 @@ FIGURE_KEYS: tuple[str, ...] = (
     "pipeline_eval_ips", "disk_vs_naive", "disk_vs_floor", "sandbox_overhead_ms",
     "script_inprocess_cpu_ms", "script_cold_cpu_ms", "script_warm_cpu_ms",
     "script_warm_vs_inprocess", "script_cold_vs_inprocess",
+    "markerless_boxes_ms", "markerless_noise_ms", "markerless_blank_ms",
 )  # fmt: skip
 
 
@@ -105,6 +111,8 @@ class BenchConfig:
         External runs per sandbox mode (item 8).
     script_runs : int
         Images of each way of running the external script (item 9; at most ``count``).
+    markerless_runs : int
+        Runs of the reference pipeline on each image without markers (item 10).
     workers : int or None
         Processes; default: the usable cores.
     preset : str
@@ -119,13 +127,14 @@ class BenchConfig:
     rss_renders: int = 2000
     sandbox_runs: int = 40
     script_runs: int = 60
+    markerless_runs: int = 5
     workers: int | None = None
     preset: str = "eyrc"
     seed: int = 0
 
     def __post_init__(self) -> None:
         for name in ("count", "sweep_count", "naive_count", "rss_renders", "sandbox_runs",
-                     "script_runs"):
+                     "script_runs", "markerless_runs"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
@@ -139,7 +148,7 @@ class BenchConfig:
     def quick(cls, *, workers: int | None = None) -> BenchConfig:
         """A tiny configuration (seconds): every figure, none of them meaningful."""
         return cls(count=6, sweep_count=6, naive_count=2, rss_renders=20, sandbox_runs=3,
-                   script_runs=3, workers=workers)
+                   script_runs=3, markerless_runs=1, workers=workers)
 
 
 @dataclass
@@ -561,6 +570,12 @@ def run_bench(
         script_figures, details["script"] = script_per_image(images)
         figures.update(script_figures)
         notify("script_warm_vs_inprocess", time.perf_counter() - t0)
+
+        # 10. the reference pipeline giving up on images without markers
+        t0 = time.perf_counter()
+        marker_figures, details["markerless"] = markerless_ms(cfg.markerless_runs)
+        figures.update(marker_figures)
+        notify("markerless_boxes_ms", time.perf_counter() - t0)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     details["load_avg_end"] = _load_avg()
@@ -674,6 +689,40 @@ def script_per_image(images: list[Path]) -> tuple[dict[str, float], dict[str, An
                "warm_equals_cold": answers["warm"] == answers["cold"],
                "ok": sum(a[0] == "ok" for a in answers["warm"])}
     return figures, details
+
+
+def markerless_images(seed: int = 0) -> dict[str, np.ndarray]:
+    """Item 10's 1000 x 1000 images without markers: twelve dark boxes on a light floor,
+    uniform noise, blank white."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    boxes = np.full((1000, 1000, 3), 200, np.uint8)
+    for _ in range(12):
+        x, y = (int(v) for v in rng.integers(50, 880, 2))
+        cv2.rectangle(boxes, (x, y), (x + 60, y + 80), (40, 40, 40), -1)
+    return {"boxes": boxes, "noise": rng.integers(0, 256, (1000, 1000, 3), dtype=np.uint8),
+            "blank": np.full((1000, 1000, 3), 255, np.uint8)}
+
+
+def markerless_ms(runs: int) -> tuple[dict[str, float], dict[str, Any]]:
+    """Item 10: median CPU ms of :func:`arenabench.detect` per image without markers."""
+    from arenabench.pipeline.detection import detect
+
+    figures: dict[str, float] = {}
+    passes: dict[str, int] = {}
+    for name, image in markerless_images().items():
+        detect(image)  # warm-up (detector objects)
+        times = []
+        for _ in range(runs):
+            c0 = time.process_time()
+            result = detect(image)
+            times.append((time.process_time() - c0) * 1000.0)
+        if result.status == "ok":
+            raise RuntimeError(f"bench: markers found in the {name} image")
+        figures[f"markerless_{name}_ms"] = float(np.median(times))
+        passes[name] = int(result.details.get("marker_passes", 0))
+    return figures, {"runs": runs, "marker_passes": passes}
 
 
 def _per(seconds: float, n: int) -> float:
