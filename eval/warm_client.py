@@ -282,6 +282,8 @@ class WarmServer:
                 return Prediction(status="crash", message="the warm server has ended")
             self._waiting[token] = waiter
         try:
+            if pipe._stopped:  # stopped before its waiter was there for stop() to find
+                return Prediction(status="crash", message="interrupted")
             assert self.sock is not None
             try:
                 _send(self.sock, {"op": "run", "id": token, "cfg": cfg, "target": target})
