@@ -394,6 +394,12 @@ def main():
     _preload(names, config.get("private_dirs", []))
     env_changes = {k: v for k, v in os.environ.items() if before.get(k) != v}
     isolation = _probe_isolation() if config["isolate"] else ""
+    # the preloaded objects stay out of the runs' garbage collections: a collection would
+    # write to every tracked object and copy the pages a run shares with the server
+    import gc
+
+    gc.collect()
+    gc.freeze()
     _send(sock, {"ready": True, "isolation": isolation, "pid": os.getpid()})
     try:
         _serve(sock, launcher)
