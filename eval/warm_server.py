@@ -114,9 +114,13 @@ def _top_level_imports(path):
 
 def _preload(names, private_dirs):
     """Import ``names`` where they come from outside ``private_dirs`` (the submission's own
-    folders: their modules are the team's code and are never run by the server)."""
+    folders: their modules are the team's code and are never run by the server).
+
+    Returns the environment variables each import set or changed (cv2 sets
+    ``LD_LIBRARY_PATH``), by module name."""
     import importlib.util
 
+    changes = {}
     for name in names:
         if name in sys.modules or name == "__main__":
             continue
@@ -129,10 +133,13 @@ def _preload(names, private_dirs):
             continue
         if origin and not origin.endswith((".py", ".so", ".pyc")) and origin != "built-in":
             continue
+        before = dict(os.environ)
         try:
             __import__(name)
         except Exception:  # a module that fails here is imported (and fails) in the run
             pass
+        changes[name] = {k: v for k, v in os.environ.items() if before.get(k) != v}
+    return changes
 
 
 def _enter_private_namespaces(cfg):
@@ -387,12 +394,11 @@ def main():
     if config["isolate"]:
         _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
     launcher = _load_launcher(config["launcher_source"])
-    names = ["numpy", "cv2"]
-    if config.get("script"):
-        names += _top_level_imports(config["script"])
-    before = dict(os.environ)
-    _preload(names, config.get("private_dirs", []))
-    env_changes = {k: v for k, v in os.environ.items() if before.get(k) != v}
+    imported = _top_level_imports(config["script"]) if config.get("script") else []
+    changes = _preload(["numpy", "cv2", *imported], config.get("private_dirs", []))
+    # a run gets what an import set in the environment where the script imports the module
+    # itself (top level; a cold run would have it from that import)
+    env_changes = {k: v for name in imported for k, v in changes.get(name, {}).items()}
     isolation = _probe_isolation() if config["isolate"] else ""
     # the preloaded objects stay out of the runs' garbage collections: a collection would
     # write to every tracked object and copy the pages a run shares with the server
