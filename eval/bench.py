@@ -24,6 +24,17 @@ size (1000 x 1000):
    ``obstacles.txt``): median wall time per run with ``--sandbox bwrap`` minus with
    ``--sandbox none`` (``sandbox_runs`` runs each, interleaved, one at a time; 0 with
    ``details.sandbox.bwrap`` false where bubblewrap does not work).
+9. ``script_*``: an external Python script per image (:data:`SCRIPT_PATH`, a competition-style
+   ``map.py``: markers, warp, threshold, count), CPU ms per image (every process of the
+   harness included): ``script_inprocess_cpu_ms`` runs it with :mod:`runpy` in one process
+   (OpenCV imported once), ``script_cold_cpu_ms`` as ``--cmd "{python} map.py --image
+   {image}" --no-warm`` (a new interpreter per image), ``script_warm_cpu_ms`` the same
+   through the command's warm interpreter (server start and end included);
+   ``script_warm_vs_inprocess`` and ``script_cold_vs_inprocess`` are the ratios
+   (``script_runs`` images, one at a time, sandbox ``auto``).
+10. ``markerless_*_ms``: CPU ms of the reference pipeline (:func:`arenabench.detect`) giving
+    up on a 1000 x 1000 image without markers: only boxes, Gaussian noise, blank (median of
+    ``markerless_runs`` runs each).
 
 Items 2, 4 and 5 run on ``workers`` spawned processes that are started and warmed up
 (one renderer each) before the clock starts; item 3 on started processes (modules imported)
@@ -63,6 +74,9 @@ TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("worker_peak_rss_mb", "<=", 400.0, "MB"),
     ("worker_rss_growth_mb", "<", 20.0, "MB"),
     ("sandbox_overhead_ms", "<=", 50.0, "ms"),
+    ("script_warm_vs_inprocess", "<=", 1.5, "x"),
+    ("markerless_boxes_ms", "<=", 50.0, "ms"),
+    ("markerless_noise_ms", "<=", 50.0, "ms"),
 )
 
 #: The streaming sweep's varied parameter (item 6): Gaussian sensor noise, off to strong.
@@ -73,6 +87,9 @@ FIGURE_KEYS: tuple[str, ...] = (
     "generate_disk_ips", "generate_memory_ips", "naive_ips", "encode_floor_ips",
     "pipeline_ips", "sweep_ips", "worker_peak_rss_mb", "worker_rss_growth_mb",
     "pipeline_eval_ips", "disk_vs_naive", "disk_vs_floor", "sandbox_overhead_ms",
+    "script_inprocess_cpu_ms", "script_cold_cpu_ms", "script_warm_cpu_ms",
+    "script_warm_vs_inprocess", "script_cold_vs_inprocess",
+    "markerless_boxes_ms", "markerless_noise_ms", "markerless_blank_ms",
 )  # fmt: skip
 
 
@@ -92,6 +109,10 @@ class BenchConfig:
         Consecutive renders of the memory measurement (item 7).
     sandbox_runs : int
         External runs per sandbox mode (item 8).
+    script_runs : int
+        Images of each way of running the external script (item 9; at most ``count``).
+    markerless_runs : int
+        Runs of the reference pipeline on each image without markers (item 10).
     workers : int or None
         Processes; default: the usable cores.
     preset : str
@@ -105,12 +126,15 @@ class BenchConfig:
     naive_count: int = 40
     rss_renders: int = 2000
     sandbox_runs: int = 40
+    script_runs: int = 60
+    markerless_runs: int = 5
     workers: int | None = None
     preset: str = "eyrc"
     seed: int = 0
 
     def __post_init__(self) -> None:
-        for name in ("count", "sweep_count", "naive_count", "rss_renders", "sandbox_runs"):
+        for name in ("count", "sweep_count", "naive_count", "rss_renders", "sandbox_runs",
+                     "script_runs", "markerless_runs"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
@@ -124,7 +148,7 @@ class BenchConfig:
     def quick(cls, *, workers: int | None = None) -> BenchConfig:
         """A tiny configuration (seconds): every figure, none of them meaningful."""
         return cls(count=6, sweep_count=6, naive_count=2, rss_renders=20, sandbox_runs=3,
-                   workers=workers)
+                   script_runs=3, markerless_runs=1, workers=workers)
 
 
 @dataclass
@@ -539,6 +563,19 @@ def run_bench(
         figures["sandbox_overhead_ms"], details["sandbox"] = _sandbox_overhead(
             scratch / "dataset" / "images" / "000000.png", cfg.sandbox_runs)
         notify("sandbox_overhead_ms", time.perf_counter() - t0)
+
+        # 9. an external Python script per image: in one process, cold, warm
+        t0 = time.perf_counter()
+        images = sorted((scratch / "dataset" / "images").iterdir())[: cfg.script_runs]
+        script_figures, details["script"] = script_per_image(images)
+        figures.update(script_figures)
+        notify("script_warm_vs_inprocess", time.perf_counter() - t0)
+
+        # 10. the reference pipeline giving up on images without markers
+        t0 = time.perf_counter()
+        marker_figures, details["markerless"] = markerless_ms(cfg.markerless_runs)
+        figures.update(marker_figures)
+        notify("markerless_boxes_ms", time.perf_counter() - t0)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     details["load_avg_end"] = _load_avg()
@@ -578,6 +615,114 @@ def _sandbox_overhead(image: Path, runs: int) -> tuple[float, dict[str, Any]]:
         detail["bwrap_problem"] = problem
         return 0.0, detail
     return max(0.0, median["bwrap"] - median["none"]), detail
+
+
+#: Item 9's script: a competition-style map.py (numpy and OpenCV only).
+SCRIPT_PATH = Path(__file__).with_name("bench_map.py")
+
+
+def _cpu_s() -> float:
+    """CPU seconds of this process and of its children that have been waited for."""
+    import resource
+
+    me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(
+        resource.RUSAGE_CHILDREN)
+    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
+
+
+def script_per_image(images: list[Path]) -> tuple[dict[str, float], dict[str, Any]]:
+    """Item 9: CPU (and wall) ms per image of :data:`SCRIPT_PATH` run in this process with
+    :mod:`runpy`, as a cold command and through its warm interpreter (one image at a time).
+
+    Returns
+    -------
+    (figures, details)
+        ``script_*`` figures; details hold wall ms per image and the answers' agreement.
+    """
+    import runpy
+
+    from arenabench.eval import warm_client
+    from arenabench.eval.pipelines import CommandPipeline
+    from arenabench.eval.run_limits import RunSettings
+
+    if not images:
+        raise ValueError("bench: item 9 needs at least one image")
+    cmd = f"{{python}} {SCRIPT_PATH} --image {{image}}"
+    cpu: dict[str, float] = {}
+    wall: dict[str, float] = {}
+    answers: dict[str, list[tuple]] = {}
+    work = Path(tempfile.mkdtemp(prefix="arenabench-bench-script-"))
+    old_cwd, old_argv = os.getcwd(), sys.argv
+    try:
+        os.chdir(work)
+        for i in range(len(images) + 1):  # the first run warms up (imports)
+            if i == 1:
+                c0, t0 = _cpu_s(), time.perf_counter()
+            sys.argv = [str(SCRIPT_PATH), "--image", str(images[max(0, i - 1)])]
+            try:
+                runpy.run_path(str(SCRIPT_PATH), run_name="__main__")
+            except SystemExit:
+                pass
+        cpu["inprocess"], wall["inprocess"] = _cpu_s() - c0, time.perf_counter() - t0
+    finally:
+        os.chdir(old_cwd)
+        sys.argv = old_argv
+        shutil.rmtree(work, ignore_errors=True)
+    for name, warm in (("cold", False), ("warm", True)):
+        c0, t0 = _cpu_s(), time.perf_counter()
+        pipe = CommandPipeline(cmd, settings=RunSettings(warm=warm))
+        preds = [pipe.run(image) for image in images]
+        pipe.close()  # the warm server ends (and is waited for): its CPU time is counted
+        cpu[name], wall[name] = _cpu_s() - c0, time.perf_counter() - t0
+        answers[name] = [(p.status, p.count, p.area) for p in preds]
+    warm_client.close_all()
+    n = len(images)
+    per = {k: 1000.0 * v / n for k, v in cpu.items()}
+    figures = {
+        "script_inprocess_cpu_ms": per["inprocess"], "script_cold_cpu_ms": per["cold"],
+        "script_warm_cpu_ms": per["warm"],
+        "script_warm_vs_inprocess": per["warm"] / per["inprocess"],
+        "script_cold_vs_inprocess": per["cold"] / per["inprocess"],
+    }  # fmt: skip
+    details = {"images": n, "command": cmd, "cpu_ms_per_image": per,
+               "wall_ms_per_image": {k: 1000.0 * v / n for k, v in wall.items()},
+               "warm_equals_cold": answers["warm"] == answers["cold"],
+               "ok": sum(a[0] == "ok" for a in answers["warm"])}
+    return figures, details
+
+
+def markerless_images(seed: int = 0) -> dict[str, np.ndarray]:
+    """Item 10's 1000 x 1000 images without markers: twelve dark boxes on a light floor,
+    uniform noise, blank white."""
+    import cv2
+
+    rng = np.random.default_rng(seed)
+    boxes = np.full((1000, 1000, 3), 200, np.uint8)
+    for _ in range(12):
+        x, y = (int(v) for v in rng.integers(50, 880, 2))
+        cv2.rectangle(boxes, (x, y), (x + 60, y + 80), (40, 40, 40), -1)
+    return {"boxes": boxes, "noise": rng.integers(0, 256, (1000, 1000, 3), dtype=np.uint8),
+            "blank": np.full((1000, 1000, 3), 255, np.uint8)}
+
+
+def markerless_ms(runs: int) -> tuple[dict[str, float], dict[str, Any]]:
+    """Item 10: median CPU ms of :func:`arenabench.detect` per image without markers."""
+    from arenabench.pipeline.detection import detect
+
+    figures: dict[str, float] = {}
+    passes: dict[str, int] = {}
+    for name, image in markerless_images().items():
+        detect(image)  # warm-up (detector objects)
+        times = []
+        for _ in range(runs):
+            c0 = time.process_time()
+            result = detect(image)
+            times.append((time.process_time() - c0) * 1000.0)
+        if result.status == "ok":
+            raise RuntimeError(f"bench: markers found in the {name} image")
+        figures[f"markerless_{name}_ms"] = float(np.median(times))
+        passes[name] = int(result.details.get("marker_passes", 0))
+    return figures, {"runs": runs, "marker_passes": passes}
 
 
 def _per(seconds: float, n: int) -> float:

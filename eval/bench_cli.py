@@ -21,6 +21,13 @@ ROWS: tuple[tuple[str, str, str], ...] = (
     ("worker_peak_rss_mb", "7 peak RSS per worker", "MB"),
     ("worker_rss_growth_mb", "7 RSS growth over the renders", "MB"),
     ("sandbox_overhead_ms", "8 bubblewrap cost per external run", "ms"),
+    ("script_inprocess_cpu_ms", "9 external Python script per image: in one process", "CPU ms"),
+    ("script_cold_cpu_ms", "9 the same, a new process per image (--no-warm)", "CPU ms"),
+    ("script_warm_cpu_ms", "9 the same, warm interpreter (default)", "CPU ms"),
+    ("script_warm_vs_inprocess", "9 warm / in one process", "x"),
+    ("markerless_boxes_ms", "10 reference pipeline, no markers: boxes", "CPU ms"),
+    ("markerless_noise_ms", "10 the same: noise", "CPU ms"),
+    ("markerless_blank_ms", "10 the same: blank", "CPU ms"),
     ("disk_vs_naive", "(1)/(3)", "x"),
     ("disk_vs_floor", "(1)/(4)", "x"),
 )

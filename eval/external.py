@@ -6,6 +6,7 @@ Interface (used by ``eval``, ``sweep`` and ``grade``)::
                     name="", base_dir=os.getcwd())
     pipeline.run(image_path) -> Prediction          # never raises for the command's failures
     pipeline.stop()                                 # kill running runs, refuse new ones
+    pipeline.close()                                # end its warm servers (eval's end)
 
 ``settings`` (:class:`~arenabench.eval.run_limits.RunSettings`) holds the limits
 (``limits.timeout_s``, ``memory_bytes``, ``max_procs``, ``max_file_size``, ``max_output``),
@@ -347,6 +348,9 @@ class CommandPipeline:
         self._lock = threading.Lock()
         self._live: set[subprocess.Popen] = set()
         self._stopped = False
+        from .warm_client import warm_target
+
+        self._warm = warm_target(self._resolved_args()) if self.settings.warm else None
 
     @property
     def limits(self) -> RunLimits:
@@ -482,12 +486,29 @@ class CommandPipeline:
                 proc.send_signal(signal.SIGTERM)
             except OSError:
                 pass
+        if self._warm is not None:
+            from .warm_client import stop_warm
+
+            stop_warm(self)
+
+    def close(self) -> None:
+        """End the command's idle warm servers (a later run starts one again)."""
+        if self._warm is not None:
+            from .warm_client import close_warm
+
+            close_warm(self)
 
     def run(self, image_path: Path) -> Prediction:
         """Run the command on one image in a fresh private directory (never raises for the
         command's own failures)."""
         if self._stopped:
             return Prediction(status="crash", message="interrupted")
+        if self._warm is not None:  # a Python script: through its warm server (warm_client)
+            from .warm_client import run_warm
+
+            warm = run_warm(self, self._warm, Path(image_path))
+            if warm is not None:
+                return warm
         rundir = tempfile.mkdtemp(prefix=run_dir_prefix())  # names its owner: stale_runs
         try:
             return self._run_in(Path(image_path), rundir)

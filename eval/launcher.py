@@ -222,8 +222,11 @@ def _processes_of(uid: int) -> int:
     return n
 
 
-def _spawn(cfg: dict, cgroup: str | None, out_fd: int, err_fd: int) -> int:
+def _spawn(cfg: dict, cgroup: str | None, out_fd: int, err_fd: int, become=None) -> int:
     """fork + exec the command (new session, limits, cgroup); returns its pid.
+
+    ``become(cfg)``, when given, replaces the ``execve`` in the child (the warm server's
+    run: :func:`arenabench.eval.warm_server.become_script`; it never returns).
 
     Raises
     ------
@@ -247,9 +250,16 @@ def _spawn(cfg: dict, cgroup: str | None, out_fd: int, err_fd: int) -> int:
             os.closerange(3, w_err)
             os.closerange(w_err + 1, 1 << 16)
             os.chdir(cfg["cwd"])
+            if become is not None:
+                os.close(w_err)  # started: from here the run's own failures are its output
+                w_err = -1
+                become(cfg)
             os.execve(cfg["exe"], cfg["argv"], cfg["env"])
         except BaseException as exc:
             try:
+                if w_err < 0:
+                    os.write(2, f"arenabench: {type(exc).__name__}: {exc}\n".encode())
+                    os._exit(1)
                 os.write(w_err, f"{type(exc).__name__}: {exc}".encode(errors="replace"))
             finally:
                 os._exit(127)
@@ -289,8 +299,10 @@ def _rmtree(path: str) -> None:
     shutil.rmtree(path, ignore_errors=True)
 
 
-def run(cfg: dict) -> int:
-    """Run one command as described by ``cfg`` (the launch file); returns the exit status."""
+def run(cfg: dict, *, become=None) -> int:
+    """Run one command as described by ``cfg`` (the launch file); returns the exit status.
+
+    ``become``: see :func:`_spawn` (the warm server's runs)."""
     rundir = cfg["rundir"]
     tails = {"stdout": _Tail(cfg["max_output"]), "stderr": _Tail(cfg["max_output"])}
     result: dict = {"rc": None, "timed_out": False, "latency_ms": 0.0, "error": "",
@@ -302,7 +314,7 @@ def run(cfg: dict) -> int:
         r_err, w_err = os.pipe()
         start = time.perf_counter()
         try:
-            pid = _spawn(cfg, cgroup, w_out, w_err)
+            pid = _spawn(cfg, cgroup, w_out, w_err, become)
         except OSError as exc:
             result["error"] = f"cannot start command: {exc}"
             cleaned = True

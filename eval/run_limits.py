@@ -88,15 +88,21 @@ class RunSettings:
     env : mapping
         Extra environment variables (``--env K=V``); the rest of the environment is not
         passed through.
+    warm : bool
+        Run a Python script through a warm interpreter of its command (a fork server, see
+        :mod:`arenabench.eval.warm_client`); ``False`` (``--no-warm``): a new process per
+        image. It does not change what a script computes, so it is not in :meth:`to_dict`.
     """
 
     limits: RunLimits = field(default_factory=RunLimits)
     sandbox: str = DEFAULT_SANDBOX
     image_name: str | None = None
     env: Mapping[str, str] = field(default_factory=dict)
+    warm: bool = True
 
     def __hash__(self) -> int:  # env is a dict: hash its items (settings key worker caches)
-        return hash((self.limits, self.sandbox, self.image_name, tuple(sorted(self.env.items()))))
+        return hash((self.limits, self.sandbox, self.image_name, tuple(sorted(self.env.items())),
+                     self.warm))
 
     def to_dict(self) -> dict[str, object]:
         """JSON form (records of sweeps and gradings)."""
@@ -154,4 +160,5 @@ def run_settings_from_args(args: argparse.Namespace) -> RunSettings:
         max_file_size=parse_size(args.max_file_size, name="--max-file-size"),
         max_output=parse_size(args.max_output, name="--max-output"),
     )
-    return RunSettings(limits=limits, sandbox=args.sandbox, image_name=args.image_name, env=env)
+    return RunSettings(limits=limits, sandbox=args.sandbox, image_name=args.image_name, env=env,
+                       warm=getattr(args, "warm", True))

@@ -235,47 +235,50 @@ def evaluate(
 
     preds: list[Prediction | None] = [None] * len(samples)
     interrupted: Interrupted | None = None
-    with (
-        pool,
-        progress_bar(len(samples), desc=f"eval {pipe.name}", enabled=progress) as bar,
-    ):
-        from concurrent.futures import as_completed
+    try:
+        with (
+            pool,
+            progress_bar(len(samples), desc=f"eval {pipe.name}", enabled=progress) as bar,
+        ):
+            from concurrent.futures import as_completed
 
-        futures: dict[Any, int] = {}
-        try:
-            for i, s in enumerate(samples):
-                futures[submit(s)] = i
-            for fut in as_completed(futures):
-                i = futures[fut]
-                try:
-                    preds[i] = fut.result()
-                except Exception as exc:  # the harness never dies from a bad pipeline
-                    preds[i] = Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
-                bar.update(1)
-        except Interrupted as exc:
-            interrupted = exc
-            stop = getattr(pipe, "stop", None)
-            if callable(stop):
-                stop()
-            pool.shutdown(wait=True, cancel_futures=True)
-        finally:
-            if isolated:
-                pipe.close()  # type: ignore[attr-defined]
-    results = [
-        score_sample(s, p, tolerance=tolerance, area_reference=area_reference)
-        for s, p in zip(samples, preds, strict=True)
-        if p is not None
-    ]
-    if phases and interrupted is None and not all(r.passed for r in results):
-        try:
-            results = _check_phases(results, samples, pipe, phases=phases,
-                                    tolerance=tolerance, area_reference=area_reference,
-                                    workers=n_workers, progress=progress)
-        except Interrupted as exc:  # the images are scored; their phase check is not
-            interrupted = exc
-            stop = getattr(pipe, "stop", None)
-            if callable(stop):
-                stop()
+            futures: dict[Any, int] = {}
+            try:
+                for i, s in enumerate(samples):
+                    futures[submit(s)] = i
+                for fut in as_completed(futures):
+                    i = futures[fut]
+                    try:
+                        preds[i] = fut.result()
+                    except Exception as exc:  # the harness never dies from a bad pipeline
+                        preds[i] = Prediction(status="crash",
+                                              message=f"{type(exc).__name__}: {exc}")
+                    bar.update(1)
+            except Interrupted as exc:
+                interrupted = exc
+                stop = getattr(pipe, "stop", None)
+                if callable(stop):
+                    stop()
+                pool.shutdown(wait=True, cancel_futures=True)
+        results = [
+            score_sample(s, p, tolerance=tolerance, area_reference=area_reference)
+            for s, p in zip(samples, preds, strict=True)
+            if p is not None
+        ]
+        if phases and interrupted is None and not all(r.passed for r in results):
+            try:
+                results = _check_phases(results, samples, pipe, phases=phases,
+                                        tolerance=tolerance, area_reference=area_reference,
+                                        workers=n_workers, progress=progress)
+            except Interrupted as exc:  # the images are scored; their phase check is not
+                interrupted = exc
+                stop = getattr(pipe, "stop", None)
+                if callable(stop):
+                    stop()
+    finally:  # a command's warm servers and an isolated function's processes end here
+        close = getattr(pipe, "close", None)
+        if callable(close):
+            close()
     report = build_report(
         results,
         pipeline=pipe.name,

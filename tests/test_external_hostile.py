@@ -18,6 +18,7 @@ from arenabench.eval.external import bwrap_problem, pids_cgroup_parent
 from arenabench.eval.pipelines import CommandPipeline
 from arenabench.eval.run_limits import RunLimits, RunSettings
 from arenabench.eval.runner import evaluate
+from arenabench.eval.warm_client import close_all
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from hostile_util import processes_with, wait_for
@@ -44,6 +45,7 @@ def run_tmp(tmp_path, monkeypatch):
     d.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(d))
     yield d
+    close_all()  # the warm servers of the test's commands, and their folders
     assert list(d.iterdir()) == [], "a run's directory was left behind"
 
 

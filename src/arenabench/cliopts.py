@@ -472,3 +472,7 @@ def add_run_options(parser: CommandParser) -> None:
     g.add_argument("--env", action="append", default=[], metavar="K=V",
                    help="environment variable for the command (repeatable); nothing else is "
                    "passed on besides PATH, HOME, LANG, LC_ALL and TMPDIR")
+    g.add_argument("--no-warm", dest="warm", action="store_false",
+                   help="start a new Python process per image for a Python script (default: "
+                   "one warm interpreter per command, which forks a fresh process per image; "
+                   "see docs/warm-interpreter.md)")

@@ -30,6 +30,15 @@ Two more savings, both exact:
   dictionary; when a pass saw fewer than four (identified plus rejected), no dictionary can
   yield four markers and the remaining stages are skipped (blank or marker-less images cost
   one pass instead of every stage).
+- *Uniform candidates end the search.* When the first pass identified nothing, each
+  candidate is sampled as OpenCV samples it for identification (perspective removal to
+  ``(size + 2 border) x cellSize`` pixels, nearest neighbour, the inner region's standard
+  deviation against ``minOtsuStdDev``): a candidate that is uniform for every marker size of
+  the remaining dictionaries reads as all-white (its border fails) or all-black (identified
+  only by a dictionary that accepts the all-zero code, checked with ``Dictionary.identify``).
+  When no candidate can be identified, no later stage can find a marker, and the search ends
+  with the same result (an image of only boxes: 1 pass instead of 14). The test is
+  conservative (uniform means well under the threshold).
 
 Detector objects are built once per (stage, parameters) and cached at module level.
 """
@@ -184,8 +193,11 @@ class MarkerSearch:
     passes: int
 
 
-def _run_stage(image: np.ndarray, stage: tuple[str, ...]) -> tuple[list[DictionaryHits], int]:
-    """Hits of every dictionary of ``stage`` and the number of candidates the pass saw."""
+def _run_stage(
+    image: np.ndarray, stage: tuple[str, ...], quads: list[np.ndarray] | None = None
+) -> tuple[list[DictionaryHits], int]:
+    """Hits of every dictionary of ``stage`` and the number of candidates the pass saw
+    (their corners appended to ``quads`` when given)."""
     plan = pass_plan(stage)
     runs = tuple(run for run, _ in plan)
     det = _detector(runs)
@@ -197,6 +209,9 @@ def _run_stage(image: np.ndarray, stage: tuple[str, ...]) -> tuple[list[Dictiona
         which = None if ids is None else np.asarray(which).ravel()
     n_found = 0 if ids is None else len(ids)
     candidates = n_found + (0 if rejected is None else len(rejected))
+    if quads is not None:
+        for c in (*(corners if ids is not None else ()), *(rejected or ())):
+            quads.append(np.asarray(c, dtype=np.float32).reshape(4, 2))
     hits = {name: DictionaryHits(name) for name in stage}
     if n_found == 0:
         return [hits[n] for n in stage], candidates
@@ -207,6 +222,62 @@ def _run_stage(image: np.ndarray, stage: tuple[str, ...]) -> tuple[list[Dictiona
                 hits[name].ids.append(int(i))
                 hits[name].corners.append(quad)
     return [hits[n] for n in stage], candidates
+
+
+#: A candidate counts as uniform when the standard deviation of its sampled inner region is
+#: below this fraction of ``minOtsuStdDev`` (OpenCV's own test uses the whole value).
+UNIFORM_STD_FRACTION = 0.5
+#: Whether the search ends once no candidate can be identified (tests compare it off and on).
+UNIFORM_SHORTCUT = True
+_ZERO_CODE: dict[str, bool] = {}
+
+
+def _zero_code_identified(name: str) -> bool:
+    """Whether dictionary ``name`` identifies an all-black inner code (default parameters)."""
+    hit = _ZERO_CODE.get(name)
+    if hit is None:
+        d = get_dictionary(name)
+        size = int(d.markerSize)
+        rate = float(cv2.aruco.DetectorParameters().errorCorrectionRate)
+        hit = bool(d.identify(np.zeros((size, size), np.uint8), rate)[0])
+        _ZERO_CODE[name] = hit
+    return hit
+
+
+def _uniform_value(image: np.ndarray, quad: np.ndarray, size: int) -> int | None:
+    """0 (black) or 1 (white) when OpenCV reads candidate ``quad`` for markers of ``size``
+    bits as uniform, else ``None`` (its bits depend on the content: it may be a marker)."""
+    params = cv2.aruco.DetectorParameters()
+    cell = int(params.perspectiveRemovePixelPerCell)
+    side = (size + 2 * int(params.markerBorderBits)) * cell
+    dst = np.float32([[0, 0], [side - 1, 0], [side - 1, side - 1], [0, side - 1]])
+    warp = cv2.getPerspectiveTransform(quad.astype(np.float32), dst)
+    sampled = cv2.warpPerspective(image, warp, (side, side), flags=cv2.INTER_NEAREST)
+    inner = sampled[cell // 2 : side - cell // 2, cell // 2 : side - cell // 2]
+    mean, std = cv2.meanStdDev(inner)
+    m = float(mean[0, 0])
+    if float(std[0, 0]) >= UNIFORM_STD_FRACTION * float(params.minOtsuStdDev) or abs(
+        m - 127.5
+    ) < 10.0:
+        return None
+    return 1 if m > 127.5 else 0
+
+
+def could_identify(image: np.ndarray, quads: Sequence[np.ndarray],
+                   names: Sequence[str]) -> bool:
+    """Whether any candidate in ``quads`` might be identified by a dictionary of ``names``
+    (``False`` only when each is provably uniform, see the module notes)."""
+    if cv2.aruco.DetectorParameters().detectInvertedMarker:
+        return True
+    by_size: dict[int, list[str]] = {}
+    for name in names:
+        by_size.setdefault(int(get_dictionary(name).markerSize), []).append(name)
+    for quad in quads:
+        for size, dicts in by_size.items():
+            value = _uniform_value(image, quad, size)
+            if value is None or (value == 0 and any(_zero_code_identified(n) for n in dicts)):
+                return True
+    return False
 
 
 def _quad_area(points: np.ndarray) -> float:
@@ -270,9 +341,11 @@ def search_markers(
     select = select_seed_four if rule == "seed" else select_reference_four
     most: DictionaryHits | None = None
     passes = 0
-    for stage in plan_stages(names):
+    stages = plan_stages(names)
+    for k, stage in enumerate(stages):
         passes += 1
-        stage_hits, candidates = _run_stage(image, stage)
+        quads: list[np.ndarray] | None = [] if k == 0 else None
+        stage_hits, candidates = _run_stage(image, stage, quads)
         for hits in stage_hits:
             chosen = select(hits)
             if chosen is not None:
@@ -281,6 +354,11 @@ def search_markers(
                 most = hits
         if candidates < 4:  # candidates do not depend on the dictionary: none can give 4
             break
+        later = [n for st in stages[k + 1 :] for n in st]
+        if UNIFORM_SHORTCUT and quads is not None and most is None and later and not could_identify(
+            image, quads, later
+        ):
+            break  # no candidate can be identified by a later dictionary: nothing to find
     if most is None:
         return MarkerSearch(False, None, [], [], source, passes)
     order = sorted(range(len(most.ids)), key=lambda k: most.ids[k])

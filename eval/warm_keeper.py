@@ -1,0 +1,132 @@
+"""The keeper of one warm server: the server's parent outside the sandbox (standard library
+only; run as ``python -I -S warm_keeper.py HARNESS_PID HOME CGROUP FD -- COMMAND...``;
+``FD`` is passed on to the command and closed in the keeper).
+
+It asks for SIGTERM when the harness dies (``PR_SET_PDEATHSIG``, even after SIGKILL of the
+harness), becomes a child subreaper, starts ``COMMAND`` (bubblewrap with the server inside,
+or the server itself with ``--sandbox none``) with ``PR_SET_PDEATHSIG`` = SIGKILL, and when
+the command ends or the harness dies: kills it and every process left under it, then removes
+the server's folder ``HOME`` and its pids cgroup ``CGROUP`` (``-`` for none).
+"""
+
+import ctypes
+import os
+import signal
+import sys
+import time
+
+PR_SET_PDEATHSIG = 1
+PR_SET_CHILD_SUBREAPER = 36
+_LIBC = ctypes.CDLL(None, use_errno=True)
+
+
+class _Stop(Exception):
+    pass
+
+
+def _on_signal(signum, frame):
+    raise _Stop()
+
+
+def _descendants():
+    me, children = os.getpid(), {}
+    for entry in os.scandir("/proc"):
+        if entry.name.isdigit():
+            try:
+                with open(f"/proc/{entry.name}/stat", "rb") as fh:
+                    stat = fh.read()
+            except OSError:
+                continue
+            fields = stat[stat.rindex(b")") + 2:].split()
+            if fields[0] not in (b"Z", b"X"):
+                children.setdefault(int(fields[1]), []).append(int(entry.name))
+    out, stack = [], [me]
+    while stack:
+        for child in children.get(stack.pop(), ()):
+            out.append(child)
+            stack.append(child)
+    return out
+
+
+def _reap_all(deadline_s):
+    """Wait for every descendant (killing the rest after ``deadline_s`` seconds)."""
+    deadline = time.monotonic() + deadline_s
+    while True:
+        try:
+            pid, _ = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid:
+            continue
+        if time.monotonic() > deadline:
+            for p in _descendants():
+                try:
+                    os.kill(p, signal.SIGKILL)
+                except OSError:
+                    pass
+        time.sleep(0.01)
+
+
+def _rmtree(path):
+    import shutil
+
+    for _ in range(50):
+        shutil.rmtree(path, ignore_errors=True)
+        if not os.path.exists(path):
+            return
+        time.sleep(0.02)
+
+
+def _remove_cgroup(cgroup):
+    """Remove the server's cgroup and the runs' cgroups left in it (all empty by now)."""
+    for _ in range(100):
+        try:
+            for entry in os.scandir(cgroup):
+                if entry.is_dir(follow_symlinks=False):
+                    try:
+                        os.rmdir(entry.path)
+                    except OSError:
+                        pass
+            os.rmdir(cgroup)
+            return
+        except FileNotFoundError:
+            return
+        except OSError:
+            time.sleep(0.02)
+
+
+def main(argv):
+    """Entry point (see the module docstring); returns the command's exit status."""
+    parent, home, cgroup, fd, cmd = int(argv[1]), argv[2], argv[3], int(argv[4]), argv[6:]
+    for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+        signal.signal(s, _on_signal)
+    _LIBC.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+    _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    status = 0
+    if os.getppid() == parent:
+        pid = os.fork()
+        if pid == 0:
+            try:
+                for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+                    signal.signal(s, signal.SIG_DFL)
+                _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+                os.execv(cmd[0], cmd)
+            finally:
+                os._exit(127)
+        os.close(fd)
+        try:
+            _, status = os.waitpid(pid, 0)
+        except _Stop:
+            for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+                signal.signal(s, signal.SIG_IGN)
+            os.kill(pid, signal.SIGKILL)
+            _, status = os.waitpid(pid, 0)
+    _reap_all(5.0)
+    _rmtree(home)
+    if cgroup != "-":
+        _remove_cgroup(cgroup)
+    return os.waitstatus_to_exitcode(status) if status else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main(sys.argv))

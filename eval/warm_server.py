@@ -1,0 +1,421 @@
+"""The warm interpreter (fork server) of a Python ``--cmd``: the code that runs in the sandbox.
+
+Started by :mod:`arenabench.eval.warm_client` as ``PYTHON -c <this source> FD FOLDER``
+with the command's own interpreter, inside the same bubblewrap sandbox as a cold run (or
+with ``--sandbox none`` without one). Standard library only, besides the modules it preloads
+(``numpy``, ``cv2`` and the standard-library or installed modules the script's top-level
+``import`` statements name, found with :mod:`ast`; the script itself is never run here).
+
+Protocol (a socketpair passed as the inherited fd ``FD``): each message is a 4-byte big-endian
+length followed by that many bytes of JSON. Harness to server first: the configuration
+(``parent_pid``, ``isolate``, ``launcher_source``, ``script``, ``private_dirs``). Server to
+harness: ``{"ready": true, "isolation": ""}``
+once (``isolation`` names a problem with the per-run namespaces, ``""`` when they work), then
+``{"id": ID, "rc": N}`` when run ``ID`` has ended. Harness to server: ``{"op": "run", "id":
+ID, "cfg": {...}, "target": {...}}`` (``cfg`` is a launch configuration of
+:mod:`arenabench.eval.launcher`) and ``{"op": "kill", "id": ID}``. End of file on the socket:
+every run is killed and the server exits.
+
+For each run the server forks a *run manager* (the launcher's role: child subreaper, pids
+cgroup, limits, output tails, timeout, killing every process of the run, ``result.bin``); the
+manager forks the *run* itself, which (under bubblewrap) enters new user, mount, IPC, network
+and UTS namespaces, binds its private directory at ``/sandbox`` and its own ``/tmp``, hides
+the server's folders, drops every capability, and then becomes the script: ``sys.argv``,
+environment, working directory and signal dispositions as a fresh interpreter has them, the
+script run as ``__main__`` with :mod:`runpy`, interpreter exit (threads joined, ``atexit``,
+streams flushed) and its exit status. The server never runs a script's code itself.
+"""
+
+import ast
+import ctypes
+import fcntl
+import json
+import os
+import select
+import signal
+import socket
+import struct
+import sys
+import types
+
+PR_SET_PDEATHSIG = 1
+PR_SET_DUMPABLE = 4
+PR_SET_CHILD_SUBREAPER = 36
+CLONE_NEWNS = 0x00020000
+CLONE_NEWUTS = 0x04000000
+CLONE_NEWIPC = 0x08000000
+CLONE_NEWUSER = 0x10000000
+CLONE_NEWNET = 0x40000000
+MS_RDONLY, MS_NOSUID, MS_NODEV, MS_REMOUNT, MS_BIND, MS_REC = 1, 2, 4, 32, 4096, 16384
+MS_PRIVATE = 1 << 18
+SANDBOX_DIR = "/sandbox"
+_LIBC = ctypes.CDLL(None, use_errno=True)
+
+
+class _BecomeRunManager(BaseException):
+    """Raised in a freshly forked run manager, to leave the server's loop."""
+
+    def __init__(self, message):
+        super().__init__()
+        self.message = message
+
+
+def _check(result, what):
+    if result != 0:
+        err = ctypes.get_errno()
+        raise OSError(err, f"{what}: {os.strerror(err)}")
+
+
+def _send(sock, obj):
+    data = json.dumps(obj).encode()
+    sock.sendall(struct.pack(">I", len(data)) + data)
+
+
+def _recv_exact(sock, n):
+    buf = bytearray()
+    while len(buf) < n:
+        chunk = sock.recv(n - len(buf))
+        if not chunk:
+            return None
+        buf += chunk
+    return bytes(buf)
+
+
+def _recv(sock):
+    head = _recv_exact(sock, 4)
+    if head is None:
+        return None
+    body = _recv_exact(sock, struct.unpack(">I", head)[0])
+    return None if body is None else json.loads(body)
+
+
+def _load_launcher(source):
+    mod = types.ModuleType("_arenabench_launcher")
+    mod.__file__ = "<arenabench launcher>"
+    exec(compile(source, mod.__file__, "exec"), mod.__dict__)
+    return mod
+
+
+def _top_level_imports(path):
+    """Top-level module names the script's ``import`` statements name (not run)."""
+    try:
+        with open(path, "rb") as fh:
+            tree = ast.parse(fh.read())
+    except (OSError, SyntaxError, ValueError):
+        return []
+    names = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            names += [a.name.split(".")[0] for a in node.names]
+        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+            names.append(node.module.split(".")[0])
+    return list(dict.fromkeys(names))
+
+
+def _preload(names, private_dirs):
+    """Import ``names`` where they come from outside ``private_dirs`` (the submission's own
+    folders: their modules are the team's code and are never run by the server).
+
+    Returns the environment variables each import set or changed (cv2 sets
+    ``LD_LIBRARY_PATH``), by module name."""
+    import importlib.util
+
+    changes = {}
+    for name in names:
+        if name in sys.modules or name == "__main__":
+            continue
+        try:
+            spec = importlib.util.find_spec(name)
+        except (ImportError, ValueError):
+            continue
+        origin = (spec.origin or "") if spec else ""
+        if spec is None or any(origin.startswith(d.rstrip("/") + "/") for d in private_dirs):
+            continue
+        if origin and not origin.endswith((".py", ".so", ".pyc")) and origin != "built-in":
+            continue
+        before = dict(os.environ)
+        try:
+            __import__(name)
+        except Exception:  # a module that fails here is imported (and fails) in the run
+            pass
+        changes[name] = {k: v for k, v in os.environ.items() if before.get(k) != v}
+    return changes
+
+
+def _enter_private_namespaces(cfg):
+    """In the run (single-threaded, just forked): new user, mount, IPC, network and UTS
+    namespaces; the private directory at /sandbox, its tmp/ at /tmp, a fresh /dev/shm, the
+    server's folders hidden, loopback up, every capability dropped."""
+    uid, gid = os.getuid(), os.getgid()
+    _LIBC.prctl(PR_SET_DUMPABLE, 1, 0, 0, 0)  # its own /proc/self/*_map stay writable
+    _check(_LIBC.unshare(CLONE_NEWUSER | CLONE_NEWNS | CLONE_NEWIPC | CLONE_NEWNET
+                         | CLONE_NEWUTS), "unshare")
+    for name, text in (("setgroups", "deny"), ("uid_map", f"{uid} {uid} 1"),
+                       ("gid_map", f"{gid} {gid} 1")):
+        with open(f"/proc/self/{name}", "w") as fh:
+            fh.write(text)
+    _check(_LIBC.mount(None, b"/", None, MS_REC | MS_PRIVATE, None), "mount --make-rprivate")
+    rundir = cfg["rundir"]
+    # read-only folders of the sandbox under /tmp (a submission there) stay visible on top
+    # of the run's own /tmp: kept at a mount point in the run's folder meanwhile
+    keep = []
+    for i, path in enumerate(cfg.get("warm_keep", ())):
+        spare = f"{rundir}/keep{i}"
+        _mount_point(spare, os.path.isdir(path))
+        _check(_LIBC.mount(path.encode(), spare.encode(), None, MS_BIND | MS_REC, None),
+               f"keep {path}")
+        keep.append((spare, path))
+    for src, dst in ((f"{rundir}/work", SANDBOX_DIR), (f"{rundir}/tmp", "/tmp")):
+        _check(_LIBC.mount(src.encode(), dst.encode(), None, MS_BIND | MS_REC, None),
+               f"bind {dst}")
+    for spare, path in keep:
+        _mount_point(path, os.path.isdir(spare))
+        _check(_LIBC.mount(spare.encode(), path.encode(), None, MS_BIND | MS_REC, None),
+               f"bind {path}")
+        _check(_LIBC.mount(None, path.encode(), None,
+                           MS_REMOUNT | MS_BIND | MS_RDONLY | MS_NOSUID | MS_NODEV, None),
+               f"read-only {path}")
+    if os.path.isdir("/dev/shm"):
+        _check(_LIBC.mount(b"tmpfs", b"/dev/shm", b"tmpfs", MS_NOSUID | MS_NODEV, None),
+               "tmpfs /dev/shm")
+    for hidden in cfg["warm_hide"]:
+        _check(_LIBC.mount(b"tmpfs", hidden.encode(), b"tmpfs",
+                           MS_RDONLY | MS_NOSUID | MS_NODEV, b"size=4k"), f"hide {hidden}")
+    try:
+        with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
+            # SIOCSIFFLAGS: IFF_UP | IFF_LOOPBACK | IFF_RUNNING, as bubblewrap does
+            fcntl.ioctl(s.fileno(), 0x8914, struct.pack("16sH14x", b"lo", 0x1 | 0x8 | 0x40))
+    except OSError:
+        pass
+    _drop_capabilities()
+    _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)  # other runs cannot read its memory or fds
+    os.chdir(SANDBOX_DIR)
+
+
+def _mount_point(path, is_dir):
+    if is_dir:
+        os.makedirs(path, exist_ok=True)
+    else:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        if not os.path.exists(path):
+            os.close(os.open(path, os.O_CREAT | os.O_WRONLY, 0o600))
+
+
+def _drop_capabilities():
+    header = (ctypes.c_uint32 * 2)(0x20080522, 0)  # _LINUX_CAPABILITY_VERSION_3, this thread
+    data = (ctypes.c_uint32 * 6)()  # effective, permitted, inheritable x 2: all zero
+    _check(_LIBC.capset(header, data), "capset")
+
+
+def _probe_isolation():
+    """'' when a run can enter its private namespaces here, else the problem."""
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(r)
+        try:
+            _check(_LIBC.unshare(CLONE_NEWUSER | CLONE_NEWNS | CLONE_NEWIPC | CLONE_NEWNET
+                                 | CLONE_NEWUTS), "unshare")
+            _check(_LIBC.mount(None, b"/", None, MS_REC | MS_PRIVATE, None), "mount")
+            os._exit(0)
+        except BaseException as exc:
+            os.write(w, str(exc).encode(errors="replace"))
+            os._exit(1)
+    os.close(w)
+    why = os.read(r, 4096).decode(errors="replace")
+    os.close(r)
+    os.waitpid(pid, 0)
+    return why
+
+
+def _python_signal_defaults():
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    for s in (signal.SIGPIPE, signal.SIGXFSZ):
+        signal.signal(s, signal.SIG_IGN)
+    for s in (signal.SIGTERM, signal.SIGHUP, signal.SIGQUIT, signal.SIGCHLD, signal.SIGUSR1,
+              signal.SIGUSR2, signal.SIGALRM):
+        signal.signal(s, signal.SIG_DFL)
+
+
+def _strip_own_frames(tb):
+    own = {"<arenabench launcher>", "<string>", getattr(sys.modules.get("runpy"), "__file__", "")}
+    while tb is not None and tb.tb_frame.f_code.co_filename in own:
+        tb = tb.tb_next
+    return tb
+
+
+def _exit_code(exc):
+    code = exc.code
+    if code is None:
+        return 0
+    if isinstance(code, int):
+        return code & 0xFF
+    try:
+        print(code, file=sys.stderr)
+    except Exception:
+        pass
+    return 1
+
+
+def become_script(cfg):
+    """In the run's process (called by the launcher in place of ``execve``): become the
+    script and exit as its interpreter would. Never returns."""
+    import runpy
+
+    target = cfg["warm_target"]
+    if cfg.get("warm_isolate"):
+        _enter_private_namespaces(cfg)
+    os.environ.clear()
+    os.environ.update(cfg["env"])
+    os.environ.update(cfg["warm_env_changes"])  # what the preloaded imports set (cv2)
+    _python_signal_defaults()
+    for name, reset in (("tempfile", lambda m: setattr(m, "tempdir", None)),
+                        ("random", lambda m: m.seed()),
+                        ("numpy.random", lambda m: m.seed())):
+        if name in sys.modules:
+            try:
+                reset(sys.modules[name])
+            except Exception:
+                pass
+    sys.argv = list(target["argv"])
+    sys.orig_argv = list(cfg["argv"])
+    sys.path[0] = target["path0"] if target["path0"] else os.getcwd()
+    code = 0
+    try:
+        if target["module"]:
+            runpy.run_module(target["module"], run_name="__main__", alter_sys=True)
+        else:
+            runpy.run_path(target["script"], run_name="__main__")
+    except SystemExit as exc:
+        code = _exit_code(exc)
+    except BaseException as exc:
+        sys.excepthook(type(exc), exc, _strip_own_frames(exc.__traceback__))
+        code = 1
+    # interpreter exit: non-daemon threads, atexit, flushed streams
+    try:
+        import threading
+
+        threading._shutdown()
+    except BaseException:
+        pass
+    try:
+        import atexit
+
+        atexit._run_exitfuncs()
+    except BaseException:
+        pass
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.flush()
+        except BaseException:
+            code = code or 120
+    os._exit(code)
+
+
+def _run_manager(launcher, message):
+    """The forked run manager: the launcher's ``main`` with the script in place of exec."""
+    cfg = message["cfg"]
+    cfg["warm_target"] = message["target"]
+    for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+        signal.signal(s, launcher._on_signal)
+    try:
+        launcher._prctl(PR_SET_CHILD_SUBREAPER, 1)
+        launcher._prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        if os.getppid() != cfg["parent_pid"]:
+            launcher._rmtree(cfg["rundir"])
+            return 128 + signal.SIGTERM
+        return launcher.run(cfg, become=become_script)
+    except launcher._Stop:
+        launcher.kill_descendants(None)
+        launcher._rmtree(cfg["rundir"])
+        return 128 + signal.SIGTERM
+
+
+def _serve(sock, launcher):
+    """The server's loop: fork a run manager per request, report its end. Returns at end of
+    file on the socket, after killing every run."""
+    runs = {}  # pidfd -> (id, pid)
+    by_id = {}
+    poller = select.poll()
+    poller.register(sock.fileno(), select.POLLIN)
+    me = os.getpid()
+    while True:
+        for fd, _ in poller.poll():
+            if fd in runs:
+                run_id, pid = runs.pop(fd)
+                poller.unregister(fd)
+                os.close(fd)
+                by_id.pop(run_id, None)
+                _, status = os.waitpid(pid, 0)
+                rc = -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
+                _send(sock, {"id": run_id, "rc": rc})
+                continue
+            message = _recv(sock)
+            if message is None:
+                for _, pid in runs.values():
+                    try:
+                        os.kill(pid, signal.SIGTERM)
+                    except OSError:
+                        pass
+                for pidfd, (_, pid) in runs.items():
+                    os.waitpid(pid, 0)
+                    os.close(pidfd)
+                return
+            if message.get("op") == "kill":
+                pid = by_id.get(message["id"])
+                if pid:
+                    try:
+                        os.kill(pid, signal.SIGTERM)
+                    except OSError:
+                        pass
+                continue
+            message["cfg"]["parent_pid"] = me
+            sys.stdout.flush()
+            sys.stderr.flush()
+            pid = os.fork()
+            if pid == 0:
+                raise _BecomeRunManager(message)
+            pidfd = os.pidfd_open(pid)
+            runs[pidfd] = (message["id"], pid)
+            by_id[message["id"]] = pid
+            poller.register(pidfd, select.POLLIN)
+
+
+def main():
+    """Entry point: ``python -c <source> FD FOLDER`` (the folder only names it in ps)."""
+    sock = socket.socket(fileno=int(sys.argv[1]))
+    for s in (signal.SIGINT, signal.SIGHUP, signal.SIGTERM):
+        signal.signal(s, signal.SIG_IGN)  # the harness ends the server by closing the socket
+    _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    config = _recv(sock)
+    if config is None or (config["parent_pid"] and os.getppid() != config["parent_pid"]):
+        return 0
+    del sys.argv[1:]
+    if config["isolate"]:
+        _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
+    launcher = _load_launcher(config["launcher_source"])
+    imported = _top_level_imports(config["script"]) if config.get("script") else []
+    changes = _preload(["numpy", "cv2", *imported], config.get("private_dirs", []))
+    # a run gets what an import set in the environment where the script imports the module
+    # itself (top level; a cold run would have it from that import)
+    env_changes = {k: v for name in imported for k, v in changes.get(name, {}).items()}
+    isolation = _probe_isolation() if config["isolate"] else ""
+    # the preloaded objects stay out of the runs' garbage collections: a collection would
+    # write to every tracked object and copy the pages a run shares with the server
+    import gc
+
+    gc.collect()
+    gc.freeze()
+    _send(sock, {"ready": True, "isolation": isolation, "pid": os.getpid()})
+    try:
+        _serve(sock, launcher)
+    except _BecomeRunManager as become:
+        sock.close()
+        become.message["cfg"]["warm_env_changes"] = env_changes
+        code = _run_manager(launcher, become.message)
+        os._exit(code)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,210 @@
+"""The warm interpreter of Python commands (eval/warm_client.py, eval/warm_server.py), run for
+real: with bubblewrap where it works here and with ``--sandbox none``."""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from arenabench.eval import warm_client
+from arenabench.eval.external import bwrap_problem, pids_cgroup_parent
+from arenabench.eval.pipelines import CommandPipeline
+from arenabench.eval.run_limits import RunLimits, RunSettings
+from arenabench.eval.runner import evaluate
+from arenabench.eval.warm_client import WarmTarget, close_all, warm_target
+
+PIPES = Path(__file__).resolve().parent / "pipelines"
+PROBE = PIPES / "warm_probe.py"
+PY = sys.executable
+sys.path.insert(0, str(PIPES))
+import toy_arena  # noqa: E402
+
+needs_bwrap = pytest.mark.skipif(bwrap_problem() is not None, reason=str(bwrap_problem()))
+SANDBOXES = [pytest.param("bwrap", marks=needs_bwrap), "none"]
+
+
+@pytest.fixture(scope="module")
+def toy(tmp_path_factory):
+    return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("toy") / "toy", n=4, seed=3)
+
+
+@pytest.fixture()
+def run_tmp(tmp_path, monkeypatch):
+    d = tmp_path / "runs"
+    d.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(d))
+    yield d
+    close_all()
+    assert list(d.iterdir()) == [], "a server's or run's directory was left behind"
+
+
+def _probe(sandbox, *, warm=True, env=None, **limits):
+    settings = RunSettings(limits=RunLimits(**{"timeout_s": 30.0, **limits}), sandbox=sandbox,
+                           warm=warm, env=env or {})
+    return CommandPipeline(f"{PY} {PROBE} --image {{image}}", settings=settings)
+
+
+def _seen(pred):
+    return json.loads(pred.stdout.strip().splitlines()[-1])
+
+
+def test_which_commands_run_warm(tmp_path):
+    script = tmp_path / "map.py"
+    script.write_text("")
+    s = str(script)
+    assert warm_target(["{python}", s, "--image", "{image}"]) == WarmTarget(script=s)
+    assert warm_target(["/usr/bin/python3", s]) == WarmTarget(script=s)
+    assert warm_target(["/venv/bin/python3.12", s]) == WarmTarget(script=s)
+    assert warm_target(["python", "-m", "pkg.mod", "x"]) == WarmTarget(module="pkg.mod")
+    for cold in (["python", "-u", s], ["python", "-c", "pass"], ["bash", s],
+                 ["python", str(tmp_path / "missing.py")], ["./map", "--image", "{image}"],
+                 ["python", "{image}"], ["python"]):
+        assert warm_target(cold) is None, cold
+    assert CommandPipeline(f"{PY} {PROBE}", settings=RunSettings(warm=False))._warm is None
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_each_image_is_a_fresh_run_of_the_script_as_main(sandbox, toy, run_tmp):
+    cold = {r.id: r for r in evaluate(_probe(sandbox, warm=False), toy, workers=1).images}
+    warm = {r.id: r for r in evaluate(_probe(sandbox), toy, workers=1).images}
+    assert set(cold) == set(warm) and len(warm) == 4
+    for ident, w in warm.items():
+        c = cold[ident]
+        assert (w.prediction.status, w.prediction.count, w.prediction.area) == (
+            c.prediction.status, c.prediction.count, c.prediction.area)
+        ws, cs = _seen(w.prediction), _seen(c.prediction)
+        assert ws["preloaded"] == ["cv2", "numpy"] and cs["preloaded"] == []
+        assert not any(ws["marks"].values()) and not any(cs["marks"].values()), ws["marks"]
+        assert len(ws["marks"]) == len(cs["marks"]) == (3 if sandbox == "bwrap" else 2)
+        for key in ("name", "cwd_files", "path0", "env"):
+            assert ws[key] == cs[key], key
+        if sandbox == "bwrap":
+            assert ws["argv"] == cs["argv"] and ws["cwd"] == cs["cwd"] == "/sandbox"
+            assert ws["hidden"] == [[], []] or ws["hidden"] == [[], None]
+        else:
+            assert Path(ws["argv"][-1]).name == Path(cs["argv"][-1]).name == "image.png"
+
+
+def _sha(path: Path) -> str:
+    return hashlib.sha256(path.read_bytes()).hexdigest()
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+@pytest.mark.parametrize("mode, category, limits", [
+    ("hang", "timeout", {"timeout_s": 3.0}),
+    ("memory", "limit", {"memory_bytes": 1024**3}),
+    ("forkbomb", "limit", {"max_procs": 16}),
+])
+def test_a_misbehaving_run_ends_alone_and_the_server_goes_on(sandbox, mode, category, limits,
+                                                             toy, run_tmp):
+    if mode == "forkbomb" and pids_cgroup_parent() is None and os.getuid() == 0:
+        pytest.skip("root without a writable pids cgroup: --max-procs is not enforceable")
+    images = sorted((toy / "images").iterdir())
+    pipe = _probe(sandbox, env={"PROBE_BAD": _sha(images[1]), "PROBE_MODE": mode}, **limits)
+    first = pipe.run(images[0])
+    assert first.status == "ok" and _seen(first)["preloaded"] == ["cv2", "numpy"]
+    (server,) = warm_client._servers.values()
+    bad = pipe.run(images[1])
+    assert bad.status == category, (bad.message, bad.stderr)
+    for image in images[2:]:
+        after = pipe.run(image)
+        assert after.status == "ok", (after.message, after.stderr)
+        assert _seen(after)["preloaded"] == ["cv2", "numpy"]
+    assert list(warm_client._servers.values()) == [server] and not server.dead
+
+
+@pytest.mark.parametrize("module, argv", [
+    ("arenabench.eval.cli", ["data", "--cmd", "x"]),
+    ("arenabench.eval.sweep_cli", ["--preset", "eyrc", "--cmd", "x", "--out", "o"]),
+    ("arenabench.eval.grade_cli", ["subs", "data", "--cmd", "x", "--out", "o"]),
+])
+def test_no_warm_is_an_option_of_eval_sweep_and_grade(module, argv):
+    import importlib
+
+    from arenabench.eval.run_limits import run_settings_from_args
+
+    parser = importlib.import_module(module).build_parser()
+    assert run_settings_from_args(parser.parse_args([*argv, "--no-warm"])).warm is False
+    assert run_settings_from_args(parser.parse_args(argv)).warm is True
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_sigkill_of_the_harness_ends_the_server_and_its_runs(sandbox, toy, tmp_path):
+    import subprocess
+
+    from hostile_util import processes_with, wait_for
+
+    marker = f"warm-sigkill-{os.getpid()}-{sandbox}"
+    tmpdir = tmp_path / "tmp"
+    tmpdir.mkdir()
+    argv = [PY, "-m", "arenabench", "eval", str(toy), "--cmd",
+            f"{PY} {PIPES / 'hostile' / 'hang_on.py'} --image {{image}}", "--env", "HANG=all",
+            "--env", f"MARKER={marker}", "--workers", "2", "--no-progress", "--formats", "json",
+            "--out", str(tmp_path / "out"), "--sandbox", sandbox]
+    proc = subprocess.Popen(argv, env={**os.environ, "TMPDIR": str(tmpdir)},
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        assert wait_for(lambda: len(processes_with(f"{marker}:child")) >= 4, timeout=60)
+        servers = [p for p in processes_with("arenabench-warm-") if p in
+                   processes_with(str(tmpdir))]
+        assert servers, "no warm server ran the command"
+        proc.kill()
+        proc.wait()
+    finally:
+        proc.kill()
+    assert wait_for(lambda: not processes_with(f"{marker}:child"), timeout=10)
+    assert wait_for(lambda: not processes_with(str(tmpdir)), timeout=10)  # keeper, server
+    assert wait_for(lambda: not list(tmpdir.iterdir()), timeout=10), list(tmpdir.iterdir())
+
+
+class _KeepAnswer(CommandPipeline):
+    """A command whose ``obstacles.txt`` bytes are kept (read where the harness reads it)."""
+
+    def _interpret(self, result, stdout, stderr, workdir):
+        path = Path(workdir, "obstacles.txt")
+        self.answers[_sha(Path(workdir, "image.png"))] = (
+            path.read_bytes() if path.exists() else None, result["rc"], stdout, stderr)
+        return super()._interpret(result, stdout, stderr, workdir)
+
+
+@pytest.fixture(scope="module")
+def twin50(tmp_path_factory):
+    from arenabench.generator.cli import main as generate_main
+
+    data = tmp_path_factory.mktemp("twin") / "eyrc"
+    assert generate_main(["--preset", "eyrc", "--count", "50", "--seed", "11", "--out",
+                          str(data), "--no-progress", "--workers", "2"]) == 0
+    return sorted((data / "images").iterdir())
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_competition_styles_answer_byte_for_byte_the_same_warm_and_cold(sandbox, twin50,
+                                                                         run_tmp):
+    from concurrent.futures import ThreadPoolExecutor
+
+    from pass_rates import STYLES
+
+    for style in STYLES:
+        answers = {}
+        for warm in (False, True):
+            pipe = _KeepAnswer(f"{PY} {PIPES / style}.py --image {{image}}",
+                               settings=RunSettings(sandbox=sandbox, warm=warm))
+            pipe.answers = {}
+            with ThreadPoolExecutor(2) as pool:
+                preds = list(pool.map(pipe.run, twin50))
+            assert all(p.status in ("ok", "markers_not_found") for p in preds), style
+            assert (pipe._warm is not None) == warm
+            assert warm_client._servers if warm else True
+            answers[warm] = pipe.answers
+            pipe.close()
+        assert len(answers[True]) == len(twin50), style
+        assert answers[True] == answers[False], style
+        assert all(a[0] is not None for a in answers[True].values()), style
