@@ -465,8 +465,11 @@ class CommandPipeline:
         return f"{os.path.dirname(self._executable)}:{system}"
 
     def _env(self, home: str, tmp: str) -> dict[str, str]:
+        """The command's whole environment (cold runs, warm servers and warm runs alike);
+        under bubblewrap ``PATH`` names no host folder (:meth:`_sandbox_path`)."""
         env = {
-            "PATH": os.environ.get("PATH", os.defpath),
+            "PATH": (self._sandbox_path() if self.sandbox == "bwrap"
+                     else os.environ.get("PATH", os.defpath)),
             "HOME": home,
             "LANG": "C.UTF-8",
             "LC_ALL": "C.UTF-8",
@@ -527,8 +530,6 @@ class CommandPipeline:
         if self.sandbox == "bwrap":
             argv = self._bwrap_argv(work, tmp, image_path) + self.argv(image_path)
             env = self._env(SANDBOX_DIR, "/tmp")
-            if "PATH" not in self.settings.env:
-                env["PATH"] = self._sandbox_path()
             pids_max = lim.max_procs + 2  # bubblewrap's own two processes
         else:
             argv = self.argv(image_path, image_dir=work)

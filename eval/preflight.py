@@ -215,7 +215,7 @@ def preflight(
     template: str,
     *,
     image: str | os.PathLike[str],
-    make_pipeline: Callable[[str, str], Any],
+    make_pipeline: Callable[..., Any],
     mode: str,
     limits: dict[str, Any],
     output: str = "obstacles",
@@ -230,7 +230,8 @@ def preflight(
     image : path-like
         The image the reference runs on (the set's first).
     make_pipeline : callable
-        ``(command, submission_dir) -> CommandPipeline`` exactly as a team's is made.
+        ``(command, submission_dir, *, warm=True) -> CommandPipeline`` exactly as a team's is
+        made (``warm=False``: one interpreter per run, whatever the settings say).
     mode : str
         The sandbox mode (for the record).
     limits : dict
@@ -253,7 +254,9 @@ def preflight(
         probe_dir = Path(tmp, "probe")
         probe_dir.mkdir()
         if _write_as(probe_dir, template, PROBE):
-            pipe = make_pipeline(team_command(template, probe_dir), str(probe_dir))
+            # the probe starts the interpreter plainly (not through a warm server), so a
+            # broken one is named by its own error
+            pipe = make_pipeline(team_command(template, probe_dir), str(probe_dir), warm=False)
             record = replace(record, executable=getattr(pipe, "_executable", None))
             from .interpreter import interpreter_folders
 

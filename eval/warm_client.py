@@ -44,6 +44,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from arenabench.fileio import dumps_json_line
+
 from .records import Prediction, tail
 
 if TYPE_CHECKING:
@@ -93,7 +95,7 @@ def warm_target(argv: list[str]) -> WarmTarget | None:
 
 
 def _send(sock: socket.socket, obj: object) -> None:
-    data = json.dumps(obj).encode()
+    data = dumps_json_line(obj).encode()
     sock.sendall(struct.pack(">I", len(data)) + data)
 
 

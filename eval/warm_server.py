@@ -40,6 +40,7 @@ import types
 
 PR_SET_PDEATHSIG = 1
 PR_SET_DUMPABLE = 4
+CAP_SYS_PTRACE = 19
 PR_SET_CHILD_SUBREAPER = 36
 CLONE_NEWNS = 0x00020000
 CLONE_NEWUTS = 0x04000000
@@ -201,6 +202,18 @@ def _mount_point(path, is_dir):
             os.close(os.open(path, os.O_CREAT | os.O_WRONLY, 0o600))
 
 
+def _drop_capability(cap):
+    """Clear one capability from this thread's effective, permitted and inheritable sets (the
+    cold launcher's command loses CAP_SYS_PTRACE at its exec; a warm run has no exec)."""
+    header = (ctypes.c_uint32 * 2)(0x20080522, 0)  # _LINUX_CAPABILITY_VERSION_3, this thread
+    data = (ctypes.c_uint32 * 6)()  # (effective, permitted, inheritable) x 2 words
+    _check(_LIBC.capget(header, data), "capget")
+    word, bit = divmod(cap, 32)
+    for i in range(3):
+        data[3 * word + i] &= ~(1 << bit) & 0xFFFFFFFF
+    _check(_LIBC.capset(header, data), "capset")
+
+
 def _drop_capabilities():
     header = (ctypes.c_uint32 * 2)(0x20080522, 0)  # _LINUX_CAPABILITY_VERSION_3, this thread
     data = (ctypes.c_uint32 * 6)()  # effective, permitted, inheritable x 2: all zero
@@ -264,7 +277,9 @@ def become_script(cfg):
 
     target = cfg["warm_target"]
     if cfg.get("warm_isolate"):
-        _enter_private_namespaces(cfg)
+        _enter_private_namespaces(cfg)  # drops every capability
+    else:
+        _drop_capability(CAP_SYS_PTRACE)  # never ptrace its run manager (nor anything else)
     os.environ.clear()
     os.environ.update(cfg["env"])
     os.environ.update(cfg["warm_env_changes"])  # what the preloaded imports set (cv2)
@@ -321,6 +336,9 @@ def _run_manager(launcher, message):
     try:
         launcher._prctl(PR_SET_CHILD_SUBREAPER, 1)
         launcher._prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        # as the cold launcher: not ptrace-attachable by the run it manages (which would stop
+        # the manager and with it the timeout)
+        _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
         if os.getppid() != cfg["parent_pid"]:
             launcher._rmtree(cfg["rundir"])
             return 128 + signal.SIGTERM

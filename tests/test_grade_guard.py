@@ -15,6 +15,7 @@ import pytest
 
 from arenabench.eval.external import bwrap_problem
 from arenabench.eval.grade.runner import STATE_FILE, GradeOptions, grade
+from arenabench.eval.run_limits import RunSettings
 from arenabench.generator.seeds import GUESSABLE_BELOW
 
 HERE = Path(__file__).resolve().parent
@@ -125,7 +126,8 @@ from pathlib import Path
 seen = {"cmdline": {}, "gt": []}
 for d in glob.glob("/proc/[0-9]*"):
     try:
-        seen["cmdline"][d] = Path(d, "cmdline").read_bytes().decode().split("\\0")
+        args = Path(d, "cmdline").read_bytes().decode().split("\\0")
+        seen["cmdline"][d] = [a[:100] for a in args[:4]]  # (the report keeps 2,000 characters)
     except OSError:
         pass
 seen["mountinfo"] = [" ".join(line.split()[3:5])
@@ -141,7 +143,8 @@ Path("obstacles.txt").write_text("Aruco ID: [80, 85, 90, 95]\\nObstacles: 0\\nAr
 
 
 @needs_bwrap
-def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp_path):
+@pytest.mark.parametrize("warm", [False, True], ids=["cold", "warm"])
+def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp_path, warm):
     # the dataset sits inside a folder the command makes visible (a shared config folder),
     # its images in pics/ (not images/)
     shared = tmp_path / "shared"
@@ -155,7 +158,7 @@ def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp
     _team(subs, "snoop", SNOOP)
     out = tmp_path / "out"
     cmd = "{python} {submission}/map.py --image {image} " + str(shared / "config.txt")
-    opts = GradeOptions(command=cmd, formats=("json",))
+    opts = GradeOptions(command=cmd, formats=("json",), settings=RunSettings(warm=warm))
     grade(data, subs, out, options=opts, workers=1, allow_guessable_seed=True)
     rep = json.loads((out / "teams" / "snoop" / "report.json").read_text())
     import base64
@@ -174,13 +177,19 @@ def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp
                *interpreter_folders(sys.executable).folders}
     points = {line.split()[1] for line in seen["mountinfo"]}
     system = ("/usr", "/sandbox", "/proc", "/dev", "/etc", "/bin", "/sbin", "/lib", "/lib64")
+    if warm:  # the warm server's own mount points inside the sandbox: no host path in them
+        system += ("/.arenabench-warm", "/.arenabench-cgroup")
     host = {p for p in points if p not in ("/", "/tmp")
             and not any(p == s or p.startswith(s + "/") for s in system)}
     assert host <= allowed and str(subs / "snoop") in host
     assert "bwrap" not in json.dumps(seen["cmdline"])  # no bubblewrap argv (bind list)
     pid1 = seen["cmdline"]["/proc/1"]
-    assert pid1[0] == sys.executable and pid1[1] == str(subs / "snoop" / "map.py")
-    assert pid1[2:4] == ["--image", "/sandbox/image.png"]
+    assert pid1[0] == sys.executable
+    if warm:  # pid 1 is the warm server (python -c SOURCE: public code), the runs its children
+        assert pid1[1] == "-c" and "warm interpreter" in pid1[2]
+    else:
+        assert pid1[1] == str(subs / "snoop" / "map.py")
+        assert pid1[2:4] == ["--image", "/sandbox/image.png"]
     assert sys.executable.split("/bin/")[0] in seen["environ"]  # PATH: the interpreter's bin
     assert os.environ["PATH"] not in seen["environ"]
 

@@ -120,9 +120,9 @@ def test_a_misbehaving_run_ends_alone_and_the_server_goes_on(sandbox, mode, cate
 
 
 @pytest.mark.parametrize("module, argv", [
-    ("arenabench.eval.cli", ["data", "--cmd", "x"]),
-    ("arenabench.eval.sweep_cli", ["--preset", "eyrc", "--cmd", "x", "--out", "o"]),
-    ("arenabench.eval.grade_cli", ["subs", "data", "--cmd", "x", "--out", "o"]),
+    ("arenabench.eval.cli", ["data", "--cmd", "x {image}"]),
+    ("arenabench.eval.sweep_cli", ["--preset", "eyrc", "--cmd", "x {image}", "--out", "o"]),
+    ("arenabench.eval.grade_cli", ["subs", "data", "--cmd", "x {image}", "--out", "o"]),
 ])
 def test_no_warm_is_an_option_of_eval_sweep_and_grade(module, argv):
     import importlib

@@ -401,8 +401,9 @@ def grade(
     record = preflight(
         opts.command, image=data.samples[0].image_path, mode=mode,
         limits=opts.settings.to_dict(), output=opts.output, reference=reference,
-        make_pipeline=lambda cmd, base: _team_pipeline(
-            cmd, settings=opts.settings, output=opts.output, team="preflight", base_dir=base))
+        make_pipeline=lambda cmd, base, warm=True: _team_pipeline(
+            cmd, settings=replace(opts.settings, warm=opts.settings.warm and warm),
+            output=opts.output, team="preflight", base_dir=base))
     if record.arenabench_importable:
         print("arenabench grade: WARNING: arenabench is importable inside the sandbox (the "
               "grading interpreter has it): a submission can run the generator; the set's "
