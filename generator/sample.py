@@ -52,7 +52,12 @@ from arenabench.workers import thread_state
 #: pixel (a quarter pixel either side of the centre, on the diagonal) averaged in linear light
 #: on the obstacles' region, instead of 4x MSAA averaged in sRGB (docs/rendering.md); images
 #: change along box outlines only.
-GENERATOR_VERSION = "5"
+#: 6: textures sampled as ogre2 samples a diffuse map: stored as sRGB, the mip chain averaged in
+#: linear light, trilinear (was: sRGB values filtered as they are, nearest mip level); marker
+#: edges, border lines and logos change, uniform regions do not (docs/rendering.md). `eyrc`
+#: writes JPEG at quality 95, 4:2:0 (``output.format``, ``output.jpeg_quality``): its images
+#: are ``images/NNNNNN.jpg`` and its GT records that path.
+GENERATOR_VERSION = "6"
 
 #: A post-render hook: (rgb uint8 (H, W, 3), rng) -> rgb uint8 (H, W, 3).
 Degrade = Callable[[np.ndarray, np.random.Generator], np.ndarray]
