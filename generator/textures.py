@@ -67,13 +67,20 @@ def _marker_sheet(dictionary: str, marker_id: int, side_px: int, pad_px: int) ->
     return rgb
 
 
+_STRIP_ROWS = 64
+
+
 def halve_in_linear_light(image: np.ndarray) -> np.ndarray:
     """An 8-bit sRGB ``image`` halved by 2 x 2 means in linear light (odd last rows and
     columns dropped): the next level of the mip chain GL makes of an sRGB texture."""
     h, w = image.shape[0] // 2, image.shape[1] // 2
     to_linear = srgb_to_linear(np.arange(256)).astype(np.float32).reshape(256, 1)
-    lin = cv2.LUT(np.ascontiguousarray(image[:2 * h, :2 * w]), to_linear)
-    return linear_to_srgb(cv2.resize(lin, (w, h), interpolation=cv2.INTER_AREA))
+    out = np.empty((h, w, *image.shape[2:]), np.uint8)
+    for y in range(0, h, _STRIP_ROWS):  # in strips: a float copy of the whole is 100 MB
+        y1 = min(y + _STRIP_ROWS, h)
+        lin = cv2.LUT(np.ascontiguousarray(image[2 * y:2 * y1, :2 * w]), to_linear)
+        out[y:y1] = linear_to_srgb(cv2.resize(lin, (w, y1 - y), interpolation=cv2.INTER_AREA))
+    return out
 
 
 def floor_texture(arena: ArenaSpec, *, texels: int = FLOOR_TEXELS) -> np.ndarray:
