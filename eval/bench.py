@@ -435,7 +435,9 @@ def run_bench(
     figures: dict[str, float] = {}
     details: dict[str, Any] = {"workers": workers, "load_avg_start": _load_avg()}
     try:
-        from arenabench.generator.dataset import generate_dataset
+        from arenabench.generator.dataset import DatasetArgs, generate_dataset
+
+        ext = DatasetArgs(preset=cfg.preset, count=cfg.count, seed=cfg.seed).image_ext
 
         # 1. generation to disk, as `arenabench generate --workers N` runs it
         c0, t0 = _cpu_seconds(), time.perf_counter()
@@ -476,7 +478,7 @@ def run_bench(
 
             # 5. the reference pipeline from the image files of (1), decode included
             data = scratch / "dataset"
-            files = [ImageTask(str(data / "images" / f"{i:06d}.png"),
+            files = [ImageTask(str(data / "images" / f"{i:06d}.{ext}"),
                                str(data / "gt" / f"{i:06d}.json"))
                      for i in range(cfg.count)]
             t0 = time.perf_counter()
@@ -561,7 +563,7 @@ def run_bench(
         # 8. what bubblewrap adds to an external run
         t0 = time.perf_counter()
         figures["sandbox_overhead_ms"], details["sandbox"] = _sandbox_overhead(
-            scratch / "dataset" / "images" / "000000.png", cfg.sandbox_runs)
+            scratch / "dataset" / "images" / f"000000.{ext}", cfg.sandbox_runs)
         notify("sandbox_overhead_ms", time.perf_counter() - t0)
 
         # 9. an external Python script per image: in one process, cold, warm

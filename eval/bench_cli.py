@@ -11,7 +11,7 @@ from arenabench.eval.bench import TARGETS, BenchConfig, BenchResult, target_met
 
 #: (key, label, unit) rows of the table, in the order of docs/benchmark.md.
 ROWS: tuple[tuple[str, str, str], ...] = (
-    ("generate_disk_ips", "1 generation to disk (PNG + GT)", "images/s"),
+    ("generate_disk_ips", "1 generation to disk (image + GT)", "images/s"),
     ("generate_memory_ips", "2 generation in memory (render + GT)", "images/s"),
     ("naive_ips", "3 naive baseline (renderer per image, lit)", "images/s"),
     ("encode_floor_ips", "4 floor: PNG encode + write", "images/s"),

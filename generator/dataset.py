@@ -4,6 +4,8 @@ Layout of ``DIR``::
 
     images/NNNNNN.png   gt/NNNNNN.json   manifest.jsonl   dataset.json   coco.json
 
+(``images/NNNNNN.jpg`` when the preset's ``output.format`` is ``jpeg``, as ``eyrc``'s is.)
+
 Every file is written atomically. ``dataset.json`` is written first (``"complete": false``)
 with the run's arguments, so a re-run can tell an interrupted run of the same arguments
 (resumed: scenes whose image and GT exist are skipped) from a different one (refused; a
@@ -65,7 +67,7 @@ from arenabench.generator.sample import (
     worker_renderer,
 )
 from arenabench.gtrecord import GroundTruth
-from arenabench.imageio import PNG_COMPRESSION, encode_png
+from arenabench.imageio import IMAGE_EXTENSIONS, PNG_COMPRESSION, encode_image
 from arenabench.interrupts import (
     Interrupted,
     children_ignore_sigint,
@@ -101,6 +103,17 @@ class DatasetArgs:
         if int(self.seed) != self.seed or self.seed < 0:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
         resolve(self.preset, self.overrides)
+
+    @property
+    def output(self) -> tuple[str, int]:
+        """``(output.format, output.jpeg_quality)`` of the preset with the overrides."""
+        params = resolve(self.preset, self.overrides)
+        return str(params["output.format"]), int(params["output.jpeg_quality"])
+
+    @property
+    def image_ext(self) -> str:
+        """File extension of the images (``png`` or ``jpg``)."""
+        return IMAGE_EXTENSIONS[self.output[0]]
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form stored under ``dataset.json["args"]``."""
@@ -179,18 +192,39 @@ class RenderTask:
         Run seed and scene index.
     out : str
         Dataset directory (local workers write the files there).
+    image_format : str
+        ``output.format`` (``png`` or ``jpeg``).
+    jpeg_quality : int
+        ``output.jpeg_quality``.
     """
 
     args: dict[str, Any]
     seed: int
     index: int
     out: str
+    image_format: str = "png"
+    jpeg_quality: int = 95
+
+    @property
+    def image_ext(self) -> str:
+        """File extension of the image."""
+        return IMAGE_EXTENSIONS[self.image_format]
+
+    def encode(self, bgr: np.ndarray) -> bytes:
+        """The image file's bytes."""
+        return encode_image(bgr, image_format=self.image_format,
+                            jpeg_quality=self.jpeg_quality)
 
 
 def _render(task: RenderTask):
     return make_sample(task.args["preset"], seed=task.seed, index=task.index,
                        overrides=_parse_stored(task.args["overrides"]),
-                       renderer=worker_renderer())
+                       renderer=worker_renderer(), image_ext=task.image_ext)
+
+
+def image_file(sid: str, ext: str) -> str:
+    """Path of scene ``sid``'s image relative to the dataset (``images/000042.png``)."""
+    return f"images/{sid}.{ext}"
 
 
 def render_task(task: RenderTask) -> dict[str, Any]:
@@ -206,29 +240,31 @@ def render_task(task: RenderTask) -> dict[str, Any]:
         out = Path(task.out)
         sample = _render(task)
         t1 = time.perf_counter()
-        png = encode_png(sample.bgr)
+        image = task.encode(sample.bgr)
         t2 = time.perf_counter()
         gt_bytes = sample.record.to_json().encode("utf-8")
-        atomic_write_bytes(out / "images" / f"{sample.id}.png", png)
+        atomic_write_bytes(out / image_file(sample.id, task.image_ext), image)
         atomic_write_bytes(out / "gt" / f"{sample.id}.json", gt_bytes)
         t3 = time.perf_counter()
         return {"id": sample.id, **sample.timings_ms, "encode": (t2 - t1) * 1000,
                 "write": (t3 - t2) * 1000, "gl": worker_gl_info(),
-                "image_sha256": sha256_bytes(png), "gt_sha256": sha256_bytes(gt_bytes)}
+                "image_sha256": sha256_bytes(image), "gt_sha256": sha256_bytes(gt_bytes)}
 
 
 def render_on_cluster(task: RenderTask) -> dict[str, Any]:
     """A Dask worker's unit: render and encode as :func:`render_task`, but return the bytes
-    (``png_bytes``, ``gt_text``) for the client to write (:func:`write_rendered`).
+    (``image_bytes``, ``image_ext``, ``gt_text``) for the client to write
+    (:func:`write_rendered`).
 
     The renderer is created on first use, one per worker thread (an OpenGL context is current
     in one thread only; :func:`arenabench.generator.sample.worker_renderer`), and reused.
     """
     sample = _render(task)
     t1 = time.perf_counter()
-    png = encode_png(sample.bgr)
+    image = task.encode(sample.bgr)
     t2 = time.perf_counter()
-    return {**sample.timings_ms, "id": sample.id, "png_bytes": png,
+    return {**sample.timings_ms, "id": sample.id, "image_bytes": image,
+            "image_ext": task.image_ext,
             "gt_text": sample.record.to_json(), "encode": (t2 - t1) * 1000,
             "gl": worker_gl_info()}
 
@@ -238,11 +274,11 @@ def write_rendered(out: Path, res: dict[str, Any]) -> dict[str, Any]:
     :func:`render_task` (without the bytes)."""
     gt_bytes = res["gt_text"].encode("utf-8")
     t2 = time.perf_counter()
-    atomic_write_bytes(out / "images" / f"{res['id']}.png", res["png_bytes"])
+    atomic_write_bytes(out / image_file(res["id"], res["image_ext"]), res["image_bytes"])
     atomic_write_bytes(out / "gt" / f"{res['id']}.json", gt_bytes)
     t3 = time.perf_counter()
-    return {**{k: v for k, v in res.items() if k not in ("png_bytes", "gt_text")},
-            "write": (t3 - t2) * 1000, "image_sha256": sha256_bytes(res["png_bytes"]),
+    return {**{k: v for k, v in res.items() if k not in ("image_bytes", "image_ext", "gt_text")},
+            "write": (t3 - t2) * 1000, "image_sha256": sha256_bytes(res["image_bytes"]),
             "gt_sha256": sha256_bytes(gt_bytes)}
 
 
@@ -298,8 +334,8 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
     return meta
 
 
-def _present(out: Path, sid: str) -> bool:
-    return (out / "images" / f"{sid}.png").is_file() and (out / "gt" / f"{sid}.json").is_file()
+def _present(out: Path, sid: str, ext: str) -> bool:
+    return (out / image_file(sid, ext)).is_file() and (out / "gt" / f"{sid}.json").is_file()
 
 
 # ----------------------------------------------------------------------------- outputs
@@ -354,21 +390,22 @@ def _versions(gl: dict[str, str] | None) -> dict[str, str]:
     return out
 
 
-def _manifest_line(sid: str, image_sha256: str, gt_sha256: str) -> str:
+def _manifest_line(sid: str, ext: str, image_sha256: str, gt_sha256: str) -> str:
     return dumps_json_line({
-        "id": sid, "image": f"images/{sid}.png", "gt": f"gt/{sid}.json",
+        "id": sid, "image": image_file(sid, ext), "gt": f"gt/{sid}.json",
         "image_sha256": image_sha256, "gt_sha256": gt_sha256,
     })
 
 
 def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
     ids = [scene_id(i) for i in range(args.count)]
+    ext = args.image_ext
     lines, gts = [], []
     for sid in ids:
-        gt_path, img_path = out / "gt" / f"{sid}.json", out / "images" / f"{sid}.png"
+        gt_path, img_path = out / "gt" / f"{sid}.json", out / image_file(sid, ext)
         gt_bytes = gt_path.read_bytes()
         gts.append(GroundTruth.from_dict(json.loads(gt_bytes)))
-        lines.append(_manifest_line(sid, sha256_file(img_path), sha256_bytes(gt_bytes)))
+        lines.append(_manifest_line(sid, ext, sha256_file(img_path), sha256_bytes(gt_bytes)))
     atomic_write_text(out / "manifest.jsonl", "".join(lines))
     atomic_write_json(out / "coco.json", coco_from_gts(gts))
     _write_meta(out, args, complete=True, gl=gl)
@@ -390,17 +427,26 @@ def _finish_partial(out: Path, args: DatasetArgs, results: list[dict[str, Any]])
             except (ValueError, KeyError, TypeError):
                 continue
     lines = []
+    ext = args.image_ext
     for i in range(args.count):
         sid = scene_id(i)
-        if not _present(out, sid):
+        if not _present(out, sid, ext):
             continue
         if sid not in known:
-            known[sid] = (sha256_file(out / "images" / f"{sid}.png"),
+            known[sid] = (sha256_file(out / image_file(sid, ext)),
                           sha256_file(out / "gt" / f"{sid}.json"))
-        lines.append(_manifest_line(sid, *known[sid]))
+        lines.append(_manifest_line(sid, ext, *known[sid]))
     atomic_write_text(out / "manifest.jsonl", "".join(lines))
     _write_meta(out, args, complete=False, finished=len(lines))
     return len(lines)
+
+
+def _image_format_meta(image_format: str, jpeg_quality: int) -> dict[str, Any]:
+    """How the images are encoded, for ``dataset.json["render"]``."""
+    if image_format == "jpeg":
+        return {"image_format": "jpeg", "jpeg_quality": int(jpeg_quality),
+                "jpeg_chroma": "4:2:0"}
+    return {"image_format": "png", "png_compression": PNG_COMPRESSION}
 
 
 def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
@@ -413,7 +459,7 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
         "params": {k: format_value(v) for k, v in sorted(params.items())},
         "versions": _versions(gl) if complete else {},
         "render": {"mode": "flat, Lambertian shading baked", "edges": EDGE_MODEL,
-                   "image_format": "png", "png_compression": PNG_COMPRESSION},
+                   **_image_format_meta(*args.output)},
         "files": {"images": "images/", "gt": "gt/", "manifest": "manifest.jsonl",
                   "coco": "coco.json"},
     }
@@ -553,7 +599,8 @@ def _generate_locked(
     # ours (same arguments) or empty: files a killed run was writing are garbage
     for folder in (root, root / "images", root / "gt"):
         remove_temp_files(folder)
-    todo = [i for i in range(args.count) if not _present(root, scene_id(i))]
+    image_format, jpeg_quality = args.output
+    todo = [i for i in range(args.count) if not _present(root, scene_id(i), args.image_ext)]
     skipped = args.count - len(todo)
     if meta is not None and meta.get("complete") and not todo:
         return DatasetResult(root, 0, skipped, time.perf_counter() - start, count=args.count,
@@ -582,7 +629,8 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
     if meta is None or meta["args"].get("count") != args.count:
         _write_meta(root, args, complete=False)
     stored = args.to_dict()
-    tasks = [RenderTask(args=stored, seed=args.seed, index=i, out=str(root)) for i in todo]
+    tasks = [RenderTask(args=stored, seed=args.seed, index=i, out=str(root),
+                        image_format=image_format, jpeg_quality=jpeg_quality) for i in todo]
     results: list[dict[str, Any]] = []
     bar = _progress(len(tasks), progress)
     try:

@@ -266,6 +266,13 @@ PARAMS: tuple[Param, ...] = (
           "occluder (0 = none)", _b(0, 1), neutral=0.0, draw="scene"),
     Param("markers.occluded", "int", "which marker is occluded: 0 NW, 1 NE, 2 SE, 3 SW",
           _b(0, 3), neutral=0, draw="scene"),
+    # How the image files are written (not part of the scene: the GT changes only in its
+    # image path).
+    Param("output.format", "str", "image files: png (lossless), or jpeg as cv2.imwrite "
+          "writes it (4:2:0 chroma; the competition's example)", choices=("png", "jpeg"),
+          neutral="png"),
+    Param("output.jpeg_quality", "int", "JPEG quality of output.format=jpeg", _b(1, 100),
+          neutral=95),
 )
 
 #: Every parameter by name (declaration order).

@@ -160,6 +160,9 @@ def _twin() -> dict[str, Value]:
         "lighting.elevation_deg": round(math.degrees(math.asin(-d[2])), 6),
         "lighting.azimuth_deg": round(math.degrees(math.atan2(-d[1], -d[0])), 6),
         "background.gray": ex["background_rgb"][0],
+        # the example is a JPEG at quality 95, 4:2:0 (libjpeg's tables scaled to 95)
+        "output.format": "jpeg",
+        "output.jpeg_quality": 95,
     }
 
 #: Named presets: name -> (description, parameters).

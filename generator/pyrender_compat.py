@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import sys
 import threading
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -23,7 +24,8 @@ import numpy as np
 from arenabench import glplatform
 from arenabench.glplatform import PYRENDER_VERSION
 
-__all__ = ["PYRENDER_VERSION", "LeanOffscreen", "check_version", "draw_order", "pyrender"]
+__all__ = ["PYRENDER_VERSION", "LeanOffscreen", "SrgbTexture", "check_version", "draw_order",
+           "pyrender"]
 
 
 def check_version(version: str) -> None:
@@ -92,6 +94,49 @@ def draw_order(nodes) -> list:
             + [n for n in nodes if n.mesh.is_transparent])
 
 
+#: The flat pass of a textured primitive (:class:`SrgbTexture`): filtered in linear light, encoded
+#: back to sRGB, then scaled by the material's colour factor.
+SRGB_TEXTURE_FRAG = Path(__file__).resolve().parent / "assets" / "flat_srgb_texture.frag"
+
+
+class SrgbTexture(pyrender.Texture):
+    """An RGBA uint8 texture stored as sRGB (``GL_SRGB8_ALPHA8``), as ogre2 stores a diffuse map.
+
+    GL decodes its texels to linear light before filtering them, and ``glGenerateMipmap``
+    averages them in linear light (on Mesa and the common drivers; ``tests/test_twin_fidelity.py``
+    checks the levels llvmpipe makes). Drawn by :data:`SRGB_TEXTURE_FRAG`, which encodes the
+    filtered colour back to sRGB.
+    """
+
+    def _add_to_context(self):
+        if self._texid is not None:
+            raise ValueError("Texture already loaded into OpenGL context")
+        src = self.source
+        if src is None or src.dtype != np.uint8 or src.ndim != 3 or src.shape[2] != 4:
+            raise ValueError("SrgbTexture needs an (H, W, 4) uint8 source")
+        self._texid = GL.glGenTextures(1)
+        GL.glBindTexture(self.tex_type, self._texid)
+        data = np.ascontiguousarray(src[::-1])  # GL rows run bottom-up
+        GL.glTexImage2D(self.tex_type, 0, GL.GL_SRGB8_ALPHA8, src.shape[1], src.shape[0], 0,
+                        GL.GL_RGBA, GL.GL_UNSIGNED_BYTE, data)
+        GL.glGenerateMipmap(self.tex_type)
+        GL.glTexParameteri(self.tex_type, GL.GL_TEXTURE_MAG_FILTER, self.sampler.magFilter)
+        GL.glTexParameteri(self.tex_type, GL.GL_TEXTURE_MIN_FILTER, self.sampler.minFilter)
+        GL.glTexParameteri(self.tex_type, GL.GL_TEXTURE_WRAP_S, self.sampler.wrapS)
+        GL.glTexParameteri(self.tex_type, GL.GL_TEXTURE_WRAP_T, self.sampler.wrapT)
+        GL.glBindTexture(self.tex_type, 0)
+
+
+class _ProgramCache(pyrender.shader_program.ShaderProgramCache):
+    """pyrender's shader cache, with :data:`SRGB_TEXTURE_FRAG` for textured flat primitives
+    (the only textures the generator draws are :class:`SrgbTexture`)."""
+
+    def get_program(self, vertex_shader, fragment_shader, geometry_shader=None, defines=None):
+        if fragment_shader == "flat.frag" and defines and "HAS_BASE_COLOR_TEX" in defines:
+            fragment_shader = str(SRGB_TEXTURE_FRAG)
+        return super().get_program(vertex_shader, fragment_shader, geometry_shader, defines)
+
+
 class _LeanRenderer(pyrender.renderer.Renderer):
     """A ``pyrender.Renderer`` with a leaner off-screen path.
 
@@ -106,6 +151,10 @@ class _LeanRenderer(pyrender.renderer.Renderer):
 
     want_depth = False
     region: tuple[int, int, int, int] | None = None
+
+    def __init__(self, *args, **kwargs) -> None:
+        super().__init__(*args, **kwargs)
+        self._program_cache = _ProgramCache()
 
     def _configure_main_framebuffer(self):
         w, h = self.viewport_width, self.viewport_height

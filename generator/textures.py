@@ -12,6 +12,7 @@ import cv2
 import numpy as np
 
 from arenabench.generator import competition_arena as comp
+from arenabench.generator.edges import linear_to_srgb, srgb_to_linear
 from arenabench.generator.layout import floor_extent
 from arenabench.generator.scene import ArenaSpec
 
@@ -66,6 +67,22 @@ def _marker_sheet(dictionary: str, marker_id: int, side_px: int, pad_px: int) ->
     return rgb
 
 
+_STRIP_ROWS = 64
+
+
+def halve_in_linear_light(image: np.ndarray) -> np.ndarray:
+    """An 8-bit sRGB ``image`` halved by 2 x 2 means in linear light (odd last rows and
+    columns dropped): the next level of the mip chain GL makes of an sRGB texture."""
+    h, w = image.shape[0] // 2, image.shape[1] // 2
+    to_linear = srgb_to_linear(np.arange(256)).astype(np.float32).reshape(256, 1)
+    out = np.empty((h, w, *image.shape[2:]), np.uint8)
+    for y in range(0, h, _STRIP_ROWS):  # in strips: a float copy of the whole is 100 MB
+        y1 = min(y + _STRIP_ROWS, h)
+        lin = cv2.LUT(np.ascontiguousarray(image[2 * y:2 * y1, :2 * w]), to_linear)
+        out[y:y1] = linear_to_srgb(cv2.resize(lin, (w, y1 - y), interpolation=cv2.INTER_AREA))
+    return out
+
+
 def floor_texture(arena: ArenaSpec, *, texels: int = FLOOR_TEXELS) -> np.ndarray:
     """The floor texture (albedo, unlit) covering the floor square; cached by ``arena``."""
     return _floor_texture(arena, texels)
@@ -81,13 +98,14 @@ def _floor_texture(arena: ArenaSpec, texels: int) -> np.ndarray:
     if arena.texture == comp.TEXTURE_NAME:  # the printed arena, tinted by the floor colour
         levels = np.arange(256, dtype=np.float64)[:, None] * np.asarray(arena.floor_rgb) / 255.0
         lut = np.rint(levels).astype(np.uint8).reshape(256, 1, 3)
-        # halved by 2 x 2 averages: exactly the texture's first mip level, so the GPU samples
-        # the same levels below it as from the original (the arena spans about 1000 px, so
-        # renders use level 1-2 of the 2880-texel original anyway), for a quarter of the
-        # memory (the original would cost a rendering worker about 100 MB)
+        # halved by 2 x 2 averages in linear light: exactly the first mip level that GL (and
+        # ogre2, docs/rendering.md) makes of the sRGB original, so the GPU samples the same
+        # levels below it as from the original. The arena spans about 1000 px of the 2880
+        # texels, so the level of detail stays above 1 and the original's level 0 is never
+        # sampled (a full-size upload renders the example the same, measured); a quarter of
+        # the memory (the original would cost a rendering worker about 100 MB)
         full = cv2.LUT(comp.texture_rgb(), lut)
-        img = cv2.resize(full, (full.shape[1] // 2, full.shape[0] // 2),
-                         interpolation=cv2.INTER_AREA)
+        img = halve_in_linear_light(full)
     else:
         img = np.empty((texels, texels, 3), np.uint8)
         img[:] = arena.floor_rgb

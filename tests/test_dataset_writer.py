@@ -12,8 +12,10 @@ import numpy as np
 import pytest
 
 from arenabench.fileio import sha256_file
+from arenabench.imageio import jpeg_layout, jpeg_quality
 
 COUNT = 4
+EXAMPLE = Path(__file__).resolve().parent / "data" / "task1c_image.jpg"
 
 
 def _generate(out: Path, *extra: str, count: int = COUNT, seed: int = 7):
@@ -39,7 +41,7 @@ def test_layout_manifest_and_metadata(one_worker):
     out, proc = one_worker
     assert "4 rendered" in proc.stdout and not proc.stderr  # the summary is output
     ids = [f"{i:06d}" for i in range(COUNT)]
-    assert sorted(p.name for p in (out / "images").iterdir()) == [f"{i}.png" for i in ids]
+    assert sorted(p.name for p in (out / "images").iterdir()) == [f"{i}.jpg" for i in ids]
     assert sorted(p.name for p in (out / "gt").iterdir()) == [f"{i}.json" for i in ids]
     lines = (out / "manifest.jsonl").read_text().splitlines()
     assert [json.loads(line)["id"] for line in lines] == ids
@@ -58,11 +60,38 @@ def test_layout_manifest_and_metadata(one_worker):
                 "components", "area", "frame", "homography", "camera", "markers", "obstacles",
                 "params", "generator_version"):
         assert key in gt, key
-    assert gt["schema"] == "arenabench.gt/1" and gt["image"] == "images/000002.png"
+    assert gt["schema"] == "arenabench.gt/1" and gt["image"] == "images/000002.jpg"
     assert gt["params"]["obstacles.count"] == gt["count"]
     assert "camera.tilt_deg" in gt["params"]
     img = cv2.imread(str(out / gt["image"]))
     assert img.shape == (1000, 1000, 3)
+    assert meta["render"]["image_format"] == "jpeg" and meta["render"]["jpeg_quality"] == 95
+
+
+def test_twin_jpeg_is_encoded_as_the_example(one_worker):
+    """The twin's JPEGs carry the published example's quantisation tables and 4:2:0
+    sampling: both came out of cv2.imwrite at quality 95."""
+    out, _ = one_worker
+    example = jpeg_layout(EXAMPLE.read_bytes())
+    assert example.sampling == ((2, 2), (1, 1), (1, 1))  # 4:2:0
+    assert jpeg_quality(EXAMPLE.read_bytes()) == 95
+    for path in sorted((out / "images").iterdir()):
+        assert jpeg_layout(path.read_bytes()) == example, path.name
+
+
+def test_png_on_request_keeps_the_gt(one_worker, tmp_path):
+    """``--set output.format=png`` writes PNGs; the GT differs only in the image path (and
+    the ``--set`` it records)."""
+    out, _ = one_worker
+    proc = _generate(tmp_path / "png", "--set", "output.format=png", count=1)
+    assert proc.returncode == 0, proc.stderr
+    assert [p.name for p in (tmp_path / "png" / "images").iterdir()] == ["000000.png"]
+    gt_png = json.loads((tmp_path / "png" / "gt" / "000000.json").read_text())
+    gt_jpg = json.loads((out / "gt" / "000000.json").read_text())
+    assert gt_png.pop("image") == "images/000000.png"
+    assert gt_jpg.pop("image") == "images/000000.jpg"
+    assert gt_png.pop("overrides") == {"output.format": "png"} and gt_jpg.pop("overrides") == {}
+    assert gt_png == gt_jpg
 
 
 @pytest.mark.slow
@@ -85,7 +114,7 @@ def test_rerun_does_nothing_and_interrupted_run_resumes(one_worker, tmp_path):
     copy = tmp_path / "copy"
     copy.mkdir()
     for rel, data in reference.items():
-        if rel in {"images/000001.png", "gt/000003.json", "manifest.jsonl", "coco.json"}:
+        if rel in {"images/000001.jpg", "gt/000003.json", "manifest.jsonl", "coco.json"}:
             continue
         (copy / rel).parent.mkdir(parents=True, exist_ok=True)
         (copy / rel).write_bytes(data)

@@ -47,7 +47,7 @@ def test_cluster_run_writes_the_same_bytes_as_a_local_run(local_run, tmp_path):
         assert len(reference) == 2 * COUNT + 3  # images, GT, manifest, dataset.json, coco.json
         assert _files(out) == reference
         # an interrupted run resumes on the cluster too
-        (out / "images" / "000002.png").unlink()
+        (out / "images" / "000002.jpg").unlink()  # eyrc writes JPEG
         proc = _generate(out, "--scheduler", cluster.scheduler_address)
         assert proc.returncode == 0 and "1 rendered" in proc.stdout + proc.stderr, proc.stderr
         assert _files(out) == reference

@@ -99,3 +99,27 @@ def test_encode_png_is_lossless_and_the_writers_one_encoder():
     assert png.startswith(b"\x89PNG")
     assert np.array_equal(decode_image(png), bgr)
     assert encode_png(bgr) == png
+
+
+def test_jpeg_layout_and_quality_of_the_example_and_of_other_encodings():
+    """The example's tables and 4:2:0 sampling are cv2.imwrite's at quality 95; another
+    quality or 4:4:4 is told apart; a PNG is refused with a one-line error."""
+    from arenabench.imageio import encode_image, encode_jpeg, jpeg_layout, jpeg_quality
+
+    example = EXAMPLE.read_bytes()
+    assert jpeg_quality(example) == 95
+    assert jpeg_layout(example).sampling == ((2, 2), (1, 1), (1, 1))
+    bgr = np.zeros((16, 16, 3), np.uint8)
+    assert jpeg_quality(encode_jpeg(bgr, quality=80)) == 80
+    assert encode_image(bgr, image_format="jpeg", jpeg_quality=95) == encode_jpeg(bgr, quality=95)
+    ok, full = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 95,
+                                          cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
+                                          cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444])
+    assert ok and jpeg_layout(full.tobytes()).sampling == ((1, 1), (1, 1), (1, 1))
+    assert jpeg_quality(full.tobytes()) is None
+    with pytest.raises(ImageLoadError, match="not a JPEG"):
+        jpeg_layout(encode_image(bgr, image_format="png", jpeg_quality=95))
+    with pytest.raises(ValueError, match="quality"):
+        encode_jpeg(bgr, quality=0)
+    with pytest.raises(ValueError, match="unknown image format"):
+        encode_image(bgr, image_format="webp", jpeg_quality=95)

@@ -162,7 +162,7 @@ def test_generate_stops_keeps_what_finished_and_resumes_byte_identical(
     assert meta["complete"] is False
     manifest = [json.loads(x) for x in (out / "manifest.jsonl").read_text().splitlines()]
     on_disk = sorted(p.stem for p in (out / "gt").glob("*.json")
-                     if (out / "images" / f"{p.stem}.png").is_file())
+                     if (out / "images" / f"{p.stem}.jpg").is_file())  # eyrc writes JPEG
     assert [m["id"] for m in manifest] == on_disk and meta["finished"] == len(on_disk)
     assert 3 <= len(on_disk) < COUNT and f"{len(on_disk)} of {COUNT}" in lines[0]
     for m in manifest:

@@ -125,7 +125,7 @@ def test_a_noise_sweep_gives_the_images_of_a_fresh_renderer(tmp_path):
                      pipelines=(PipelineSpec("pipeline", "reference"),))
     kept: dict[tuple[int, int], bytes] = {}
     result = run_sweep(spec, workers=2,
-                       on_output=lambda o: kept.__setitem__((o["point"], o["scene"]), o["png"]))
+                       on_output=lambda o: kept.__setitem__((o["point"], o["scene"]), o["image"]))
     assert result.run["complete"] and len(kept) == 6
     points = sweep_points(spec)
     for (p, s), png in sorted(kept.items()):

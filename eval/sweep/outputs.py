@@ -85,10 +85,11 @@ class KeptImageWriter:
 
     def __call__(self, output: dict[str, Any]) -> None:
         """Write one task's kept image and GT, if any."""
-        if output.get("png") is None:
+        if output.get("image") is None:
             return
         name = image_name(output["point"], output["scene"])
-        atomic_write_bytes(self.out / "images" / f"{name}.png", output["png"])
+        atomic_write_bytes(self.out / "images" / f"{name}.{output['image_ext']}",
+                           output["image"])
         atomic_write_text(self.out / "gt" / f"{name}.json", dumps_json(output["gt"]))
         self.written += 1
 

@@ -268,7 +268,7 @@ def run_sweep(
                     on_output(out)
                 for k, v in out.get("timings_ms", {}).items():
                     timings.setdefault(k, []).append(v)
-                outputs.append({k: v for k, v in out.items() if k not in ("png", "gt")})
+                outputs.append({k: v for k, v in out.items() if k not in ("image", "gt")})
                 bar.update(1)
         except Interrupted as exc:
             interrupted = exc.signum

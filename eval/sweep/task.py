@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from arenabench import workers
-from arenabench.imageio import encode_png
+from arenabench.imageio import IMAGE_EXTENSIONS, decode_image, encode_image
 from arenabench.interrupts import worker_task
 
 from ..dataset import DatasetItem
@@ -44,17 +44,19 @@ def image_name(point: int, scene: int) -> str:
     return f"p{int(point):04d}_s{int(scene):06d}"
 
 
-def _predict(spec: PipelineSpec, bgr: Any, png: list[bytes], tmp: list[str]) -> Prediction:
+def _predict(spec: PipelineSpec, bgr: Any, image: list[bytes], tmp: list[str],
+             output: dict[str, Any]) -> Prediction:
     pipe = _pipeline(spec)
     if spec.in_memory and hasattr(pipe, "run_image"):
         return pipe.run_image(bgr)
     # external commands read a file: write the image once per sample, only now
+    name = f"image.{IMAGE_EXTENSIONS[output['image_format']]}"
     if not tmp:
         tmp.append(tempfile.mkdtemp(prefix="arenabench-sweep-"))
-        if not png:
-            png.append(encode_png(bgr))
-        Path(tmp[0], "image.png").write_bytes(png[0])
-    return pipe.run(Path(tmp[0], "image.png"))
+        if not image:
+            image.append(encode_image(bgr, **output))
+        Path(tmp[0], name).write_bytes(image[0])
+    return pipe.run(Path(tmp[0], name))
 
 
 def _check_phases(task: SweepTask, gt: Any, results: list[Any], *, renderer: Any) -> None:
@@ -81,11 +83,13 @@ def run_task(task: SweepTask) -> dict[str, Any]:
     Returns
     -------
     dict
-        ``{"point", "scene", "index", "error", "results", "png", "gt", "timings_ms"}``:
+        ``{"point", "scene", "index", "error", "results", "image", "image_ext", "gt",
+        "timings_ms"}``:
         ``results`` holds one ``ImageResult.to_dict()`` per pipeline (plus ``pipeline``,
         ``point``, ``scene``, ``index``); ``error`` is the reason when the scene could not be
-        generated (then ``results`` is empty); ``png``/``gt`` are set only when the image is
-        kept (``keep="all"``, or ``"failures"`` and some pipeline failed).
+        generated (then ``results`` is empty); ``image`` (the file's bytes, PNG or JPEG as the
+        preset's ``output.format`` says, ``image_ext`` its extension) and ``gt`` are set only
+        when the image is kept (``keep="all"``, or ``"failures"`` and some pipeline failed).
     """
     with worker_task():
         return _run_task(task)
@@ -103,7 +107,7 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
 
     out: dict[str, Any] = {
         "point": task.point, "scene": task.scene, "index": task.index, "error": None,
-        "results": [], "png": None, "gt": None, "timings_ms": {},
+        "results": [], "image": None, "image_ext": None, "gt": None, "timings_ms": {},
     }
     try:
         sample = make_sample(task.preset, seed=task.seed, index=task.index,
@@ -112,20 +116,29 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
         out["error"] = f"SamplingError: {exc}"
         return out
     out["timings_ms"] = dict(sample.timings_ms)
+    from arenabench.generator.presets import resolve
+
+    params_out = resolve(task.preset, task.overrides)
+    output = {"image_format": params_out["output.format"],
+              "jpeg_quality": params_out["output.jpeg_quality"]}
     bgr = sample.bgr
+    image: list[bytes] = []
+    if output["image_format"] != "png":  # pipelines see the file `generate` would write
+        image.append(encode_image(bgr, **output))
+        bgr = decode_image(image[0])
+    ext = IMAGE_EXTENSIONS[output["image_format"]]
     gt = sample.record
     params = gt.params or {}
     flat = {k: float(v) for k, v in params.items()
             if isinstance(v, (int, float)) and not isinstance(v, bool)}
     name = image_name(task.point, task.scene)
-    scored = DatasetItem(id=name, image_path=Path("images", f"{name}.png"),
+    scored = DatasetItem(id=name, image_path=Path("images", f"{name}.{ext}"),
                           gt_path=Path("gt", f"{name}.json"), gt=gt, params=flat)
-    png: list[bytes] = []
     tmp: list[str] = []
     any_failed = False
     try:
         for spec in task.pipelines:
-            pred = _predict(spec, bgr, png, tmp)
+            pred = _predict(spec, bgr, image, tmp, output)
             result = score_sample(scored, pred, tolerance=task.tolerance,
                                   area_reference=task.area_reference)
             any_failed |= not result.passed
@@ -144,6 +157,7 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
                      "scene": task.scene, "index": task.index})
     out["results"] = rows
     if keep:
-        out["png"] = png[0] if png else encode_png(bgr)
+        out["image"] = image[0] if image else encode_image(bgr, **output)
+        out["image_ext"] = ext
         out["gt"] = gt.to_dict()
     return out

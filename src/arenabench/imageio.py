@@ -13,6 +13,7 @@ cannot decode.
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import cv2
@@ -180,3 +181,131 @@ def encode_png(bgr: np.ndarray) -> bytes:
     if not ok:  # pragma: no cover - OpenCV failure
         raise RuntimeError("PNG encoding failed")
     return buf.tobytes()
+
+
+#: Image file formats a dataset can be written in (``output.format``) and their file extension.
+IMAGE_EXTENSIONS = {"png": "png", "jpeg": "jpg"}
+
+
+def encode_jpeg(bgr: np.ndarray, *, quality: int) -> bytes:
+    """Encode an image as JPEG bytes as ``cv2.imwrite`` does by default (libjpeg's standard
+    tables scaled to ``quality``, 4:2:0 chroma subsampling, baseline): how the competition's
+    example image was written.
+
+    Parameters
+    ----------
+    bgr : numpy.ndarray
+        uint8 image, H x W x 3 in OpenCV's BGR order (or H x W grey).
+    quality : int, keyword-only
+        JPEG quality, 1..100.
+
+    Raises
+    ------
+    ValueError
+        For a quality outside 1..100.
+    """
+    if isinstance(quality, bool) or not isinstance(quality, int) or not 1 <= quality <= 100:
+        raise ValueError(f"JPEG quality must be an integer 1..100, got {quality!r}")
+    ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if not ok:  # pragma: no cover - OpenCV failure
+        raise RuntimeError("JPEG encoding failed")
+    return buf.tobytes()
+
+
+def encode_image(bgr: np.ndarray, *, image_format: str, jpeg_quality: int) -> bytes:
+    """Encode ``bgr`` in ``image_format`` (a key of :data:`IMAGE_EXTENSIONS`):
+    :func:`encode_png` or :func:`encode_jpeg` at ``jpeg_quality``.
+
+    Raises
+    ------
+    ValueError
+        For an unknown format.
+    """
+    if image_format == "png":
+        return encode_png(bgr)
+    if image_format == "jpeg":
+        return encode_jpeg(bgr, quality=jpeg_quality)
+    raise ValueError(f"unknown image format {image_format!r} "
+                     f"(one of {', '.join(IMAGE_EXTENSIONS)})")
+
+
+@dataclass(frozen=True)
+class JpegLayout:
+    """What a baseline/progressive JPEG file says about how it was encoded.
+
+    Attributes
+    ----------
+    tables : dict
+        Quantisation table id -> its 64 values in file (zig-zag) order (DQT segments).
+    sampling : tuple of (int, int)
+        (horizontal, vertical) sampling factors of each frame component (SOF segment), e.g.
+        ``((2, 2), (1, 1), (1, 1))`` for 4:2:0 colour.
+    """
+
+    tables: dict[int, tuple[int, ...]]
+    sampling: tuple[tuple[int, int], ...]
+
+
+def jpeg_layout(data: bytes, *, name: str = "image") -> JpegLayout:
+    """Read the quantisation tables (DQT) and sampling factors (SOF0..SOF2) of a JPEG file.
+
+    Raises
+    ------
+    ImageLoadError
+        When ``data`` is not a JPEG or its segments up to the scan are malformed.
+    """
+    if not data.startswith(_JPEG_MAGIC):
+        raise ImageLoadError(f"{name}: not a JPEG file")
+    tables: dict[int, tuple[int, ...]] = {}
+    sampling: tuple[tuple[int, int], ...] = ()
+    pos = 2
+    while pos + 4 <= len(data):
+        if data[pos] != 0xFF:
+            raise ImageLoadError(f"{name}: malformed JPEG segment at byte {pos}")
+        marker = data[pos + 1]
+        if marker == 0xFF:  # fill byte
+            pos += 1
+            continue
+        length = int.from_bytes(data[pos + 2:pos + 4], "big")
+        body = data[pos + 4:pos + 2 + length]
+        if length < 2 or len(body) != length - 2:
+            raise ImageLoadError(f"{name}: truncated JPEG segment at byte {pos}")
+        if marker == 0xDB:  # DQT: one or more tables
+            k = 0
+            while k < len(body):
+                precision, table_id = body[k] >> 4, body[k] & 0x0F
+                size = 128 if precision else 64
+                raw = body[k + 1:k + 1 + size]
+                values = (tuple(int.from_bytes(raw[i:i + 2], "big") for i in range(0, 128, 2))
+                          if precision else tuple(raw))
+                if len(values) != 64:
+                    raise ImageLoadError(f"{name}: truncated JPEG quantisation table")
+                tables[table_id] = values
+                k += 1 + size
+        elif marker in (0xC0, 0xC1, 0xC2):  # SOF: components and their sampling
+            n = body[5]
+            sampling = tuple((body[6 + 3 * c + 1] >> 4, body[6 + 3 * c + 1] & 0x0F)
+                             for c in range(n))
+        elif marker == 0xDA:  # start of scan: the tables come before it
+            break
+        pos += 2 + length
+    if not tables or not sampling:
+        raise ImageLoadError(f"{name}: JPEG without quantisation tables or frame header")
+    return JpegLayout(tables=tables, sampling=sampling)
+
+
+def jpeg_quality(data: bytes, *, name: str = "image") -> int | None:
+    """The quality at which :func:`encode_jpeg` (``cv2.imwrite``'s default encoder) writes the
+    same quantisation tables and sampling as this JPEG file, or None when no quality does.
+
+    Raises
+    ------
+    ImageLoadError
+        When ``data`` is not a readable JPEG.
+    """
+    want = jpeg_layout(data, name=name)
+    probe = np.zeros((16, 16, 3), np.uint8)
+    for quality in range(100, 0, -1):
+        if jpeg_layout(encode_jpeg(probe, quality=quality)) == want:
+            return quality
+    return None

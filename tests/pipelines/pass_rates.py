@@ -1,7 +1,8 @@
-"""Pass rates of the built-in profiles and the five competition-style pipelines on generated
+"""Pass rates of the built-in profiles and the seven competition-style pipelines on generated
 scenes, against each area reference: the evidence behind the README's preset table.
 
-Every scene is rendered once, in memory, and every pipeline runs on that same image; each
+Every scene is rendered once, in memory, encoded and decoded as ``arenabench generate`` writes
+it (``output.format``: JPEG for ``eyrc``), and every pipeline runs on that same image; each
 answer is scored against every reference. From the repository root::
 
     .venv/bin/python tests/pipelines/pass_rates.py --count 200 --seed 0
@@ -27,9 +28,9 @@ HERE = Path(__file__).resolve().parent
 if str(HERE) not in sys.path:
     sys.path.insert(0, str(HERE))
 
-#: The five competition-style test pipelines (modules in this folder).
+#: The seven competition-style test pipelines (modules in this folder).
 STYLES = ("style_detection_index", "style_blur127", "style_grey_band", "style_canny",
-          "style_warp400")
+          "style_warp400", "style_otsu_every_contour", "style_blur11_warp1030")
 #: Every pipeline the table covers: the built-in profiles, then the styles.
 PIPELINES = ("reference", "seed", *(f"{s}:detect" for s in STYLES))
 REFERENCES = ("visible", "contour")
@@ -93,10 +94,15 @@ def score_preset(
     from arenabench.eval.metrics import score_image
     from arenabench.eval.pipelines import make_pipeline
     from arenabench.generator import Renderer, make_sample
+    from arenabench.generator.presets import resolve
     from arenabench.generator.sampler import SamplingError
+    from arenabench.imageio import decode_image, encode_image
 
     pipes = {spec: make_pipeline(spec) for spec in pipelines}
     tallies = {spec: Tally() for spec in pipelines}
+    params = resolve(preset, overrides or {})
+    output = {"image_format": params["output.format"],
+              "jpeg_quality": params["output.jpeg_quality"]}
     with Renderer() as renderer:
         for index in range(count):
             try:
@@ -104,7 +110,8 @@ def score_preset(
                                      renderer=renderer)
             except SamplingError:
                 continue
-            bgr = sample.bgr
+            # the image as `arenabench generate` writes it (a JPEG round trip for `eyrc`)
+            bgr = decode_image(encode_image(sample.bgr, **output))
             scored = DatasetItem(id=sample.id, image_path=Path(f"{sample.id}.png"),
                             gt_path=Path(f"{sample.id}.json"), gt=sample.gt)
             truths = {ref: scored.truth(area_reference=ref) for ref in references}
