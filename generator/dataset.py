@@ -599,7 +599,6 @@ def _generate_locked(
     # ours (same arguments) or empty: files a killed run was writing are garbage
     for folder in (root, root / "images", root / "gt"):
         remove_temp_files(folder)
-    image_format, jpeg_quality = args.output
     todo = [i for i in range(args.count) if not _present(root, scene_id(i), args.image_ext)]
     skipped = args.count - len(todo)
     if meta is not None and meta.get("complete") and not todo:
@@ -629,6 +628,7 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
     if meta is None or meta["args"].get("count") != args.count:
         _write_meta(root, args, complete=False)
     stored = args.to_dict()
+    image_format, jpeg_quality = args.output
     tasks = [RenderTask(args=stored, seed=args.seed, index=i, out=str(root),
                         image_format=image_format, jpeg_quality=jpeg_quality) for i in todo]
     results: list[dict[str, Any]] = []

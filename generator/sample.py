@@ -54,13 +54,13 @@ from arenabench.workers import thread_state
 #: on the obstacles' region, instead of 4x MSAA averaged in sRGB (docs/rendering.md); images
 #: change along box outlines only.
 #: 6: (a) textures sampled as ogre2 samples a diffuse map: stored as sRGB, the mip chain
-#: averaged in linear light, trilinear (was: sRGB values filtered as they are, nearest mip level); marker
-#: edges, border lines and logos change, uniform regions do not (docs/rendering.md). `eyrc`
-#: writes JPEG at quality 95, 4:2:0 (``output.format``, ``output.jpeg_quality``): its images
-#: are ``images/NNNNNN.jpg`` and its GT records that path.
-#: (b) derived facts of each scene in the GT's ``params`` (``derived.*``: largest box aspect
-#: ratio, smallest distance from a box to the frame's edge, touching boxes, smallest gap
-#: between boxes; generator/scene_facts.py); images unchanged.
+#: averaged in linear light, trilinear (was: sRGB values filtered as they are, nearest mip
+#: level); marker edges, border lines and logos change, uniform regions do not
+#: (docs/rendering.md). `eyrc` writes JPEG at quality 95, 4:2:0 (``output.format``,
+#: ``output.jpeg_quality``): its images are ``images/NNNNNN.jpg`` and its GT records that
+#: path. (b) derived facts of each scene in the GT's ``params`` (``derived.*``: largest box
+#: aspect ratio, smallest distance from a box to the frame's edge, touching boxes, smallest
+#: gap between boxes; generator/scene_facts.py).
 GENERATOR_VERSION = "6"
 
 #: A post-render hook: (rgb uint8 (H, W, 3), rng) -> rgb uint8 (H, W, 3).
