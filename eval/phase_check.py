@@ -208,17 +208,24 @@ class PhaseImage:
     gt: GroundTruth
 
 
-def _encode(bgr: np.ndarray, suffix: str) -> bytes:
-    import cv2
+def _encode(bgr: np.ndarray, suffix: str, *, preset: str | None) -> bytes:
+    """Encode a phase image as the dataset's writer encodes the scene's preset (PNG, or JPEG at
+    the preset's ``output.jpeg_quality``)."""
+    from arenabench.imageio import IMAGE_EXTENSIONS, encode_image
 
-    if suffix.lower() == ".png":
-        from arenabench.imageio import encode_png
-
-        return encode_png(bgr)
-    ok, buf = cv2.imencode(suffix, bgr)  # OpenCV's defaults (JPEG: quality 95, 4:2:0)
-    if not ok:
+    ext = suffix.lower().lstrip(".")
+    image_format = next((f for f, e in IMAGE_EXTENSIONS.items() if ext in (e, f)), None)
+    if image_format is None:
         raise ValueError(f"cannot encode an image as {suffix!r}")
-    return buf.tobytes()
+    quality = 95
+    if image_format == "jpeg" and preset:
+        from arenabench.generator.presets import get_preset
+
+        try:
+            quality = int(get_preset(preset).get("output.jpeg_quality", quality))
+        except ValueError:  # a preset this version does not know: cv2.imwrite's default
+            pass
+    return encode_image(bgr, image_format=image_format, jpeg_quality=quality)
 
 
 def render_phases(gt: GroundTruth, *, phases: int, folder: Path, suffix: str = ".png",
@@ -268,7 +275,8 @@ def render_phases(gt: GroundTruth, *, phases: int, folder: Path, suffix: str = "
         if not degradations.is_neutral:
             rgb = apply_degradations(rgb, degradations, degrade_rng(gt.seed, gt.index))
         path = folder / f"phase-{i:02d}{suffix}"
-        path.write_bytes(_encode(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), suffix))
+        path.write_bytes(_encode(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), suffix,
+                                 preset=gt.preset))
         record = ground_truth_record(moved, sid=gt.id, preset=gt.preset, seed=gt.seed,
                                      index=gt.index, params=sampled, frame=frame)
         yield PhaseImage(path=path, gt=record)
