@@ -51,8 +51,10 @@ examples:
 The twin set is generated once per (preset, seed, count, generator version) into the cache
 (ARENABENCH_CACHE_DIR, else $XDG_CACHE_HOME/arenabench, else ~/.cache/arenabench: sets/) and
 reused. The script runs as '{python} SCRIPT --image IMAGE' (the Python running arenabench,
-which has OpenCV; --python for another) with its own folder visible read-only and a private
-working directory where it writes obstacles.txt; exit status 3 means markers not found.
+which has OpenCV; --python for another) with its own folder visible read-only and, as its
+working directory, a private copy of that folder (what the competition's run in the script's
+folder amounts to, without letting one run see another's obstacles.txt); exit status 3 means
+markers not found.
 
 exit status: 0 pass rate >= --fail-under, 1 below it, 2 bad input, 130/143 interrupted.
 """
@@ -202,8 +204,15 @@ def _main(argv: list[str] | None) -> int:
     except OutputPathError as exc:
         return _error(f"--out {out}: {exc}")
     template = f"{shlex.quote(args.python)} {shlex.quote(str(script))} --image {{image}}"
+    from dataclasses import replace
+
     try:
-        pipeline = CommandPipeline(template, settings=run_settings_from_args(args),
+        # the working directory holds a copy of the script's folder, as when the competition
+        # ran the script there: relative reads work, obstacles.txt lands in the copy
+        base = run_settings_from_args(args)
+        settings = replace(base, workdir_from=str(script.parent),  # and no __pycache__ there
+                           env={"PYTHONDONTWRITEBYTECODE": "1", **base.env})
+        pipeline = CommandPipeline(template, settings=settings,
                                    name=script.name, base_dir=str(script.parent))
     except ValueError as exc:
         return _error(str(exc))

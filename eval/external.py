@@ -464,6 +464,23 @@ class CommandPipeline:
             return system
         return f"{os.path.dirname(self._executable)}:{system}"
 
+    def fill_workdir(self, work: str, image_path: Path) -> str | None:
+        """Fill a run's private working directory ``work`` (cold and warm runs alike): the files
+        of ``settings.workdir_from``, if any, then the image's copy. Returns ``None``, or why
+        it failed (one line)."""
+        try:
+            if self.settings.workdir_from:
+                shutil.copytree(self.settings.workdir_from, work, symlinks=True,
+                                dirs_exist_ok=True, ignore=shutil.ignore_patterns(
+                                    "__pycache__", ".git", OBSTACLES_FILE))
+        except (OSError, shutil.Error) as exc:
+            return f"cannot copy {self.settings.workdir_from} into the run's folder: {exc}"
+        try:
+            shutil.copyfile(image_path, os.path.join(work, self.image_name(image_path)))
+        except OSError as exc:
+            return f"cannot copy the image: {exc}"
+        return None
+
     def _env(self, home: str, tmp: str) -> dict[str, str]:
         """The command's whole environment (cold runs, warm servers and warm runs alike);
         under bubblewrap ``PATH`` names no host folder (:meth:`_sandbox_path`)."""
@@ -522,10 +539,9 @@ class CommandPipeline:
         work, tmp = os.path.join(rundir, "work"), os.path.join(rundir, "tmp")
         os.mkdir(work)
         os.mkdir(tmp)
-        try:
-            shutil.copyfile(image_path, os.path.join(work, self.image_name(image_path)))
-        except OSError as exc:
-            return Prediction(status="crash", message=f"cannot copy the image: {exc}")
+        problem = self.fill_workdir(work, image_path)
+        if problem:
+            return Prediction(status="crash", message=problem)
         lim = self.limits
         if self.sandbox == "bwrap":
             argv = self._bwrap_argv(work, tmp, image_path) + self.argv(image_path)

@@ -92,6 +92,13 @@ class RunSettings:
         Run a Python script through a warm interpreter of its command (a fork server, see
         :mod:`arenabench.eval.warm_client`); ``False`` (``--no-warm``): a new process per
         image. It does not change what a script computes, so it is not in :meth:`to_dict`.
+    workdir_from : str, optional
+        A folder whose files are copied into every run's private working directory before the
+        image (``arenabench check``: the script's own folder, so that the script finds the files
+        it reads relative to its working directory, as when the competition ran it there, and
+        writes ``obstacles.txt`` beside them without touching the original). At most
+        :data:`~arenabench.limits.MAX_WORKDIR_COPY_BYTES` in
+        :data:`~arenabench.limits.MAX_WORKDIR_COPY_FILES` files.
     """
 
     limits: RunLimits = field(default_factory=RunLimits)
@@ -99,10 +106,11 @@ class RunSettings:
     image_name: str | None = None
     env: Mapping[str, str] = field(default_factory=dict)
     warm: bool = True
+    workdir_from: str | None = None
 
     def __hash__(self) -> int:  # env is a dict: hash its items (settings key worker caches)
         return hash((self.limits, self.sandbox, self.image_name, tuple(sorted(self.env.items())),
-                     self.warm))
+                     self.warm, self.workdir_from))
 
     def to_dict(self) -> dict[str, object]:
         """JSON form (records of sweeps and gradings)."""
@@ -115,7 +123,7 @@ class RunSettings:
             "sandbox": self.sandbox,
             "image_name": self.image_name,
             "env": dict(self.env),
-        }
+        } | ({"workdir_from": self.workdir_from} if self.workdir_from is not None else {})
 
     @classmethod
     def from_dict(cls, d: Mapping[str, object]) -> RunSettings:
@@ -127,6 +135,7 @@ class RunSettings:
             sandbox=str(d.get("sandbox", DEFAULT_SANDBOX)),
             image_name=d.get("image_name"),  # type: ignore[arg-type]
             env=dict(d.get("env") or {}),  # type: ignore[call-overload]
+            workdir_from=d.get("workdir_from"),  # type: ignore[arg-type]
         )
 
     def __post_init__(self) -> None:
@@ -136,6 +145,36 @@ class RunSettings:
             not self.image_name or "/" in self.image_name or self.image_name in (".", "..")
         ):
             raise ValueError(f"image_name must be a plain file name, got {self.image_name!r}")
+        if self.workdir_from is not None:
+            _check_workdir_from(self.workdir_from)
+
+
+def _check_workdir_from(folder: str) -> None:
+    """Refuse a ``workdir_from`` that is not a folder or is larger than the limits (walked
+    without recursion, links not followed, stopping at the first limit passed)."""
+    import os
+
+    from arenabench.limits import MAX_WORKDIR_COPY_BYTES, MAX_WORKDIR_COPY_FILES
+
+    if not os.path.isdir(folder):
+        raise ValueError(f"workdir_from: {folder} is not a folder")
+    files, size, stack = 0, 0, [folder]
+    while stack:
+        with os.scandir(stack.pop()) as entries:
+            for entry in entries:
+                if entry.name in ("__pycache__", ".git"):
+                    continue
+                if entry.is_dir(follow_symlinks=False):
+                    stack.append(entry.path)
+                    continue
+                files += 1
+                if entry.is_file(follow_symlinks=False):
+                    size += entry.stat(follow_symlinks=False).st_size
+                if files > MAX_WORKDIR_COPY_FILES or size > MAX_WORKDIR_COPY_BYTES:
+                    raise ValueError(
+                        f"{folder} is too large to copy into every run's folder (more than "
+                        f"{MAX_WORKDIR_COPY_FILES} files or {MAX_WORKDIR_COPY_BYTES >> 20} MiB): "
+                        "keep the script and the files it reads in a folder of their own")
 
 
 def run_settings_from_args(args: argparse.Namespace) -> RunSettings:

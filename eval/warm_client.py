@@ -238,10 +238,9 @@ class WarmServer:
         try:
             os.mkdir(work)
             os.mkdir(tmp)
-            try:
-                shutil.copyfile(image_path, os.path.join(work, pipe.image_name(image_path)))
-            except OSError as exc:
-                return Prediction(status="crash", message=f"cannot copy the image: {exc}")
+            problem = pipe.fill_workdir(work, Path(image_path))
+            if problem:
+                return Prediction(status="crash", message=problem)
             return self._run_in(pipe, image_path, token, rundir, work, tmp)
         finally:
             shutil.rmtree(rundir, ignore_errors=True)

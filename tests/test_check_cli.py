@@ -95,3 +95,29 @@ def test_bad_input_exits_2_before_any_work(args, needle, tmp_path):
     assert proc.returncode == 2, proc.stdout + proc.stderr
     assert needle in proc.stderr.strip().splitlines()[-1]
     assert not cache.exists()
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("warm", ["warm", "--no-warm"])
+def test_a_script_reads_files_beside_it_from_its_working_directory(cache, tmp_path, warm):
+    """As when the competition ran map.py in its folder: the working directory holds (a copy
+    of) the script's files, and obstacles.txt is written there, never into the original."""
+    import shutil
+
+    team = tmp_path / "team"
+    team.mkdir()
+    for name in ("style_blur127.py", "competition_style.py"):
+        shutil.copy(PIPELINES / name, team / name)
+    (team / "settings.txt").write_text("blur127\n")
+    (team / "map.py").write_text(
+        "import runpy\nfrom pathlib import Path\n"
+        "assert Path('settings.txt').read_text() == 'blur127\\n'  # relative to the cwd\n"
+        "runpy.run_path(str(Path(__file__).with_name('style_blur127.py')), "
+        "run_name='__main__')\n")
+    before = sorted(p.name for p in team.iterdir())
+    extra = () if warm == "warm" else ("--no-warm",)
+    proc = _check(str(team / "map.py"), "--count", "2", "--out", str(tmp_path / "r"), *extra,
+                  cache=cache)
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "PASS: pass rate 100.0 % (2/2" in proc.stdout
+    assert sorted(p.name for p in team.iterdir()) == before  # the original is untouched

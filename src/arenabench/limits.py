@@ -65,6 +65,10 @@ MAX_RUN_BYTES = 1024**5
 
 #: Most processes one external run may be allowed at once (``--max-procs``).
 MAX_RUN_PROCS = 65536
+#: Largest folder copied into every run's working directory (``RunSettings.workdir_from``:
+#: ``arenabench check`` copies the script's folder), in bytes and in files.
+MAX_WORKDIR_COPY_BYTES = 64 * 1024**2
+MAX_WORKDIR_COPY_FILES = 2000
 
 #: Most SSIM refinement rounds of ``fit`` (``--refine-rounds``).
 MAX_REFINE_ROUNDS = 100
