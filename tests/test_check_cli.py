@@ -14,7 +14,8 @@ import pytest
 from arenabench.generator.sample import GENERATOR_VERSION
 
 PIPELINES = Path(__file__).resolve().parent / "pipelines"
-# Scene 3 of seed 0 is one the Canny style loses at the example's phases (docs/rendering.md).
+# Scenes 1 and 3 of seed 0 (generator version 6) are ones the Canny style loses at their
+# phases, and wins at others (docs/rendering.md).
 COUNT = 4
 
 
@@ -53,19 +54,21 @@ def test_a_canny_script_fails_by_luck(cache, tmp_path):
     proc = _check(str(PIPELINES / "style_canny.py"), "--count", str(COUNT), "--out", str(out),
                   cache=cache)
     assert proc.returncode == 1, proc.stdout + proc.stderr
-    assert "FAIL: pass rate 75.0 % (3/4" in proc.stdout
+    assert "FAIL: pass rate 50.0 % (2/4" in proc.stdout
     assert "robust failures: 0" in proc.stdout
-    assert "phase-dependent failures: 1 (25.0 %)" in proc.stdout
+    assert "phase-dependent failures: 2 (50.0 %)" in proc.stdout
     assert "would have depended on luck" in proc.stdout
     report = json.loads((out / "report.json").read_text())
-    (failing,) = [i for i in report["images"] if not i["pass"]]
-    assert failing["id"] == "000003" and failing["category"] == "wrong_count"
-    phase = failing["phase"]
-    assert phase["n"] == 8 and 0 < phase["passes"] < 8 and phase["class"] == "phase_dependent"
-    assert report["summary"]["phase_dependent_failure_rate"] == 0.25
+    failing = [i for i in report["images"] if not i["pass"]]
+    assert [i["id"] for i in failing] == ["000001", "000003"]
+    for image in failing:
+        phase = image["phase"]
+        assert image["category"] == "wrong_count"
+        assert phase["n"] == 8 and 0 < phase["passes"] < 8 and phase["class"] == "phase_dependent"
+    assert report["summary"]["phase_dependent_failure_rate"] == 0.5
     # passing with a lower threshold
     ok = _check(str(PIPELINES / "style_canny.py"), "--count", str(COUNT), "--fail-under",
-                "0.75", "--phase-check", "off", "--out", str(tmp_path / "off"), cache=cache)
+                "0.5", "--phase-check", "off", "--out", str(tmp_path / "off"), cache=cache)
     assert ok.returncode == 0 and "phase-dependent" not in ok.stdout
 
 
