@@ -19,6 +19,7 @@ import threading
 from pathlib import Path
 from typing import Any
 
+import cv2
 import numpy as np
 
 from arenabench import glplatform
@@ -105,8 +106,13 @@ class SrgbTexture(pyrender.Texture):
     GL decodes its texels to linear light before filtering them, and ``glGenerateMipmap``
     averages them in linear light (on Mesa and the common drivers; ``tests/test_twin_fidelity.py``
     checks the levels llvmpipe makes). Drawn by :data:`SRGB_TEXTURE_FRAG`, which encodes the
-    filtered colour back to sRGB.
+    filtered colour back to sRGB. ``srgb_space_mips=True``: the mip levels are averaged in sRGB
+    values instead (drawn marker sheets, as up to generator version 5).
     """
+
+    def __init__(self, *args, srgb_space_mips: bool = False, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.srgb_space_mips = srgb_space_mips
 
     def _add_to_context(self):
         if self._texid is not None:
@@ -119,7 +125,19 @@ class SrgbTexture(pyrender.Texture):
         data = np.ascontiguousarray(src[::-1])  # GL rows run bottom-up
         GL.glTexImage2D(self.tex_type, 0, GL.GL_SRGB8_ALPHA8, src.shape[1], src.shape[0], 0,
                         GL.GL_RGBA, GL.GL_UNSIGNED_BYTE, data)
-        GL.glGenerateMipmap(self.tex_type)
+        if self.srgb_space_mips:
+            # levels averaged in sRGB values, as a plain RGBA8 texture's glGenerateMipmap made
+            # them up to generator version 5 (drawn marker sheets: render.py)
+            level, image = 0, data
+            while max(image.shape[:2]) > 1:
+                h, w = max(1, image.shape[0] // 2), max(1, image.shape[1] // 2)
+                image = np.ascontiguousarray(
+                    cv2.resize(image, (w, h), interpolation=cv2.INTER_AREA))
+                level += 1
+                GL.glTexImage2D(self.tex_type, level, GL.GL_SRGB8_ALPHA8, w, h, 0, GL.GL_RGBA,
+                                GL.GL_UNSIGNED_BYTE, image)
+        else:
+            GL.glGenerateMipmap(self.tex_type)
         GL.glTexParameteri(self.tex_type, GL.GL_TEXTURE_MAG_FILTER, self.sampler.magFilter)
         GL.glTexParameteri(self.tex_type, GL.GL_TEXTURE_MIN_FILTER, self.sampler.minFilter)
         GL.glTexParameteri(self.tex_type, GL.GL_TEXTURE_WRAP_S, self.sampler.wrapS)

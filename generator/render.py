@@ -51,6 +51,12 @@ _GL_LINEAR = 9729
 #: Trilinear: ogre2's default sampler (``HlmsSamplerblock``: min, mag and mip filters
 #: ``FO_LINEAR``, anisotropy 1), which Gazebo's materials keep (docs/rendering.md).
 _GL_LINEAR_MIPMAP_LINEAR = 9987
+#: Bilinear in the nearest mip level, the levels averaged in sRGB values: drawn marker sheets
+#: (robustness presets; the competition's markers are printed in its floor texture and sampled
+#: as ogre2 does). A drawn marker a few px a module wide stays as dark, and as detectable, as in
+#: generator version 5: linear-light mips and trilinear filtering made small markers' black
+#: modules lighter, and cv2.aruco lost them at 640 x 480 and under rotated cameras.
+_GL_LINEAR_MIPMAP_NEAREST = 9985
 _GL_CLAMP_TO_EDGE = 33071
 
 
@@ -59,17 +65,19 @@ _GL_CLAMP_TO_EDGE = 33071
 _UNIT_QUAD = np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]])
 
 
-def _texture(compat, image: np.ndarray):
+def _texture(compat, image: np.ndarray, *, min_filter: int = _GL_LINEAR_MIPMAP_LINEAR):
     """A texture of an RGB ``image`` as ogre2 makes one of a diffuse map: sRGB, its mip chain
     averaged in linear light, sampled trilinearly in linear light
-    (:class:`~arenabench.generator.pyrender_compat.SrgbTexture`)."""
+    (:class:`~arenabench.generator.pyrender_compat.SrgbTexture`); ``min_filter``
+    :data:`_GL_LINEAR_MIPMAP_NEAREST` for drawn marker sheets."""
     sampler = compat.pyrender.Sampler(
-        magFilter=_GL_LINEAR, minFilter=_GL_LINEAR_MIPMAP_LINEAR,
+        magFilter=_GL_LINEAR, minFilter=min_filter,
         wrapS=_GL_CLAMP_TO_EDGE, wrapT=_GL_CLAMP_TO_EDGE,
     )
     # RGBA keeps every row 4-byte aligned (GL's default unpack alignment) whatever the width.
     rgba = np.concatenate([image, np.full((*image.shape[:2], 1), 255, np.uint8)], axis=2)
-    return compat.SrgbTexture(source=rgba, source_channels="RGBA", sampler=sampler)
+    return compat.SrgbTexture(source=rgba, source_channels="RGBA", sampler=sampler,
+                              srgb_space_mips=min_filter == _GL_LINEAR_MIPMAP_NEAREST)
 
 
 def _textured_quad(pyrender, corners_xy: np.ndarray, z: float, texture, factor: float):
@@ -194,12 +202,12 @@ class Renderer(SceneRenderer):
             self._offscreen.resize(width, height)
         self._size = (width, height)
 
-    def _cached_texture(self, image: np.ndarray):
+    def _cached_texture(self, image: np.ndarray, *, min_filter: int = _GL_LINEAR_MIPMAP_LINEAR):
         hit = self._textures.get(id(image))
         if hit is None or hit[0] is not image:
             if len(self._textures) >= 64:
                 self._textures.clear()
-            hit = (image, _texture(self._compat, image))
+            hit = (image, _texture(self._compat, image, min_filter=min_filter))
             self._textures[id(image)] = hit
         return hit[1]
 
@@ -231,8 +239,9 @@ class Renderer(SceneRenderer):
             for node in self._marker_nodes:
                 self._scene.remove_node(node)
             self._marker_nodes = [
-                self._scene.add(_textured_quad(pr, _UNIT_QUAD, 0.0,
-                                               self._cached_texture(image), f),
+                self._scene.add(_textured_quad(
+                    pr, _UNIT_QUAD, 0.0,
+                    self._cached_texture(image, min_filter=_GL_LINEAR_MIPMAP_NEAREST), f),
                                 name=_node_name("marker", k))
                 for k, (image, _) in enumerate(sheets)
             ]
