@@ -390,7 +390,8 @@ def _versions(gl: dict[str, str] | None) -> dict[str, str]:
     return out
 
 
-def _manifest_line(sid: str, ext: str, image_sha256: str, gt_sha256: str) -> str:
+def manifest_line(sid: str, ext: str, image_sha256: str, gt_sha256: str) -> str:
+    """One ``manifest.jsonl`` line (the dataset writer's and ``arenabench render``'s)."""
     return dumps_json_line({
         "id": sid, "image": image_file(sid, ext), "gt": f"gt/{sid}.json",
         "image_sha256": image_sha256, "gt_sha256": gt_sha256,
@@ -405,7 +406,7 @@ def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
         gt_path, img_path = out / "gt" / f"{sid}.json", out / image_file(sid, ext)
         gt_bytes = gt_path.read_bytes()
         gts.append(GroundTruth.from_dict(json.loads(gt_bytes)))
-        lines.append(_manifest_line(sid, ext, sha256_file(img_path), sha256_bytes(gt_bytes)))
+        lines.append(manifest_line(sid, ext, sha256_file(img_path), sha256_bytes(gt_bytes)))
     atomic_write_text(out / "manifest.jsonl", "".join(lines))
     atomic_write_json(out / "coco.json", coco_from_gts(gts))
     _write_meta(out, args, complete=True, gl=gl)
@@ -435,7 +436,7 @@ def _finish_partial(out: Path, args: DatasetArgs, results: list[dict[str, Any]])
         if sid not in known:
             known[sid] = (sha256_file(out / image_file(sid, ext)),
                           sha256_file(out / "gt" / f"{sid}.json"))
-        lines.append(_manifest_line(sid, ext, *known[sid]))
+        lines.append(manifest_line(sid, ext, *known[sid]))
     atomic_write_text(out / "manifest.jsonl", "".join(lines))
     _write_meta(out, args, complete=False, finished=len(lines))
     return len(lines)

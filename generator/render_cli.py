@@ -34,7 +34,7 @@ def render_scene_files(scene: Scene, out: str | Path, *, source: str = "scene") 
     import cv2
 
     from arenabench.fileio import atomic_write_bytes, atomic_write_text, dumps_json, sha256_bytes
-    from arenabench.generator.dataset import _manifest_line
+    from arenabench.generator.dataset import manifest_line
     from arenabench.generator.render import Renderer
     from arenabench.imageio import encode_png
 
@@ -46,7 +46,7 @@ def render_scene_files(scene: Scene, out: str | Path, *, source: str = "scene") 
     image = atomic_write_bytes(out / "images" / "000000.png", png)
     atomic_write_bytes(out / "gt" / "000000.json", gt)
     atomic_write_text(out / "manifest.jsonl",
-                      _manifest_line("000000", sha256_bytes(png), sha256_bytes(gt)))
+                      manifest_line("000000", "png", sha256_bytes(png), sha256_bytes(gt)))
     return image
 
 
