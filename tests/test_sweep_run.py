@@ -174,7 +174,7 @@ def test_random_sweep_two_parameters_heat_map_and_kept_failures(tmp_path):
     assert len(heat) == 1
     rows = [json.loads(line) for line in (out / "results.jsonl").read_text().splitlines()]
     failed = {f"p{r['point']:04d}_s{r['scene']:06d}" for r in rows if not r["pass"]}
-    kept = {p.stem for p in (out / "images").glob("*.png")} if (out / "images").exists() else set()
+    kept = {p.stem for p in (out / "images").glob("*.*")} if (out / "images").exists() else set()
     assert kept == failed
     assert all((r["image"] != "") == (not r["pass"]) for r in rows)
 

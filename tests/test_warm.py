@@ -169,7 +169,7 @@ class _KeepAnswer(CommandPipeline):
 
     def _interpret(self, result, stdout, stderr, workdir):
         path = Path(workdir, "obstacles.txt")
-        self.answers[_sha(Path(workdir, "image.png"))] = (
+        self.answers[_sha(next(Path(workdir).glob("image.*")))] = (
             path.read_bytes() if path.exists() else None, result["rc"], stdout, stderr)
         return super()._interpret(result, stdout, stderr, workdir)
 
