@@ -136,8 +136,8 @@ def _run(args: argparse.Namespace) -> int:
     for key, value in rows:
         print(f"   {key:<{width}}  {value}")
     print(f"   report files in {report_dir}/ (report.json, results.csv, report.md, junit.xml)")
-    print(f"open the HTML report: {written['html'].resolve()}")
     print(_on_path_hint())
+    print(f"open the HTML report: {written['html'].resolve()}")  # the story ends here
     return 0
 
 

@@ -1,7 +1,10 @@
 """Sweeping what killed runs of external commands left behind.
 
 A run's private directory is ``$TMPDIR/arenabench-run-<harness pid>-XXXX`` and its pids cgroup
-``<parent>/arenabench-run-<launcher pid>``; both are removed when the run ends. When the whole
+``<parent>/arenabench-run-<launcher pid>``; a warm server's folder is
+``$TMPDIR/arenabench-warm-<harness pid>-XXXX`` and its cgroup
+``<parent>/arenabench-warm-<harness pid>-<n>``; all are removed when the run or the server
+ends. When the whole
 process group is killed with SIGKILL (harness and launchers together) nothing is left to
 remove them, so the next run that starts external commands removes those whose owner process
 is gone (:func:`sweep_stale_runs`, once per process). A folder whose pid is alive is never
@@ -19,9 +22,11 @@ from pathlib import Path
 
 #: Name prefix of run directories and run cgroups.
 RUN_PREFIX = "arenabench-run-"
+#: Name prefix of warm servers' folders and cgroups (:mod:`arenabench.eval.warm_client`).
+WARM_PREFIX = "arenabench-warm-"
 
-_RUN_DIR = re.compile(rf"^{RUN_PREFIX}(\d+)-")
-_RUN_CGROUP = re.compile(rf"^{RUN_PREFIX}(\d+)$")
+_RUN_DIR = re.compile(rf"^(?:{RUN_PREFIX}|{WARM_PREFIX})(\d+)-")
+_RUN_CGROUP = re.compile(rf"^(?:{RUN_PREFIX}(\d+)|{WARM_PREFIX}(\d+)-\d+)$")
 _SWEPT = threading.Event()
 _LOCK = threading.Lock()
 
@@ -29,6 +34,11 @@ _LOCK = threading.Lock()
 def run_dir_prefix() -> str:
     """``mkdtemp`` prefix of this process's run directories (names the owner pid)."""
     return f"{RUN_PREFIX}{os.getpid()}-"
+
+
+def warm_dir_prefix() -> str:
+    """``mkdtemp`` prefix of this process's warm servers' folders (names the owner pid)."""
+    return f"{WARM_PREFIX}{os.getpid()}-"
 
 
 def _alive(pid: int) -> bool:
@@ -86,7 +96,7 @@ def sweep_stale_runs(*, tmpdir: str | None = None, cgroup_parent: str | None = N
             groups = []
         for group in groups:
             m = _RUN_CGROUP.match(group.name)
-            if not m or _alive(int(m.group(1))):
+            if not m or _alive(int(m.group(1) or m.group(2))):
                 continue
             if _remove_cgroup(group):
                 removed.append(str(group))

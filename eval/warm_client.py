@@ -47,6 +47,7 @@ from typing import TYPE_CHECKING
 from arenabench.fileio import dumps_json_line
 
 from .records import Prediction, tail
+from .stale_runs import WARM_PREFIX, warm_dir_prefix
 
 if TYPE_CHECKING:
     from .external import CommandPipeline
@@ -130,7 +131,7 @@ class WarmServer:
     def __init__(self, pipe: CommandPipeline, image_path: Path, target: WarmTarget) -> None:
         self.target = target
         self.isolate = pipe.sandbox == "bwrap"
-        self.home = tempfile.mkdtemp(prefix="arenabench-warm-")
+        self.home = tempfile.mkdtemp(prefix=warm_dir_prefix())  # names its owner: stale_runs
         self.cgroup: str | None = None
         self.keep: list[str] = []
         self._lock = threading.Lock()
@@ -155,7 +156,7 @@ class WarmServer:
         server = [python, "-c", SERVER_SOURCE.read_text(), str(theirs.fileno()), self.home]
         if self.isolate:
             if pipe._cgroup:
-                cg = os.path.join(pipe._cgroup, f"arenabench-warm-{os.getpid()}-{next(_counter)}")
+                cg = os.path.join(pipe._cgroup, f"{WARM_PREFIX}{os.getpid()}-{next(_counter)}")
                 os.mkdir(cg)
                 self.cgroup = cg
             argv = pipe._bwrap_argv(base_work, base_tmp, image_path)

@@ -489,7 +489,9 @@ def test_ptrace_of_the_launcher_is_refused_and_the_timeout_holds(sandbox, toy, r
 @pytest.mark.parametrize("target", ["harness", "group"])
 def test_sigterm_with_a_command_that_ignores_it_is_not_exit_0(toy, tmp_path, target):
     script = tmp_path / "ignore_term.py"
-    script.write_text("import signal, time\nsignal.signal(signal.SIGTERM, signal.SIG_IGN)\n"
+    started = tmp_path / "started.pid"  # the command's pid (warm or cold: its cmdline differs)
+    script.write_text("import os, signal, time\nsignal.signal(signal.SIGTERM, signal.SIG_IGN)\n"
+                      f"open({str(started)!r}, 'w').write(str(os.getpid()))\n"
                       "time.sleep(60)\n")
     out = tmp_path / "out"
     proc = subprocess.Popen(
@@ -497,8 +499,8 @@ def test_sigterm_with_a_command_that_ignores_it_is_not_exit_0(toy, tmp_path, tar
          "--sandbox", "none", "--workers", "1", "--no-progress", "--out", str(out)],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
     try:
-        # the command itself (its image argument is the private copy, not "{image}")
-        assert wait_for(lambda: processes_with(f"{script} /"), timeout=60)
+        assert wait_for(lambda: started.exists() and started.read_text(), timeout=60)
+        pid = int(started.read_text())
         if target == "group":
             os.killpg(proc.pid, signal.SIGTERM)
         else:
@@ -508,4 +510,12 @@ def test_sigterm_with_a_command_that_ignores_it_is_not_exit_0(toy, tmp_path, tar
         proc.kill()
     assert proc.returncode == 143, err
     assert "Traceback" not in err
-    assert wait_for(lambda: not processes_with(f"{script} /"), timeout=10)
+
+    def gone() -> bool:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return True
+        return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
+
+    assert wait_for(gone, timeout=10)

@@ -151,6 +151,7 @@ def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp
     data = shared / "set"
     shutil.copytree(seed3_set, data)
     (data / "images").rename(data / "pics")
+    data_suffix = next((data / "pics").iterdir()).suffix  # .jpg for eyrc
     lines = (data / "manifest.jsonl").read_text().replace('"images/', '"pics/')
     (data / "manifest.jsonl").write_text(lines)
     (shared / "config.txt").write_text("x")
@@ -189,7 +190,7 @@ def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp
         assert pid1[1] == "-c" and "warm interpreter" in pid1[2]
     else:
         assert pid1[1] == str(subs / "snoop" / "map.py")
-        assert pid1[2:4] == ["--image", "/sandbox/image.png"]
+        assert pid1[2] == "--image" and pid1[3] == "/sandbox/image" + data_suffix
     assert sys.executable.split("/bin/")[0] in seen["environ"]  # PATH: the interpreter's bin
     assert os.environ["PATH"] not in seen["environ"]
 

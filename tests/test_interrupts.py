@@ -334,7 +334,8 @@ def test_second_sigint_grade_exits_130(toy3, tmp_path, delay):
         (teams / team / "map.py").write_text("import time\ntime.sleep(1.5)\n")
     out = tmp_path / "out"
     proc = _arenabench("grade", str(toy3), str(teams), "--out", str(out), "--workers", "2",
-                       "--sandbox", "none", "--no-progress")
+                       "--sandbox", "none", "--no-progress", "--allow-guessable-seed",
+                       "--cmd", "{python} {submission}/map.py --image {image}")
     time.sleep(3.0)
     rc, err = _double_sigint(proc, delay)
     assert rc == 130, err

@@ -17,7 +17,8 @@ from arenabench.generator.dataset import generate_dataset  # noqa: E402
 for seed in range(4):
     out = Path(tempfile.mkdtemp()) / "guess"
     generate_dataset(out, preset="eyrc", count=1, seed=seed, workers=1, progress=False)
-    if (out / "images" / "000000.png").read_bytes() == image:
+    (guess,) = (out / "images").glob("000000.*")  # PNG or JPEG, as the preset writes it
+    if guess.read_bytes() == image:
         gt = json.loads((out / "gt" / "000000.json").read_text())
         print(f"found seed {seed}", file=sys.stderr)
         Path("obstacles.txt").write_text(
