@@ -17,7 +17,7 @@ COMPARED_METRICS: tuple[Metric, ...] = GATED
 class Comparison:
     """What changed between two reports."""
 
-    metrics: list[tuple[str, Any, Any, bool]]  # (name, old, new, higher_is_better)
+    metrics: list[tuple[str, Any, Any, str]]  # (name, old, new, direction of the registry)
     newly_failing: list[tuple[str, str | None]]  # (id, new category)
     newly_passing: list[tuple[str, str | None]]  # (id, old category)
     category_changed: list[tuple[str, str | None, str | None]]
@@ -28,7 +28,7 @@ class Comparison:
 def compare(old: Report, new: Report) -> Comparison:
     """Compare ``old`` with ``new`` (images matched by id)."""
     so, sn = old.summary.to_dict(), new.summary.to_dict()
-    metrics = [(m.name, lookup(so, m.name), lookup(sn, m.name), m.direction == "higher")
+    metrics = [(m.name, lookup(so, m.name), lookup(sn, m.name), m.direction)
                for m in COMPARED_METRICS]
     a = {r.id: r for r in old.images}
     b = {r.id: r for r in new.images}

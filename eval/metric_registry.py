@@ -16,7 +16,6 @@ To add a metric: compute it into :class:`~arenabench.eval.records.Summary` (and 
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -187,12 +186,6 @@ def summary_row_groups(group: str) -> list[tuple[str, tuple[Metric, ...]]]:
         if m.group == group:
             rows.setdefault(m.row, []).append(m)
     return [(row, tuple(ms)) for row, ms in rows.items()]
-
-
-def is_finite_number(value: Any) -> bool:
-    """Whether ``value`` is a finite int or float (not a bool)."""
-    return (isinstance(value, (int, float)) and not isinstance(value, bool)
-            and math.isfinite(value))
 
 
 def metrics_table_markdown() -> str:
