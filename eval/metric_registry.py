@@ -188,6 +188,32 @@ def summary_row_groups(group: str) -> list[tuple[str, tuple[Metric, ...]]]:
     return [(row, tuple(ms)) for row, ms in rows.items()]
 
 
+def names_by_direction(direction: str) -> str:
+    """The gated metrics of ``direction`` for help texts: members of one object joined
+    (``area_rel_err.median|p95|max``), the failure counts as ``failures.<category>``."""
+    groups: dict[str, list[str]] = {}
+    for m in GATED:
+        if m.direction != direction:
+            continue
+        if m.group == "failures":
+            groups.setdefault("failures.<category>", [])
+        elif "." in m.name:
+            head, _, tail = m.name.rpartition(".")
+            groups.setdefault(head + ".", []).append(tail)
+        else:
+            groups.setdefault(m.name, [])
+    return ", ".join(head + "|".join(tails) for head, tails in groups.items())
+
+
+def fail_under_help() -> str:
+    """The ``--fail-under`` paragraph of ``arenabench eval --help``."""
+    return (
+        "--fail-under metric=value (comma-separated or repeated). Minimums (fail when below): "
+        f"{names_by_direction('higher')}. Maximums (fail when above): "
+        f"{names_by_direction('lower')}; of the magnitude: {names_by_direction('nearer_zero')}."
+    )
+
+
 def metrics_table_markdown() -> str:
     """The Markdown table of every metric (docs/formats.md holds it verbatim)."""
     lines = ["| metric | label | better | kind |", "|---|---|---|---|"]

@@ -150,3 +150,16 @@ def test_docs_list_every_registered_metric():
     assert m.group(1) == metrics_table_markdown(), "regenerate the table in docs/formats.md"
     for metric in METRICS:
         assert f"`{metric.name}`" in m.group(1)
+
+
+def test_eval_help_lists_every_gated_metric(capsys):
+    from arenabench.cli import main
+
+    assert main(["eval", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    for m in GATED:
+        head, _, tail = m.name.rpartition(".")
+        if m.group == "failures":
+            assert "failures.<category>" in text
+        else:
+            assert (m.name in text) or (f"{head}." in text and tail in text), m.name
