@@ -26,6 +26,7 @@ from arenabench.cliopts import (
     write_failure,
 )
 
+from .metric_registry import fail_under_help
 from .phase_check import add_phase_check_argument
 from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
 from .run_limits import run_settings_from_args
@@ -47,9 +48,7 @@ and its own folder (read-only), no network and no dataset; without it the privat
 limits and cleanup still apply. A run that hits --memory-limit, --max-procs or
 --max-file-size is category 'limit'; every process a run starts is killed when it ends.
 
---fail-under metric=value (comma-separated or repeated). Minimums (fail when below):
-pass_rate, pass_rate_ci95.0, count_exact_rate, marker_id_accuracy. Maximums (fail when above):
-count_mae, area_rel_err.median|p95|max, latency_ms.median|p95, failures.<category>.
+""" + fail_under_help() + """
 
 exit status: 0 ok, 1 a threshold missed, 2 usage error, 130/143 interrupted (SIGINT/SIGTERM).
 """

@@ -5,39 +5,19 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from .records import CATEGORIES, Report
+from .metric_registry import GATED, METRIC, Metric, lookup
+from .records import Report
 from .reports.summary_rows import fmt
 
-#: (label, dotted path into the summary JSON, higher is better)
-COMPARED_METRICS: tuple[tuple[str, str, bool], ...] = (
-    ("pass_rate", "pass_rate", True),
-    ("count_exact_rate", "count_exact_rate", True),
-    ("count_mae", "count_mae", False),
-    ("area_rel_err.median", "area_rel_err.median", False),
-    ("area_rel_err.p95", "area_rel_err.p95", False),
-    ("area_rel_err.max", "area_rel_err.max", False),
-    ("marker_id_accuracy", "marker_id_accuracy", True),
-    ("latency_ms.median", "latency_ms.median", False),
-    ("latency_ms.p95", "latency_ms.p95", False),
-    *((f"failures.{c}", f"failures.{c}", False) for c in CATEGORIES),
-)
-
-
-def lookup(summary: dict[str, Any], dotted: str) -> Any:
-    """Value at ``dotted`` (``"area_rel_err.p95"``) in a summary dict, ``None`` if absent."""
-    node: Any = summary
-    for part in dotted.split("."):
-        if not isinstance(node, dict) or part not in node:
-            return None
-        node = node[part]
-    return node
+#: The metrics compared, in report order (the registry's gated metrics).
+COMPARED_METRICS: tuple[Metric, ...] = GATED
 
 
 @dataclass(frozen=True)
 class Comparison:
     """What changed between two reports."""
 
-    metrics: list[tuple[str, Any, Any, bool]]  # (name, old, new, higher_is_better)
+    metrics: list[tuple[str, Any, Any, str]]  # (name, old, new, direction of the registry)
     newly_failing: list[tuple[str, str | None]]  # (id, new category)
     newly_passing: list[tuple[str, str | None]]  # (id, old category)
     category_changed: list[tuple[str, str | None, str | None]]
@@ -48,7 +28,8 @@ class Comparison:
 def compare(old: Report, new: Report) -> Comparison:
     """Compare ``old`` with ``new`` (images matched by id)."""
     so, sn = old.summary.to_dict(), new.summary.to_dict()
-    metrics = [(n, lookup(so, p), lookup(sn, p), hib) for n, p, hib in COMPARED_METRICS]
+    metrics = [(m.name, lookup(so, m.name), lookup(sn, m.name), m.direction)
+               for m in COMPARED_METRICS]
     a = {r.id: r for r in old.images}
     b = {r.id: r for r in new.images}
     common = [i for i in a if i in b]
@@ -69,10 +50,10 @@ def compare(old: Report, new: Report) -> Comparison:
 def format_comparison(cmp: Comparison, *, old_name: str = "old", new_name: str = "new") -> str:
     """Plain-text rendering: a metrics table (with better/worse marks) and verdict changes."""
     rows = [("metric", old_name, new_name, "change")]
-    for name, o, n, hib in cmp.metrics:
+    for name, o, n, _ in cmp.metrics:
         change = ""
         if isinstance(o, (int, float)) and isinstance(n, (int, float)) and o != n:
-            better = (n > o) == hib
+            better = METRIC[name].worsening(o, n) < 0
             change = f"{n - o:+.4g} ({'better' if better else 'worse'})"
         rows.append((name, fmt(o), fmt(n), change))
     widths = [max(len(r[i]) for r in rows) for i in range(4)]
@@ -103,7 +84,7 @@ def parse_regression_limits(specs: list[str]) -> dict[str, float]:
 
     from arenabench.suggest import did_you_mean
 
-    known = [name for name, _, _ in COMPARED_METRICS]
+    known = [m.name for m in COMPARED_METRICS]
     out: dict[str, float] = {}
     for spec in specs:
         for part in filter(None, (p.strip() for p in spec.split(","))):
@@ -129,10 +110,10 @@ def regressions(cmp: Comparison, limits: dict[str, float]) -> list[str]:
     """One reason per metric of ``limits`` that got worse by more than its delta (a metric
     missing from either report is not judged)."""
     reasons = []
-    for name, old, new, higher_is_better in cmp.metrics:
+    for name, old, new, _ in cmp.metrics:
         if name not in limits or not all(isinstance(v, (int, float)) for v in (old, new)):
             continue
-        worse = (old - new) if higher_is_better else (new - old)
+        worse = METRIC[name].worsening(old, new)
         if worse > limits[name]:
             reasons.append(f"{name} {fmt(old)} -> {fmt(new)} (worse by {worse:.4g}, more than "
                            f"{limits[name]:g})")

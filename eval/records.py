@@ -13,23 +13,21 @@ from arenabench.competition import DEFAULT_TOLERANCE
 
 REPORT_SCHEMA = "arenabench.report/1"
 
-#: Pipeline statuses. ``ok`` and ``markers_not_found`` come from the pipeline itself; the
-#: others are assigned by the harness when the pipeline did not produce a usable answer
+#: Statuses of a pipeline that answered: ``ok``, or a failure it reported itself.
+PIPELINE_STATUSES: tuple[str, ...] = ("ok", "markers_not_found")
+#: Statuses the harness assigns when the pipeline did not produce a usable answer
 #: (``limit``: an external command failed after hitting a run limit other than the timeout,
 #: i.e. memory, processes or file size; the message says which).
-STATUSES: tuple[str, ...] = (
-    "ok", "markers_not_found", "crash", "timeout", "limit", "bad_output",
-)  # fmt: skip
+HARNESS_STATUSES: tuple[str, ...] = ("crash", "timeout", "limit", "bad_output")
+#: Pipeline statuses.
+STATUSES: tuple[str, ...] = (*PIPELINE_STATUSES, *HARNESS_STATUSES)
+#: Failures of an answer that scoring finds (the status was ``ok``).
+SCORING_FAILURES: tuple[str, ...] = ("wrong_count", "area_off")
 
-#: Failure categories, in the order reports list them.
+#: Failure categories, in the order reports list them: the pipeline's own failure statuses,
+#: the scoring failures, then the harness's statuses.
 CATEGORIES: tuple[str, ...] = (
-    "markers_not_found",
-    "wrong_count",
-    "area_off",
-    "crash",
-    "timeout",
-    "limit",
-    "bad_output",
+    *(s for s in PIPELINE_STATUSES if s != "ok"), *SCORING_FAILURES, *HARNESS_STATUSES,
 )
 
 #: Pixel spaces a pipeline's obstacle polygons may be given in.

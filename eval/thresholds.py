@@ -1,9 +1,10 @@
 """``--fail-under`` thresholds: parse ``metric=value`` specs and check a summary against them.
 
-Rates (``pass_rate``, ``pass_rate_ci95.0``, ``count_exact_rate``, ``marker_id_accuracy``) are
-minimums: the run fails when the metric is *below* the value. Errors, latencies and failure
-counts (``count_mae``, ``area_rel_err.median|p95|max``, ``latency_ms.median|p95``,
-``failures.<category>``) are maximums: the run fails when the metric is *above* the value.
+The names and directions come from the metric registry
+(:data:`arenabench.eval.metric_registry.GATED`): a metric where higher is better (pass rate, its
+CI's lower end, count exact rate, marker id accuracy) is a minimum, the run fails when it is
+*below* the value; one where lower is better (errors, latencies, failure counts and rates) is a
+maximum, the run fails when it is *above*; a signed error fails when its magnitude is above.
 """
 
 from __future__ import annotations
@@ -14,24 +15,8 @@ from dataclasses import dataclass
 
 from arenabench.suggest import did_you_mean
 
-from .compare import lookup
-from .records import CATEGORIES, Summary
-
-MINIMUMS: tuple[str, ...] = (
-    "pass_rate",
-    "pass_rate_ci95.0",
-    "count_exact_rate",
-    "marker_id_accuracy",
-)
-MAXIMUMS: tuple[str, ...] = (
-    "count_mae",
-    "area_rel_err.median",
-    "area_rel_err.p95",
-    "area_rel_err.max",
-    "latency_ms.median",
-    "latency_ms.p95",
-    *(f"failures.{c}" for c in CATEGORIES),
-)
+from .metric_registry import GATED, METRIC, lookup
+from .records import Summary
 
 
 @dataclass(frozen=True)
@@ -44,15 +29,13 @@ class Threshold:
 
     def check(self, summary: Summary) -> str | None:
         """``None`` when met, else a one-line reason."""
-        d = summary.to_dict()
-        if self.metric == "pass_rate_ci95.0":
-            actual = summary.pass_rate_ci95[0]
-        else:
-            actual = lookup(d, self.metric)
+        actual = lookup(summary.to_dict(), self.metric)
         if actual is None or not math.isfinite(actual):
             return f"{self.metric} is not available (no data) but a threshold {self.value:g} is set"
         if self.minimum and actual < self.value:
             return f"{self.metric} {actual:.4g} < {self.value:g}"
+        if METRIC[self.metric].direction == "nearer_zero" and abs(actual) > self.value:
+            return f"|{self.metric}| {abs(actual):.4g} > {self.value:g} (maximum)"
         if not self.minimum and actual > self.value:
             return f"{self.metric} {actual:.4g} > {self.value:g} (maximum)"
         return None
@@ -76,9 +59,9 @@ def parse_thresholds(specs: Iterable[str]) -> list[Threshold]:
             name = name.strip()
             if not sep:
                 raise ValueError(f"--fail-under expects metric=value, got {part!r}")
-            if name not in MINIMUMS and name not in MAXIMUMS:
-                known = ", ".join((*MINIMUMS, *MAXIMUMS))
-                hint = did_you_mean(name, (*MINIMUMS, *MAXIMUMS)) or f" (known: {known})"
+            known = [m.name for m in GATED]
+            if name not in known:
+                hint = did_you_mean(name, known) or f" (known: {', '.join(known)})"
                 raise ValueError(f"--fail-under: unknown metric {name!r}{hint}")
             try:
                 value = float(raw)
@@ -88,7 +71,7 @@ def parse_thresholds(specs: Iterable[str]) -> list[Threshold]:
                 ) from None
             if not math.isfinite(value):
                 raise ValueError(f"--fail-under: value of {name!r} is not finite: {raw!r}")
-            out.append(Threshold(metric=name, value=value, minimum=name in MINIMUMS))
+            out.append(Threshold(metric=name, value=value, minimum=METRIC[name].minimum))
     return out
 
 

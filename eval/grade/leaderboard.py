@@ -38,6 +38,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
+from ..metric_registry import METRIC, Metric
 from ..records import CATEGORIES, Summary
 
 LEADERBOARD_SCHEMA = "arenabench.leaderboard/1"
@@ -48,6 +49,12 @@ RANKING: tuple[str, ...] = (
     "count_exact_rate desc",
     "area_rel_err_median asc (null last)",
 )
+#: The summary metrics of a team's row, under their flat keys (:attr:`Metric.key`:
+#: ``area_rel_err_median``); ``null`` when undefined.
+LEADERBOARD_METRICS: tuple[Metric, ...] = tuple(METRIC[n] for n in (
+    "pass_rate", "count_exact_rate", "count_mae", "area_rel_err.median", "latency_ms.median",
+    "robust_failure_rate", "phase_dependent_failure_rate",
+))
 #: How teams equal on every :data:`RANKING` key are listed (they share a rank).
 TIE_ORDER = "team asc"
 
@@ -101,21 +108,16 @@ class LeaderboardRow:
     def to_dict(self, categories: Sequence[str] = CATEGORIES) -> dict[str, Any]:
         """JSON form (an entry of ``leaderboard.json["teams"]``)."""
         s = self.summary
+        d = s.to_dict()
         return {
             "rank": self.rank,
             "tied": self.tied,
             "team": self.team,
             "n": s.n,
             "n_passed": s.n_passed,
-            "pass_rate": s.pass_rate,
             "pass_rate_ci95": [float(v) for v in s.pass_rate_ci95],
-            "count_exact_rate": s.count_exact_rate,
-            "count_mae": _finite(s.count_mae),
-            "area_rel_err_median": self.area_rel_err_median,
-            "latency_ms_median": self.latency_ms_median,
+            **{m.key: _finite(m.value(d)) for m in LEADERBOARD_METRICS},
             "failures": {c: int(s.failures.get(c, 0)) for c in categories},
-            "robust_failure_rate": _finite(s.robust_failure_rate),
-            "phase_dependent_failure_rate": _finite(s.phase_dependent_failure_rate),
             "report": self.report,
             "submission_sha256": self.submission_sha256,
         }

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 
 from arenabench.fileio import atomic_write_text
+from arenabench.gtrecord import AREA_REFERENCE_FIELDS, DEFAULT_AREA_REFERENCE
 
 from ..breakdown import shown_breakdown, strongest_cause_text
 from ..dataset import Dataset, DatasetError, load_dataset
@@ -342,9 +343,8 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
             "the frame (the pipeline's homography, else the ground truth's).</p>"
             '<div class="cases">'
         )
-        area_key = (
-            "footprint_frame_px" if report.area_reference == "footprint" else "visible_frame_px"
-        )
+        ref = AREA_REFERENCE_FIELDS.get(report.area_reference)
+        area_key = (ref or AREA_REFERENCE_FIELDS[DEFAULT_AREA_REFERENCE]).polygons
         for r in cases:
             p = r.prediction
             gt = gts.get(r.id)

@@ -21,6 +21,7 @@ from urllib.parse import quote
 
 from arenabench.fileio import atomic_write_json, atomic_write_text
 
+from ..grade.leaderboard import LEADERBOARD_METRICS
 from ..phase_check import PHASE_DEPENDENT_MEANING
 from .incomplete import banner_html, partial
 
@@ -64,10 +65,11 @@ SCRIPT = """
 
 
 #: Columns of ``leaderboard.csv``; ``failures_CATEGORY`` columns and ``report`` follow.
+#: The pass rate comes first with its interval; the other metric columns are the leaderboard's
+#: metrics (:data:`~arenabench.eval.grade.leaderboard.LEADERBOARD_METRICS`) in their order.
 CSV_COLUMNS: tuple[str, ...] = (
     "rank", "team", "n", "n_passed", "pass_rate", "pass_rate_ci95_lo", "pass_rate_ci95_hi",
-    "count_exact_rate", "count_mae", "area_rel_err_median", "latency_ms_median",
-    "robust_failure_rate", "phase_dependent_failure_rate",
+    *(m.key for m in LEADERBOARD_METRICS if m.key != "pass_rate"),
 )
 #: Leading characters by which a spreadsheet reads a cell as a formula (and tab / CR,
 #: which some strip first); such text cells get a leading apostrophe in ``leaderboard.csv``.
@@ -195,9 +197,7 @@ def leaderboard_csv(doc: dict[str, Any]) -> str:
     for t in doc["teams"]:
         lo, hi = t["pass_rate_ci95"]
         row = [t["rank"], t["team"], t["n"], t["n_passed"], t["pass_rate"], lo, hi,
-               t["count_exact_rate"], t["count_mae"], t["area_rel_err_median"],
-               t["latency_ms_median"], t.get("robust_failure_rate"),
-               t.get("phase_dependent_failure_rate")]
+               *(t.get(m.key) for m in LEADERBOARD_METRICS if m.key != "pass_rate")]
         row += [t["failures"].get(c, 0) for c in cats] + [t["report"]]
         writer.writerow([csv_cell(v) for v in row])
     return buf.getvalue()

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
+from ..metric_registry import METRIC, ROW_SEPARATORS, summary_row_groups
 from ..phase_check import PHASE_DEPENDENT_MEANING
-from ..records import CATEGORIES, Report, Summary
+from ..records import Report, Summary
 
 
 def fmt(value: object, *, pct: bool = False, digits: int = 4) -> str:
@@ -16,33 +17,19 @@ def fmt(value: object, *, pct: bool = False, digits: int = 4) -> str:
 
 
 def summary_rows(summary: Summary) -> list[tuple[str, str]]:
-    """Every summary metric as a labelled string."""
+    """Every summary metric as a labelled string (rows from the metric registry)."""
     s = summary
-    lo, hi = s.pass_rate_ci95
-    a, sg = s.area_rel_err, s.area_rel_err_signed
-    rows = [
-        ("images", str(s.n)),
-        ("pass rate", f"{fmt(s.pass_rate, pct=True)} ({s.n_passed}/{s.n})"),
-        ("pass rate 95 % CI (Wilson)", f"{fmt(lo, pct=True)} - {fmt(hi, pct=True)}"),
-        ("count exact rate", fmt(s.count_exact_rate, pct=True)),
-        ("count MAE", fmt(s.count_mae)),
-        (
-            "|area rel err| median / p95 / max",
-            " / ".join(fmt(a.get(k)) for k in ("median", "p95", "max")),
-        ),
-        (
-            "signed area rel err median / p5 / p95",
-            " / ".join(fmt(sg.get(k)) for k in ("median", "p5", "p95")),
-        ),
-        ("signed area rel err min / max", " / ".join(fmt(sg.get(k)) for k in ("min", "max"))),
-        ("marker id accuracy", fmt(s.marker_id_accuracy, pct=True)),
-        (
-            "latency ms median / p95",
-            " / ".join(fmt(s.latency_ms.get(k), digits=3) for k in ("median", "p95")),
-        ),
-    ]
+    d = s.to_dict()
+    rows = [("images", str(s.n))]
+    for row, metrics in summary_row_groups("summary"):
+        text = ROW_SEPARATORS.get(row, " / ").join(m.format(m.value(d)) for m in metrics)
+        if row == METRIC["pass_rate"].row:
+            text += f" ({s.n_passed}/{s.n})"
+        rows.append((row, text))
     rows += phase_rows(s)
-    rows += [(f"failures: {c}", str(s.failures.get(c, 0))) for c in CATEGORIES]
+    for row, (m,) in summary_row_groups("failures"):
+        count = m.value(d)
+        rows.append((row, str(0 if count is None else count)))
     return rows
 
 
@@ -51,11 +38,12 @@ def phase_rows(summary: Summary) -> list[tuple[str, str]]:
     pc = summary.phase_check
     if pc is None:
         return []
+    robust, dependent = METRIC["robust_failure_rate"], METRIC["phase_dependent_failure_rate"]
     return [
-        ("robust failures (fail at every phase)",
-         f"{fmt(summary.robust_failure_rate, pct=True)} ({pc['robust']}/{summary.n})"),
-        ("phase-dependent failures",
-         f"{fmt(summary.phase_dependent_failure_rate, pct=True)} "
+        (robust.row,
+         f"{robust.format(summary.robust_failure_rate)} ({pc['robust']}/{summary.n})"),
+        (dependent.row,
+         f"{dependent.format(summary.phase_dependent_failure_rate)} "
          f"({pc['phase_dependent']}/{summary.n}; {pc['phases']} phases per failure)"),
         ("phase-dependent means", PHASE_DEPENDENT_MEANING.split(": ", 1)[1]),
     ]

@@ -125,11 +125,34 @@ class AreaRecord(_Record):
     extra: Mapping[str, Any] = field(default_factory=dict)
 
 
-#: ``--area-reference`` name -> the GT ``area`` field (:class:`AreaRecord`) an answer is
-#: compared with. ``contour_px`` is absent from GT files written before generator version 4.
-AREA_REFERENCES: dict[str, str] = {
-    "visible": "visible_px", "footprint": "footprint_px", "contour": "contour_px",
+@dataclass(frozen=True)
+class AreaReference:
+    """The GT fields behind one ``--area-reference``.
+
+    Parameters
+    ----------
+    area : str
+        The GT ``area`` field (:class:`AreaRecord`) an answer is compared with.
+    polygons : str
+        The per-obstacle frame polygons (:class:`ObstacleRecord`) whose union that area
+        measures, drawn as the ground truth in the HTML report.
+    """
+
+    area: str
+    polygons: str
+
+
+#: ``--area-reference`` name -> its GT fields, the one mapping scoring and the reports use.
+#: ``contour_px`` (absent from GT files written before generator version 4) is
+#: ``cv2.contourArea`` of the pixelated union of the *visible* polygons, so it draws those.
+AREA_REFERENCE_FIELDS: dict[str, AreaReference] = {
+    "visible": AreaReference(area="visible_px", polygons="visible_frame_px"),
+    "footprint": AreaReference(area="footprint_px", polygons="footprint_frame_px"),
+    "contour": AreaReference(area="contour_px", polygons="visible_frame_px"),
 }
+
+#: ``--area-reference`` name -> the GT ``area`` field an answer is compared with.
+AREA_REFERENCES: dict[str, str] = {k: v.area for k, v in AREA_REFERENCE_FIELDS.items()}
 
 #: The area reference of every command unless ``--area-reference`` says otherwise.
 DEFAULT_AREA_REFERENCE = "visible"
