@@ -33,6 +33,7 @@ import os
 import shlex
 import shutil
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -145,6 +146,11 @@ class DatasetResult:
     timings_ms : dict
         Median per-image ms of ``sample``, ``render``, ``gt``, ``encode``, ``write`` (rendered
         scenes only; empty when nothing was rendered).
+    task_cpu_ms : float
+        Mean CPU ms per rendered scene in the process that rendered it (all its threads:
+        render, GT, encode, write), each renderer's first scene left out, without process
+        start-up and finishing the set (0 when nothing was rendered): comparable with a warm
+        renderer's in-memory CPU per image.
     """
 
     out: Path
@@ -155,6 +161,7 @@ class DatasetResult:
     count: int = 0
     interrupted: int | None = None
     finished: int = 0
+    task_cpu_ms: float = 0.0
 
     @property
     def complete(self) -> bool:
@@ -234,10 +241,12 @@ def render_task(task: RenderTask) -> dict[str, Any]:
     -------
     dict
         ``id``, the timings in ms (``sample``, ``render``, ``gt``, ``encode``, ``write``),
+        ``cpu`` (CPU ms of the whole task, all threads), ``worker`` (:func:`_worker_key`),
         ``gl`` (the worker's OpenGL strings), ``image_sha256``, ``gt_sha256`` and ``coco``
         (:func:`coco_parts`), which finishing the set uses instead of reading the files.
     """
     with worker_task():
+        c0 = time.process_time()
         out = Path(task.out)
         sample = _render(task)
         t1 = time.perf_counter()
@@ -250,7 +259,26 @@ def render_task(task: RenderTask) -> dict[str, Any]:
         return {"id": sample.id, **sample.timings_ms, "encode": (t2 - t1) * 1000,
                 "write": (t3 - t2) * 1000, "gl": worker_gl_info(),
                 "image_sha256": sha256_bytes(image), "gt_sha256": sha256_bytes(gt_bytes),
-                "coco": coco_parts(sample.record)}
+                "coco": coco_parts(sample.record), "cpu": (time.process_time() - c0) * 1000,
+                "worker": _worker_key()}
+
+
+def _worker_key() -> str:
+    """The rendering process and thread (one renderer each)."""
+    return f"{os.getpid()}:{threading.get_ident()}"
+
+
+def _warm_task_cpu_ms(results: list[dict[str, Any]]) -> float:
+    """Mean ``cpu`` of the tasks, leaving out each renderer's first (its OpenGL set-up and
+    first draw), or of all of them when no renderer did more than one."""
+    seen: set[str] = set()
+    warm = []
+    for res in results:
+        if res["worker"] in seen:
+            warm.append(res["cpu"])
+        seen.add(res["worker"])
+    cpu = warm or [res["cpu"] for res in results]
+    return float(np.mean(cpu)) if cpu else 0.0
 
 
 def render_on_cluster(task: RenderTask) -> dict[str, Any]:
@@ -261,6 +289,7 @@ def render_on_cluster(task: RenderTask) -> dict[str, Any]:
     The renderer is created on first use, one per worker thread (an OpenGL context is current
     in one thread only; :func:`arenabench.generator.sample.worker_renderer`), and reused.
     """
+    c0 = time.process_time()
     sample = _render(task)
     t1 = time.perf_counter()
     image = task.encode(sample.bgr)
@@ -268,12 +297,14 @@ def render_on_cluster(task: RenderTask) -> dict[str, Any]:
     return {**sample.timings_ms, "id": sample.id, "image_bytes": image,
             "image_ext": task.image_ext,
             "gt_text": sample.record.to_json(), "encode": (t2 - t1) * 1000,
-            "gl": worker_gl_info(), "coco": coco_parts(sample.record)}
+            "gl": worker_gl_info(), "coco": coco_parts(sample.record),
+            "cpu": (time.process_time() - c0) * 1000, "worker": _worker_key()}
 
 
 def write_rendered(out: Path, res: dict[str, Any]) -> dict[str, Any]:
     """Write the files of a scene rendered on a cluster; returns the same record as
     :func:`render_task` (without the bytes)."""
+    c0 = time.process_time()
     gt_bytes = res["gt_text"].encode("utf-8")
     t2 = time.perf_counter()
     atomic_write_bytes(out / image_file(res["id"], res["image_ext"]), res["image_bytes"])
@@ -281,7 +312,8 @@ def write_rendered(out: Path, res: dict[str, Any]) -> dict[str, Any]:
     t3 = time.perf_counter()
     return {**{k: v for k, v in res.items() if k not in ("image_bytes", "image_ext", "gt_text")},
             "write": (t3 - t2) * 1000, "image_sha256": sha256_bytes(res["image_bytes"]),
-            "gt_sha256": sha256_bytes(gt_bytes)}
+            "gt_sha256": sha256_bytes(gt_bytes),
+            "cpu": res["cpu"] + (time.process_time() - c0) * 1000}
 
 
 def _parse_stored(overrides: dict[str, str]) -> dict[str, Value]:
@@ -709,7 +741,8 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
         for key in ("sample", "render", "gt", "encode", "write"):
             timings[key] = float(np.median([r[key] for r in results]))
     return DatasetResult(root, len(results), skipped, time.perf_counter() - start, timings,
-                         count=args.count, finished=args.count)
+                         count=args.count, finished=args.count,
+                         task_cpu_ms=_warm_task_cpu_ms(results))
 
 
 def _progress(total: int, enabled: bool):
