@@ -6,6 +6,10 @@ size (1000 x 1000):
 1. ``generate_disk_ips``: :func:`arenabench.generator.dataset.generate_dataset` end to end
    (spawned workers, PNG + GT JSON, manifest and COCO file), as ``arenabench generate`` runs;
 2. ``generate_memory_ips``: render + GT in memory (:func:`make_sample`), no files;
+   ``disk_vs_memory_cpu``: CPU per image of (1)'s rendering tasks (render, GT, encode, write;
+   ``details.generate_disk.task_cpu_ms_per_image``) over (2)'s, both with a warm renderer
+   (the start-up of (1)'s processes and finishing its set are
+   ``details.generate_disk.startup_and_finish_cpu_ms_per_image``);
 3. ``naive_ips``: the naive baseline, to disk: a new pyrender renderer and scene per image,
    pyrender's default (lit, 4x MSAA) shading under a directional light, GT, PNG at OpenCV's
    default settings;
@@ -69,6 +73,7 @@ BENCH_SCHEMA = "arenabench.bench/1"
 TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("generate_disk_ips", ">=", 40.0, "images/s"),
     ("disk_vs_naive", ">=", 3.0, "x"),
+    ("disk_vs_memory_cpu", "<=", 1.3, "x"),
     ("pipeline_ips", ">=", 100.0, "images/s"),
     ("sweep_ips", ">=", 40.0, "scenes/s"),
     ("worker_peak_rss_mb", "<=", 400.0, "MB"),
@@ -90,6 +95,7 @@ FIGURE_KEYS: tuple[str, ...] = (
     "script_inprocess_cpu_ms", "script_cold_cpu_ms", "script_warm_cpu_ms",
     "script_warm_vs_inprocess", "script_cold_vs_inprocess",
     "markerless_boxes_ms", "markerless_noise_ms", "markerless_blank_ms",
+    "disk_vs_memory_cpu",
 )  # fmt: skip
 
 
@@ -445,8 +451,12 @@ def run_bench(
                                   seed=cfg.seed, workers=workers, progress=False)
         sec = time.perf_counter() - t0
         figures["generate_disk_ips"] = cfg.count / sec
+        disk_cpu = _per(_cpu_seconds() - c0, cfg.count)
         details["generate_disk"] = {"images": cfg.count, "seconds": sec,
-                                    "cpu_ms_per_image": _per(_cpu_seconds() - c0, cfg.count),
+                                    "cpu_ms_per_image": disk_cpu,
+                                    "task_cpu_ms_per_image": result.task_cpu_ms,
+                                    "startup_and_finish_cpu_ms_per_image":
+                                        disk_cpu - result.task_cpu_ms,
                                     "median_ms_per_image": result.timings_ms}
         notify("generate_disk_ips", sec)
 
@@ -583,6 +593,8 @@ def run_bench(
     details["load_avg_end"] = _load_avg()
     figures["disk_vs_naive"] = figures["generate_disk_ips"] / figures["naive_ips"]
     figures["disk_vs_floor"] = figures["generate_disk_ips"] / figures["encode_floor_ips"]
+    figures["disk_vs_memory_cpu"] = (details["generate_disk"]["task_cpu_ms_per_image"]
+                                     / details["generate_memory"]["cpu_ms_per_image"])
     return BenchResult(figures=figures, details=details, machine=_machine(gl_info),
                        config=asdict(cfg) | {"workers": workers},
                        seconds=time.perf_counter() - start)

@@ -30,6 +30,7 @@ ROWS: tuple[tuple[str, str, str], ...] = (
     ("markerless_blank_ms", "10 the same: blank", "CPU ms"),
     ("disk_vs_naive", "(1)/(3)", "x"),
     ("disk_vs_floor", "(1)/(4)", "x"),
+    ("disk_vs_memory_cpu", "(1)/(2) CPU per image, warm", "x"),
 )
 
 

@@ -33,6 +33,7 @@ import os
 import shlex
 import shutil
 import sys
+import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -145,6 +146,11 @@ class DatasetResult:
     timings_ms : dict
         Median per-image ms of ``sample``, ``render``, ``gt``, ``encode``, ``write`` (rendered
         scenes only; empty when nothing was rendered).
+    task_cpu_ms : float
+        Mean CPU ms per rendered scene in the process that rendered it (all its threads:
+        render, GT, encode, write), each renderer's first scene left out, without process
+        start-up and finishing the set (0 when nothing was rendered): comparable with a warm
+        renderer's in-memory CPU per image.
     """
 
     out: Path
@@ -155,6 +161,7 @@ class DatasetResult:
     count: int = 0
     interrupted: int | None = None
     finished: int = 0
+    task_cpu_ms: float = 0.0
 
     @property
     def complete(self) -> bool:
@@ -234,9 +241,12 @@ def render_task(task: RenderTask) -> dict[str, Any]:
     -------
     dict
         ``id``, the timings in ms (``sample``, ``render``, ``gt``, ``encode``, ``write``),
-        ``gl`` (the worker's OpenGL strings), ``image_sha256`` and ``gt_sha256``.
+        ``cpu`` (CPU ms of the whole task, all threads), ``worker`` (:func:`_worker_key`),
+        ``gl`` (the worker's OpenGL strings), ``image_sha256``, ``gt_sha256`` and ``coco``
+        (:func:`coco_parts`), which finishing the set uses instead of reading the files.
     """
     with worker_task():
+        c0 = time.process_time()
         out = Path(task.out)
         sample = _render(task)
         t1 = time.perf_counter()
@@ -248,7 +258,27 @@ def render_task(task: RenderTask) -> dict[str, Any]:
         t3 = time.perf_counter()
         return {"id": sample.id, **sample.timings_ms, "encode": (t2 - t1) * 1000,
                 "write": (t3 - t2) * 1000, "gl": worker_gl_info(),
-                "image_sha256": sha256_bytes(image), "gt_sha256": sha256_bytes(gt_bytes)}
+                "image_sha256": sha256_bytes(image), "gt_sha256": sha256_bytes(gt_bytes),
+                "coco": coco_parts(sample.record), "cpu": (time.process_time() - c0) * 1000,
+                "worker": _worker_key()}
+
+
+def _worker_key() -> str:
+    """The rendering process and thread (one renderer each)."""
+    return f"{os.getpid()}:{threading.get_ident()}"
+
+
+def _warm_task_cpu_ms(results: list[dict[str, Any]]) -> float:
+    """Mean ``cpu`` of the tasks, leaving out each renderer's first (its OpenGL set-up and
+    first draw), or of all of them when no renderer did more than one."""
+    seen: set[str] = set()
+    warm = []
+    for res in results:
+        if res["worker"] in seen:
+            warm.append(res["cpu"])
+        seen.add(res["worker"])
+    cpu = warm or [res["cpu"] for res in results]
+    return float(np.mean(cpu)) if cpu else 0.0
 
 
 def render_on_cluster(task: RenderTask) -> dict[str, Any]:
@@ -259,6 +289,7 @@ def render_on_cluster(task: RenderTask) -> dict[str, Any]:
     The renderer is created on first use, one per worker thread (an OpenGL context is current
     in one thread only; :func:`arenabench.generator.sample.worker_renderer`), and reused.
     """
+    c0 = time.process_time()
     sample = _render(task)
     t1 = time.perf_counter()
     image = task.encode(sample.bgr)
@@ -266,12 +297,14 @@ def render_on_cluster(task: RenderTask) -> dict[str, Any]:
     return {**sample.timings_ms, "id": sample.id, "image_bytes": image,
             "image_ext": task.image_ext,
             "gt_text": sample.record.to_json(), "encode": (t2 - t1) * 1000,
-            "gl": worker_gl_info()}
+            "gl": worker_gl_info(), "coco": coco_parts(sample.record),
+            "cpu": (time.process_time() - c0) * 1000, "worker": _worker_key()}
 
 
 def write_rendered(out: Path, res: dict[str, Any]) -> dict[str, Any]:
     """Write the files of a scene rendered on a cluster; returns the same record as
     :func:`render_task` (without the bytes)."""
+    c0 = time.process_time()
     gt_bytes = res["gt_text"].encode("utf-8")
     t2 = time.perf_counter()
     atomic_write_bytes(out / image_file(res["id"], res["image_ext"]), res["image_bytes"])
@@ -279,7 +312,8 @@ def write_rendered(out: Path, res: dict[str, Any]) -> dict[str, Any]:
     t3 = time.perf_counter()
     return {**{k: v for k, v in res.items() if k not in ("image_bytes", "image_ext", "gt_text")},
             "write": (t3 - t2) * 1000, "image_sha256": sha256_bytes(res["image_bytes"]),
-            "gt_sha256": sha256_bytes(gt_bytes)}
+            "gt_sha256": sha256_bytes(gt_bytes),
+            "cpu": res["cpu"] + (time.process_time() - c0) * 1000}
 
 
 def _parse_stored(overrides: dict[str, str]) -> dict[str, Value]:
@@ -347,34 +381,52 @@ def coco_from_gts(gts: list[GroundTruth]) -> dict[str, Any]:
     marker quadrilaterals) shifted by +0.5 px to COCO's pixel-corner convention and clipped
     to the image; ``area`` is the clipped polygon's area and ``bbox`` its bounds.
     """
-    images, annotations = [], []
-    for gt in gts:
-        image_id = int(gt.index)
-        w, h = gt.image_size
-        images.append({"id": image_id, "file_name": gt.image, "width": w, "height": h})
-        frame = box(0.0, 0.0, float(w), float(h))
-        polys = [(1, ob.image_polygon_px) for ob in gt.obstacles]
-        polys += [(2, m.corners_px) for m in gt.markers]
-        for category, pts in polys:
-            if len(pts) < 3:
-                continue
-            poly = Polygon(np.asarray(pts) + 0.5).intersection(frame)
-            if poly.is_empty or poly.area <= 0 or poly.geom_type != "Polygon":
-                continue
-            coords = np.asarray(poly.exterior.coords)[:-1]
-            x0, y0, x1, y1 = poly.bounds
-            annotations.append({
-                "id": len(annotations) + 1, "image_id": image_id, "category_id": category,
-                "segmentation": [coords.reshape(-1).tolist()], "area": poly.area,
-                "bbox": [x0, y0, x1 - x0, y1 - y0], "iscrowd": 0,
-            })
-    return rounded({
+    return _coco_document([coco_parts(gt) for gt in gts])
+
+
+def coco_parts(gt: GroundTruth) -> dict[str, Any]:
+    """One scene's share of :func:`coco_from_gts`, floats rounded: ``image`` (its ``images``
+    entry) and ``annotations`` (without ``id``, which numbers them across the set).
+
+    Computed where the scene is rendered, so finishing a set neither reads nor parses its GT
+    files again.
+    """
+    image_id = int(gt.index)
+    w, h = gt.image_size
+    frame = box(0.0, 0.0, float(w), float(h))
+    polys = [(1, ob.image_polygon_px) for ob in gt.obstacles]
+    polys += [(2, m.corners_px) for m in gt.markers]
+    annotations = []
+    for category, pts in polys:
+        if len(pts) < 3:
+            continue
+        poly = Polygon(np.asarray(pts) + 0.5).intersection(frame)
+        if poly.is_empty or poly.area <= 0 or poly.geom_type != "Polygon":
+            continue
+        coords = np.asarray(poly.exterior.coords)[:-1]
+        x0, y0, x1, y1 = poly.bounds
+        annotations.append({
+            "image_id": image_id, "category_id": category,
+            "segmentation": [coords.reshape(-1).tolist()], "area": poly.area,
+            "bbox": [x0, y0, x1 - x0, y1 - y0], "iscrowd": 0,
+        })
+    return rounded({"image": {"id": image_id, "file_name": gt.image, "width": w, "height": h},
+                    "annotations": annotations})
+
+
+def _coco_document(parts: list[dict[str, Any]]) -> dict[str, Any]:
+    """The COCO file of the scenes' :func:`coco_parts`, in order (annotations numbered 1..)."""
+    annotations = []
+    for part in parts:
+        for ann in part["annotations"]:
+            annotations.append({"id": len(annotations) + 1, **ann})
+    return {
         "info": {"description": "arenabench synthetic arena scenes", "version": "1"},
-        "images": images,
+        "images": [part["image"] for part in parts],
         "annotations": annotations,
         "categories": [{"id": 1, "name": "obstacle", "supercategory": "object"},
                        {"id": 2, "name": "marker", "supercategory": "object"}],
-    })
+    }
 
 
 def _versions(gl: dict[str, str] | None) -> dict[str, str]:
@@ -398,17 +450,26 @@ def manifest_line(sid: str, ext: str, image_sha256: str, gt_sha256: str) -> str:
     })
 
 
-def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None) -> None:
-    ids = [scene_id(i) for i in range(args.count)]
+def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None,
+            results: list[dict[str, Any]] | None = None) -> None:
+    """Write the manifest, ``coco.json`` and the complete ``dataset.json``: the hashes and
+    COCO parts of the scenes rendered now come from ``results``; only scenes of an earlier
+    run are read (and hashed) again."""
+    known = {r["id"]: r for r in results or ()}
     ext = args.image_ext
-    lines, gts = [], []
-    for sid in ids:
-        gt_path, img_path = out / "gt" / f"{sid}.json", out / image_file(sid, ext)
-        gt_bytes = gt_path.read_bytes()
-        gts.append(GroundTruth.from_dict(json.loads(gt_bytes)))
-        lines.append(manifest_line(sid, ext, sha256_file(img_path), sha256_bytes(gt_bytes)))
+    lines, parts = [], []
+    for i in range(args.count):
+        sid = scene_id(i)
+        res = known.get(sid)
+        if res is None:
+            gt_path, img_path = out / "gt" / f"{sid}.json", out / image_file(sid, ext)
+            gt_bytes = gt_path.read_bytes()
+            res = {"coco": coco_parts(GroundTruth.from_dict(json.loads(gt_bytes))),
+                   "image_sha256": sha256_file(img_path), "gt_sha256": sha256_bytes(gt_bytes)}
+        parts.append(res["coco"])
+        lines.append(manifest_line(sid, ext, res["image_sha256"], res["gt_sha256"]))
     atomic_write_text(out / "manifest.jsonl", "".join(lines))
-    atomic_write_json(out / "coco.json", coco_from_gts(gts))
+    atomic_write_json(out / "coco.json", _coco_document(parts))
     _write_meta(out, args, complete=True, gl=gl)
 
 
@@ -675,13 +736,14 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
     if gl is None:
         gl = worker_gl_info()
     gl = {k: v for k, v in gl.items() if k.startswith("gl_")}
-    _finish(root, args, gl)
+    _finish(root, args, gl, results)
     timings = {}
     if results:
         for key in ("sample", "render", "gt", "encode", "write"):
             timings[key] = float(np.median([r[key] for r in results]))
     return DatasetResult(root, len(results), skipped, time.perf_counter() - start, timings,
-                         count=args.count, finished=args.count)
+                         count=args.count, finished=args.count,
+                         task_cpu_ms=_warm_task_cpu_ms(results))
 
 
 def _progress(total: int, enabled: bool):

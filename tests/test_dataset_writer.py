@@ -198,3 +198,17 @@ def test_coco_json_loads_in_pycocotools_and_areas_agree(one_worker):
             assert ys.min() >= np.floor(y) and ys.max() <= np.ceil(y + h)
         n_obstacles += len(obstacles)
     assert n_obstacles >= COUNT
+
+
+def test_coco_from_the_workers_equals_coco_from_the_gt_files(one_worker):
+    """``coco.json`` is assembled from the COCO shares the workers send back; it is the same
+    bytes as the COCO file computed from the GT files on disk."""
+    from arenabench.fileio import dumps_json
+    from arenabench.generator.dataset import coco_from_gts
+    from arenabench.gtrecord import GroundTruth
+
+    out, _ = one_worker
+    gts = [GroundTruth.from_dict(json.loads((out / "gt" / f"{i:06d}.json").read_bytes()))
+           for i in range(COUNT)]
+    assert (out / "coco.json").read_text() == dumps_json(coco_from_gts(gts))
+    assert json.loads((out / "coco.json").read_text())["annotations"]  # boxes and markers
