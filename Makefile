@@ -1,5 +1,6 @@
 # The two commands a newcomer runs: `make demo` and `make test`.
-# Inner loop while developing: `make test-fast` (skips tests marked slow; CI runs `make test`).
+# Inner loop while developing: `make test-fast` (skips tests marked slow, runs the rest in
+# parallel with pytest-xdist; CI runs `make test`, everything, one process).
 # Both create .venv when missing and install the project into it; only python3 and make are assumed.
 
 PYTHON ?= python3
@@ -31,7 +32,7 @@ test: $(STAMP) system-deps
 	  exit $$rc
 
 test-fast: $(STAMP) system-deps
-	@$(PY) -m pytest -m "not slow" $(PYTEST_ARGS); rc=$$?; \
+	@$(PY) -m pytest -m "not slow" -n auto $(PYTEST_ARGS); rc=$$?; \
 	  if [ $$rc -eq 5 ]; then echo "make test-fast: pytest collected no tests - failing" >&2; exit 1; fi; \
 	  exit $$rc
 

@@ -72,6 +72,7 @@ def test_bench_prints_every_row(quick_run):
     assert "docs/benchmark.md" in proc.stdout
 
 
+@pytest.mark.slow
 def test_quick_bench_json_has_no_verdicts(quick_run):
     _, data = quick_run
     assert data["quick"] is True

@@ -332,6 +332,7 @@ def test_generate_progress_in_a_log_is_plain_lines(tmp_path):
 
 # ----------------------------------------------------------------------------- packaging
 
+@pytest.mark.slow
 def test_wheel_builds_without_warnings_and_holds_the_package_data(tmp_path):
     """A wheel of a copy of the project: no setuptools warning about undeclared packages, and
     every subpackage and the scene files inside."""

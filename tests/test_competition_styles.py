@@ -14,6 +14,7 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+from pass_rates import STYLES, score_preset  # tests/pipelines (pytest's pythonpath)
 
 from arenabench.eval.cli import main as eval_main
 from arenabench.generator.cli import main as generate_main
@@ -25,8 +26,6 @@ REAL_COUNT, REAL_AREA = 2, 72141.5
 TWIN_SCENES = 200
 TWIN_PASS_RATE = 0.95
 
-sys.path.insert(0, str(PIPES))
-from pass_rates import STYLES, score_preset  # noqa: E402
 
 
 @pytest.fixture(scope="module")

@@ -148,6 +148,7 @@ def test_different_arguments_are_refused(one_worker, extra, kwargs, needle):
     assert _files(out) == before
 
 
+@pytest.mark.slow
 def test_larger_count_extends_the_set_byte_identically(one_worker, tmp_path):
     """Extending a set with the same seed gives the files of the larger count at once."""
     out, _ = one_worker

@@ -113,6 +113,7 @@ def _frame_clearance(gt) -> float:
     return min(min(x, y, 1000 - x, 1000 - y) for x, y in pts)
 
 
+@pytest.mark.slow
 def test_twin_scenes_keep_the_real_images_marker_order():
     """cv2.aruco sorts markers by outline length: every twin scene must give the real order."""
     real = _detected_order(cv2.imread(str(IMAGE), cv2.IMREAD_GRAYSCALE))

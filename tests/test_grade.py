@@ -226,6 +226,7 @@ def _opts(**kw) -> GradeOptions:
                         formats=("json",), **kw)
 
 
+@pytest.mark.slow
 def test_changed_submission_or_options_are_graded_again(dataset, tmp_path):
     subs = _fast_teams(tmp_path / "subs", {"a": 1, "b": 2, "c": 3})
     out = tmp_path / "out"

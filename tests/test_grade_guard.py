@@ -317,6 +317,7 @@ def test_sandbox_none_is_required_without_bubblewrap(seed3_set, tmp_path):
 # ----------------------------------------------------------------------------- leaderboard
 
 
+@pytest.mark.slow
 def test_six_teams_failing_alike_exit_non_zero(seed3_set, tmp_path):
     subs = tmp_path / "subs"
     for i in range(6):
@@ -347,6 +348,7 @@ def test_an_all_timeout_team_ranks_last_with_null_latency(seed3_set, tmp_path):
     assert "latency" not in json.dumps(doc["ranking"])
 
 
+@pytest.mark.slow
 def test_byte_identical_submissions_share_one_rank_every_run(seed3_set, tmp_path):
     subs = tmp_path / "subs"
     for name in ("x", "y", "z"):

@@ -52,6 +52,7 @@ def rows() -> list[tuple[float, float, float, int]]:
     return out
 
 
+@pytest.mark.slow
 def test_contour_px_matches_rasterised_contour_area(rows):
     contour, _, measured, _ = np.array(rows).T
     rel = (measured - contour) / measured

@@ -603,6 +603,7 @@ def test_every_command_writing_a_folder_takes_generates_lock(toy, tmp_path, comm
         assert sorted(p.name for p in out.iterdir()) == ["report.json"]
 
 
+@pytest.mark.slow
 def test_resumed_generate_removes_stale_temp_files_and_leaves_no_lock(tmp_path):
     out = tmp_path / "ds"
     proc = run("generate", "--count", "1", "--seed", "4", "--out", str(out), "--no-progress",
@@ -625,6 +626,7 @@ def test_resumed_generate_removes_stale_temp_files_and_leaves_no_lock(tmp_path):
     assert not (out / LOCK_FILE).exists()
 
 
+@pytest.mark.slow
 def test_two_generate_runs_at_once_the_second_is_refused_then_the_first_resumes(tmp_path):
     import signal
     import time

@@ -165,8 +165,10 @@ def test_blended_pixels_are_half_blends_in_linear_light(scene, real, renders):
 
 
 def test_ground_truth_does_not_depend_on_antialiasing(scene):
+    """The GT is a function of the scene alone (no renderer is an input); the instance masks,
+    the one pixel product the GT tests compare with, are the same with or without edge
+    samples."""
     gt = compute_ground_truth(scene)
-    assert gt == compute_ground_truth(scene)
     with Renderer(antialias=True) as a, Renderer(antialias=False) as b:
         ma = a.render(scene, masks=True).instance_mask
         mb = b.render(scene, masks=True).instance_mask

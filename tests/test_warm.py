@@ -11,6 +11,7 @@ import tempfile
 from pathlib import Path
 
 import pytest
+import toy_arena  # tests/pipelines (pytest's pythonpath)
 
 from arenabench.eval import warm_client
 from arenabench.eval.external import bwrap_problem, pids_cgroup_parent
@@ -22,8 +23,6 @@ from arenabench.eval.warm_client import WarmTarget, close_all, warm_target
 PIPES = Path(__file__).resolve().parent / "pipelines"
 PROBE = PIPES / "warm_probe.py"
 PY = sys.executable
-sys.path.insert(0, str(PIPES))
-import toy_arena  # noqa: E402
 
 needs_bwrap = pytest.mark.skipif(bwrap_problem() is not None, reason=str(bwrap_problem()))
 SANDBOXES = [pytest.param("bwrap", marks=needs_bwrap), "none"]
@@ -36,6 +35,7 @@ def toy(tmp_path_factory):
 
 @pytest.fixture()
 def run_tmp(tmp_path, monkeypatch):
+    close_all()  # servers an earlier test left in this process (pytest-xdist mixes modules)
     d = tmp_path / "runs"
     d.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(d))

@@ -15,12 +15,9 @@ corner counts as an obstacle, so it notices the marker pixels of a render.
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from competition_style import answer, detect_markers, main, not_found, warp_by_id
 
 SIZE = 1030

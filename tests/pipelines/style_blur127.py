@@ -17,12 +17,9 @@ through the floor pixels around the box (half a perimeter more), hence the floor
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from competition_style import (
     WIDTH,
     answer,

@@ -18,12 +18,9 @@ contours over 500 px (the published method's minimum) to give 2 obstacles.
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from competition_style import HEIGHT, WIDTH, answer, detect_markers, main, not_found
 
 #: (marker index in detection order, its corner) -> destination, as in the team's script.

@@ -14,12 +14,9 @@ Seen in a public e-Yantra 2024-25 Task 1C ``map.py`` (code search for ``obstacle
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from competition_style import HEIGHT, WIDTH, answer, detect_markers, main, not_found
 
 LOWER = np.array([88, 88, 88], dtype=np.uint8)

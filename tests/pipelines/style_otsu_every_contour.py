@@ -17,12 +17,9 @@ pixels of a render (docs/rendering.md).
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from competition_style import WIDTH, answer, detect_markers, main, not_found, warp_by_id
 
 CROP = 2

@@ -14,12 +14,9 @@ box); a 5 x 5 blur widens the dark region by about as much and reads 72100.0 (-0
 from __future__ import annotations
 
 import sys
-from pathlib import Path
 
 import cv2
 import numpy as np
-
-sys.path.insert(0, str(Path(__file__).resolve().parent))
 from competition_style import WIDTH, answer, detect_markers, main, not_found, warp_by_id
 
 SIZE = 400
