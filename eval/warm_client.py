@@ -26,7 +26,6 @@ from __future__ import annotations
 
 import atexit
 import itertools
-import json
 import marshal
 import os
 import re
@@ -34,7 +33,6 @@ import secrets
 import shutil
 import signal
 import socket
-import struct
 import subprocess
 import sys
 import tempfile
@@ -44,10 +42,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from arenabench.fileio import dumps_json_line
-
 from .records import Prediction, tail
 from .stale_runs import WARM_PREFIX, warm_dir_prefix
+from .warm_server import recv_message, send_message
 
 if TYPE_CHECKING:
     from .external import CommandPipeline
@@ -93,26 +90,6 @@ def warm_target(argv: list[str]) -> WarmTarget | None:
             os.path.isfile(script):
         return WarmTarget(script=script)
     return None
-
-
-def _send(sock: socket.socket, obj: object) -> None:
-    data = dumps_json_line(obj).encode()
-    sock.sendall(struct.pack(">I", len(data)) + data)
-
-
-def _recv(sock: socket.socket) -> dict | None:
-    def exact(n: int) -> bytes | None:
-        buf = bytearray()
-        while len(buf) < n:
-            chunk = sock.recv(n - len(buf))
-            if not chunk:
-                return None
-            buf += chunk
-        return bytes(buf)
-
-    head = exact(4)
-    body = None if head is None else exact(struct.unpack(">I", head)[0])
-    return None if body is None else json.loads(body)
 
 
 class _Waiter:
@@ -184,14 +161,14 @@ class WarmServer:
         self.keep = [p for p in pipe._visible_paths() if p == "/tmp" or p.startswith("/tmp/")]
         private = sorted({os.path.dirname(a) for a in pipe._resolved_args()
                           if os.path.isabs(a) and os.path.isfile(a)})
-        _send(ours, {
+        send_message(ours, {
             "parent_pid": 0 if self.isolate else self.proc.pid, "isolate": self.isolate,
             "launcher_source": LAUNCHER_SOURCE.read_text(), "script": self.target.script,
             "private_dirs": private,
         })
         ours.settimeout(START_TIMEOUT_S)
         try:
-            hello = _recv(ours)
+            hello = recv_message(ours)
         except OSError as exc:
             raise RuntimeError(f"the warm server did not start: {exc}") from None
         ours.settimeout(None)
@@ -207,7 +184,7 @@ class WarmServer:
         assert self.sock is not None
         try:
             while True:
-                msg = _recv(self.sock)
+                msg = recv_message(self.sock)
                 if msg is None:
                     break
                 with self._lock:
@@ -288,7 +265,7 @@ class WarmServer:
                 return Prediction(status="crash", message="interrupted")
             assert self.sock is not None
             try:
-                _send(self.sock, {"op": "run", "id": token, "cfg": cfg, "target": target})
+                send_message(self.sock, {"op": "run", "id": token, "cfg": cfg, "target": target})
             except OSError as exc:
                 return Prediction(status="crash", message=f"the warm server has ended: {exc}")
             if not waiter.done.wait(lim.timeout_s + RUN_GRACE_S):
@@ -315,7 +292,7 @@ class WarmServer:
         """End one run (its manager kills its processes and removes its directory)."""
         try:
             assert self.sock is not None
-            _send(self.sock, {"op": "kill", "id": token})
+            send_message(self.sock, {"op": "kill", "id": token})
         except OSError:
             pass
 

@@ -67,7 +67,9 @@ def _check(result, what):
         raise OSError(err, f"{what}: {os.strerror(err)}")
 
 
-def _send(sock, obj):
+def send_message(sock, obj):
+    """One message of the harness <-> server protocol: a 4-byte big-endian length, then JSON
+    (the harness side, :mod:`arenabench.eval.warm_client`, uses these two functions too)."""
     data = json.dumps(obj).encode()
     sock.sendall(struct.pack(">I", len(data)) + data)
 
@@ -82,7 +84,8 @@ def _recv_exact(sock, n):
     return bytes(buf)
 
 
-def _recv(sock):
+def recv_message(sock):
+    """The next message (a dict), or ``None`` at end of file."""
     head = _recv_exact(sock, 4)
     if head is None:
         return None
@@ -366,9 +369,9 @@ def _serve(sock, launcher):
                 by_id.pop(run_id, None)
                 _, status = os.waitpid(pid, 0)
                 rc = -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
-                _send(sock, {"id": run_id, "rc": rc})
+                send_message(sock, {"id": run_id, "rc": rc})
                 continue
-            message = _recv(sock)
+            message = recv_message(sock)
             if message is None:
                 for _, pid in runs.values():
                     try:
@@ -405,7 +408,7 @@ def main():
     for s in (signal.SIGINT, signal.SIGHUP, signal.SIGTERM):
         signal.signal(s, signal.SIG_IGN)  # the harness ends the server by closing the socket
     _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-    config = _recv(sock)
+    config = recv_message(sock)
     if config is None or (config["parent_pid"] and os.getppid() != config["parent_pid"]):
         return 0
     del sys.argv[1:]
@@ -424,7 +427,7 @@ def main():
 
     gc.collect()
     gc.freeze()
-    _send(sock, {"ready": True, "isolation": isolation, "pid": os.getpid()})
+    send_message(sock, {"ready": True, "isolation": isolation, "pid": os.getpid()})
     try:
         _serve(sock, launcher)
     except _BecomeRunManager as become:
