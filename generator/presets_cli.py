@@ -22,7 +22,7 @@ def build_parser() -> CommandParser:
 def main(argv: list[str] | None = None) -> int:
     """List presets (default), show one (``--show NAME``) or list parameters (``--params``)."""
     args = build_parser().parse_args(argv)
-    if args.show:
+    if args.show is not None:
         if args.show not in PRESETS:
             print(f"arenabench presets: error: unknown preset {args.show!r}"
                   f"{did_you_mean(args.show, PRESETS)} (known: {', '.join(PRESETS)})",

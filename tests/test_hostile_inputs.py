@@ -838,3 +838,8 @@ def test_disk_full_while_writing_reports_is_one_line(toy, small_disk):
     assert err.splitlines() == [f"arenabench eval: error: disk full: {out}: No space left on "
                                 "device (free some space or use another --out)"], err
     assert not [p.name for p in out.iterdir() if p.name.startswith(".")]  # no temp, no lock
+
+
+def test_presets_show_of_an_empty_name_is_refused():
+    proc = run("presets", "--show", "", timeout=60)
+    assert_clean_error(proc, "unknown preset ''", prog="presets")
