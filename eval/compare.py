@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from .metric_registry import GATED, METRIC, Metric, lookup
+from .metric_registry import GATED, METRIC, Metric, lookup, split_metric_specs
 from .records import Report
 from .reports.summary_rows import fmt
 
@@ -82,27 +82,17 @@ def parse_regression_limits(specs: list[str]) -> dict[str, float]:
     """
     import math
 
-    from arenabench.suggest import did_you_mean
-
-    known = [m.name for m in COMPARED_METRICS]
     out: dict[str, float] = {}
-    for spec in specs:
-        for part in filter(None, (p.strip() for p in spec.split(","))):
-            name, sep, raw = part.partition("=")
-            name = name.strip()
-            if not sep:
-                raise ValueError(f"--fail-on-regression expects metric=delta, got {part!r}")
-            if name not in known:
-                hint = did_you_mean(name, known) or f" (known: {', '.join(known)})"
-                raise ValueError(f"--fail-on-regression: unknown metric {name!r}{hint}")
-            try:
-                value = float(raw)
-            except ValueError:
-                value = math.nan
-            if not (math.isfinite(value) and value >= 0):
-                raise ValueError(f"--fail-on-regression: {name} must be a finite number >= 0, "
-                                 f"got {raw!r}")
-            out[name] = value
+    for name, raw in split_metric_specs(specs, option="--fail-on-regression",
+                                        known=[m.name for m in COMPARED_METRICS], what="delta"):
+        try:
+            value = float(raw)
+        except ValueError:
+            value = math.nan
+        if not (math.isfinite(value) and value >= 0):
+            raise ValueError(f"--fail-on-regression: {name} must be a finite number >= 0, "
+                             f"got {raw!r}")
+        out[name] = value
     return out
 
 

@@ -16,7 +16,7 @@ To add a metric: compute it into :class:`~arenabench.eval.records.Summary` (and 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -222,3 +222,31 @@ def metrics_table_markdown() -> str:
         label = m.label.replace("|", "\\|")
         lines.append(f"| `{m.name}` | {label} | {better[m.direction]} | {m.kind} |")
     return "\n".join(lines) + "\n"
+
+
+def split_metric_specs(specs: Iterable[str], *, option: str, known: Sequence[str],
+                       what: str = "value") -> list[tuple[str, str]]:
+    """``metric=VALUE`` specs (each may hold several, comma-separated) as (metric, raw value)
+    pairs, for ``--fail-under`` and ``--fail-on-regression`` alike; the value's own rule is the
+    caller's.
+
+    Raises
+    ------
+    ValueError
+        Naming ``option`` and the part without ``=``, or the unknown metric (with a "did you
+        mean" hint).
+    """
+    from arenabench.suggest import did_you_mean
+
+    out = []
+    for spec in specs:
+        for part in filter(None, (p.strip() for p in spec.split(","))):
+            name, sep, raw = part.partition("=")
+            name = name.strip()
+            if not sep:
+                raise ValueError(f"{option} expects metric={what}, got {part!r}")
+            if name not in known:
+                hint = did_you_mean(name, known) or f" (known: {', '.join(known)})"
+                raise ValueError(f"{option}: unknown metric {name!r}{hint}")
+            out.append((name, raw))
+    return out

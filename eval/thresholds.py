@@ -13,9 +13,7 @@ import math
 from collections.abc import Iterable
 from dataclasses import dataclass
 
-from arenabench.suggest import did_you_mean
-
-from .metric_registry import GATED, METRIC, lookup
+from .metric_registry import GATED, METRIC, lookup, split_metric_specs
 from .records import Summary
 
 
@@ -50,28 +48,17 @@ def parse_thresholds(specs: Iterable[str]) -> list[Threshold]:
         Naming the bad spec, metric or value.
     """
     out: list[Threshold] = []
-    for spec in specs:
-        for part in spec.split(","):
-            part = part.strip()
-            if not part:
-                continue
-            name, sep, raw = part.partition("=")
-            name = name.strip()
-            if not sep:
-                raise ValueError(f"--fail-under expects metric=value, got {part!r}")
-            known = [m.name for m in GATED]
-            if name not in known:
-                hint = did_you_mean(name, known) or f" (known: {', '.join(known)})"
-                raise ValueError(f"--fail-under: unknown metric {name!r}{hint}")
-            try:
-                value = float(raw)
-            except ValueError:
-                raise ValueError(
-                    f"--fail-under: value of {name!r} is not a number: {raw!r}"
-                ) from None
-            if not math.isfinite(value):
-                raise ValueError(f"--fail-under: value of {name!r} is not finite: {raw!r}")
-            out.append(Threshold(metric=name, value=value, minimum=METRIC[name].minimum))
+    for name, raw in split_metric_specs(specs, option="--fail-under",
+                                        known=[m.name for m in GATED]):
+        try:
+            value = float(raw)
+        except ValueError:
+            raise ValueError(
+                f"--fail-under: value of {name!r} is not a number: {raw!r}"
+            ) from None
+        if not math.isfinite(value):
+            raise ValueError(f"--fail-under: value of {name!r} is not finite: {raw!r}")
+        out.append(Threshold(metric=name, value=value, minimum=METRIC[name].minimum))
     return out
 
 
