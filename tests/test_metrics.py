@@ -136,3 +136,11 @@ def test_wilson_rejects_bad_counts():
 def test_prediction_rejects_unknown_status():
     with pytest.raises(ValueError, match="status"):
         Prediction(status="fine")
+
+
+def test_wilson_interval_reaches_its_ends_exactly():
+    from arenabench.eval.metrics import wilson_interval
+
+    for n in (1, 3, 7, 200):
+        assert wilson_interval(0, n)[0] == 0.0 and wilson_interval(n, n)[1] == 1.0
+        assert 0.0 < wilson_interval(0, n)[1] < 1.0 and 0.0 < wilson_interval(n, n)[0] < 1.0
