@@ -37,7 +37,7 @@ test-fast: $(STAMP) system-deps
 	  exit $$rc
 
 # Rewrite tests/data/golden_gt.json after a deliberate change of the generator's output
-# (bump GENERATOR_VERSION in generator/sample.py first; see docs/architecture.md).
+# (bump GENERATOR_VERSION in generator/make.py first; see docs/architecture.md).
 golden: $(STAMP)
 	$(PY) -m tests.golden --update
 

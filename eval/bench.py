@@ -3,7 +3,7 @@
 Eight measurements (see :func:`run_bench`), each on the same ``eyrc`` scenes at the camera's
 size (1000 x 1000):
 
-1. ``generate_disk_ips``: :func:`arenabench.generator.dataset.generate_dataset` end to end
+1. ``generate_disk_ips``: :func:`arenabench.generator.dataset_writer.generate_dataset` end to end
    (spawned workers, PNG + GT JSON, manifest and COCO file), as ``arenabench generate`` runs;
 2. ``generate_memory_ips``: render + GT in memory (:func:`make_sample`), no files;
    ``disk_vs_memory_cpu``: CPU per image of (1)'s rendering tasks (render, GT, encode, write;
@@ -15,7 +15,7 @@ size (1000 x 1000):
    default settings;
 4. ``encode_floor_ips``: PNG encode + write of already-rendered images, as the writer does;
 5. ``pipeline_ips``: the reference pipeline over the image files of (1), decode and scoring
-   included; ``pipeline_eval_ips``: the same through :func:`arenabench.eval.runner.evaluate`
+   included; ``pipeline_eval_ips``: the same through :func:`arenabench.eval.evaluation.evaluate`
    (as ``arenabench eval`` runs it: its process pool's start-up included);
 6. ``sweep_ips``: a streaming sweep in memory (render, degrade, detect, score) through
    :func:`arenabench.eval.sweep.run_sweep`, varying ``SWEEP_AXIS``, its start-up included
@@ -242,14 +242,14 @@ class RssTask:
 
 
 def _renderer():
-    from arenabench.generator.sample import worker_renderer
+    from arenabench.generator.make import worker_renderer
 
     return worker_renderer()
 
 
 def _warm(task: SceneTask) -> int:
     """Create this worker's renderer and render one scene (not timed)."""
-    from arenabench.generator.sample import make_sample
+    from arenabench.generator.make import make_sample
 
     make_sample(task.preset, seed=task.seed, index=task.index, renderer=_renderer())
     return os.getpid()
@@ -257,7 +257,7 @@ def _warm(task: SceneTask) -> int:
 
 def _memory_one(task: SceneTask) -> float:
     """Render one scene and compute its GT; returns the CPU seconds it took (all threads)."""
-    from arenabench.generator.sample import make_sample
+    from arenabench.generator.make import make_sample
 
     c0 = time.process_time()
     make_sample(task.preset, seed=task.seed, index=task.index, renderer=_renderer())
@@ -269,7 +269,7 @@ def _pipeline_one(task: ImageTask) -> tuple[bool, float]:
 
     Returns whether it passed and the CPU seconds it took.
     """
-    from arenabench.eval.dataset import DatasetItem
+    from arenabench.eval.dataset_reader import DatasetItem
     from arenabench.eval.metrics import score_image
     from arenabench.eval.pipelines import prediction_from_result
     from arenabench.imageio import load_image
@@ -289,7 +289,7 @@ def _floor_chunk(task: FloorTask) -> tuple[int, float, float]:
     import cv2
 
     from arenabench.fileio import atomic_write_bytes
-    from arenabench.generator.sample import make_sample
+    from arenabench.generator.make import make_sample
     from arenabench.imageio import encode_png
 
     preset, seed, indices, out = task.preset, task.seed, task.indices, task.out
@@ -441,7 +441,7 @@ def run_bench(
     figures: dict[str, float] = {}
     details: dict[str, Any] = {"workers": workers, "load_avg_start": _load_avg()}
     try:
-        from arenabench.generator.dataset import DatasetArgs, generate_dataset
+        from arenabench.generator.dataset_writer import DatasetArgs, generate_dataset
 
         ext = DatasetArgs(preset=cfg.preset, count=cfg.count, seed=cfg.seed).image_ext
 
@@ -524,7 +524,7 @@ def run_bench(
         notify("naive_ips", sec)
 
         # 5b. the same through `arenabench eval`'s runner, its start-up included
-        from arenabench.eval.runner import evaluate
+        from arenabench.eval.evaluation import evaluate
 
         c0, t0 = _cpu_seconds(), time.perf_counter()
         report = evaluate("reference", scratch / "dataset", workers=workers,

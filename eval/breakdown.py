@@ -9,7 +9,7 @@ from typing import Any
 
 import numpy as np
 
-from .records import CATEGORIES, ImageResult
+from .results import CATEGORIES, ImageResult
 
 #: Parameters with at most this many distinct values get one bin per value.
 MAX_DISCRETE = 6

@@ -97,7 +97,7 @@ def cache_dir() -> Path:
 
 def twin_set_dir(*, preset: str, seed: int, count: int) -> Path:
     """Cache folder of the twin set ``<preset>-<seed>-<count>-<generator version>``."""
-    from arenabench.generator.sample import GENERATOR_VERSION
+    from arenabench.generator.make import GENERATOR_VERSION
 
     return cache_dir() / "sets" / f"{preset}-{seed}-{count}-v{GENERATOR_VERSION}"
 
@@ -217,12 +217,12 @@ def _main(argv: list[str] | None) -> int:
     except ValueError as exc:
         return _error(str(exc))
 
-    from arenabench.generator.dataset import GenerateError, generate_dataset
+    from arenabench.generator.dataset_writer import GenerateError, generate_dataset
 
-    from .dataset import DatasetError, load_dataset
+    from .dataset_reader import DatasetError, load_dataset
+    from .evaluation import EvaluationInterrupted, evaluate
     from .phase_check import resolve_phases
     from .reports import write_reports
-    from .runner import EvaluationInterrupted, evaluate
 
     twin = twin_set_dir(preset=args.preset, seed=args.seed, count=args.count)
     progress = not args.no_progress

@@ -6,8 +6,8 @@ from dataclasses import dataclass
 from typing import Any
 
 from .metric_registry import GATED, METRIC, Metric, lookup, split_metric_specs
-from .records import Report
 from .reports.summary_rows import fmt
+from .results import Report
 
 #: The metrics compared, in report order (the registry's gated metrics).
 COMPARED_METRICS: tuple[Metric, ...] = GATED

@@ -103,7 +103,7 @@ def _run(args: argparse.Namespace) -> int:
     if (dataset_dir / "manifest.jsonl").is_file():
         print(f"{step}. reusing dataset {dataset_dir} ({args.count} eyrc images)")
     else:
-        from arenabench.generator.dataset import GenerateError, generate_dataset
+        from arenabench.generator.dataset_writer import GenerateError, generate_dataset
         from arenabench.generator.gl_check import OffscreenGLError
         from arenabench.generator.sampler import SamplingError
 
@@ -119,10 +119,10 @@ def _run(args: argparse.Namespace) -> int:
         print(f"{step}. generated {result.rendered} eyrc images (seed {args.seed}) into "
               f"{dataset_dir} in {result.seconds:.0f} s")
     step += 1
-    from .dataset import load_dataset
+    from .dataset_reader import load_dataset
+    from .evaluation import evaluate
     from .reports import write_reports
     from .reports.summary_rows import headline, summary_rows
-    from .runner import evaluate
 
     dataset = load_dataset(dataset_dir)
     report = evaluate(args.pipeline, dataset, workers=args.workers,

@@ -51,7 +51,7 @@ How one image runs
   per run when the cgroup file system is writable (else ``RLIMIT_NPROC``, which the kernel
   does not enforce for root) for the number of processes, the timeout.
 
-Outcome (:class:`~arenabench.eval.records.Prediction` status)
+Outcome (:class:`~arenabench.eval.results.Prediction` status)
 ------------------------------------------------------------
 ``timeout`` (message ``timed out after T s ...``); ``limit`` when the run failed after
 hitting a limit, the message starting with which: ``memory limit (--memory-limit 2G) ...``,
@@ -85,7 +85,7 @@ from arenabench.competition import (
     parse_obstacles_txt,
 )
 
-from .records import Prediction, tail
+from .results import Prediction, tail
 from .run_limits import RunLimits, RunSettings
 from .stale_runs import run_dir_prefix, sweep_stale_runs
 

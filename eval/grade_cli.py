@@ -74,7 +74,7 @@ a fresh machine: docs/grading.md.
 
 def build_parser() -> CommandParser:
     """The argument parser of ``arenabench grade``."""
-    from .grade.runner import DEFAULT_COMMAND
+    from .grade.grading import DEFAULT_COMMAND
     from .reports import FORMATS
 
     p = CommandParser(
@@ -133,8 +133,8 @@ def main(argv: list[str] | None = None) -> int:
 
     from arenabench.fileio import OutputPathError, check_output_dir
 
-    from .dataset import DatasetError, load_dataset
-    from .grade.runner import GradeOptions, check_out_dir, grade
+    from .dataset_reader import DatasetError, load_dataset
+    from .grade.grading import GradeOptions, check_out_dir, grade
     from .grade.submissions import SubmissionsError, find_teams
     from .phase_check import resolve_phases
     from .run_limits import run_settings_from_args

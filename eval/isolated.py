@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .records import Prediction
+from .results import Prediction
 
 #: Seconds a child may take to start and import the pipeline's module.
 START_TIMEOUT_S = 120.0

@@ -10,7 +10,7 @@ lists and ``--fail-on-regression`` judges, and which way is better
 (:mod:`arenabench.eval.grade.leaderboard`) and the metrics table of docs/formats.md
 (:func:`metrics_table_markdown`).
 
-To add a metric: compute it into :class:`~arenabench.eval.records.Summary` (and its
+To add a metric: compute it into :class:`~arenabench.eval.results.Summary` (and its
 ``to_dict``), then add one :class:`Metric` here.
 """
 
@@ -20,7 +20,7 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from .records import CATEGORIES
+from .results import CATEGORIES
 
 #: Which way a metric is better: larger, smaller, or nearer zero (signed errors).
 DIRECTIONS: tuple[str, ...] = ("higher", "lower", "nearer_zero")

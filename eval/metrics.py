@@ -20,7 +20,7 @@ import numpy as np
 from arenabench.competition import DEFAULT_TOLERANCE as DEFAULT_TOLERANCE
 from arenabench.competition import OutputFormatError, check_area, check_count
 
-from .records import CATEGORIES, ImageScore, Prediction, Summary, Truth
+from .results import CATEGORIES, ImageScore, Prediction, Summary, Truth
 
 #: A GT area below this (px², a millionth of a pixel) is 0 in effect: its error is absolute.
 ZERO_AREA_PX = 1e-6

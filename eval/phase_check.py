@@ -31,7 +31,7 @@ import numpy as np
 
 from arenabench.gtrecord import GroundTruth
 
-from .records import ImageResult, Prediction
+from .results import ImageResult, Prediction
 
 #: Phases a check renders by default.
 DEFAULT_PHASES = 8
@@ -247,13 +247,13 @@ def render_phases(gt: GroundTruth, *, phases: int, folder: Path, suffix: str = "
     suffix : str, keyword-only
         Image file type, that of the original image.
     renderer : SceneRenderer, keyword-only
-        Default: this thread's :func:`arenabench.generator.sample.worker_renderer`.
+        Default: this thread's :func:`arenabench.generator.make.worker_renderer`.
     """
     import cv2
 
     from arenabench.fileio import rounded
     from arenabench.generator.degrade import Degradations, apply_degradations
-    from arenabench.generator.sample import degrade_rng, ground_truth_record, worker_renderer
+    from arenabench.generator.make import degrade_rng, ground_truth_record, worker_renderer
     from arenabench.generator.scene import Scene
 
     if gt.scene is None:
@@ -325,8 +325,8 @@ def check_phases(
         holds no scene, or whose category is in :data:`UNCHECKED_CATEGORIES`, keeps
         ``phase=None``).
     """
-    from .dataset import DatasetItem
-    from .runner import score_sample
+    from .dataset_reader import DatasetItem
+    from .evaluation import score_sample
 
     if len(results) != len(gts):
         raise ValueError(f"results and gts must have the same length, got {len(results)} "

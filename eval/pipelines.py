@@ -36,7 +36,7 @@ from arenabench.competition import (
 from arenabench.pipeline.config import PROFILES
 
 from .external import EXIT_MARKERS_NOT_FOUND, OUTPUT_MODES, CommandPipeline
-from .records import Prediction, tail
+from .results import Prediction, tail
 
 __all__ = [
     "BUILTIN_PIPELINES", "EXIT_MARKERS_NOT_FOUND", "OUTPUT_MODES", "BuiltinPipeline",

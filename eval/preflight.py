@@ -247,7 +247,7 @@ def preflight(
         One line naming the cause: the interpreter cannot run, lacks a module, the sandbox
         fails, or the reference gives no answer.
     """
-    from .grade.runner import team_command
+    from .grade.grading import team_command
 
     record = PreflightRecord(mode=mode, limits=dict(limits))
     with tempfile.TemporaryDirectory(prefix="arenabench-preflight-") as tmp:

@@ -43,7 +43,7 @@ def dataset_key(preset: str, count: int, seed: int, version: str) -> str:
 
 
 def _generate(out: Path, *, preset: str, count: int, seed: int) -> None:
-    from arenabench.generator.cli import main as generate_main
+    from arenabench.generator.generate_cli import main as generate_main
 
     argv = ["--preset", preset, "--count", str(count), "--seed", str(seed), "--out", str(out)]
     rc = generate_main(argv)

@@ -132,10 +132,10 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
 
+    from .sweep.execution import run_sweep
     from .sweep.grid import parse_varies
     from .sweep.outputs import KeptImageWriter, write_sweep
     from .sweep.records import PipelineSpec, SweepSpec
-    from .sweep.runner import run_sweep
 
     try:
         check_output_dir(args.out)

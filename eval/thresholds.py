@@ -14,7 +14,7 @@ from collections.abc import Iterable
 from dataclasses import dataclass
 
 from .metric_registry import GATED, METRIC, lookup, split_metric_specs
-from .records import Summary
+from .results import Summary
 
 
 @dataclass(frozen=True)

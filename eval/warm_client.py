@@ -42,7 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .records import Prediction, tail
+from .results import Prediction, tail
 from .stale_runs import WARM_PREFIX, warm_dir_prefix
 from .warm_server import recv_message, send_message
 

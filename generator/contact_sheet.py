@@ -118,8 +118,8 @@ def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
     from arenabench import glplatform
 
     glplatform.configure()
+    from arenabench.generator.make import make_sample
     from arenabench.generator.render import Renderer
-    from arenabench.generator.sample import make_sample
     from arenabench.progress import progress as progress_bar
 
     images, captions = [], []

@@ -8,7 +8,7 @@ input array unchanged (byte-identical). Lens distortion (geometric) is
 :mod:`arenabench.generator.lens`.
 
 All randomness (noise) comes from the generator passed in
-(:func:`arenabench.generator.sample.degrade_rng`).
+(:func:`arenabench.generator.make.degrade_rng`).
 """
 from __future__ import annotations
 

@@ -15,7 +15,7 @@ class OffscreenGLError(RuntimeError):
 
 
 def require_offscreen_gl() -> dict[str, str]:
-    """Create this thread's renderer (:func:`arenabench.generator.sample.worker_renderer`,
+    """Create this thread's renderer (:func:`arenabench.generator.make.worker_renderer`,
     which the command's in-process renders then reuse) and return its OpenGL strings.
 
     Returns
@@ -33,7 +33,7 @@ def require_offscreen_gl() -> dict[str, str]:
     check, _ = check_gl_platform()
     if not check.ok:
         raise OffscreenGLError(f"no off-screen OpenGL: {_one_line(check.detail)}; {DOCTOR_HINT}")
-    from arenabench.generator.sample import worker_gl_info
+    from arenabench.generator.make import worker_gl_info
 
     try:
         return worker_gl_info()

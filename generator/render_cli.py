@@ -19,7 +19,7 @@ __all__ = ["load_scene", "render_scene_files", "scene_gt_record"]
 
 def scene_gt_record(scene: Scene, *, sid: str = "000000", source: str = "scene") -> dict[str, Any]:
     """The GT record of a scene rendered on its own (same schema as dataset GT files)."""
-    from arenabench.generator.sample import gt_record
+    from arenabench.generator.make import gt_record
 
     return gt_record(scene, sid=sid, preset=source)
 
@@ -34,7 +34,7 @@ def render_scene_files(scene: Scene, out: str | Path, *, source: str = "scene") 
     import cv2
 
     from arenabench.fileio import atomic_write_bytes, atomic_write_text, dumps_json, sha256_bytes
-    from arenabench.generator.dataset import manifest_line
+    from arenabench.generator.dataset_writer import manifest_line
     from arenabench.generator.render import Renderer
     from arenabench.imageio import encode_png
 

@@ -10,7 +10,7 @@ parameter once per box, from the same stream); the camera parameters are drawn a
 their streams, while the markers are out of view. Draws that are not parameters have named
 streams too: obstacle placement (:data:`PLACEMENT_STREAM`), the warehouse loads (the
 ``obstacles.palette`` stream), the floor distractors (:data:`PATCH_STREAM`) and the image noise
-(``degrade``, :func:`arenabench.generator.sample.degrade_rng`).
+(``degrade``, :func:`arenabench.generator.make.degrade_rng`).
 """
 
 from __future__ import annotations

@@ -95,7 +95,7 @@ def gt_parts(gt: dict[str, Any]) -> dict[str, str]:
 def scene_gt(preset: str, index: int) -> dict[str, Any]:
     """The GT record of scene ``index`` of ``preset`` (seed :data:`SEED`), without rendering."""
     from arenabench.fileio import rounded
-    from arenabench.generator.sample import gt_record, scene_id
+    from arenabench.generator.make import gt_record, scene_id
     from arenabench.generator.sampler import sample_scene
 
     sampled = sample_scene(preset, seed=SEED, index=index)
@@ -116,7 +116,7 @@ def current() -> dict[str, dict[str, str]]:
 
 def generator_version() -> str:
     """The generator version the hashes belong to."""
-    from arenabench.generator.sample import GENERATOR_VERSION
+    from arenabench.generator.make import GENERATOR_VERSION
 
     return GENERATOR_VERSION
 
@@ -153,7 +153,7 @@ def update(*, force: bool = False) -> int:
         diff = differences(old, have)
         print(f"golden: ground truth changed but GENERATOR_VERSION is still {version!r}:\n  "
               + "\n  ".join(diff)
-              + "\nbump GENERATOR_VERSION in generator/sample.py (and say what changed in its "
+              + "\nbump GENERATOR_VERSION in generator/make.py (and say what changed in its "
               "comment), then run this again; --force only if the recorded hashes were wrong.",
               file=sys.stderr)
         return 1

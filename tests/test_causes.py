@@ -7,7 +7,7 @@ import edge_phase
 import pytest
 
 from arenabench.eval.breakdown import rank_causes
-from arenabench.eval.records import ImageResult, ImageScore, Prediction, Truth
+from arenabench.eval.results import ImageResult, ImageScore, Prediction, Truth
 
 
 def _result(i: int, passed: bool, **params: float) -> ImageResult:
@@ -48,8 +48,8 @@ def test_too_few_failures_rank_nothing():
 
 @pytest.mark.slow
 def test_an_aspect_ratio_filter_is_traced_to_the_boxes_aspect(tmp_path):
-    from arenabench.eval.runner import evaluate
-    from arenabench.generator.dataset import generate_dataset
+    from arenabench.eval.evaluation import evaluate
+    from arenabench.generator.dataset_writer import generate_dataset
 
     generate_dataset(tmp_path / "twin", preset="eyrc", count=60, seed=0, workers=1,
                      progress=False)

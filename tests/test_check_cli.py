@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from arenabench.generator.sample import GENERATOR_VERSION
+from arenabench.generator.make import GENERATOR_VERSION
 
 PIPELINES = Path(__file__).resolve().parent / "pipelines"
 # Scenes 1 and 3 of seed 0 (generator version 6) are ones the Canny style loses at their

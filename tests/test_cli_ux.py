@@ -441,7 +441,7 @@ def test_html_frame_outlines_follow_a_pipeline_warping_to_the_outer_corners():
 
     from arenabench.eval.reports.html_report import gt_frame_polygons
     from arenabench.frame import FrameSpec
-    from arenabench.generator.sample import make_sample
+    from arenabench.generator.make import make_sample
     from arenabench.pipeline import DetectConfig, detect
 
     sample = make_sample("eyrc-upright", seed=0, index=0)

@@ -13,8 +13,8 @@ import pytest
 import toy_arena
 
 from arenabench.cli import main as arenabench_main
+from arenabench.eval.evaluation import evaluate
 from arenabench.eval.reports import write_reports
-from arenabench.eval.runner import evaluate
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 

@@ -8,14 +8,14 @@ from pathlib import Path
 
 import pytest
 
-pytest.importorskip("arenabench.generator.cli", reason="generator not available yet")
+pytest.importorskip("arenabench.generator.generate_cli", reason="generator not available yet")
 pytest.importorskip("arenabench.pipeline", reason="pipeline not available yet")
 pytest.importorskip("arenabench.detect", reason="arenabench.detect command not available yet")
 
-from arenabench.eval.cli import main as eval_main
 from arenabench.eval.demo import main as demo_main
+from arenabench.eval.eval_cli import main as eval_main
 from arenabench.eval.reports.json_report import read_json
-from arenabench.generator.cli import main as generate_main
+from arenabench.generator.generate_cli import main as generate_main
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 

@@ -11,11 +11,11 @@ import numpy as np
 import pytest
 import toy_arena
 
-from arenabench.eval.cli import main as eval_main
+from arenabench.eval.eval_cli import main as eval_main
+from arenabench.eval.evaluation import evaluate
 from arenabench.eval.pipelines import CallablePipeline, CommandPipeline
-from arenabench.eval.records import Prediction
+from arenabench.eval.results import Prediction
 from arenabench.eval.run_limits import RunLimits, RunSettings
-from arenabench.eval.runner import evaluate
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 

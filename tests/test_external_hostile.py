@@ -14,10 +14,10 @@ from pathlib import Path
 
 import pytest
 
+from arenabench.eval.evaluation import evaluate
 from arenabench.eval.external import bwrap_problem, pids_cgroup_parent
 from arenabench.eval.pipelines import CommandPipeline
 from arenabench.eval.run_limits import RunLimits, RunSettings
-from arenabench.eval.runner import evaluate
 from arenabench.eval.warm_client import close_all
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -297,7 +297,7 @@ def test_sigkill_of_the_harness_leaves_no_processes_or_directories(toy, tmp_path
     ],
 )
 def test_missing_executable_is_refused_up_front(cmd, message, toy, capsys):
-    from arenabench.eval.cli import main
+    from arenabench.eval.eval_cli import main
 
     assert main([str(toy), "--cmd", cmd, "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -306,7 +306,7 @@ def test_missing_executable_is_refused_up_front(cmd, message, toy, capsys):
 
 def test_sandbox_bwrap_where_it_does_not_work_is_a_usage_error(toy, capsys, monkeypatch):
     from arenabench.eval import external
-    from arenabench.eval.cli import main
+    from arenabench.eval.eval_cli import main
 
     monkeypatch.setenv("PATH", str(Path(PY).parent))  # no bwrap on this PATH
     external.bwrap_problem.cache_clear()
@@ -339,7 +339,7 @@ def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
 
 
 def test_limit_is_a_failure_category_everywhere(toy, run_tmp):
-    from arenabench.eval.records import CATEGORIES, STATUSES
+    from arenabench.eval.results import CATEGORIES, STATUSES
     from arenabench.eval.thresholds import check_thresholds, parse_thresholds
 
     assert "limit" in CATEGORIES and "limit" in STATUSES

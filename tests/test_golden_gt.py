@@ -17,7 +17,7 @@ def test_ground_truth_matches_the_golden_hashes_of_this_generator_version():
     assert not diff, (
         "ground truth changed while GENERATOR_VERSION is still "
         f"{version!r}:\n  " + "\n  ".join(diff) + "\n"
-        "If the change is intended: bump GENERATOR_VERSION in generator/sample.py (say what "
+        "If the change is intended: bump GENERATOR_VERSION in generator/make.py (say what "
         f"changed in its comment) and regenerate the golden file with `{golden.UPDATE_COMMAND}`"
         " (or `make golden`)."
     )

@@ -16,17 +16,17 @@ from pathlib import Path
 import pytest
 
 from arenabench.cli import main as arenabench_main
+from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade, team_command
 from arenabench.eval.grade.leaderboard import (
     LEADERBOARD_JSON_SCHEMA,
     LEADERBOARD_SCHEMA,
     LeaderboardRow,
     rank_rows,
 )
-from arenabench.eval.grade.runner import STATE_FILE, GradeOptions, grade, team_command
 from arenabench.eval.grade.submissions import submission_hash
 from arenabench.eval.phase_check import DEFAULT_PHASES
 from arenabench.eval.pipelines import CommandPipeline
-from arenabench.eval.records import Summary
+from arenabench.eval.results import Summary
 from arenabench.eval.run_limits import RunLimits, RunSettings
 
 TEAMS_SRC = Path(__file__).resolve().parent / "grade_teams"
@@ -71,7 +71,7 @@ def _distinct_seed() -> int:
 
 @pytest.fixture(scope="module")
 def dataset(tmp_path_factory):
-    from arenabench.generator.dataset import generate_dataset
+    from arenabench.generator.dataset_writer import generate_dataset
 
     out = tmp_path_factory.mktemp("grade-data") / "hidden"
     generate_dataset(out, preset="eyrc", count=COUNT, seed=_distinct_seed(), workers=1,

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from arenabench.eval.external import bwrap_problem
-from arenabench.eval.grade.runner import STATE_FILE, GradeOptions, grade
+from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade
 from arenabench.eval.run_limits import RunSettings
 from arenabench.generator.seeds import GUESSABLE_BELOW
 
@@ -67,7 +67,7 @@ def random_set(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def seed3_set(tmp_path_factory):
-    from arenabench.generator.dataset import generate_dataset
+    from arenabench.generator.dataset_writer import generate_dataset
 
     out = tmp_path_factory.mktemp("guard-seed3") / "hidden"
     generate_dataset(out, preset="eyrc", count=1, seed=3, workers=1, progress=False)
@@ -391,7 +391,7 @@ def _dom(page: Path, tmp_path: Path) -> str:
 
 @pytest.mark.slow
 def test_interrupted_grade_and_eval_show_the_banner(seed3_set, tmp_path):
-    from arenabench.generator.dataset import generate_dataset
+    from arenabench.generator.dataset_writer import generate_dataset
 
     data = tmp_path / "three"
     generate_dataset(data, preset="eyrc", count=3, seed=3, workers=1, progress=False)

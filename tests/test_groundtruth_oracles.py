@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
+from arenabench.generator.make import make_sample
 from arenabench.generator.presets import parse_overrides
 from arenabench.generator.render import Renderer
-from arenabench.generator.sample import make_sample
 
 N_SCENES = 50
 OVERRIDES = ["camera.tilt_deg=0:30", "camera.altitude_m=9:11"]

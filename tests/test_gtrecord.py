@@ -5,14 +5,14 @@ from pathlib import Path
 
 import pytest
 
-from arenabench.eval.dataset import DatasetItem
+from arenabench.eval.dataset_reader import DatasetItem
 from arenabench.gtrecord import AreaRecord, GroundTruth, MarkerRecord, ObstacleRecord
 from arenabench.schemas import GT_SCHEMA, gt_problem, gt_schema
 
 
 @pytest.fixture(scope="module")
 def written():
-    from arenabench.generator.sample import gt_record
+    from arenabench.generator.make import gt_record
     from arenabench.generator.sampler import sample_scene
 
     return [gt_record(sample_scene(preset, seed=5, index=i).scene, sid=f"{i:06d}",

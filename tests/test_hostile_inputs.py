@@ -147,7 +147,7 @@ def test_impossible_answer_of_a_command_is_bad_output(toy, tmp_path, args, needl
 
 def test_score_never_passes_a_non_finite_value():
     from arenabench.eval.metrics import score_image
-    from arenabench.eval.records import Prediction, Truth
+    from arenabench.eval.results import Prediction, Truth
 
     truth = Truth(count=1, area=100.0, marker_ids=())
     for count, area in ((1, float("nan")), (1, float("inf")), (1, -100.0), (1.5, 100.0),
@@ -203,9 +203,9 @@ def test_gt_count_1e400_is_refused(toy, tmp_path):
 
 
 def test_every_gt_the_generator_writes_validates():
+    from arenabench.generator.make import gt_record
     from arenabench.generator.presets import preset_names
     from arenabench.generator.render_cli import scene_gt_record
-    from arenabench.generator.sample import gt_record
     from arenabench.generator.sampler import sample_scene
     from arenabench.generator.scene import load_scene
     from arenabench.schemas import GT_SCHEMA, gt_problem, gt_schema
@@ -481,7 +481,7 @@ def test_manifest_paths_that_leave_the_dataset_are_refused(toy, tmp_path, where)
 
 def test_gt_area_1e_320_does_not_blame_the_pipeline():
     from arenabench.eval.metrics import score_image
-    from arenabench.eval.records import Prediction, Truth
+    from arenabench.eval.results import Prediction, Truth
 
     truth = Truth(count=0, area=1e-320, marker_ids=(80, 85, 90, 95))
     ok = score_image(truth, Prediction(status="ok", count=0, area=0.0,

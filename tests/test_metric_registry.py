@@ -21,8 +21,8 @@ from arenabench.eval.metric_registry import (
     lookup,
     metrics_table_markdown,
 )
-from arenabench.eval.records import CATEGORIES, STATUSES, Report, Summary
 from arenabench.eval.reports.summary_rows import phase_rows, summary_rows
+from arenabench.eval.results import CATEGORIES, STATUSES, Report, Summary
 from arenabench.eval.thresholds import check_thresholds, parse_thresholds
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from arenabench.eval.metrics import score_image, summarize, wilson_interval
-from arenabench.eval.records import CATEGORIES, Prediction, Truth
+from arenabench.eval.results import CATEGORIES, Prediction, Truth
 
 IDS = (80, 85, 90, 95)
 

@@ -101,15 +101,15 @@ def test_no_forbidden_imports(folder):
 @pytest.mark.parametrize(
     "source, current, is_pkg, expected",
     [
-        ("from ..eval import metrics", "arenabench.generator.sample", False,
+        ("from ..eval import metrics", "arenabench.generator.make", False,
          {"arenabench.eval", "arenabench.eval.metrics"}),
         ("from . import eval", "arenabench", True, {"arenabench", "arenabench.eval"}),
         ("from .records import X", "arenabench.eval.sweep.task", False,
          {"arenabench.eval.sweep.records", "arenabench.eval.sweep.records.X"}),
         ("def f():\n    import arenabench.eval.metrics", "arenabench.detect", False,
          {"arenabench.eval.metrics"}),
-        ("import importlib\nimportlib.import_module('arenabench.generator.cli')",
-         "arenabench.x", False, {"importlib", "arenabench.generator.cli"}),
+        ("import importlib\nimportlib.import_module('arenabench.generator.generate_cli')",
+         "arenabench.x", False, {"importlib", "arenabench.generator.generate_cli"}),
         ("from arenabench import generator", "arenabench.x", False,
          {"arenabench", "arenabench.generator"}),
     ],

@@ -11,6 +11,7 @@ import edge_phase
 import numpy as np
 import pytest
 
+from arenabench.eval.evaluation import evaluate
 from arenabench.eval.phase_check import (
     PHASE_DEPENDENT_MEANING,
     PhaseResult,
@@ -20,10 +21,9 @@ from arenabench.eval.phase_check import (
     resolve_phases,
     shifted_scene,
 )
-from arenabench.eval.records import Report
-from arenabench.eval.runner import evaluate
+from arenabench.eval.results import Report
 from arenabench.generator.camera import intrinsics, project, world_from_camera
-from arenabench.generator.dataset import generate_dataset
+from arenabench.generator.dataset_writer import generate_dataset
 from arenabench.generator.sampler import sample_scene
 
 PHASES = 8
@@ -149,9 +149,9 @@ def test_nothing_is_rerun_when_nothing_fails_or_the_check_is_off(twin):
 
 
 def test_a_sweep_phase_checks_its_failures_in_the_worker():
+    from arenabench.eval.sweep.execution import run_sweep
     from arenabench.eval.sweep.grid import parse_varies
     from arenabench.eval.sweep.records import PipelineSpec, SweepSpec
-    from arenabench.eval.sweep.runner import run_sweep
 
     spec = SweepSpec(preset="eyrc", axes=parse_varies(["degrade.gamma=1:1:1"]),
                      per_point=COUNT, seed=0, phases=PHASES,
@@ -175,7 +175,7 @@ def test_a_clean_run_never_loads_the_renderer(twin):
     import sys
 
     code = (
-        "import sys; from arenabench.eval.runner import evaluate\n"
+        "import sys; from arenabench.eval.evaluation import evaluate\n"
         f"r = evaluate('reference', {str(twin)!r}, workers=1, phases=8)\n"
         "assert r.summary.pass_rate == 1.0\n"
         "print(sorted(m for m in sys.modules if m.startswith(('arenabench.generator', "

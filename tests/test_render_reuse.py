@@ -10,9 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from arenabench.eval.sweep.grid import parse_varies
-from arenabench.eval.sweep.records import PipelineSpec, SweepSpec
-from arenabench.eval.sweep.runner import (
+from arenabench.eval.sweep.execution import (
     BATCHES_PER_WORKER,
     post_render_only,
     run_sweep,
@@ -20,9 +18,11 @@ from arenabench.eval.sweep.runner import (
     sweep_points,
     sweep_tasks,
 )
+from arenabench.eval.sweep.grid import parse_varies
+from arenabench.eval.sweep.records import PipelineSpec, SweepSpec
 from arenabench.generator.groundtruth import compute_ground_truth
+from arenabench.generator.make import make_sample
 from arenabench.generator.render import Renderer
-from arenabench.generator.sample import make_sample
 from arenabench.generator.sampler import sample_scene
 from arenabench.imageio import encode_png
 

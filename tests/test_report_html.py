@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 import toy_arena
 
+from arenabench.eval.evaluation import evaluate
 from arenabench.eval.reports import write_reports
-from arenabench.eval.runner import evaluate
 
 CHROMIUM_FLAGS = [
     "--headless",
@@ -189,7 +189,7 @@ def test_no_failures_says_so(builtin_pages):
 def test_report_json_keeps_the_polygons_compact(builtin_pages):
     import json
 
-    from arenabench.eval.records import Report
+    from arenabench.eval.results import Report
 
     page, report = builtin_pages["strict"]
     data = json.loads((page.parent / "report.json").read_text())

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import pytest
 
-from arenabench.generator.sample import ground_truth_record
+from arenabench.generator.make import ground_truth_record
 from arenabench.generator.scene import ArenaSpec, CameraSpec, MarkerSpec, Obstacle, Scene
 from arenabench.generator.scene_facts import FACTS, derived_facts
 

@@ -17,9 +17,9 @@ from arenabench.generator.distractors import patch_corners
 from arenabench.generator.layout import marker_square
 from arenabench.generator.lens import undistort_points
 from arenabench.generator.lights import shadow_alpha
+from arenabench.generator.make import make_sample
 from arenabench.generator.presets import parse_overrides
 from arenabench.generator.render import Renderer
-from arenabench.generator.sample import make_sample
 from arenabench.generator.scene import Scene
 
 SEED = 5

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from arenabench.eval.metrics import score_image, summarize
-from arenabench.eval.records import ImageResult, Prediction, Truth
+from arenabench.eval.results import ImageResult, Prediction, Truth
 from arenabench.eval.sweep.breakdown import (
     CurvePoint,
     axis_curve,

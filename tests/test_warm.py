@@ -14,10 +14,10 @@ import pytest
 import toy_arena  # tests/pipelines (pytest's pythonpath)
 
 from arenabench.eval import warm_client
+from arenabench.eval.evaluation import evaluate
 from arenabench.eval.external import bwrap_problem, pids_cgroup_parent
 from arenabench.eval.pipelines import CommandPipeline
 from arenabench.eval.run_limits import RunLimits, RunSettings
-from arenabench.eval.runner import evaluate
 from arenabench.eval.warm_client import WarmTarget, close_all, warm_target
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
@@ -120,7 +120,7 @@ def test_a_misbehaving_run_ends_alone_and_the_server_goes_on(sandbox, mode, cate
 
 
 @pytest.mark.parametrize("module, argv", [
-    ("arenabench.eval.cli", ["data", "--cmd", "x {image}"]),
+    ("arenabench.eval.eval_cli", ["data", "--cmd", "x {image}"]),
     ("arenabench.eval.sweep_cli", ["--preset", "eyrc", "--cmd", "x {image}", "--out", "o"]),
     ("arenabench.eval.grade_cli", ["subs", "data", "--cmd", "x {image}", "--out", "o"]),
 ])
@@ -176,7 +176,7 @@ class _KeepAnswer(CommandPipeline):
 
 @pytest.fixture(scope="module")
 def twin50(tmp_path_factory):
-    from arenabench.generator.cli import main as generate_main
+    from arenabench.generator.generate_cli import main as generate_main
 
     data = tmp_path_factory.mktemp("twin") / "eyrc"
     assert generate_main(["--preset", "eyrc", "--count", "50", "--seed", "11", "--out",

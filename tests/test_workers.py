@@ -58,8 +58,8 @@ def test_init_worker_sets_lp_num_threads_unless_set(monkeypatch):
 def test_task_records_pickle():
     import pickle
 
-    from arenabench.eval.runner import PipelineRun
-    from arenabench.generator.dataset import RenderTask
+    from arenabench.eval.evaluation import PipelineRun
+    from arenabench.generator.dataset_writer import RenderTask
 
     for task in (RenderTask(args={"preset": "eyrc", "overrides": {}}, seed=0, index=3, out="x"),
                  PipelineRun(spec="reference", image_path="a.png")):

@@ -7,7 +7,7 @@
     result = grade("hidden/", "submissions/", "out/", options=GradeOptions(), workers=8)
     result.rows[0].team, result.skipped
 
-See :mod:`arenabench.eval.grade.runner` for the output layout and resuming, and
+See :mod:`arenabench.eval.grade.grading` for the output layout and resuming, and
 :mod:`arenabench.eval.grade.leaderboard` for the ranking and ``leaderboard.json``.
 """
 
@@ -16,13 +16,13 @@ from __future__ import annotations
 from arenabench.lazy import lazy_exports
 
 _EXPORTS: dict[str, str] = {
-    "DEFAULT_COMMAND": "runner",
-    "GradeOptions": "runner",
-    "GradeResult": "runner",
-    "GradeUnit": "runner",
-    "grade": "runner",
-    "run_unit": "runner",
-    "team_command": "runner",
+    "DEFAULT_COMMAND": "grading",
+    "GradeOptions": "grading",
+    "GradeResult": "grading",
+    "GradeUnit": "grading",
+    "grade": "grading",
+    "run_unit": "grading",
+    "team_command": "grading",
     "LEADERBOARD_JSON_SCHEMA": "leaderboard",
     "LEADERBOARD_SCHEMA": "leaderboard",
     "LeaderboardRow": "leaderboard",

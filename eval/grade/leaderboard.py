@@ -39,7 +39,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 from ..metric_registry import METRIC, Metric
-from ..records import CATEGORIES, Summary
+from ..results import CATEGORIES, Summary
 
 LEADERBOARD_SCHEMA = "arenabench.leaderboard/1"
 

@@ -6,8 +6,8 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..dataset import Dataset
-from ..records import Report
+from ..dataset_reader import Dataset
+from ..results import Report
 from .csv_report import write_csv
 from .html_report import write_html
 from .json_report import write_json

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from arenabench.fileio import atomic_write_text
 
-from ..records import Report
+from ..results import Report
 
 COLUMNS: tuple[str, ...] = (
     "id",

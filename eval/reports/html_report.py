@@ -19,8 +19,8 @@ from arenabench.fileio import atomic_write_text
 from arenabench.gtrecord import AREA_REFERENCE_FIELDS, DEFAULT_AREA_REFERENCE
 
 from ..breakdown import shown_breakdown, strongest_cause_text
-from ..dataset import Dataset, DatasetError, load_dataset
-from ..records import ImageResult, Prediction, Report
+from ..dataset_reader import Dataset, DatasetError, load_dataset
+from ..results import ImageResult, Prediction, Report
 from .incomplete import banner_html, partial
 from .markdown_report import TOP_CAUSES, phase_cell
 from .summary_rows import fmt, summary_rows

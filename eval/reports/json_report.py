@@ -8,7 +8,7 @@ from pathlib import Path
 
 from arenabench.fileio import atomic_write_json
 
-from ..records import Report
+from ..results import Report
 
 
 def write_json(report: Report, path: str | os.PathLike[str]) -> Path:

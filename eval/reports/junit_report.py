@@ -9,7 +9,7 @@ from pathlib import Path
 
 from arenabench.fileio import atomic_write_bytes
 
-from ..records import Report
+from ..results import Report
 
 _INVALID_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
 

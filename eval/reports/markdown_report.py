@@ -8,7 +8,7 @@ from pathlib import Path
 from arenabench.fileio import atomic_write_text
 
 from ..breakdown import shown_breakdown, strongest_cause_text
-from ..records import Report
+from ..results import Report
 from .incomplete import banner_markdown, partial
 from .summary_rows import fmt, summary_rows
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from ..metric_registry import METRIC, ROW_SEPARATORS, summary_row_groups
 from ..phase_check import PHASE_DEPENDENT_MEANING
-from ..records import Report, Summary
+from ..results import Report, Summary
 
 
 def fmt(value: object, *, pct: bool = False, digits: int = 4) -> str:

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from ..metrics import summarize
-from ..records import ImageResult, Summary
+from ..results import ImageResult, Summary
 from .grid import Axis
 
 #: Bins of a random sweep's continuous axis.

@@ -27,7 +27,7 @@ from arenabench.fileio import (
 )
 from arenabench.generator.presets import format_value
 
-from ..records import CATEGORIES
+from ..results import CATEGORIES
 from .html import sweep_page
 from .plots import sweep_figures
 from .records import SweepResult

@@ -10,7 +10,7 @@ from typing import Any
 
 import numpy as np
 
-from ..records import ImageResult
+from ..results import ImageResult
 from .breakdown import CurvePoint, axis_curve, heat_grid
 from .grid import Axis
 from .records import SweepResult

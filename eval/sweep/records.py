@@ -11,10 +11,10 @@ from typing import Any
 from arenabench.generator.presets import Value, format_value
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 
-from ..dataset import AREA_REFERENCES
+from ..dataset_reader import AREA_REFERENCES
 from ..metrics import DEFAULT_TOLERANCE
 from ..pipelines import BUILTIN_PIPELINES, OUTPUT_MODES, CommandPipeline, Pipeline, make_pipeline
-from ..records import ImageResult, Summary
+from ..results import ImageResult, Summary
 from ..run_limits import RunSettings
 from .grid import Axis
 
@@ -112,7 +112,7 @@ class SweepSpec:
     tolerance : float
         Largest passing ``|area_rel_err|``.
     area_reference : {"visible", "footprint", "contour"}
-        GT area scored against (:data:`arenabench.eval.dataset.AREA_REFERENCES`).
+        GT area scored against (:data:`arenabench.eval.dataset_reader.AREA_REFERENCES`).
     threshold : float
         Breakdown threshold on the pass rate's lower 95 % bound.
     breakdown_mode : {"marginal", "axis"}

@@ -20,16 +20,16 @@ from arenabench import workers
 from arenabench.imageio import IMAGE_EXTENSIONS, decode_image, encode_image
 from arenabench.interrupts import worker_task
 
-from ..dataset import DatasetItem
-from ..records import Prediction
-from ..runner import score_sample
+from ..dataset_reader import DatasetItem
+from ..evaluation import score_sample
+from ..results import Prediction
 from .records import PipelineSpec, SweepTask
 
 
 def init_sweep_worker(lp_threads: int | None = None, parent_pid: int | None = None) -> None:
     """Process-pool initializer: :func:`arenabench.workers.init_worker`, then create the
     renderer (so the first task does not pay for it)."""
-    from arenabench.generator.sample import worker_renderer
+    from arenabench.generator.make import worker_renderer
 
     workers.init_worker(lp_threads, parent_pid)
     worker_renderer()
@@ -97,12 +97,12 @@ def run_task(task: SweepTask) -> dict[str, Any]:
 
 def run_batch(batch: tuple[SweepTask, ...]) -> list[dict[str, Any]]:
     """:func:`run_task` on each task of a batch
-    (:func:`arenabench.eval.sweep.runner.sweep_batches`), in order."""
+    (:func:`arenabench.eval.sweep.execution.sweep_batches`), in order."""
     return [run_task(task) for task in batch]
 
 
 def _run_task(task: SweepTask) -> dict[str, Any]:
-    from arenabench.generator.sample import make_sample, worker_renderer
+    from arenabench.generator.make import make_sample, worker_renderer
     from arenabench.generator.sampler import SamplingError
 
     out: dict[str, Any] = {

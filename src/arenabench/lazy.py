@@ -19,7 +19,7 @@ def lazy_exports(package: str, exports: dict[str, str]) -> Callable[[str], Any]:
     package : str
         The package's ``__name__``.
     exports : dict
-        Exported name -> module that defines it, relative to ``package`` (``"runner"``).
+        Exported name -> module that defines it, relative to ``package`` (``"evaluation"``).
 
     Returns
     -------

@@ -90,7 +90,7 @@ def score_preset(
     """
     if count < 1:
         raise ValueError(f"count must be >= 1, got {count!r}")
-    from arenabench.eval.dataset import DatasetItem
+    from arenabench.eval.dataset_reader import DatasetItem
     from arenabench.eval.metrics import score_image
     from arenabench.eval.pipelines import make_pipeline
     from arenabench.generator import Renderer, make_sample

@@ -43,13 +43,13 @@ from arenabench.fileio import (
 )
 from arenabench.workers import init_worker, process_state, usable_cores
 
-from ..dataset import AREA_REFERENCES, Dataset, load_dataset
+from ..dataset_reader import AREA_REFERENCES, Dataset, load_dataset
+from ..evaluation import build_report, score_sample
 from ..metrics import DEFAULT_TOLERANCE
 from ..pipelines import OUTPUT_MODES, CommandPipeline
-from ..records import Prediction, Summary
 from ..reports import FORMATS, write_reports
+from ..results import Prediction, Summary
 from ..run_limits import RunSettings
-from ..runner import build_report, score_sample
 from .leaderboard import LeaderboardRow, leaderboard_dict, rank_rows
 from .submissions import SubmissionsError, Team, find_teams, submission_hash
 

@@ -210,12 +210,12 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         except OutputPathError as exc:
             return _usage_error(parser, f"--out {args.out}: {exc}")
 
-    from .dataset import DatasetError, load_dataset
+    from .dataset_reader import DatasetError, load_dataset
+    from .evaluation import EvaluationInterrupted, evaluate
     from .phase_check import resolve_phases
     from .pipelines import CommandPipeline, make_pipeline
     from .reports import FORMATS, write_reports
     from .reports.summary_rows import headline
-    from .runner import EvaluationInterrupted, evaluate
     from .thresholds import check_thresholds, parse_thresholds
 
     formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())

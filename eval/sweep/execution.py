@@ -39,7 +39,7 @@ from arenabench.workers import llvmpipe_threads, usable_cores
 
 from ..metrics import summarize
 from ..phase_check import phase_summary
-from ..records import ImageResult
+from ..results import ImageResult
 from .breakdown import axis_curve, breakdown_value
 from .grid import grid_points, random_points
 from .records import PointSummary, SweepResult, SweepSpec, SweepTask

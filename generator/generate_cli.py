@@ -50,7 +50,7 @@ def main(argv: list[str] | None = None) -> int:
     130 / 143 when stopped by SIGINT / SIGTERM (what finished is kept; re-running resumes)."""
     args = build_parser().parse_args(argv)
     from arenabench.fileio import OutputPathError, check_output_dir
-    from arenabench.generator.dataset import GenerateError, generate_dataset
+    from arenabench.generator.dataset_writer import GenerateError, generate_dataset
     from arenabench.generator.gl_check import OffscreenGLError
     from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError

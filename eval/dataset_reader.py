@@ -16,7 +16,7 @@ from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import image_file_problem
 from arenabench.schemas import gt_problem
 
-from .records import Truth
+from .results import Truth
 
 
 class DatasetError(ValueError):

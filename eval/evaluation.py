@@ -19,10 +19,10 @@ from typing import Any
 from arenabench.workers import process_state, usable_cores
 
 from .breakdown import breakdown, rank_causes
-from .dataset import AREA_REFERENCES, Dataset, DatasetItem, load_dataset
+from .dataset_reader import AREA_REFERENCES, Dataset, DatasetItem, load_dataset
 from .metrics import DEFAULT_TOLERANCE, score_image, summarize
 from .pipelines import Pipeline, make_pipeline
-from .records import ImageResult, Prediction, Report
+from .results import ImageResult, Prediction, Report
 
 
 class EvaluationInterrupted(Exception):
@@ -79,7 +79,7 @@ def score_sample(
     sample: DatasetItem, pred: Prediction, *, tolerance: float, area_reference: str
 ) -> ImageResult:
     """Score one prediction against a dataset item's ground truth, as an
-    :class:`~arenabench.eval.records.ImageResult`."""
+    :class:`~arenabench.eval.results.ImageResult`."""
     truth = sample.truth(area_reference=area_reference)
     return ImageResult(
         id=sample.id,
@@ -316,7 +316,7 @@ def score(
     dataset: str | os.PathLike[str] | Dataset,
     **options: Any,
 ):
-    """Evaluate and return only the :class:`~arenabench.eval.records.Summary`.
+    """Evaluate and return only the :class:`~arenabench.eval.results.Summary`.
 
     For test suites: ``assert score(my_pipeline, dataset).pass_rate >= 0.95``. ``options``
     are those of :func:`evaluate`.

@@ -59,14 +59,14 @@ from arenabench.fileio import (
     sha256_file,
 )
 from arenabench.generator.edges import EDGE_MODEL
-from arenabench.generator.presets import Value, format_value, get_preset, resolve
-from arenabench.generator.sample import (
+from arenabench.generator.make import (
     GENERATOR_VERSION,
     make_sample,
     scene_id,
     worker_gl_info,
     worker_renderer,
 )
+from arenabench.generator.presets import Value, format_value, get_preset, resolve
 from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import IMAGE_EXTENSIONS, PNG_COMPRESSION, encode_image
 from arenabench.interrupts import (
@@ -287,7 +287,7 @@ def render_on_cluster(task: RenderTask) -> dict[str, Any]:
     (:func:`write_rendered`).
 
     The renderer is created on first use, one per worker thread (an OpenGL context is current
-    in one thread only; :func:`arenabench.generator.sample.worker_renderer`), and reused.
+    in one thread only; :func:`arenabench.generator.make.worker_renderer`), and reused.
     """
     c0 = time.process_time()
     sample = _render(task)
