@@ -31,7 +31,7 @@ _EXPORTS: dict[str, str] = {
     "Report": "results",
     "BuiltinPipeline": "pipelines",
     "CallablePipeline": "pipelines",
-    "CommandPipeline": "pipelines",
+    "CommandPipeline": "external",
     "make_pipeline": "pipelines",
     "write_reports": "reports",
 }

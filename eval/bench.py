@@ -24,7 +24,7 @@ size (1000 x 1000):
 7. ``worker_peak_rss_mb`` / ``worker_rss_growth_mb``: peak resident memory of a rendering
    worker and its growth over ``rss_renders`` consecutive renders;
 8. ``sandbox_overhead_ms``: what bubblewrap adds to one external run
-   (:class:`~arenabench.eval.pipelines.CommandPipeline`, a trivial shell command writing
+   (:class:`~arenabench.eval.external.CommandPipeline`, a trivial shell command writing
    ``obstacles.txt``): median wall time per run with ``--sandbox bwrap`` minus with
    ``--sandbox none`` (``sandbox_runs`` runs each, interleaved, one at a time; 0 with
    ``details.sandbox.bwrap`` false where bubblewrap does not work).
@@ -271,7 +271,7 @@ def _pipeline_one(task: ImageTask) -> tuple[bool, float]:
     """
     from arenabench.eval.dataset_reader import DatasetItem
     from arenabench.eval.metrics import score_image
-    from arenabench.eval.pipelines import prediction_from_result
+    from arenabench.eval.predictions import prediction_from_result
     from arenabench.imageio import load_image
     from arenabench.pipeline import detect
 
@@ -606,9 +606,9 @@ SANDBOX_COMMAND = "sh -c 'printf \"Aruco ID: []\\nObstacles: 0\\nArea: 0\\n\" > 
 
 def _sandbox_overhead(image: Path, runs: int) -> tuple[float, dict[str, Any]]:
     """Median wall ms per external run with and without bubblewrap (item 8)."""
-    from arenabench.eval.external import bwrap_problem
-    from arenabench.eval.pipelines import CommandPipeline
+    from arenabench.eval.external import CommandPipeline
     from arenabench.eval.run_limits import RunSettings
+    from arenabench.eval.sandbox import bwrap_problem
 
     problem = bwrap_problem()
     modes = ("none",) if problem else ("none", "bwrap")
@@ -656,7 +656,7 @@ def script_per_image(images: list[Path]) -> tuple[dict[str, float], dict[str, An
     import runpy
 
     from arenabench.eval import warm_client
-    from arenabench.eval.pipelines import CommandPipeline
+    from arenabench.eval.external import CommandPipeline
     from arenabench.eval.run_limits import RunSettings
 
     if not images:

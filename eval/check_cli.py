@@ -194,7 +194,7 @@ def _main(argv: list[str] | None) -> int:
 
     from arenabench.fileio import OutputPathError, check_output_dir
 
-    from .pipelines import CommandPipeline
+    from .external import CommandPipeline
     from .run_limits import run_settings_from_args
 
     script = Path(args.script).resolve()

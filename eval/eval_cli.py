@@ -28,7 +28,8 @@ from arenabench.cliopts import (
 
 from .metric_registry import fail_under_help
 from .phase_check import add_phase_check_argument
-from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
+from .pipelines import BUILTIN_PIPELINES
+from .predictions import OUTPUT_MODES
 from .run_limits import run_settings_from_args
 
 EPILOG = """\
@@ -212,8 +213,9 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
 
     from .dataset_reader import DatasetError, load_dataset
     from .evaluation import EvaluationInterrupted, evaluate
+    from .external import CommandPipeline
     from .phase_check import resolve_phases
-    from .pipelines import CommandPipeline, make_pipeline
+    from .pipelines import make_pipeline
     from .reports import FORMATS, write_reports
     from .reports.summary_rows import headline
     from .thresholds import check_thresholds, parse_thresholds

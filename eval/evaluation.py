@@ -147,7 +147,7 @@ def evaluate(
     ----------
     pipeline : str, callable or Pipeline
         ``"reference"``, ``"seed"``, ``"pkg.module:function"``, a function taking a BGR image,
-        or a pipeline object (e.g. :class:`~arenabench.eval.pipelines.CommandPipeline`).
+        or a pipeline object (e.g. :class:`~arenabench.eval.external.CommandPipeline`).
     dataset : path-like or Dataset
         Dataset folder written by the generator, or a loaded dataset.
     workers : int, optional

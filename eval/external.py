@@ -12,8 +12,8 @@ Interface (used by ``eval``, ``sweep`` and ``grade``)::
 (``limits.timeout_s``, ``memory_bytes``, ``max_procs``, ``max_file_size``, ``max_output``),
 the sandbox mode, the image's name and extra environment variables. Construction raises
 ``ValueError`` (one line) for a template that cannot be split, an executable that does not
-exist, ``output`` not in :data:`OUTPUT_MODES`, or ``sandbox="bwrap"`` where bubblewrap is
-missing or does not work.
+exist, ``output`` not in :data:`~arenabench.eval.predictions.OUTPUT_MODES`, or
+``sandbox="bwrap"`` where bubblewrap is missing or does not work.
 
 How one image runs
 ------------------
@@ -32,33 +32,11 @@ How one image runs
   stdout/stderr go through it and only their last ``max_output`` bytes are kept. The run
   ends when the command's main process exits (or at the timeout); then every remaining
   process of the run is killed.
-- Sandbox (``settings.sandbox``): ``bwrap`` runs the command under bubblewrap with new user,
-  mount, PID, IPC, UTS and network namespaces (no network), ``--die-with-parent``, a fresh
-  ``/dev`` and ``/proc``; visible read-only: ``/usr`` (and the ``/bin``, ``/lib*`` links),
-  a few ``/etc`` files, what the command's executable needs (:mod:`.interpreter`: a venv
-  with its base installation and the source folders of its ``.pth`` and editable installs,
-  conda, pyenv, a ``#!`` script's interpreter; the running Python's only for ``{python}``),
-  and the submission's own folder (the folders of files named in the command); read-write
-  only the private directory (at :data:`SANDBOX_DIR`) and ``/tmp`` (the run's ``tmp/``).
-  The dataset, its ground truth and the rest of the machine are not visible; a dataset
-  inside a visible folder (its root found by ``manifest.jsonl`` / ``dataset.json``, whatever
-  its images' folder is called) is hidden under an empty tmpfs. ``grade`` never uses
-  ``auto``'s fallback: it fails closed (:mod:`.preflight`).
-  ``none`` runs without namespaces (private directory, environment, limits and cleanup
-  still apply; it is no security boundary: the command can read what the harness can);
-  ``auto`` is ``bwrap`` when it works, else ``none`` with one warning line on stderr.
-- Limits: ``RLIMIT_AS`` per process (memory), ``RLIMIT_FSIZE`` (file size), a pids cgroup
-  per run when the cgroup file system is writable (else ``RLIMIT_NPROC``, which the kernel
-  does not enforce for root) for the number of processes, the timeout.
-
-Outcome (:class:`~arenabench.eval.results.Prediction` status)
-------------------------------------------------------------
-``timeout`` (message ``timed out after T s ...``); ``limit`` when the run failed after
-hitting a limit, the message starting with which: ``memory limit (--memory-limit 2G) ...``,
-``process limit (--max-procs 64) ...``, ``file size limit (--max-file-size 64M) ...``;
-``crash`` (non-zero exit other than 3, or a signal); ``markers_not_found`` (exit 3);
-``bad_output`` (no or unparseable ``obstacles.txt``, one larger than
-:data:`OBSTACLES_MAX_BYTES` or not a regular file, no JSON line); else ``ok``.
+- Sandbox (``settings.sandbox``: ``bwrap``, ``none`` or ``auto``) and limits (memory, file
+  size, processes, the timeout): :mod:`arenabench.eval.sandbox`.
+- Outcome (:class:`~arenabench.eval.results.Prediction` status ``ok``, ``markers_not_found``,
+  ``timeout``, ``limit``, ``crash`` or ``bad_output``): the run's files and output are read by
+  :func:`arenabench.eval.predictions.prediction_from_run`.
 """
 
 from __future__ import annotations
@@ -68,186 +46,38 @@ import os
 import shlex
 import shutil
 import signal
-import stat
 import subprocess
 import sys
 import tempfile
 import threading
 from dataclasses import KW_ONLY, dataclass, field
-from functools import lru_cache
 from pathlib import Path
-from typing import Any
 
-from arenabench.competition import (
-    EXIT_MARKERS_NOT_FOUND,
-    OBSTACLES_FILE,
-    OutputFormatError,
-    parse_obstacles_txt,
-)
+from arenabench.competition import OBSTACLES_FILE
 
+from .predictions import OUTPUT_MODES, prediction_from_run
 from .results import Prediction, tail
 from .run_limits import RunLimits, RunSettings
+from .sandbox import (
+    SANDBOX_DIR,
+    bwrap_argv,
+    launch_limits,
+    pids_cgroup_parent,
+    resolve_sandbox,
+    sandbox_path,
+    visible_paths,
+    warn_if_procs_unlimited,
+)
 from .stale_runs import run_dir_prefix, sweep_stale_runs
 
-OUTPUT_MODES: tuple[str, ...] = ("obstacles", "json")
-#: Largest ``obstacles.txt`` read; a larger one is ``bad_output``.
-OBSTACLES_MAX_BYTES = 64 * 1024
-#: Where the private directory appears inside the bubblewrap sandbox.
-SANDBOX_DIR = "/sandbox"
 #: The launcher script (standard library only; run with ``python -I -S``).
 LAUNCHER = str(Path(__file__).with_name("launcher.py"))
 #: Seconds the harness waits for a launcher beyond the command's own timeout.
 LAUNCHER_GRACE_S = 30.0
 
-_ETC_FILES = (
-    "/etc/ld.so.cache", "/etc/ld.so.conf", "/etc/ld.so.conf.d", "/etc/localtime",
-    "/etc/nsswitch.conf", "/etc/passwd", "/etc/group", "/etc/alternatives", "/etc/fonts",
-    "/etc/mime.types", "/etc/matplotlibrc",
-)  # fmt: skip
-_MEMORY_SIGNS = ("MemoryError", "std::bad_alloc", "Cannot allocate memory", "out of memory",
-                 "Out of memory", "failed to map segment", "cannot allocate")
-_FSIZE_SIGNS = ("File too large",)
-_NPROC_SIGNS = ("Resource temporarily unavailable", "BlockingIOError", "fork: retry")
-
-_warned = threading.Lock()
-_warned_once: list[str] = []
-
-
-def _warn_once(message: str) -> None:
-    with _warned:
-        if message in _warned_once:
-            return
-        _warned_once.append(message)
-    print(f"arenabench: WARNING: {message}", file=sys.stderr, flush=True)
-
-
-@lru_cache(maxsize=1)
-def bwrap_problem() -> str | None:
-    """Why bubblewrap cannot be used here (``None`` when it works): missing, or failing to
-    create the namespaces (e.g. user namespaces disabled)."""
-    exe = shutil.which("bwrap")
-    if exe is None:
-        return "bubblewrap (bwrap) is not installed"
-    true = shutil.which("true") or "/bin/true"
-    argv = [exe, *_NAMESPACE_ARGS, "--ro-bind", "/", "/", "--proc", "/proc", "--dev", "/dev",
-            "--", true]
-    try:
-        done = subprocess.run(argv, capture_output=True, timeout=20, stdin=subprocess.DEVNULL)
-    except (OSError, subprocess.TimeoutExpired) as exc:
-        return f"bubblewrap does not work here: {exc}"
-    if done.returncode != 0:
-        why = done.stderr.decode(errors="replace").strip().splitlines()[-1:] or ["?"]
-        return f"bubblewrap does not work here: {why[0]}"
-    return None
-
-
-_NAMESPACE_ARGS = (
-    "--unshare-user", "--uid", "1000", "--gid", "1000", "--unshare-pid", "--unshare-net",
-    "--unshare-ipc", "--unshare-uts", "--unshare-cgroup-try", "--die-with-parent",
-    "--new-session", "--hostname", "sandbox",
-)  # fmt: skip
-
-
-def resolve_sandbox(mode: str) -> str:
-    """The sandbox a run gets: ``"bwrap"`` or ``"none"``.
-
-    ``auto`` falls back to ``none`` with one warning line on stderr when bubblewrap is
-    missing or broken; ``bwrap`` then raises ``ValueError``.
-    """
-    if mode == "none":
-        return "none"
-    problem = bwrap_problem()
-    if problem is None:
-        return "bwrap"
-    if mode == "bwrap":
-        raise ValueError(f"--sandbox bwrap: {problem} (install the 'bubblewrap' package)")
-    _warn_once(f"{problem}; external commands run WITHOUT a sandbox (they can read the "
-               "dataset and the network). Install 'bubblewrap' or pass --sandbox none to "
-               "silence this.")
-    return "none"
-
-
-_CGROUP_PROBE_LOCK = threading.Lock()
-_CGROUP_PARENT: list[str | None] = []  # the probe's answer, once found
-
-
-def pids_cgroup_parent() -> str | None:
-    """A writable pids-cgroup folder where each run gets a child cgroup, or ``None``.
-
-    Probed once per process, under a lock (grade calls it from many threads at once) and
-    with a probe folder of a name no other thread or process uses.
-    """
-    with _CGROUP_PROBE_LOCK:
-        if not _CGROUP_PARENT:
-            _CGROUP_PARENT.append(_probe_pids_cgroup_parent())
-        return _CGROUP_PARENT[0]
-
-
-def _probe_pids_cgroup_parent() -> str | None:
-    import uuid
-
-    candidates = ["/sys/fs/cgroup/pids"]
-    try:
-        for line in Path("/proc/self/cgroup").read_text().splitlines():
-            hid, _, rest = line.partition(":")
-            controllers, _, path = rest.partition(":")
-            if hid == "0" and controllers == "":
-                root = Path("/sys/fs/cgroup", path.lstrip("/"))
-                sub = root / "cgroup.subtree_control"
-                if sub.is_file() and "pids" in sub.read_text().split():
-                    candidates.append(str(root))
-    except OSError:
-        pass
-    for parent in candidates:
-        probe = os.path.join(parent, f"arenabench-probe-{os.getpid()}-{uuid.uuid4().hex}")
-        try:
-            os.mkdir(probe)
-        except OSError:
-            continue
-        ok = os.path.exists(os.path.join(probe, "pids.max"))
-        try:
-            os.rmdir(probe)
-        except OSError:
-            ok = False
-        if ok:
-            return parent
-    return None
-
-
-def _format_size(n: int) -> str:
-    for unit, size in (("G", 1024**3), ("M", 1024**2), ("k", 1024)):
-        if n >= size and n % size == 0:
-            return f"{n // size}{unit}"
-    return str(n)
-
 
 def _decode(data: bytes) -> str:
     return data.decode("utf-8", errors="replace")
-
-
-def _read_small(path: Path, limit: int) -> bytes:
-    """Read a regular file of at most ``limit`` bytes without following links or blocking.
-
-    Raises
-    ------
-    OutputFormatError
-        When it is not a regular file or is larger than ``limit``.
-    """
-    try:
-        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
-    except OSError as exc:
-        raise OutputFormatError(f"{OBSTACLES_FILE} cannot be read: {exc.strerror}") from None
-    st = os.fstat(fd)  # before fdopen, which refuses a directory with IsADirectoryError
-    if not stat.S_ISREG(st.st_mode):
-        os.close(fd)
-        kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file"
-        raise OutputFormatError(f"{OBSTACLES_FILE} is {kind}")
-    with os.fdopen(fd, "rb") as fh:
-        if st.st_size > limit:
-            raise OutputFormatError(
-                f"{OBSTACLES_FILE} is {st.st_size} bytes, more than the {limit} allowed"
-            )
-        return fh.read(limit + 1)[:limit]
 
 
 def _wait(proc: subprocess.Popen, timeout: float) -> int:
@@ -265,21 +95,6 @@ def _wait(proc: subprocess.Popen, timeout: float) -> int:
     if not ready:
         raise subprocess.TimeoutExpired(proc.args, timeout)
     return proc.wait()
-
-
-def dataset_folders(image_dir: Path) -> list[Path]:
-    """The folders from ``image_dir``'s parent up to the dataset root that holds it (the
-    nearest one with ``manifest.jsonl`` or ``dataset.json``); empty when there is none."""
-    for k, folder in enumerate(image_dir.parents):
-        if (folder / "manifest.jsonl").exists() or (folder / "dataset.json").exists():
-            return list(image_dir.parents)[: k + 1]
-        if k >= 8:
-            break
-    return []
-
-
-def _is_within(path: str, root: str) -> bool:
-    return path == root or path.startswith(root.rstrip("/") + "/")
 
 
 @dataclass
@@ -342,9 +157,7 @@ class CommandPipeline:
         self.sandbox = resolve_sandbox(self.settings.sandbox)
         self._cgroup = pids_cgroup_parent()
         sweep_stale_runs(cgroup_parent=self._cgroup)  # what SIGKILLed runs left, once
-        if self._cgroup is None and os.getuid() == 0:
-            _warn_once("no writable pids cgroup and running as root: --max-procs cannot be "
-                       "enforced for external commands")
+        warn_if_procs_unlimited(self._cgroup)
         self._lock = threading.Lock()
         self._live: set[subprocess.Popen] = set()
         self._stopped = False
@@ -403,66 +216,12 @@ class CommandPipeline:
                 for a in self._resolved_args()]
 
     def _visible_paths(self) -> list[str]:
-        """Read-only folders of the sandbox besides /usr (outermost first, no duplicates):
-        what the command's executable needs (:mod:`arenabench.eval.interpreter`: a venv with
-        its base installation, conda, pyenv, a ``#!`` script's interpreter), the running
-        Python's only when the command names ``{python}``, and the submission's own folders
-        (those of files named in the command)."""
-        from .interpreter import interpreter_folders, outermost
-
-        paths: set[str] = set()
-        if self._executable:
-            paths.update(interpreter_folders(self._executable).folders)
-        if any("{python}" in a for a in self._argv):
-            paths.update(interpreter_folders(sys.executable).folders)
-        roots = ("/", "/proc", "/dev", "/sys", "/tmp", "/run", "/var", "/home", "/root", "/mnt")
-        for arg in self._resolved_args():
-            if "{" in arg or not os.path.isabs(arg) or not os.path.exists(arg):
-                continue
-            real = os.path.realpath(arg)
-            folder = real if os.path.isdir(real) else os.path.dirname(real)
-            # a file directly in a top folder such as /tmp: only the file itself
-            paths.add(real if folder in roots and real != folder else folder)
-        return [p for p in outermost(paths) if p not in roots]
+        """Read-only folders of the sandbox besides /usr (:func:`.sandbox.visible_paths`)."""
+        return visible_paths(self._executable, self._resolved_args(),
+                             python=any("{python}" in a for a in self._argv))
 
     def _bwrap_argv(self, work: str, tmp: str, image_path: Path) -> list[str]:
-        args = ["bwrap", *_NAMESPACE_ARGS, "--ro-bind", "/usr", "/usr"]
-        for top in ("/bin", "/sbin", "/lib", "/lib32", "/lib64", "/libx32"):
-            if os.path.islink(top):
-                args += ["--symlink", os.readlink(top), top]
-            elif os.path.isdir(top):
-                args += ["--ro-bind", top, top]
-        for f in _ETC_FILES:
-            args += ["--ro-bind-try", f, f]
-        # the private directory and /tmp first: a submission under /tmp is bound on top
-        args += ["--bind", tmp, "/tmp", "--bind", work, SANDBOX_DIR]
-        visible = self._visible_paths()
-        for p in visible:
-            args += ["--ro-bind", p, p]
-        # a dataset inside a visible folder is hidden under an empty tmpfs: the image's
-        # folder and every folder up to the dataset's root (manifest.jsonl / dataset.json)
-        image_dir = Path(os.path.realpath(image_path)).parent
-        hide = [image_dir, *dataset_folders(image_dir)]
-        for d in hide:
-            ds = str(d)
-            if any(_is_within(ds, v) and ds != v for v in visible) and not any(
-                _is_within(v, ds) for v in visible
-            ):
-                args += ["--tmpfs", ds]
-        # --as-pid-1: the command is pid 1 of the sandbox's PID namespace, so no process there
-        # (bubblewrap's own init before) shows this argument list, bind paths included, in
-        # /proc/*/cmdline
-        args += ["--proc", "/proc", "--dev", "/dev", "--remount-ro", "/", "--chdir", SANDBOX_DIR,
-                 "--as-pid-1", "--"]
-        return [shutil.which("bwrap") or "bwrap", *args[1:]]
-
-    def _sandbox_path(self) -> str:
-        """``PATH`` inside the sandbox: the executable's folder, then the system's (the
-        harness's own ``PATH`` would name host folders in ``/proc/self/environ``)."""
-        system = "/usr/local/bin:/usr/bin:/bin"
-        if not self._executable:
-            return system
-        return f"{os.path.dirname(self._executable)}:{system}"
+        return bwrap_argv(work, tmp, image_path, self._visible_paths())
 
     def fill_workdir(self, work: str, image_path: Path) -> str | None:
         """Fill a run's private working directory ``work`` (cold and warm runs alike): the files
@@ -483,9 +242,9 @@ class CommandPipeline:
 
     def _env(self, home: str, tmp: str) -> dict[str, str]:
         """The command's whole environment (cold runs, warm servers and warm runs alike);
-        under bubblewrap ``PATH`` names no host folder (:meth:`_sandbox_path`)."""
+        under bubblewrap ``PATH`` names no host folder (:func:`.sandbox.sandbox_path`)."""
         env = {
-            "PATH": (self._sandbox_path() if self.sandbox == "bwrap"
+            "PATH": (sandbox_path(self._executable) if self.sandbox == "bwrap"
                      else os.environ.get("PATH", os.defpath)),
             "HOME": home,
             "LANG": "C.UTF-8",
@@ -554,11 +313,8 @@ class CommandPipeline:
         cfg = {
             "exe": argv[0] if self.sandbox == "bwrap" else (self._executable or argv[0]),
             "argv": argv, "env": env, "cwd": work, "rundir": rundir,
-            "timeout_s": lim.timeout_s, "memory_bytes": lim.memory_bytes,
-            "max_file_size": lim.max_file_size, "max_output": lim.max_output,
-            "max_procs": lim.max_procs, "pids_max": pids_max,
-            "cgroup_parent": self._cgroup, "sandboxed": self.sandbox == "bwrap",
-            "nproc_rlimit": self._cgroup is None and os.getuid() != 0,
+            **launch_limits(lim, cgroup_parent=self._cgroup, sandboxed=self.sandbox == "bwrap",
+                            pids_max=pids_max),
             "parent_pid": os.getpid(),
         }  # fmt: skip
         cfg_path = os.path.join(rundir, "launch.bin")
@@ -607,68 +363,7 @@ class CommandPipeline:
         err = _decode(Path(rundir, "stderr").read_bytes())
         return self._interpret(result, out, err, work)
 
-    def _limit_hit(self, result: dict, stderr: str) -> str | None:
-        """Which limit a failed run hit, as the message's start (``None``: none)."""
-        lim, rc = self.limits, result["rc"]
-        last = stderr[-4000:]
-        if result.get("pids_limit_hit") or (
-            self._cgroup is None and any(s in last for s in _NPROC_SIGNS)
-        ):
-            return f"process limit (--max-procs {lim.max_procs}) reached"
-        if rc in (-signal.SIGXFSZ, 128 + signal.SIGXFSZ) or any(s in last for s in _FSIZE_SIGNS):
-            return f"file size limit (--max-file-size {_format_size(lim.max_file_size)}) reached"
-        if any(s in last for s in _MEMORY_SIGNS):
-            return f"memory limit (--memory-limit {_format_size(lim.memory_bytes)}) reached"
-        return None
-
     def _interpret(self, result: dict, stdout: str, stderr: str, workdir: str) -> Prediction:
-        from .pipelines import last_json_line, prediction_from_result
-
-        rc, latency = result["rc"], float(result["latency_ms"])
-        keep = {"stdout": tail(stdout), "stderr": tail(stderr), "latency_ms": latency}
-        if result.get("error"):
-            return Prediction(status="crash", message=result["error"][:500], **keep)
-        failed = result["timed_out"] or rc not in (0, EXIT_MARKERS_NOT_FOUND)
-        which = self._limit_hit(result, stderr)
-        last = stderr.strip().splitlines()[-1:] or [""]
-        if which and (failed or result.get("pids_limit_hit")):
-            return Prediction(status="limit", message=f"{which}: {last[0][:300]}".rstrip(": "),
-                              **keep)
-        if result["timed_out"]:
-            msg = f"timed out after {self.limits.timeout_s:g} s (all its processes killed)"
-            return Prediction(status="timeout", message=msg, **keep)
-        if rc not in (0, EXIT_MARKERS_NOT_FOUND):
-            why = f"killed by signal {-rc}" if rc < 0 else f"exit status {rc}"
-            return Prediction(
-                status="crash", message=f"{why}: {last[0][:300]}".rstrip(": "), **keep
-            )
-        try:
-            if self.output == "json":
-                parsed_json: Any = last_json_line(stdout)
-                if rc == EXIT_MARKERS_NOT_FOUND and isinstance(parsed_json, dict):
-                    parsed_json.setdefault("status", "markers_not_found")
-                pred = prediction_from_result(parsed_json, latency_ms=latency, stdout=stdout)
-                return Prediction(**{**pred.__dict__, "stderr": tail(stderr)})
-            path = Path(workdir) / OBSTACLES_FILE
-            if not os.path.lexists(path):
-                if rc == EXIT_MARKERS_NOT_FOUND:
-                    return Prediction(status="markers_not_found", message="exit status 3", **keep)
-                return Prediction(
-                    status="bad_output",
-                    message=f"{OBSTACLES_FILE} was not written to the working directory",
-                    **keep,
-                )
-            text = _read_small(path, OBSTACLES_MAX_BYTES).decode("utf-8", errors="replace")
-            parsed = parse_obstacles_txt(text)
-        except OutputFormatError as exc:
-            if rc == EXIT_MARKERS_NOT_FOUND:
-                return Prediction(status="markers_not_found", message=str(exc), **keep)
-            return Prediction(status="bad_output", message=str(exc)[:500], **keep)
-        return Prediction(
-            status="markers_not_found" if rc == EXIT_MARKERS_NOT_FOUND else "ok",
-            count=parsed.count,
-            area=parsed.area,
-            marker_ids=tuple(parsed.marker_ids),
-            message="exit status 3: markers not found" if rc == EXIT_MARKERS_NOT_FOUND else "",
-            **keep,
-        )
+        """The run's :class:`Prediction` (:func:`.predictions.prediction_from_run`)."""
+        return prediction_from_run(result, stdout, stderr, workdir, output=self.output,
+                                   limits=self.limits, pids_cgroup=self._cgroup is not None)

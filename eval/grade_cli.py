@@ -30,7 +30,7 @@ from arenabench.cliopts import (
 )
 
 from .phase_check import add_phase_check_argument
-from .pipelines import OUTPUT_MODES
+from .predictions import OUTPUT_MODES
 
 PROG = "arenabench grade"
 

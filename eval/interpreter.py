@@ -5,7 +5,7 @@ virtual environment's ``bin/python`` links to its base Python and reads ``pyvenv
 conda environment holds its own libraries; a pyenv shim is a shell script that runs
 ``~/.pyenv/libexec/pyenv``; an entry-point script starts with ``#!/path/to/python``.
 :func:`interpreter_folders` finds every folder such an executable needs, which the bubblewrap
-sandbox binds read-only (:mod:`arenabench.eval.external`):
+sandbox binds read-only (:mod:`arenabench.eval.sandbox`):
 
 - **venv** (a ``pyvenv.cfg`` next to its ``bin/``): the environment's folder, its base
   installation (``home =`` in ``pyvenv.cfg``), and the folders its site-packages point to

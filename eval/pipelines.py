@@ -4,10 +4,12 @@
 - :class:`CallablePipeline`: a Python function (or ``"pkg.module:function"``) taking a BGR
   image and returning a mapping or object with ``count``, ``area`` (or ``total_area``) and
   optionally ``marker_ids`` and ``status``.
-- :class:`CommandPipeline` (defined in :mod:`arenabench.eval.external`): a team's script run
+- :class:`~arenabench.eval.external.CommandPipeline` (in its own module): a team's script run
   as it is graded, e.g. ``python3 map.py --image {image}``: a private directory per image, no
   shell, sandbox, limits and cleanup of every process it starts; ``obstacles.txt`` (or a JSON
   line on stdout) parsed.
+
+What a pipeline returned becomes a :class:`Prediction` in :mod:`arenabench.eval.predictions`.
 
 No adapter ever raises for a bad pipeline: crashes, timeouts, limits and garbage
 become a :class:`Prediction` with status ``crash``, ``timeout``, ``limit`` or ``bad_output``
@@ -17,31 +19,23 @@ and a message.
 from __future__ import annotations
 
 import importlib
-import json
 import os
-import reprlib
 import sys
 import time
 import traceback
-from collections.abc import Callable, Mapping
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
-from arenabench.competition import (
-    OutputFormatError,
-    check_area,
-    check_count,
-)
 from arenabench.pipeline.config import PROFILES
 
-from .external import EXIT_MARKERS_NOT_FOUND, OUTPUT_MODES, CommandPipeline
+from .predictions import prediction_from_result
 from .results import Prediction, tail
 
 __all__ = [
-    "BUILTIN_PIPELINES", "EXIT_MARKERS_NOT_FOUND", "OUTPUT_MODES", "BuiltinPipeline",
-    "CallablePipeline", "CommandPipeline", "Pipeline", "last_json_line", "make_pipeline",
-    "prediction_from_result",
+    "BUILTIN_PIPELINES", "BuiltinPipeline", "CallablePipeline", "Pipeline", "call_on_image",
+    "load_callable", "make_pipeline",
 ]  # fmt: skip
 
 #: The built-in pipelines are the detection profiles.
@@ -66,155 +60,6 @@ def _read_image(path: Path) -> Any:
     if image is None:
         raise OSError(f"could not read image {path}")
     return image
-
-
-def _get(result: Any, *names: str) -> Any:
-    for name in names:
-        if isinstance(result, Mapping):
-            if name in result:
-                return result[name]
-        elif hasattr(result, name):
-            return getattr(result, name)
-    return None
-
-
-def _short(value: Any) -> str:
-    """A bounded repr (a pipeline may return a huge or unprintable object)."""
-    try:
-        return reprlib.repr(value)[:200]
-    except Exception:
-        return f"<unprintable {type(value).__name__}>"
-
-
-def _as_list(ids: Any) -> list[Any]:
-    if isinstance(ids, (str, bytes, Mapping)):
-        raise OutputFormatError(f"marker ids are not a list of integers: {_short(ids)}")
-    try:
-        return list(ids)
-    except Exception:
-        raise OutputFormatError(f"marker ids are not a list of integers: {_short(ids)}") from None
-
-
-def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") -> Prediction:
-    """Normalise what an in-process pipeline (or a JSON line) returned.
-
-    Parameters
-    ----------
-    result : mapping or object
-        With ``count``, ``area`` or ``total_area``, optional ``marker_ids`` and ``status``
-        (``"ok"`` or ``"markers_not_found"``; default ``"ok"``).
-    latency_ms : float
-        Measured call time.
-    stdout : str
-        Output tail to keep.
-
-    Returns
-    -------
-    Prediction
-        Status ``bad_output`` (with a message) when fields are missing or malformed: a count
-        or marker id that is not a non-negative integer, an area that is negative or not a
-        finite number (NaN, infinity), a boolean or a string where a number belongs.
-    """
-    def bad(msg: str) -> Prediction:
-        return Prediction(
-            status="bad_output", message=msg, stdout=tail(stdout), latency_ms=latency_ms
-        )
-
-    try:  # a hostile result may raise from attribute access, comparison or repr
-        status = _get(result, "status")
-        status = "ok" if status is None else status
-        count, area = _get(result, "count"), _get(result, "area", "total_area")
-        ids = _get(result, "marker_ids", "ids")
-        known = isinstance(status, str) and status in ("ok", "markers_not_found")
-    except Exception as exc:
-        return bad(f"unreadable pipeline result ({type(exc).__name__}: {exc})"[:500])
-    if not known:
-        return bad(f"unknown status {_short(status)} in pipeline result {_short(result)}")
-    try:
-        count_v = None if count is None else check_count(count)
-        area_v = None if area is None else check_area(area)
-        ids_v = (
-            None if ids is None
-            else tuple(check_count(i, name="marker id") for i in _as_list(ids))
-        )
-    except OutputFormatError as exc:
-        return bad(str(exc))
-    if status == "ok" and (count_v is None or area_v is None):
-        return bad(f"pipeline result lacks count or area: {_short(result)}")
-    return Prediction(
-        status=status,
-        count=count_v,
-        area=area_v,
-        marker_ids=ids_v,
-        stdout=tail(stdout),
-        latency_ms=latency_ms,
-        **drawing_from_result(result),
-    )
-
-
-#: Most polygons / points per polygon kept for drawing (more is not a box outline).
-MAX_DRAWN_POLYGONS, MAX_POLYGON_POINTS = 100, 400
-#: Largest distance (px) of a drawn polygon from the pipeline's contour (a thumbnail shows
-#: the 1000 px frame at about 380 px, so 2 px is under one thumbnail pixel).
-DRAWN_POLYGON_TOLERANCE_PX = 2.0
-
-
-def _polygon(points: Any) -> tuple[tuple[float, float], ...] | None:
-    import math
-
-    import cv2
-    import numpy as np
-
-    try:
-        pts = np.asarray(points, dtype=np.float64)
-    except (TypeError, ValueError):
-        return None
-    if pts.ndim != 2 or pts.shape[1] != 2 or not 3 <= len(pts) <= 100_000:
-        return None
-    if not np.isfinite(pts).all() or np.abs(pts).max() > 1e6:
-        return None
-    if len(pts) > 8:  # contours: keep the outline to within DRAWN_POLYGON_TOLERANCE_PX
-        pts = cv2.approxPolyDP(pts.astype(np.float32).reshape(-1, 1, 2),
-                               DRAWN_POLYGON_TOLERANCE_PX, True)
-        pts = pts.reshape(-1, 2).astype(np.float64)[:MAX_POLYGON_POINTS]
-    if len(pts) < 3:
-        return None
-    return tuple((round(float(x), 1), round(float(y), 1)) for x, y in pts
-                 if math.isfinite(x) and math.isfinite(y))
-
-
-def drawing_from_result(result: Any) -> dict[str, Any]:
-    """The :class:`Prediction` drawing fields (``obstacles``, ``obstacles_space``,
-    ``homography``) found in what a pipeline returned; empty when there are none.
-
-    Read from, in order: ``obstacles_frame`` (polygons in frame px), ``obstacles_image``
-    (polygons in input image px), or ``obstacles`` whose items have a ``contour`` (frame px, as
-    :class:`arenabench.pipeline.Detection` and ``arenabench detect --json --contours`` give);
-    ``homography`` is the input image px -> frame px matrix. Malformed values are ignored:
-    drawing never changes a score.
-    """
-    out: dict[str, Any] = {}
-    polys, space = None, "frame"
-    if (found := _get(result, "obstacles_frame")) is not None:
-        polys = found
-    elif (found := _get(result, "obstacles_image")) is not None:
-        polys, space = found, "image"
-    elif isinstance(found := _get(result, "obstacles"), (list, tuple)):
-        polys = [_get(o, "contour") for o in found]
-    if isinstance(polys, (list, tuple)):
-        kept = [p for p in (_polygon(q) for q in polys[:MAX_DRAWN_POLYGONS]) if p]
-        out["obstacles"], out["obstacles_space"] = tuple(kept), space
-    h = _get(result, "homography")
-    if h is not None:
-        try:
-            import numpy as np
-
-            m = np.asarray(h, dtype=np.float64)
-            if m.shape == (3, 3) and np.isfinite(m).all() and abs(np.linalg.det(m)) > 1e-12:
-                out["homography"] = tuple(tuple(float(v) for v in row) for row in m)
-        except (TypeError, ValueError):
-            pass
-    return out
 
 
 def _call_in_process(func: Callable[[Any], Any], image_path: Path) -> Prediction:
@@ -352,24 +197,6 @@ class CallablePipeline:
         """Call the function on a BGR image in memory."""
         assert callable(self.func)
         return call_on_image(self.func, image)
-
-
-def last_json_line(stdout: str) -> Any:
-    """The last line of ``stdout`` that parses as a JSON object (a command's answer).
-
-    Raises
-    ------
-    OutputFormatError
-        When no line does.
-    """
-    for line in reversed(stdout.strip().splitlines()):
-        line = line.strip()
-        if line.startswith("{"):
-            try:
-                return json.loads(line)
-            except (json.JSONDecodeError, RecursionError):  # nested too deeply: not an answer
-                continue
-    raise OutputFormatError(f"no JSON object line on stdout: {stdout.strip()[-200:]!r}")
 
 
 def make_pipeline(

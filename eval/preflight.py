@@ -133,7 +133,7 @@ def require_sandbox(mode: str) -> str:
         For ``auto`` or ``bwrap`` without a working bubblewrap (one line: how to install it
         or opt out).
     """
-    from .external import bwrap_problem
+    from .sandbox import bwrap_problem
 
     if mode == "none":
         return "none"

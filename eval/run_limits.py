@@ -5,8 +5,9 @@ the values the runner enforces come from here, so a limit is declared in one pla
 
 This module holds the *declaration* (dataclasses, defaults); the options and their rules are
 added by :func:`arenabench.cliopts.add_run_options`; the
-enforcement lives in :mod:`arenabench.eval.external` (``CommandPipeline``), where a run that
-hits the memory, process or file-size limit gets the failure category ``limit``.
+enforcement lives in :mod:`arenabench.eval.sandbox` (with the launcher), and
+:mod:`arenabench.eval.predictions` gives a run that hits the memory, process or file-size
+limit the failure category ``limit``.
 """
 
 from __future__ import annotations

@@ -25,7 +25,8 @@ from arenabench.cliopts import (
 from arenabench.interrupts import Interrupted, stop_on_signals
 
 from .phase_check import add_phase_check_argument, resolve_phases
-from .pipelines import BUILTIN_PIPELINES, OUTPUT_MODES
+from .pipelines import BUILTIN_PIPELINES
+from .predictions import OUTPUT_MODES
 from .run_limits import run_settings_from_args
 
 EPILOG = """\

@@ -142,7 +142,7 @@ class WarmServer:
                 extra += ["--bind", self.cgroup, CGROUP_DIR]
             at = argv.index("--remount-ro")
             argv = argv[:at] + extra + argv[at:] + server
-            from .external import SANDBOX_DIR
+            from .sandbox import SANDBOX_DIR
 
             env = pipe._env(SANDBOX_DIR, "/tmp")
         else:
@@ -225,7 +225,7 @@ class WarmServer:
 
     def _run_in(self, pipe: CommandPipeline, image_path: Path, token: str, rundir: str,
                 work: str, tmp: str) -> Prediction:
-        from .external import SANDBOX_DIR
+        from .sandbox import SANDBOX_DIR
 
         lim = pipe.limits
         if self.isolate:
@@ -339,9 +339,9 @@ def _key(pipe: CommandPipeline, image_path: Path | None) -> tuple:
     if image_path is None:
         return key
     folder = str(Path(os.path.realpath(image_path)).parent)
-    from .external import _is_within
+    from .sandbox import is_within
 
-    hidden = pipe.sandbox == "bwrap" and any(_is_within(folder, v)
+    hidden = pipe.sandbox == "bwrap" and any(is_within(folder, v)
                                               for v in pipe._visible_paths())
     return (*key, folder if hidden else "")
 
@@ -362,9 +362,9 @@ def _server_for(pipe: CommandPipeline, target: WarmTarget, image_path: Path) -> 
             server = WarmServer(pipe, image_path, target)
         except (OSError, RuntimeError, ValueError) as exc:
             _cold.add(key)
-            from .external import _warn_once
+            from .sandbox import warn_once
 
-            _warn_once(f"{exc}; {pipe.name!r} runs with one Python process per image")
+            warn_once(f"{exc}; {pipe.name!r} runs with one Python process per image")
             return None
         _servers[key] = server
         idle = [k for k, s in _servers.items() if k != key and not s.busy]

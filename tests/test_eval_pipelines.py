@@ -13,7 +13,8 @@ import toy_arena
 
 from arenabench.eval.eval_cli import main as eval_main
 from arenabench.eval.evaluation import evaluate
-from arenabench.eval.pipelines import CallablePipeline, CommandPipeline
+from arenabench.eval.external import CommandPipeline
+from arenabench.eval.pipelines import CallablePipeline
 from arenabench.eval.results import Prediction
 from arenabench.eval.run_limits import RunLimits, RunSettings
 

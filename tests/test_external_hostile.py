@@ -15,9 +15,9 @@ from pathlib import Path
 import pytest
 
 from arenabench.eval.evaluation import evaluate
-from arenabench.eval.external import bwrap_problem, pids_cgroup_parent
-from arenabench.eval.pipelines import CommandPipeline
+from arenabench.eval.external import CommandPipeline
 from arenabench.eval.run_limits import RunLimits, RunSettings
+from arenabench.eval.sandbox import bwrap_problem, pids_cgroup_parent
 from arenabench.eval.warm_client import close_all
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -305,15 +305,15 @@ def test_missing_executable_is_refused_up_front(cmd, message, toy, capsys):
 
 
 def test_sandbox_bwrap_where_it_does_not_work_is_a_usage_error(toy, capsys, monkeypatch):
-    from arenabench.eval import external
+    from arenabench.eval import sandbox
     from arenabench.eval.eval_cli import main
 
     monkeypatch.setenv("PATH", str(Path(PY).parent))  # no bwrap on this PATH
-    external.bwrap_problem.cache_clear()
+    sandbox.bwrap_problem.cache_clear()
     try:
         rc = main([str(toy), "--cmd", f"{PY} x.py {{image}}", "--sandbox", "bwrap"])
     finally:
-        external.bwrap_problem.cache_clear()
+        sandbox.bwrap_problem.cache_clear()
     assert rc == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "bubblewrap (bwrap) is not installed" in err[0]
@@ -322,15 +322,15 @@ def test_sandbox_bwrap_where_it_does_not_work_is_a_usage_error(toy, capsys, monk
 def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
     toy, run_tmp, monkeypatch, capsys
 ):
-    from arenabench.eval import external
+    from arenabench.eval import sandbox
 
     monkeypatch.setenv("PATH", str(Path(PY).parent))  # no bwrap on this PATH
-    monkeypatch.setattr(external, "_warned_once", [])
-    external.bwrap_problem.cache_clear()
+    monkeypatch.setattr(sandbox, "_warned_once", [])
+    sandbox.bwrap_problem.cache_clear()
     try:
         pipes = [_pipe("snoop.py", "auto") for _ in range(3)]
     finally:
-        external.bwrap_problem.cache_clear()
+        sandbox.bwrap_problem.cache_clear()
     assert {p.sandbox for p in pipes} == {"none"}
     err = capsys.readouterr().err.strip().splitlines()
     assert len([line for line in err if "WITHOUT a sandbox" in line]) == 1
@@ -459,15 +459,15 @@ def test_sigkill_of_the_whole_group_is_swept_by_the_next_run(toy, tmp_path):
 def test_pids_cgroup_probe_is_thread_safe(monkeypatch):
     from concurrent.futures import ThreadPoolExecutor
 
-    from arenabench.eval import external
+    from arenabench.eval import sandbox
 
-    first = external.pids_cgroup_parent()
+    first = sandbox.pids_cgroup_parent()
     if first is None:
         pytest.skip("no writable pids cgroup here")
     for _ in range(5):  # grade constructs its pipelines from many threads at once
-        monkeypatch.setattr(external, "_CGROUP_PARENT", [])
+        monkeypatch.setattr(sandbox, "_CGROUP_PARENT", [])
         with ThreadPoolExecutor(16) as pool:
-            found = list(pool.map(lambda _: external.pids_cgroup_parent(), range(32)))
+            found = list(pool.map(lambda _: sandbox.pids_cgroup_parent(), range(32)))
         assert set(found) == {first}
     assert not [p for p in os.listdir(first) if p.startswith(f"arenabench-probe-{os.getpid()}")]
 

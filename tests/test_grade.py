@@ -16,6 +16,7 @@ from pathlib import Path
 import pytest
 
 from arenabench.cli import main as arenabench_main
+from arenabench.eval.external import CommandPipeline
 from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade, team_command
 from arenabench.eval.grade.leaderboard import (
     LEADERBOARD_JSON_SCHEMA,
@@ -25,7 +26,6 @@ from arenabench.eval.grade.leaderboard import (
 )
 from arenabench.eval.grade.submissions import submission_hash
 from arenabench.eval.phase_check import DEFAULT_PHASES
-from arenabench.eval.pipelines import CommandPipeline
 from arenabench.eval.results import Summary
 from arenabench.eval.run_limits import RunLimits, RunSettings
 

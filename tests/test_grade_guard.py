@@ -13,9 +13,9 @@ from pathlib import Path
 
 import pytest
 
-from arenabench.eval.external import bwrap_problem
 from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade
 from arenabench.eval.run_limits import RunSettings
+from arenabench.eval.sandbox import bwrap_problem
 from arenabench.generator.seeds import GUESSABLE_BELOW
 
 HERE = Path(__file__).resolve().parent

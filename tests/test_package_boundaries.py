@@ -98,6 +98,29 @@ def test_no_forbidden_imports(folder):
     assert not offences, "\n".join(offences)
 
 
+#: module -> modules it must not import, even lazily: running a command (external), containing
+#: it (sandbox) and reading its answer (predictions) form a tree under the in-process adapters
+#: (pipelines), not a circle
+WITHIN_EVAL = {
+    "arenabench.eval.external": ("arenabench.eval.pipelines",),
+    "arenabench.eval.pipelines": ("arenabench.eval.external", "arenabench.eval.sandbox"),
+    "arenabench.eval.predictions": ("arenabench.eval.pipelines", "arenabench.eval.external",
+                                    "arenabench.eval.sandbox"),
+    "arenabench.eval.sandbox": ("arenabench.eval.pipelines", "arenabench.eval.external",
+                                "arenabench.eval.predictions"),
+}
+
+
+@pytest.mark.parametrize("module", sorted(WITHIN_EVAL))
+def test_external_and_pipelines_do_not_import_each_other(module):
+    path = ROOT / "eval" / (module.rsplit(".", 1)[1] + ".py")
+    assert module_name(path) == (module, False)
+    offences = [f"{path.relative_to(ROOT)}:{line}: imports {name}"
+                for line, name in imported_names(path.read_text(), module)
+                if _banned(name, WITHIN_EVAL[module])]
+    assert not offences, "\n".join(offences)
+
+
 @pytest.mark.parametrize(
     "source, current, is_pkg, expected",
     [

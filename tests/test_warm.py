@@ -15,9 +15,9 @@ import toy_arena  # tests/pipelines (pytest's pythonpath)
 
 from arenabench.eval import warm_client
 from arenabench.eval.evaluation import evaluate
-from arenabench.eval.external import bwrap_problem, pids_cgroup_parent
-from arenabench.eval.pipelines import CommandPipeline
+from arenabench.eval.external import CommandPipeline
 from arenabench.eval.run_limits import RunLimits, RunSettings
+from arenabench.eval.sandbox import bwrap_problem, pids_cgroup_parent
 from arenabench.eval.warm_client import WarmTarget, close_all, warm_target
 
 PIPES = Path(__file__).resolve().parent / "pipelines"

@@ -45,8 +45,9 @@ from arenabench.workers import init_worker, process_state, usable_cores
 
 from ..dataset_reader import AREA_REFERENCES, Dataset, load_dataset
 from ..evaluation import build_report, score_sample
+from ..external import CommandPipeline
 from ..metrics import DEFAULT_TOLERANCE
-from ..pipelines import OUTPUT_MODES, CommandPipeline
+from ..predictions import OUTPUT_MODES
 from ..reports import FORMATS, write_reports
 from ..results import Prediction, Summary
 from ..run_limits import RunSettings

@@ -12,8 +12,10 @@ from arenabench.generator.presets import Value, format_value
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 
 from ..dataset_reader import AREA_REFERENCES
+from ..external import CommandPipeline
 from ..metrics import DEFAULT_TOLERANCE
-from ..pipelines import BUILTIN_PIPELINES, OUTPUT_MODES, CommandPipeline, Pipeline, make_pipeline
+from ..pipelines import BUILTIN_PIPELINES, Pipeline, make_pipeline
+from ..predictions import OUTPUT_MODES
 from ..results import ImageResult, Summary
 from ..run_limits import RunSettings
 from .grid import Axis
