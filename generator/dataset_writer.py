@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import contextlib
 import json
-import multiprocessing
 import os
 import shlex
 import shutil
@@ -71,13 +70,12 @@ from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import IMAGE_EXTENSIONS, PNG_COMPRESSION, encode_image
 from arenabench.interrupts import (
     Interrupted,
-    children_ignore_sigint,
     signal_name,
-    stop_workers,
     worker_task,
 )
 from arenabench.limits import MAX_DATASET_SCENES, MAX_WORKERS, check_at_most
-from arenabench.workers import init_worker, llvmpipe_threads
+from arenabench.local_pool import local_map
+from arenabench.workers import check_workers
 
 #: dataset.json schema id.
 DATASET_SCHEMA = "arenabench.dataset/1"
@@ -581,9 +579,7 @@ def generate_dataset(
     ValueError
         For invalid arguments.
     """
-    if int(workers) != workers or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-    check_at_most(int(workers), MAX_WORKERS, "workers")
+    check_at_most(check_workers(workers), MAX_WORKERS, "workers")
     args = DatasetArgs(preset=preset, count=int(count), seed=int(seed),
                        overrides=dict(overrides or {}))  # refuse bad arguments before creating out
     check_first_scene(args)
@@ -603,8 +599,7 @@ def generate_dataset(
                 from arenabench.generator.gl_check import require_offscreen_gl
 
                 require_offscreen_gl()
-            return _generate_locked(out, preset=preset, count=count, seed=seed,
-                                    overrides=overrides, workers=workers, client=client,
+            return _generate_locked(out, args, workers=workers, client=client,
                                     progress=progress)
     except FolderLockedError as exc:
         raise GenerateError(f"{exc}; wait for it to finish or use another --out") from None
@@ -638,23 +633,10 @@ def check_first_scene(args: DatasetArgs) -> None:
     compute_ground_truth(sampled.scene)
 
 
-def _generate_locked(
-    out: str | os.PathLike[str],
-    *,
-    preset: str,
-    count: int,
-    seed: int,
-    overrides: dict[str, Value] | None = None,
-    workers: int = 1,
-    client: Any = None,
-    progress: bool = True,
-) -> DatasetResult:
-    """:func:`generate_dataset` while holding the lock on ``out`` (``client``: a connected
-    Dask client to render on, or None)."""
-    if int(workers) != workers or workers < 1:
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-    args = DatasetArgs(preset=preset, count=int(count), seed=int(seed),
-                       overrides=dict(overrides or {}))
+def _generate_locked(out: str | os.PathLike[str], args: DatasetArgs, *, workers: int,
+                     client: Any, progress: bool) -> DatasetResult:
+    """:func:`generate_dataset` of ``args`` while holding the lock on ``out`` (``client``: a
+    connected Dask client to render on, or None)."""
     root = Path(out)
     start = time.perf_counter()
     meta = _check_existing(root, args)
@@ -702,29 +684,11 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
             for _, res in cluster_map(render_on_cluster, tasks, client):
                 results.append(write_rendered(root, res))
                 bar.update(1)
-        elif workers == 1 or len(tasks) <= 1:
-            for task in tasks:
-                results.append(render_task(task))
-                bar.update(1)
         else:
-            lp = llvmpipe_threads(workers)
-            ctx = multiprocessing.get_context("spawn")
-            with children_ignore_sigint():
-                pool = ctx.Pool(workers, initializer=init_worker, initargs=(lp, os.getpid()))
-            with pool:
-                try:
-                    for res in pool.imap_unordered(render_task, tasks, chunksize=1):
-                        results.append(res)
-                        bar.update(1)
-                except Interrupted:
-                    stop_workers()  # before the pool's own terminate(), which waits on them
-                    raise
-                # (a failed task: leaving the with, the pool's terminate() ends the workers;
-                # killing them first could kill an idle one holding the lock of the task
-                # queue, and terminate() would wait for that lock forever)
-                # done: let the workers exit on their own (no signal to an idle worker)
-                pool.close()
-                pool.join()
+            with contextlib.closing(local_map(render_task, tasks, workers=workers)) as done:
+                for res in done:
+                    results.append(res)
+                    bar.update(1)
     except Interrupted as exc:
         bar.close()
         finished = _finish_partial(root, args, results)

@@ -18,10 +18,9 @@ Dask futures cancelled) and :func:`run_sweep` returns what finished, marked inco
 
 from __future__ import annotations
 
-import multiprocessing
-import os
 import time
 from collections.abc import Callable, Iterator
+from contextlib import closing
 from dataclasses import replace
 from typing import Any
 
@@ -29,13 +28,9 @@ import numpy as np
 
 from arenabench.generator.params import PARAMETERS
 from arenabench.generator.presets import resolve
-from arenabench.interrupts import (
-    Interrupted,
-    children_ignore_sigint,
-    signal_name,
-    stop_workers,
-)
-from arenabench.workers import llvmpipe_threads, usable_cores
+from arenabench.interrupts import Interrupted, signal_name
+from arenabench.local_pool import local_map
+from arenabench.workers import check_workers, usable_cores
 
 from ..metrics import summarize
 from ..phase_check import phase_summary
@@ -110,32 +105,21 @@ def sweep_batches(tasks: list[SweepTask], workers: int, *,
             for k in range(0, len(group), size)]
 
 
-def _inline(batches: list[tuple[SweepTask, ...]]) -> Iterator[dict[str, Any]]:
-    from .task import run_task
+def _local(tasks: list[SweepTask], workers: int, *,
+           by_scene: bool) -> Iterator[dict[str, Any]]:
+    """The tasks' batches (:func:`sweep_batches`) in a local pool
+    (:func:`arenabench.local_pool.local_map`), or, with one worker, their tasks one by one in
+    this process."""
+    from .task import init_sweep_worker, run_batch, run_task
 
-    for batch in batches:
-        for task in batch:
-            yield run_task(task)
-
-
-def _local_pool(batches: list[tuple[SweepTask, ...]],
-                workers: int) -> Iterator[dict[str, Any]]:
-    from .task import init_sweep_worker, run_batch
-
-    lp = llvmpipe_threads(workers)
-    ctx = multiprocessing.get_context("spawn")
-    with children_ignore_sigint():
-        pool = ctx.Pool(workers, initializer=init_sweep_worker, initargs=(lp, os.getpid()))
-    with pool:
-        try:
-            for outputs in pool.imap_unordered(run_batch, batches):
-                yield from outputs
-        except BaseException:  # interrupted, closed early or a task failed
-            stop_workers()  # before the pool's own terminate(), which waits on them
-            raise
-        # done: let the workers exit on their own (no signal to an idle worker)
-        pool.close()
-        pool.join()
+    batches = sweep_batches(tasks, workers, by_scene=by_scene)
+    if workers == 1:
+        yield from local_map(run_task, [task for batch in batches for task in batch], workers=1)
+        return
+    with closing(local_map(run_batch, batches, workers=workers,
+                           initializer=init_sweep_worker)) as done:
+        for outputs in done:
+            yield from outputs
 
 
 def _dask(tasks: list[SweepTask], scheduler: Any) -> Iterator[dict[str, Any]]:
@@ -168,13 +152,12 @@ def execute(
         Run the points of each scene one after another in one local worker
         (:func:`sweep_batches`; true when :func:`post_render_only`). Results never depend on it.
     """
-    if workers is not None and (int(workers) != workers or workers < 1):
-        raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
+    if workers is not None:
+        check_workers(workers)
     if scheduler is not None:
         return _dask(tasks, scheduler)
     n = min(workers or usable_cores(), max(1, len(tasks)))
-    batches = sweep_batches(tasks, n, by_scene=by_scene)
-    return _inline(batches) if n == 1 else _local_pool(batches, n)
+    return _local(tasks, n, by_scene=by_scene)
 
 
 def aggregate(

@@ -41,8 +41,8 @@ def usable_cores() -> int:
         return max(1, os.cpu_count() or 1)
 
 
-def llvmpipe_threads(workers: int) -> int:
-    """llvmpipe threads per worker when ``workers`` processes share the usable cores.
+def check_workers(workers: Any) -> int:
+    """``workers`` as an ``int``: the rule of every pool's worker count.
 
     Raises
     ------
@@ -51,7 +51,18 @@ def llvmpipe_threads(workers: int) -> int:
     """
     if int(workers) != workers or workers < 1:
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-    return max(1, usable_cores() // int(workers))
+    return int(workers)
+
+
+def llvmpipe_threads(workers: int) -> int:
+    """llvmpipe threads per worker when ``workers`` processes share the usable cores.
+
+    Raises
+    ------
+    ValueError
+        When ``workers`` is not an integer >= 1.
+    """
+    return max(1, usable_cores() // check_workers(workers))
 
 
 def init_worker(lp_threads: int | None = None, parent_pid: int | None = None) -> None:

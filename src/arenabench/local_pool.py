@@ -1,0 +1,85 @@
+"""One local process pool for every command that renders or runs pipelines in parallel.
+
+``generate`` (:mod:`arenabench.generator.dataset_writer`) and ``sweep``
+(:mod:`arenabench.eval.sweep.execution`) map their tasks with :func:`local_map`; a Dask cluster
+(``--scheduler``) goes through :func:`arenabench.cluster.cluster_map` instead.
+
+The pool's rules, stated here once:
+
+- spawned workers (no fork of a process holding an OpenGL context or threads), started with
+  SIGINT ignored (:func:`arenabench.interrupts.children_ignore_sigint`) and initialised with
+  the llvmpipe threads their share of the cores allows and this process's pid
+  (:func:`arenabench.workers.init_worker`, or an initializer with the same arguments);
+- results come back in completion order, one task at a time (``chunksize=1``);
+- a stop signal (:class:`arenabench.interrupts.Interrupted`), or the caller closing the
+  iterator early, ends the workers (:func:`arenabench.interrupts.stop_workers`) before the
+  pool's own ``terminate()``, which waits on them;
+- a task that raises: its exception is re-raised here and the pool's ``terminate()`` ends the
+  workers (killing them first could kill an idle one holding the lock of the task queue, and
+  ``terminate()`` would wait for that lock forever);
+- done: the pool is closed and joined, so the workers exit on their own (no signal to an idle
+  worker);
+- one worker, or at most one task: everything runs in this process, no pool.
+"""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+from collections.abc import Callable, Iterable, Iterator
+from typing import Any
+
+from arenabench.interrupts import children_ignore_sigint, stop_workers
+from arenabench.workers import check_workers, init_worker, llvmpipe_threads
+
+
+def local_map(
+    func: Callable[[Any], Any],
+    items: Iterable[Any],
+    *,
+    workers: int,
+    initializer: Callable[[int | None, int | None], None] = init_worker,
+) -> Iterator[Any]:
+    """``func(item)`` for every item, in ``workers`` spawned processes, as they finish.
+
+    Parameters
+    ----------
+    func : callable
+        A module-level function (picklable by name).
+    items : iterable
+        Picklable task records (frozen dataclasses).
+    workers : int, keyword-only
+        Processes; 1 (or at most one item) runs every task in this process, in order.
+    initializer : callable, keyword-only
+        Each worker's initializer, called as ``initializer(lp_threads, parent_pid)``
+        (default :func:`arenabench.workers.init_worker`).
+
+    Yields
+    ------
+    object
+        ``func``'s results, in completion order.
+
+    Raises
+    ------
+    ValueError
+        When ``workers`` is not an integer >= 1.
+    """
+    items = list(items)
+    if check_workers(workers) == 1 or len(items) <= 1:
+        for item in items:
+            yield func(item)
+        return
+    lp = llvmpipe_threads(workers)
+    ctx = multiprocessing.get_context("spawn")
+    with children_ignore_sigint():
+        pool = ctx.Pool(workers, initializer=initializer, initargs=(lp, os.getpid()))
+    with pool:
+        try:
+            yield from pool.imap_unordered(func, items, chunksize=1)
+        except Exception:  # a task failed: leaving the with, terminate() ends the workers
+            raise
+        except BaseException:  # interrupted, or the caller closed this iterator early
+            stop_workers()  # before the pool's own terminate(), which waits on them
+            raise
+        pool.close()
+        pool.join()

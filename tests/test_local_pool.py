@@ -1,0 +1,69 @@
+"""The one local process pool (``arenabench.local_pool.local_map``) that ``generate`` and
+``sweep`` share: the same results inline and in real spawned workers, a task's error re-raised
+in the caller, and no worker left behind when it fails or the caller stops early."""
+
+from __future__ import annotations
+
+import multiprocessing
+import os
+import time
+
+import pytest
+
+from arenabench.local_pool import local_map
+
+
+def _pid_and_square(x: int) -> tuple[int, int]:
+    return os.getpid(), x * x
+
+
+def _first_at_once(x: int) -> int:
+    time.sleep(0 if x == 0 else 2.0)
+    return x
+
+
+def _refuse_three(x: int) -> int:
+    if x == 3:
+        raise ValueError(f"scene {x} cannot be placed")
+    return x
+
+
+def test_one_worker_runs_in_order_in_this_process():
+    out = list(local_map(_pid_and_square, range(5), workers=1))
+    assert out == [(os.getpid(), x * x) for x in range(5)]
+
+
+def test_bad_worker_counts_are_refused():
+    for bad in (0, 1.5, -2):
+        with pytest.raises(ValueError, match="workers must be an integer >= 1"):
+            list(local_map(_pid_and_square, range(3), workers=bad))
+
+
+@pytest.mark.slow
+def test_two_workers_give_the_same_results_in_other_processes():
+    out = list(local_map(_pid_and_square, range(8), workers=2))
+    assert sorted(sq for _, sq in out) == [x * x for x in range(8)]
+    assert os.getpid() not in {pid for pid, _ in out}
+    assert not multiprocessing.active_children()
+
+
+@pytest.mark.slow
+def test_a_failing_task_is_raised_here_and_no_worker_is_left():
+    with pytest.raises(ValueError, match="scene 3 cannot be placed"):
+        list(local_map(_refuse_three, range(6), workers=2))
+    assert not multiprocessing.active_children()
+
+
+@pytest.mark.slow
+def test_closing_early_ends_the_workers():
+    """Closed while every worker is inside a task (the first result comes at once, its worker
+    takes the next task): the workers are ended, not waited for. (A worker ended while it
+    holds a lock of the pool's queues, sending a result or idle in ``get``, would leave
+    ``Pool.terminate()`` waiting for that lock: the pool has no way around it.)"""
+    results = local_map(_first_at_once, range(6), workers=2)
+    assert next(results) == 0
+    start = time.monotonic()
+    time.sleep(0.5)  # its worker has sent the result and is in the next task
+    results.close()
+    assert not multiprocessing.active_children()
+    assert time.monotonic() - start < 2.0  # ended, not waited for (the tasks take 2 s)
