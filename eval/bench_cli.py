@@ -6,7 +6,14 @@ from __future__ import annotations
 import sys
 import textwrap
 
-from arenabench.cliopts import CommandParser, add_count, add_out, add_workers
+from arenabench.cliopts import (
+    CommandParser,
+    add_count,
+    add_out,
+    add_workers,
+    output_problem,
+    usage_error,
+)
 from arenabench.eval.bench import TARGETS, BenchConfig, BenchResult, target_met
 
 #: (key, label, unit) rows of the table, in the order of docs/benchmark.md.
@@ -125,18 +132,14 @@ def build_parser() -> CommandParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench bench``; returns 0, or 2 on a usage error."""
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:
-        return int(exc.code or 0)
+    args = build_parser().parse_or_status(argv)
+    if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
+        return args
     from arenabench.eval.bench import run_bench
-    from arenabench.fileio import OutputPathError, atomic_write_json, check_output_dir
+    from arenabench.fileio import atomic_write_json
 
-    try:
-        check_output_dir(args.out)
-    except OutputPathError as exc:
-        print(f"arenabench bench: error: --out {args.out}: {exc}", file=sys.stderr)
-        return 2
+    if problem := output_problem(args.out):
+        return usage_error("arenabench bench", problem)
     try:
         if args.quick:
             cfg = BenchConfig.quick(workers=args.workers)

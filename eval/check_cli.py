@@ -19,13 +19,14 @@ import sys
 from pathlib import Path
 
 from arenabench.cliopts import (
-    EXIT_USAGE,
     CommandParser,
     add_count,
     add_no_progress,
     add_out,
     add_run_options,
     add_workers,
+    output_problem,
+    usage_error,
 )
 
 from .phase_check import add_phase_check_argument
@@ -108,8 +109,7 @@ def _report_dir(script: Path) -> Path:
 
 
 def _error(message: str) -> int:
-    print(f"{PROG}: error: {message}", file=sys.stderr)
-    return EXIT_USAGE
+    return usage_error(PROG, message)
 
 
 def _validate(args: argparse.Namespace) -> str | None:
@@ -183,26 +183,21 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str] | None) -> int:
     parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # argparse: --help (0) or usage error (2)
-        return int(exc.code or 0)
+    args = parser.parse_or_status(argv)
+    if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
+        return args
     problem = _validate(args)
     if problem:
         return _error(problem)
     import shlex
-
-    from arenabench.fileio import OutputPathError, check_output_dir
 
     from .external import CommandPipeline
     from .run_limits import run_settings_from_args
 
     script = Path(args.script).resolve()
     out = args.out if args.out is not None else _report_dir(script)
-    try:
-        check_output_dir(out)
-    except OutputPathError as exc:
-        return _error(f"--out {out}: {exc}")
+    if problem := output_problem(out):
+        return _error(problem)
     template = f"{shlex.quote(args.python)} {shlex.quote(str(script))} --image {{image}}"
     from dataclasses import replace
 

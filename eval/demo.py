@@ -13,7 +13,15 @@ import argparse
 import sys
 from pathlib import Path
 
-from arenabench.cliopts import CommandParser, add_count, add_no_progress, add_out, add_workers
+from arenabench.cliopts import (
+    CommandParser,
+    add_count,
+    add_no_progress,
+    add_out,
+    add_workers,
+    output_problem,
+    usage_error,
+)
 
 
 def build_parser() -> CommandParser:
@@ -59,22 +67,16 @@ def _example(image_path: Path, out: Path) -> int:
 
 def main(argv: list[str] | None = None) -> int:
     """Run the demo; returns 0, or 2 on a usage error or when generation fails."""
-    try:
-        args = build_parser().parse_args(argv)
-    except SystemExit as exc:
-        return int(exc.code or 0)
+    args = build_parser().parse_or_status(argv)
+    if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
+        return args
     if args.count < 1:
         print(f"arenabench demo: error: --count must be >= 1, got {args.count}", file=sys.stderr)
         return 2
-    from arenabench.fileio import OutputPathError, check_output_dir
-
     from .pipelines import make_pipeline
 
-    try:
-        check_output_dir(args.out)
-    except OutputPathError as exc:
-        print(f"arenabench demo: error: --out {args.out}: {exc}", file=sys.stderr)
-        return 2
+    if problem := output_problem(args.out):
+        return usage_error("arenabench demo", problem)
     try:
         make_pipeline(args.pipeline)  # an unknown name or import now, not after rendering
     except ValueError as exc:

@@ -23,6 +23,7 @@ from arenabench.cliopts import (
     add_tolerance,
     add_workers,
     lock_out,
+    output_problem,
     write_failure,
 )
 
@@ -187,10 +188,9 @@ def main(argv: list[str] | None = None) -> int:
 
 def _main(argv: list[str] | None, held: ExitStack) -> int:
     parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
-        return int(exc.code or 0)
+    args = parser.parse_or_status(argv)
+    if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
+        return args
     if args.compare:
         return _run_compare(*args.compare, args.fail_on_regression)
     if args.fail_on_regression:
@@ -203,13 +203,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         return _usage_error(parser, "--name must not be empty")
     if not args.pipeline and not args.cmd:
         return _usage_error(parser, "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE")
-    if args.out is not None:
-        from arenabench.fileio import OutputPathError, check_output_dir
-
-        try:
-            check_output_dir(args.out)
-        except OutputPathError as exc:
-            return _usage_error(parser, f"--out {args.out}: {exc}")
+    if args.out is not None and (problem := output_problem(args.out)):
+        return _usage_error(parser, problem)
 
     from .dataset_reader import DatasetError, load_dataset
     from .evaluation import EvaluationInterrupted, evaluate

@@ -16,7 +16,6 @@ import sys
 from pathlib import Path
 
 from arenabench.cliopts import (
-    EXIT_USAGE,
     WORKERS_RULE,
     CommandParser,
     add_area_reference,
@@ -27,6 +26,8 @@ from arenabench.cliopts import (
     add_tolerance,
     add_workers,
     lock_out,
+    output_problem,
+    usage_error,
 )
 
 from .phase_check import add_phase_check_argument
@@ -117,21 +118,17 @@ _OPTION_NAMES = {"command": "--cmd", "formats": "--formats", "tolerance": "--tol
 
 
 def _error(message: str) -> int:
-    print(f"{PROG}: error: {' '.join(message.split())}", file=sys.stderr)
-    return EXIT_USAGE
+    return usage_error(PROG, message)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``arenabench grade``; returns the exit status."""
     parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
-        return int(exc.code or 0)
+    args = parser.parse_or_status(argv)
+    if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
+        return args
     if args.reference is not None and not Path(args.reference).is_dir():
         return _error(f"--reference {args.reference}: not a folder (a known-good submission)")
-
-    from arenabench.fileio import OutputPathError, check_output_dir
 
     from .dataset_reader import DatasetError, load_dataset
     from .grade.grading import GradeOptions, check_out_dir, grade
@@ -140,10 +137,8 @@ def main(argv: list[str] | None = None) -> int:
     from .run_limits import run_settings_from_args
 
     formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
-    try:
-        check_output_dir(args.out)
-    except OutputPathError as exc:
-        return _error(f"--out {args.out}: {exc}")
+    if problem := output_problem(args.out):
+        return _error(problem)
     try:
         dataset = load_dataset(args.dataset)
         phases = resolve_phases(args.phase_check,

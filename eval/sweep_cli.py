@@ -20,6 +20,8 @@ from arenabench.cliopts import (
     add_tolerance,
     add_workers,
     lock_out,
+    output_problem,
+    usage_error,
     write_failure,
 )
 from arenabench.interrupts import Interrupted, stop_on_signals
@@ -118,18 +120,15 @@ def build_parser() -> CommandParser:
 
 
 def _error(message: str) -> int:
-    print(f"arenabench sweep: error: {message}", file=sys.stderr)
-    return 2
+    return usage_error("arenabench sweep", message)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``arenabench sweep``; returns the exit status."""
     parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
-        return int(exc.code or 0)
-    from arenabench.fileio import OutputPathError, check_output_dir
+    args = parser.parse_or_status(argv)
+    if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
+        return args
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
 
@@ -138,10 +137,8 @@ def main(argv: list[str] | None = None) -> int:
     from .sweep.outputs import KeptImageWriter, write_sweep
     from .sweep.records import PipelineSpec, SweepSpec
 
-    try:
-        check_output_dir(args.out)
-    except OutputPathError as exc:
-        return _error(f"--out {args.out}: {exc}")
+    if problem := output_problem(args.out):
+        return _error(problem)
     if not args.vary:
         return _error("give at least one --vary KEY=SPEC")
     if not args.pipes:

@@ -12,7 +12,14 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from arenabench.cliopts import CommandParser, add_count, add_no_progress, add_out
+from arenabench.cliopts import (
+    CommandParser,
+    add_count,
+    add_no_progress,
+    add_out,
+    output_problem,
+    usage_error,
+)
 from arenabench.fileio import atomic_write_bytes
 from arenabench.limits import MAX_IMAGE_SIDE_PX, check_at_most
 
@@ -157,7 +164,6 @@ def build_parser() -> CommandParser:
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench contact-sheet``; returns 0, or 2 on a usage error."""
     args = build_parser().parse_args(argv)
-    from arenabench.fileio import OutputPathError, check_output_file
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
 
@@ -166,11 +172,8 @@ def main(argv: list[str] | None = None) -> int:
         print(f"arenabench contact-sheet: error: --out must end in .jpg or .png, got {out}",
               file=sys.stderr)
         return 2
-    try:
-        check_output_file(out)
-    except OutputPathError as exc:
-        print(f"arenabench contact-sheet: error: --out {out}: {exc}", file=sys.stderr)
-        return 2
+    if problem := output_problem(out, file=True):
+        return usage_error("arenabench contact-sheet", problem)
     from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
 
     try:

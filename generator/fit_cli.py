@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import sys
 
-from arenabench.cliopts import CommandParser, add_count, add_out
+from arenabench.cliopts import CommandParser, add_count, add_out, output_problem, usage_error
 from arenabench.limits import MAX_REFINE_ROUNDS
 
 
@@ -34,20 +34,15 @@ def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench fit``; returns 0 on success, 2 on bad input."""
     args = build_parser().parse_args(argv)
     from arenabench.fileio import (
-        OutputPathError,
         atomic_write_json,
-        check_output_file,
         dumps_json,
     )
     from arenabench.generator.fit import FitOptions, fit_scene
     from arenabench.generator.scene import ArenaSpec, MarkerSpec
     from arenabench.imageio import ImageLoadError, load_image
 
-    try:
-        check_output_file(args.out)
-    except OutputPathError as exc:
-        print(f"arenabench fit: error: --out {args.out}: {exc}", file=sys.stderr)
-        return 2
+    if problem := output_problem(args.out, file=True):
+        return usage_error("arenabench fit", problem)
     try:
         arena = None if args.arena_side is None else ArenaSpec(side_m=args.arena_side,
                                                                logo_text="eyantra")

@@ -12,6 +12,8 @@ from arenabench.cliopts import (
     add_out,
     add_scheduler,
     add_workers,
+    output_problem,
+    usage_error,
 )
 from arenabench.generator.presets import preset_names
 
@@ -49,7 +51,6 @@ def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench generate``; returns 0 on success, 2 on a usage or argument error,
     130 / 143 when stopped by SIGINT / SIGTERM (what finished is kept; re-running resumes)."""
     args = build_parser().parse_args(argv)
-    from arenabench.fileio import OutputPathError, check_output_dir
     from arenabench.generator.dataset_writer import GenerateError, generate_dataset
     from arenabench.generator.gl_check import OffscreenGLError
     from arenabench.generator.presets import parse_overrides
@@ -57,11 +58,8 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.generator.seeds import parse_seed
     from arenabench.interrupts import Interrupted, exit_code, stop_on_signals
 
-    try:
-        check_output_dir(args.out)
-    except OutputPathError as exc:
-        print(f"arenabench generate: error: --out {args.out}: {exc}", file=sys.stderr)
-        return 2
+    if problem := output_problem(args.out):
+        return usage_error("arenabench generate", problem)
     try:
         seed = parse_seed(args.seed)
     except ValueError:

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from arenabench.cliopts import CommandParser, add_out
+from arenabench.cliopts import CommandParser, add_out, output_problem, usage_error
 from arenabench.generator.scene import Scene, load_scene
 
 __all__ = ["load_scene", "render_scene_files", "scene_gt_record"]
@@ -66,13 +66,8 @@ def build_parser() -> CommandParser:
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench render``; returns 0 on success, 2 on bad input."""
     args = build_parser().parse_args(argv)
-    from arenabench.fileio import OutputPathError, check_output_dir
-
-    try:
-        check_output_dir(args.out)
-    except OutputPathError as exc:
-        print(f"arenabench render: error: --out {args.out}: {exc}", file=sys.stderr)
-        return 2
+    if problem := output_problem(args.out):
+        return usage_error("arenabench render", problem)
     if (Path(args.out) / "dataset.json").exists():  # its manifest would be replaced
         print(f"arenabench render: error: --out {args.out}: holds a generated dataset "
               "(dataset.json); use another folder", file=sys.stderr)

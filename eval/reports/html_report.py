@@ -23,7 +23,7 @@ from ..dataset_reader import Dataset, DatasetError, load_dataset
 from ..results import ImageResult, Prediction, Report
 from .incomplete import banner_html, partial
 from .markdown_report import TOP_CAUSES, phase_cell
-from .summary_rows import fmt, summary_rows
+from .summary_rows import BREAKDOWN_COLUMNS, breakdown_cells, fmt, summary_rows
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#222}
@@ -398,18 +398,11 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
                      "separate failures from passes (all of them: <code>breakdown</code> in "
                      "report.json).</p>")
         for key in keys:
-            parts.append(
-                f"<h3>{e(key)}</h3><table><tr><th>bin</th><th>n</th><th>pass rate</th>"
-                "<th>count exact</th><th>median |area err|</th><th>failures</th></tr>"
-            )
+            parts.append(f"<h3>{e(key)}</h3><table><tr>"
+                         + "".join(f"<th>{e(c)}</th>" for c in BREAKDOWN_COLUMNS) + "</tr>")
             for row in report.breakdown[key]:
-                fails = ", ".join(f"{c} {v}" for c, v in row["failures"].items()) or "-"
-                parts.append(
-                    f"<tr><td>{e(row['bin'])}</td><td>{row['n']}</td>"
-                    f"<td>{fmt(row['pass_rate'], pct=True)}</td>"
-                    f"<td>{fmt(row['count_exact_rate'], pct=True)}</td>"
-                    f"<td>{fmt(row['area_rel_err_median'])}</td><td>{e(fails)}</td></tr>"
-                )
+                parts.append("<tr>" + "".join(f"<td>{e(c)}</td>" for c in breakdown_cells(row))
+                             + "</tr>")
             parts.append("</table>")
     parts.append(
         "<h2>All images</h2><table><tr><th>id</th><th>result</th><th>gt count</th>"

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import os
+import re
+from collections.abc import Iterable
 from pathlib import Path
 
 from arenabench.fileio import atomic_write_text
@@ -10,7 +12,7 @@ from arenabench.fileio import atomic_write_text
 from ..breakdown import shown_breakdown, strongest_cause_text
 from ..results import Report
 from .incomplete import banner_markdown, partial
-from .summary_rows import fmt, summary_rows
+from .summary_rows import BREAKDOWN_COLUMNS, breakdown_cells, fmt, summary_rows
 
 #: Ranked causes a report lists.
 TOP_CAUSES = 5
@@ -92,18 +94,21 @@ def markdown(report: Report, *, max_failures: int = 30) -> str:
             lines += [
                 f"### {key}",
                 "",
-                "| bin | n | pass rate | count exact | median abs area err | failures |",
-                "|---|---|---|---|---|---|",
+                _md_row(_md_label(c) for c in BREAKDOWN_COLUMNS),
+                "|" + "---|" * len(BREAKDOWN_COLUMNS),
             ]
-            for row in report.breakdown[key]:
-                fails = ", ".join(f"{c} {v}" for c, v in row["failures"].items()) or "-"
-                lines.append(
-                    f"| {row['bin']} | {row['n']} | {fmt(row['pass_rate'], pct=True)} | "
-                    f"{fmt(row['count_exact_rate'], pct=True)} | "
-                    f"{fmt(row['area_rel_err_median'])} | {fails} |"
-                )
+            lines += [_md_row(breakdown_cells(row)) for row in report.breakdown[key]]
             lines.append("")
     return "\n".join(lines).rstrip() + "\n"
+
+
+def _md_row(cells: Iterable[str]) -> str:
+    return "| " + " | ".join(cells) + " |"
+
+
+def _md_label(label: str) -> str:
+    """A column label in a Markdown table: ``|x|`` (absolute value) is written ``abs x``."""
+    return re.sub(r"\|([^|]+)\|", r"abs \1", label)
 
 
 def write_markdown(report: Report, path: str | os.PathLike[str]) -> Path:

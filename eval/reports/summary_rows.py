@@ -16,6 +16,20 @@ def fmt(value: object, *, pct: bool = False, digits: int = 4) -> str:
     return str(value)
 
 
+#: Columns of a breakdown table (a row per bin of a scene parameter; report.json's
+#: ``breakdown``).
+BREAKDOWN_COLUMNS: tuple[str, ...] = (
+    "bin", "n", "pass rate", "count exact", "median |area err|", "failures",
+)
+
+
+def breakdown_cells(row: dict) -> tuple[str, ...]:
+    """One bin's cells, in :data:`BREAKDOWN_COLUMNS` order (plain text: the writer escapes)."""
+    fails = ", ".join(f"{c} {v}" for c, v in row["failures"].items()) or "-"
+    return (str(row["bin"]), str(row["n"]), fmt(row["pass_rate"], pct=True),
+            fmt(row["count_exact_rate"], pct=True), fmt(row["area_rel_err_median"]), fails)
+
+
 def summary_rows(summary: Summary) -> list[tuple[str, str]]:
     """Every summary metric as a labelled string (rows from the metric registry)."""
     s = summary

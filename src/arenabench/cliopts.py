@@ -231,6 +231,14 @@ class CommandParser(argparse.ArgumentParser):
                 self.error(problem)
         return namespace, extras
 
+    def parse_or_status(self, args: list[str] | None = None) -> argparse.Namespace | int:
+        """:meth:`parse_args`, with ``--help`` (0) and a usage error (2, its line printed)
+        returned as the command's exit status instead of raised as ``SystemExit``."""
+        try:
+            return self.parse_args(args)
+        except SystemExit as exc:
+            return int(exc.code or 0)
+
     def error(self, message: str) -> None:  # type: ignore[override]
         """Print one line naming the problem (with a hint) and exit with status 2."""
         self.fail(message + self._hint(message))
@@ -238,8 +246,7 @@ class CommandParser(argparse.ArgumentParser):
 
     def fail(self, message: str) -> int:
         """Print ``<prog>: error: <message>`` (one line) on stderr; return 2."""
-        print(f"{self.prog}: error: {' '.join(str(message).split())}", file=sys.stderr)
-        return EXIT_USAGE
+        return usage_error(self.prog, message)
 
     def _options(self) -> list[str]:
         return [s for a in self._actions for s in a.option_strings if s.startswith("--")]
@@ -476,3 +483,32 @@ def add_run_options(parser: CommandParser) -> None:
                    help="start a new Python process per image for a Python script (default: "
                    "one warm interpreter per command, which forks a fresh process per image; "
                    "see docs/warm-interpreter.md)")
+
+
+# ----------------------------------------------------------------------------- usage errors
+
+
+def usage_error(prog: str, message: str) -> int:
+    """Print ``<prog>: error: <message>`` on stderr, as one line (white space folded); return
+    2. Every command's usage error after parsing (and :meth:`CommandParser.fail`) says it so.
+    """
+    print(f"{prog}: error: {' '.join(str(message).split())}", file=sys.stderr)
+    return EXIT_USAGE
+
+
+def output_problem(path: str | Path, *, option: str = "--out", file: bool = False,
+                   allow_special: bool = False) -> str | None:
+    """Why ``path`` cannot be written, as the usage error's message (``--out OUT: why``), or
+    ``None`` when it can: a folder (:func:`arenabench.fileio.check_output_dir`) or, with
+    ``file``, a file (:func:`arenabench.fileio.check_output_file`, ``allow_special`` for
+    ``/dev/stdout`` and the like)."""
+    from arenabench.fileio import OutputPathError, check_output_dir, check_output_file
+
+    try:
+        if file:
+            check_output_file(path, allow_special=allow_special)
+        else:
+            check_output_dir(path)
+    except OutputPathError as exc:
+        return f"{option} {path}: {exc}"
+    return None

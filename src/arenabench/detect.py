@@ -19,13 +19,13 @@ from __future__ import annotations
 
 import sys
 
-from arenabench.cliopts import EXIT_USAGE, CommandParser
+from arenabench.cliopts import CommandParser, output_problem, usage_error
 from arenabench.competition import (
     EXIT_MARKERS_NOT_FOUND,
     OBSTACLES_FILE,
     format_obstacles_txt,
 )
-from arenabench.fileio import OutputPathError, check_output_file, write_output_text
+from arenabench.fileio import write_output_text
 from arenabench.frame import FrameSpec
 from arenabench.pipeline.config import PROFILES
 
@@ -69,18 +69,15 @@ def build_parser() -> CommandParser:
 
 
 def _error(message: str) -> int:
-    first = " ".join(str(message).split())
-    print(f"{PROG}: error: {first}", file=sys.stderr)
-    return EXIT_USAGE
+    return usage_error(PROG, message)
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the command; return its exit status."""
     parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:  # --help (0) or a usage error (2, one line printed)
-        return int(exc.code or 0)
+    args = parser.parse_or_status(argv)
+    if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
+        return args
 
     if args.indent is not None and args.indent < 0:
         return _error(f"--indent must be >= 0, got {args.indent}")
@@ -99,11 +96,9 @@ def main(argv: list[str] | None = None) -> int:
         )
     except ValueError as exc:
         return _error(str(exc))
-    if args.output != "-":
-        try:
-            check_output_file(args.output, allow_special=True)
-        except OutputPathError as exc:
-            return _error(f"--output {args.output}: {exc}")
+    if args.output != "-" and (problem := output_problem(
+            args.output, option="--output", file=True, allow_special=True)):
+        return _error(problem)
     try:
         image = load_image(args.image)
     except ImageLoadError as exc:

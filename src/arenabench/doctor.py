@@ -351,10 +351,9 @@ def build_parser() -> CommandParser:
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench doctor``; 0 when all checks pass, 1 otherwise, 2 on bad options."""
     parser = build_parser()
-    try:
-        args = parser.parse_args(argv)
-    except SystemExit as exc:
-        return int(exc.code or 0)
+    args = parser.parse_or_status(argv)
+    if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
+        return args
     try:
         report = run_checks(context=not args.no_context, timeout=args.timeout)
     except ValueError as exc:
