@@ -24,8 +24,8 @@ values too: centres (2.98, 2.98) and (-7.00, -3.00) in the world, footprints 1.9
 kind of grid (positions in 0.25 m, sizes in 0.5 m). :func:`snap_obstacle` puts a fitted box
 on that grid; ``arenabench fit`` keeps the snapped box when its render is closer to the image.
 On the example: boxes (3, 3) 2 x 5 and (-7, -3) 2 x 4, both 1.5 m above the arena; in the
-2-px band around their outlines the render is then 0.6 grey levels from the example (each
-value moved by 0.02 m: 0.7-9).
+2-px band around their outlines the render is then 0.64 grey levels from the example, and
+moving any one value by 0.02 m makes it worse (docs/rendering.md, "The camera").
 """
 
 from __future__ import annotations
