@@ -2,13 +2,16 @@
 
 Steps: (1) detect the four corner markers; (2) choose the field of view by a 1-D search
 minimising the solvePnP reprojection error of the 16 marker corners against the arena
-geometry (square pixels, centred principal point), and turn the pose into a look-at camera;
+geometry (square pixels, centred principal point), and turn the pose into a look-at camera, or
+take a known camera (``FitOptions.camera``);
 (3) segment the boxes and fit each one's footprint and height so that its projected
 silhouette matches the image; (4) read the floor, background and box grey levels and set the
 lighting so that the baked shades give the observed top and side faces; (5) optionally refine
 a few scalars (floor margin, border width) by maximising SSIM against the image (procedural
 arenas only); (6) nudge the camera so that cv2.aruco finds the render's marker corners on the
-same pixels as the image's (same outline lengths, same detection order).
+same pixels as the image's (same outline lengths, same detection order; fitted cameras only).
+Between (5) and (6), ``FitOptions.snap`` may replace each box by a candidate (e.g. on the
+competition world's grid) when that brings the render closer to the image.
 """
 
 from __future__ import annotations
@@ -600,12 +603,13 @@ def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
         raise ValueError(f"image_bgr must be (H, W, 3) uint8, got {img.shape} {img.dtype}")
     height, width = img.shape[:2]
     gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float64)
+    known = options.camera
+    if known is not None and (known.width, known.height) != (width, height):
+        raise ValueError(f"image is {width} x {height} px, the known camera "
+                         f"{known.width} x {known.height}")
     corners = detect_marker_corners(img, options.markers)
-    if options.camera is not None:
-        markers, camera = options.markers, options.camera
-        if (camera.width, camera.height) != (width, height):
-            raise ValueError(f"image is {width} x {height} px, the known camera "
-                             f"{camera.width} x {camera.height}")
+    if known is not None:
+        markers, camera = options.markers, known
         fov = camera.fov_deg
         world = _world_points(options.arena, markers)
         proj = cam.project(world, cam.intrinsics(camera), cam.world_from_camera(camera))
