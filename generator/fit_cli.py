@@ -16,7 +16,8 @@ def build_parser() -> CommandParser:
                     "a scene file for 'arenabench render'. The arena is the competition's own "
                     "texture (3.33 m between the markers' outer corners, DICT_4X4_100 ids "
                     "80/85/90/95 rotated 180 deg, 0.2268 m) seen by the camera that rendered "
-                    "the competition's example (--fit-camera fits one to the markers); with "
+                    "the competition's example (1000 x 1000 px; --fit-camera, or an image of "
+                    "another size, fits one to the markers); with "
                     "--arena-side a procedural arena of that side, the camera and the marker "
                     "size fitted.",
     )
@@ -66,9 +67,12 @@ def main(argv: list[str] | None = None) -> int:
         if arena is None:
             from arenabench.generator.competition_world import competition_camera, snap_obstacle
 
-            camera = None if args.fit_camera else competition_camera()
+            camera = competition_camera()
+            # the competition's camera for its image size; any other image: the camera fitted
+            if args.fit_camera or image.shape[:2] != (camera.height, camera.width):
+                camera = None
             options = FitOptions(refine_rounds=args.refine_rounds, camera=camera,
-                                 snap=None if args.fit_camera else snap_obstacle)
+                                 snap=None if camera is None else snap_obstacle)
         else:
             options = FitOptions(arena=arena,
                                  markers=MarkerSpec(side_m=0.0669 * args.arena_side),
