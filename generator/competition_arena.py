@@ -31,9 +31,12 @@ ARENA_SIDE_M = 3.33
 ARENA_MARGIN_M = round((TEXTURE_SIDE_M - ARENA_SIDE_M) / 2.0, 6)
 #: Marker side (m), black border included (176.5 texels).
 MARKER_SIDE_M = 0.2268
-#: The competition's static camera (``swift_pico/worlds/*.sdf``): 1000 x 1000 px, horizontal
-#: field of view 1.047 rad; square pixels, so the vertical field of view is the same (deg).
-CAMERA_FOV_DEG = round(math.degrees(1.047), 6)
+#: Horizontal field of view (rad) of the camera that rendered the competition's example
+#: (1000 x 1000 px): 1.2, fixed by the example's markers; the public world files
+#: (``swift_pico/worlds/*.sdf``) give 1.047 (:mod:`arenabench.generator.competition_world`).
+CAMERA_HFOV_RAD = 1.2
+#: Its vertical field of view (deg): square pixels and a square image, so the same angle.
+CAMERA_FOV_DEG = round(math.degrees(CAMERA_HFOV_RAD), 6)
 #: The markers printed on the texture: dictionary, ids (NW, NE, SE, SW), rotation (deg).
 MARKER_DICTIONARY = "DICT_4X4_100"
 MARKER_IDS = (80, 85, 90, 95)

@@ -2,18 +2,22 @@
 
 Steps: (1) detect the four corner markers; (2) choose the field of view by a 1-D search
 minimising the solvePnP reprojection error of the 16 marker corners against the arena
-geometry (square pixels, centred principal point), and turn the pose into a look-at camera;
+geometry (square pixels, centred principal point), and turn the pose into a look-at camera, or
+take a known camera (``FitOptions.camera``);
 (3) segment the boxes and fit each one's footprint and height so that its projected
 silhouette matches the image; (4) read the floor, background and box grey levels and set the
 lighting so that the baked shades give the observed top and side faces; (5) optionally refine
 a few scalars (floor margin, border width) by maximising SSIM against the image (procedural
 arenas only); (6) nudge the camera so that cv2.aruco finds the render's marker corners on the
-same pixels as the image's (same outline lengths, same detection order).
+same pixels as the image's (same outline lengths, same detection order; fitted cameras only).
+Between (5) and (6), ``FitOptions.snap`` may replace each box by a candidate (e.g. on the
+competition world's grid) when that brings the render closer to the image.
 """
 
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import cv2
@@ -50,14 +54,24 @@ class FitOptions:
     match_detector_rounds : int
         Rounds per step size of :func:`match_detector` (0 = skip it).
     fov_deg : float or None
-        Known vertical field of view (default: the competition camera's, from its world
-        files); None searches ``fov_range_deg``. Under a near-nadir camera the markers barely
-        constrain it: on the competition example 60 and 66.5 deg fit equally well (RMS
-        reprojection 1.00 vs 0.98 px), so a known value is the better evidence.
+        Known vertical field of view (default: that of the camera that rendered the
+        competition's example, :data:`~arenabench.generator.competition_arena.CAMERA_FOV_DEG`);
+        None searches ``fov_range_deg``. Under a near-nadir camera the marker corners barely
+        constrain it (the field of view trades against the altitude), so a known value is the
+        better evidence.
     fov_range_deg : tuple of float
         Range of the field-of-view search.
     refine_rounds : int
         Rounds of coordinate-wise SSIM refinement of a few scalars (0 = none).
+    camera : CameraSpec or None
+        A known camera (e.g. the competition's,
+        :func:`arenabench.generator.competition_world.competition_camera`): taken as it is,
+        so ``fov_deg``, ``fit_marker_side`` and ``match_detector_rounds`` do not apply. Its
+        image size must be the image's.
+    snap : callable or None
+        Maps a fitted box to a candidate (e.g. the competition world's grid,
+        :func:`arenabench.generator.competition_world.snap_obstacle`); each candidate replaces
+        its box when the render gets closer to the image (SSIM).
     min_box_px : int
         Smallest dark blob (px) taken as a box.
     """
@@ -71,6 +85,8 @@ class FitOptions:
     fov_range_deg: tuple[float, float] = (20.0, 100.0)
     match_detector_rounds: int = 3
     refine_rounds: int = 1
+    camera: CameraSpec | None = None
+    snap: Callable[[Obstacle], Obstacle] | None = None
     min_box_px: int = 400
 
     def __post_init__(self) -> None:
@@ -587,8 +603,19 @@ def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
         raise ValueError(f"image_bgr must be (H, W, 3) uint8, got {img.shape} {img.dtype}")
     height, width = img.shape[:2]
     gray = cv2.cvtColor(img, cv2.COLOR_BGR2GRAY).astype(np.float64)
+    known = options.camera
+    if known is not None and (known.width, known.height) != (width, height):
+        raise ValueError(f"image is {width} x {height} px, the known camera "
+                         f"{known.width} x {known.height}")
     corners = detect_marker_corners(img, options.markers)
-    if options.fit_marker_side:
+    if known is not None:
+        markers, camera = options.markers, known
+        fov = camera.fov_deg
+        world = _world_points(options.arena, markers)
+        proj = cam.project(world, cam.intrinsics(camera), cam.world_from_camera(camera))
+        image = np.vstack([corners[c] for c in CORNER_ORDER])
+        err = float(np.sqrt(np.mean(np.sum((proj - image) ** 2, axis=1))))
+    elif options.fit_marker_side:
         markers, camera, fov, err = fit_arena_camera(
             corners, arena=options.arena, markers=options.markers, width=width, height=height,
             fov_range_deg=options.fov_range_deg,
@@ -637,7 +664,14 @@ def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
                     s = fit_score(cand, img, renderer)
                     if s[0] > best[0]:
                         best, scene = s, cand
-        if options.match_detector_rounds:
+        for i, box in enumerate(scene.obstacles if options.snap else ()):
+            boxes = list(scene.obstacles)
+            boxes[i] = options.snap(box)
+            cand = replace(scene, obstacles=tuple(boxes))
+            s = fit_score(cand, img, renderer)
+            if s[0] > best[0]:
+                best, scene = s, cand
+        if options.match_detector_rounds and options.camera is None:
             scene, _ = match_detector(scene, img, renderer, rounds=options.match_detector_rounds,
                                       fit_fov=options.fov_deg is None)
             best = fit_score(scene, img, renderer)

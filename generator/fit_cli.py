@@ -12,17 +12,24 @@ def build_parser() -> CommandParser:
     """The ``arenabench fit`` argument parser."""
     p = CommandParser(
         prog="arenabench fit",
-        description="Fit a scene (camera from the four markers, boxes, colours, lighting) to "
-                    "IMAGE and write it as a scene file for 'arenabench render'. The arena is "
-                    "the competition's own texture (3.33 m between the markers' outer corners, "
-                    "DICT_4X4_100 ids 80/85/90/95 rotated 180 deg, 0.2268 m); with "
-                    "--arena-side a procedural arena of that side, the marker size fitted.",
+        description="Fit a scene (camera, boxes, colours, lighting) to IMAGE and write it as "
+                    "a scene file for 'arenabench render'. The arena is the competition's own "
+                    "texture (3.33 m between the markers' outer corners, DICT_4X4_100 ids "
+                    "80/85/90/95 rotated 180 deg, 0.2268 m) seen by the camera that rendered "
+                    "the competition's example (1000 x 1000 px; --fit-camera, or an image of "
+                    "another size, fits one to the markers); with "
+                    "--arena-side a procedural arena of that side, the camera and the marker "
+                    "size fitted.",
     )
     p.add_argument("image", help="overhead image of the arena (PNG/JPEG)")
     add_out(p, required=True, help="scene file to write (JSON)")
     p.add_argument("--arena-side", type=float, default=None,
                    help="fit a procedural arena with this border square side in m instead of "
                         "the competition texture")
+    p.add_argument("--fit-camera", action="store_true",
+                   help="fit the camera to the four markers (field of view held at the "
+                        "example camera's) instead of taking the camera that rendered the "
+                        "competition's example (competition texture only)")
     add_count(p, "--refine-rounds", default=1, minimum=0, maximum=MAX_REFINE_ROUNDS,
               help="SSIM refinement rounds of the margin and border width")
     p.add_argument("--report", action="store_true",
@@ -53,7 +60,14 @@ def main(argv: list[str] | None = None) -> int:
     try:
         image = load_image(args.image)
         if arena is None:
-            options = FitOptions(refine_rounds=args.refine_rounds)
+            from arenabench.generator.competition_world import competition_camera, snap_obstacle
+
+            camera = competition_camera()
+            # the competition's camera for its image size; any other image: the camera fitted
+            if args.fit_camera or image.shape[:2] != (camera.height, camera.width):
+                camera = None
+            options = FitOptions(refine_rounds=args.refine_rounds, camera=camera,
+                                 snap=None if camera is None else snap_obstacle)
         else:
             options = FitOptions(arena=arena,
                                  markers=MarkerSpec(side_m=0.0669 * args.arena_side),

@@ -129,10 +129,10 @@ TWIN_KNOWN_FAILURES = {
     "style_grey_band": "grey band 88-192 keeps a dark side face (grey ~71) only when an unbroken "
     "line of in-band blended pixels closes it off from the floor; with the real image's edges "
     "(two samples per pixel: a half blend of 188 or a hard step, by the edge's sub-pixel phase) "
-    "that line breaks on most twin boxes with a large dark face; 47/200 pass (docs/rendering.md)",
+    "that line breaks on most twin boxes with a large dark face; 45/200 pass (docs/rendering.md)",
     "style_canny": "Canny's non-maximum suppression drops the corner pixel of some box outlines "
     "(it depends on the sub-pixel phases of the two edges meeting there, which decide where "
-    "each edge is blended); the loop opens and the box is lost; 178/200 pass "
+    "each edge is blended); the loop opens and the box is lost; 168/200 pass "
     "(docs/rendering.md)",
 }
 
