@@ -33,9 +33,15 @@ def all_finite(obj: Any) -> bool:
     if isinstance(obj, float):
         return math.isfinite(obj)
     if isinstance(obj, dict):
-        return all(all_finite(v) for v in obj.values())
-    if isinstance(obj, list):
-        return all(all_finite(v) for v in obj)
+        obj = obj.values()
+    elif not isinstance(obj, list):
+        return True
+    for v in obj:
+        if type(v) is float:
+            if not math.isfinite(v):
+                return False
+        elif isinstance(v, (dict, list)) and not all_finite(v):
+            return False
     return True
 
 
@@ -179,7 +185,10 @@ def _compile(node: Any) -> Check:
             if type(x) is not dict:
                 return True
             get = props.get
-            return all(get(key, extra)(value) for key, value in x.items())
+            for key, value in x.items():
+                if not get(key, extra)(value):
+                    return False
+            return True
 
         tests.append(members)
     if kinds is None or "array" in kinds:
@@ -194,6 +203,9 @@ def _compile(node: Any) -> Check:
         return lambda x: first(x) and second(x)
 
     def check(x: Any) -> bool:
-        return all(t(x) for t in tests)
+        for t in tests:
+            if not t(x):
+                return False
+        return True
 
     return check
