@@ -26,17 +26,12 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import replace
 from typing import Any, overload
 
+from arenabench.jsonstream import dumps_exact_line
+
 from .records import ImageResult, Prediction
 
 #: Runs of more images than this keep their results in a temporary file.
 SPILL_ABOVE = 2000
-
-
-def _plain(obj: Any) -> Any:
-    """:func:`json.dumps` ``default``: NumPy numbers and arrays as Python ones."""
-    if hasattr(obj, "tolist"):
-        return obj.tolist()
-    raise TypeError(f"not JSON serialisable: {type(obj).__name__}")
 
 
 #: Parameter names -> their positions, shared by every :class:`ParamRow` with those names.
@@ -110,7 +105,7 @@ class ResultStore:
             self._full[index] = result
             return
         assert self._file is not None
-        line = json.dumps(result.to_dict(), sort_keys=True, default=_plain).encode("utf-8")
+        line = dumps_exact_line(result.to_dict()).encode("utf-8")
         os.pwrite(self._file.fileno(), line, self._end)
         self._offsets[index], self._lengths[index] = self._end, len(line)
         self._end += len(line)

@@ -40,6 +40,20 @@ def _dumps(obj: Any, depth: int) -> str:
     return text
 
 
+def dumps_exact_line(obj: Any) -> str:
+    """One compact JSON line for arenabench's own temporary files (never a file a user
+    reads): NaN and infinities are kept as ``NaN`` / ``Infinity`` and NumPy numbers become
+    Python ones, so :func:`json.loads` gives back exactly the values written."""
+    return json.dumps(obj, sort_keys=True, default=_plain)
+
+
+def _plain(obj: Any) -> Any:
+    """:func:`json.dumps` ``default``: NumPy numbers and arrays as Python ones."""
+    if hasattr(obj, "tolist"):
+        return obj.tolist()
+    raise TypeError(f"Object of type {type(obj).__name__} is not JSON serializable")
+
+
 def _has_stream(obj: Any) -> bool:
     if isinstance(obj, Streamed):
         return True
