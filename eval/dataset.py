@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -219,11 +220,11 @@ def flatten_numeric(obj: Any, prefix: str = "") -> dict[str, float]:
     return out
 
 
+_SHA256 = re.compile(r"[0-9a-f]{64}")
+
+
 def _is_sha256(value: Any) -> bool:
-    return (
-        isinstance(value, str) and len(value) == 64
-        and all(c in "0123456789abcdef" for c in value)
-    )
+    return isinstance(value, str) and _SHA256.fullmatch(value) is not None
 
 
 def _fail(path: Path, what: str) -> DatasetError:
