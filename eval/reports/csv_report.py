@@ -51,7 +51,10 @@ def write_csv(report: Report, path: str | os.PathLike[str]) -> Path:
 
 
 def _write_rows(report: Report, fh: IO[str]) -> None:
-    params = sorted({k for r in report.images for k in r.params})
+    images = report.images  # results kept in a file: their JSON is enough for the names
+    entries = images.dicts() if hasattr(images, "dicts") else images
+    params = sorted({k for r in entries
+                     for k in (r["params"] if isinstance(r, dict) else r.params)})
     writer = csv.writer(fh, lineterminator="\n")
     writer.writerow([*COLUMNS, *(f"param:{p}" for p in params)])
     for r in report.images:
