@@ -17,6 +17,7 @@ from arenabench.gtrecord import DEFAULT_AREA_REFERENCE as DEFAULT_AREA_REFERENCE
 from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import image_file_problem
 from arenabench.schemas import gt_problem
+from arenabench.workers import usable_cores
 
 from .records import Truth
 
@@ -248,7 +249,7 @@ def validate_gt(gt: Any, path: Path) -> None:
 
 def load_dataset(
     root: str | Path, *, limit: int | None = None, verify: bool = True,
-    skip_damaged: bool = False,
+    skip_damaged: bool = False, workers: int | None = None,
 ) -> Dataset:
     """Read and validate a dataset folder.
 
@@ -268,6 +269,10 @@ def load_dataset(
         :func:`arenabench.imageio.image_file_problem`; also with a matching SHA-256 or
         without ``verify``) is a :class:`DatasetError` ("dataset damaged"); with
         ``skip_damaged`` it is left out and listed in :attr:`Dataset.skipped`.
+    workers : int, keyword-only
+        Processes that check the files (:mod:`arenabench.eval.dataset_check`; the same
+        dataset and the same first error as one; with ``limit``, one). Default: one, or for a
+        manifest of more than about 20,000 entries the usable cores, at most 4.
 
     A manifest path that leaves the dataset folder (absolute, ``..``, or a symbolic link out
     of it) is a :class:`DatasetError`: a dataset is a closed folder.
@@ -298,51 +303,83 @@ def load_dataset(
         raise DatasetError(f"{manifest}: missing (is {base} a dataset written by the generator?)")
     entries: list[tuple[str, str, str, str | None]] = []
     skipped: list[tuple[str, str]] = []
-    seen: set[str] = set()
     presets: set[str] = set()
     lacking: dict[str, int] = {}
-    area_keys = sorted(set(AREA_REFERENCES.values()))
-    dirs: dict[str, Path] = {}  # resolved folders of the manifest's paths
+    area_keys = tuple(sorted(set(AREA_REFERENCES.values())))
+
+    def accept(entry: dict[str, Any], outcome: str, value: Any) -> None:
+        """Keep a checked entry (``ok``: its preset and missing area keys), or leave out a
+        damaged image."""
+        if outcome == "damaged":
+            if not skip_damaged:
+                raise DatasetError(f"dataset damaged: {shown / entry['image']}: {value} "
+                                   "(--skip-damaged scores the other images)")
+            skipped.append((entry["id"], value))
+            return
+        preset, missing = value
+        presets.add(preset)
+        for key in missing:
+            lacking.setdefault(key, len(entries))
+        entries.append((entry["id"], entry["image"], entry["gt"],
+                        entry["gt_sha256"] if verify else None))
+
+    if limit is not None:
+        workers = 1
+    elif workers is None:
+        from .dataset_check import MAX_CHECK_WORKERS, PARALLEL_ABOVE_BYTES
+
+        big = limit is None and manifest.stat().st_size > PARALLEL_ABOVE_BYTES
+        workers = min(usable_cores(), MAX_CHECK_WORKERS) if big else 1
     with open(manifest, encoding="utf-8") as fh:  # read as a stream: a line at a time
-        for lineno, line in enumerate(_lines(fh), 1):
-            if not line.strip():
-                continue
-            where = f"{manifest}:{lineno}"
-            try:
-                entry = json.loads(line)
-            except json.JSONDecodeError as exc:
-                raise DatasetError(f"{where}: not JSON ({exc.msg})") from None
-            if not isinstance(entry, dict):
-                raise DatasetError(f"{where}: entry must be a JSON object")
-            for key in ("id", "image", "gt"):
-                if not isinstance(entry.get(key), str):
-                    raise DatasetError(f"{where}: field {key!r} missing or not a string")
-            if entry["id"] in seen:
-                raise DatasetError(f"{where}: duplicate id {entry['id']!r}")
-            seen.add(entry["id"])
-            gt = _checked_entry(entry, where, base=base, shown=shown, verify=verify,
-                                dirs=dirs)
-            if isinstance(gt, str):  # a damaged image
-                if not skip_damaged:
-                    raise DatasetError(f"dataset damaged: {shown / entry['image']}: {gt} "
-                                       "(--skip-damaged scores the other images)")
-                skipped.append((entry["id"], gt))
-                continue
-            presets.add(gt.get("preset") or "")
-            area = gt["area"]
-            for key in area_keys:
-                if key not in lacking and area.get(key) is None:
-                    lacking[key] = len(entries)
-            entries.append((entry["id"], entry["image"], entry["gt"],
-                            entry["gt_sha256"] if verify else None))
-            if limit is not None and len(entries) >= limit:
-                break
+        if workers > 1:
+            from .dataset_check import check_manifest
+
+            check_manifest(_manifest_entries(fh, manifest), accept, manifest=manifest,
+                           base=base, shown=shown, verify=verify, area_keys=area_keys,
+                           workers=workers)
+        else:
+            dirs: dict[str, Path] = {}  # resolved folders of the manifest's paths
+            for lineno, entry in _manifest_entries(fh, manifest):
+                gt = _checked_entry(entry, f"{manifest}:{lineno}", base=base, shown=shown,
+                                    verify=verify, dirs=dirs)
+                if isinstance(gt, str):  # a damaged image
+                    accept(entry, "damaged", gt)
+                else:
+                    area = gt["area"]
+                    accept(entry, "ok", (gt.get("preset") or "",
+                                         [k for k in area_keys if area.get(k) is None]))
+                if limit is not None and len(entries) >= limit:
+                    break
     if not entries:
         more = f" ({len(skipped)} damaged images left out)" if skipped else ""
         raise DatasetError(f"{manifest}: no entries{more}")
     return Dataset(root=base, samples=DatasetSamples(base, shown, entries),
                    skipped=tuple(skipped),
                    facts=DatasetFacts(presets=tuple(sorted(presets)), lacking=lacking))
+
+
+def _manifest_entries(fh: Iterable[str], manifest: Path) -> Iterator[tuple[int, dict[str, Any]]]:
+    """``(line number, entry)`` of each manifest line, in order; a line that is not an entry
+    (not JSON, not an object, a field missing, a duplicate id) is a :class:`DatasetError`
+    when it is reached."""
+    seen: set[str] = set()
+    for lineno, line in enumerate(_lines(fh), 1):
+        if not line.strip():
+            continue
+        where = f"{manifest}:{lineno}"
+        try:
+            entry = json.loads(line)
+        except json.JSONDecodeError as exc:
+            raise DatasetError(f"{where}: not JSON ({exc.msg})") from None
+        if not isinstance(entry, dict):
+            raise DatasetError(f"{where}: entry must be a JSON object")
+        for key in ("id", "image", "gt"):
+            if not isinstance(entry.get(key), str):
+                raise DatasetError(f"{where}: field {key!r} missing or not a string")
+        if entry["id"] in seen:
+            raise DatasetError(f"{where}: duplicate id {entry['id']!r}")
+        seen.add(entry["id"])
+        yield lineno, entry
 
 
 def _lines(fh: Iterable[str]) -> Iterator[str]:

@@ -121,3 +121,43 @@ def test_100k_images_evaluate_in_under_1_gb(tmp_path):
     with open(out / "results.csv", newline="") as fh:
         assert sum(1 for _ in csv.reader(fh)) == n + 1
     assert (out / "junit.xml").read_text().count("<testcase ") == n
+
+
+def _first_error(root, workers):
+    try:
+        load_dataset(root, workers=workers)
+    except DatasetError as exc:
+        return str(exc)
+    return None
+
+
+@pytest.mark.slow
+def test_checking_on_several_processes_gives_the_same_dataset_and_first_error(tmp_path):
+    big = write_big_set(tmp_path / "set", 5000, templates=4)
+    one, two = load_dataset(big.root, workers=1), load_dataset(big.root, workers=2)
+    assert one.samples.ids == two.samples.ids and one.facts == two.facts
+    manifest = big.root / "manifest.jsonl"
+    lines = manifest.read_text().splitlines(keepends=True)
+    # a duplicate id late in the manifest, a broken GT file earlier: the GT's error comes first
+    manifest.write_text("".join([*lines[:4500], lines[10], *lines[4500:]]))
+    assert "duplicate id '000010'" in _first_error(big.root, 1)
+    assert _first_error(big.root, 2) == _first_error(big.root, 1)
+    gt = big.root / "gt" / "003210.json"
+    gt.write_text(gt.read_text().replace('"count": ', '"count": -', 1))
+    first = _first_error(big.root, 1)
+    assert "003210.json" in first and _first_error(big.root, 2) == first
+    # a damaged image: refused, or left out with --skip-damaged, the same either way
+    manifest.write_text("".join(lines))
+    gt.write_text(gt.read_text().replace('"count": -', '"count": ', 1))
+    image = big.root / "images" / "004321.png"
+    image.unlink()  # (a hard link: the others keep their bytes)
+    image.write_bytes(b"")
+    entry = json.loads(lines[4321])
+    entry["image_sha256"] = "e3b0c44298fc1c149afbf4c8996fb92427ae41e4649b934ca495991b7852b855"
+    lines[4321] = json.dumps(entry) + "\n"
+    manifest.write_text("".join(lines))
+    assert "dataset damaged" in _first_error(big.root, 1)
+    assert _first_error(big.root, 2) == _first_error(big.root, 1)
+    kept = [load_dataset(big.root, workers=w, skip_damaged=True) for w in (1, 2)]
+    assert kept[0].skipped == kept[1].skipped == (("004321", "empty file"),)
+    assert kept[0].samples.ids == kept[1].samples.ids and len(kept[1]) == 4999
