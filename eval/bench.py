@@ -39,6 +39,11 @@ size (1000 x 1000):
 10. ``markerless_*_ms``: CPU ms of the reference pipeline (:func:`arenabench.detect`) giving
     up on a 1000 x 1000 image without markers: only boxes, Gaussian noise, blank (median of
     ``markerless_runs`` runs each).
+11. ``bigset_*``: a synthetic set of ``bigset_entries`` manifest entries (tiny images, real
+    GT files; :mod:`arenabench.eval.bench_bigset`) loaded, scored with a do-nothing pipeline
+    and reported in a fresh process: ``bigset_load_s_per_10k`` (CPU s of loading and
+    checking every file), ``bigset_eval_s_per_10k`` (all of it), ``bigset_peak_rss_mb`` and
+    ``bigset_rss_mb_per_10k`` (what 10,000 more entries add to the peak).
 
 Items 2, 4 and 5 run on ``workers`` spawned processes that are started and warmed up
 (one renderer each) before the clock starts; item 3 on started processes (modules imported)
@@ -82,6 +87,8 @@ TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("script_warm_vs_inprocess", "<=", 1.5, "x"),
     ("markerless_boxes_ms", "<=", 50.0, "ms"),
     ("markerless_noise_ms", "<=", 50.0, "ms"),
+    ("bigset_load_s_per_10k", "<=", 3.0, "CPU s"),
+    ("bigset_rss_mb_per_10k", "<=", 100.0, "MB"),
 )
 
 #: The streaming sweep's varied parameter (item 6): Gaussian sensor noise, off to strong.
@@ -96,6 +103,7 @@ FIGURE_KEYS: tuple[str, ...] = (
     "script_warm_vs_inprocess", "script_cold_vs_inprocess",
     "markerless_boxes_ms", "markerless_noise_ms", "markerless_blank_ms",
     "disk_vs_memory_cpu",
+    "bigset_load_s_per_10k", "bigset_eval_s_per_10k", "bigset_peak_rss_mb",
 )  # fmt: skip
 
 
@@ -119,6 +127,8 @@ class BenchConfig:
         Images of each way of running the external script (item 9; at most ``count``).
     markerless_runs : int
         Runs of the reference pipeline on each image without markers (item 10).
+    bigset_entries : int
+        Manifest entries of the synthetic big set (item 11; and a set of half as many).
     workers : int or None
         Processes; default: the usable cores.
     preset : str
@@ -134,13 +144,14 @@ class BenchConfig:
     sandbox_runs: int = 40
     script_runs: int = 60
     markerless_runs: int = 5
+    bigset_entries: int = 10_000
     workers: int | None = None
     preset: str = "eyrc"
     seed: int = 0
 
     def __post_init__(self) -> None:
         for name in ("count", "sweep_count", "naive_count", "rss_renders", "sandbox_runs",
-                     "script_runs", "markerless_runs"):
+                     "script_runs", "markerless_runs", "bigset_entries"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int) or value < 1:
                 raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
@@ -154,7 +165,7 @@ class BenchConfig:
     def quick(cls, *, workers: int | None = None) -> BenchConfig:
         """A tiny configuration (seconds): every figure, none of them meaningful."""
         return cls(count=6, sweep_count=6, naive_count=2, rss_renders=20, sandbox_runs=3,
-                   script_runs=3, markerless_runs=1, workers=workers)
+                   script_runs=3, markerless_runs=1, bigset_entries=400, workers=workers)
 
 
 @dataclass
@@ -588,6 +599,14 @@ def run_bench(
         marker_figures, details["markerless"] = markerless_ms(cfg.markerless_runs)
         figures.update(marker_figures)
         notify("markerless_boxes_ms", time.perf_counter() - t0)
+
+        # 11. big sets: load and score a synthetic set, per 10,000 entries
+        t0 = time.perf_counter()
+        from .bench_bigset import big_set_figures
+
+        bigset_figures, details["bigset"] = big_set_figures(cfg.bigset_entries, scratch)
+        figures.update(bigset_figures)
+        notify("bigset_load_s_per_10k", time.perf_counter() - t0)
     finally:
         shutil.rmtree(scratch, ignore_errors=True)
     details["load_avg_end"] = _load_avg()

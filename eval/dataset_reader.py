@@ -5,9 +5,11 @@ from __future__ import annotations
 
 import json
 import os
+import re
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, overload
 
 from arenabench.fileio import sha256_bytes, sha256_file
 from arenabench.gtrecord import AREA_REFERENCES as AREA_REFERENCES  # declared there
@@ -15,6 +17,7 @@ from arenabench.gtrecord import DEFAULT_AREA_REFERENCE as DEFAULT_AREA_REFERENCE
 from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import image_file_problem
 from arenabench.schemas import gt_problem
+from arenabench.workers import usable_cores
 
 from .results import Truth
 
@@ -80,9 +83,14 @@ class Dataset:
     """A validated dataset."""
 
     root: Path
-    samples: tuple[DatasetItem, ...]
+    #: The images in manifest order: a tuple, or (from :func:`load_dataset`) a
+    #: :class:`DatasetSamples` that reads each image's GT file when the item is taken.
+    samples: Sequence[DatasetItem]
     #: (manifest id, why) of the damaged images left out (``load_dataset(skip_damaged=True)``)
     skipped: tuple[tuple[str, str], ...] = ()
+    #: What :func:`load_dataset` learnt of every GT while validating it (``None``: look at
+    #: the samples).
+    facts: DatasetFacts | None = None
 
     @property
     def name(self) -> str:
@@ -91,6 +99,112 @@ class Dataset:
 
     def __len__(self) -> int:
         return len(self.samples)
+
+    def presets(self) -> list[str]:
+        """The GT files' preset names, sorted, once each (``""`` for a GT without one)."""
+        if self.facts is not None:
+            return list(self.facts.presets)
+        return sorted({s.gt.preset or "" for s in self.samples})
+
+    def check_area_reference(self, area_reference: str, *, limit: int | None = None) -> None:
+        """Raise the :class:`DatasetError` of the first image (of the first ``limit``) whose
+        GT lacks the area of ``area_reference`` (a data error, found before any image runs)."""
+        if self.facts is None:
+            for s in self.samples[:limit]:
+                s.truth(area_reference=area_reference)
+            return
+        first = self.facts.lacking.get(AREA_REFERENCES[area_reference])
+        if first is not None and (limit is None or first < limit):
+            self.samples[first].truth(area_reference=area_reference)
+
+    def items_by_id(self, ids: Iterable[str]) -> dict[str, DatasetItem]:
+        """The items of ``ids`` (those in the set), reading only their GT files."""
+        wanted = set(ids)
+        order = self.samples.ids if isinstance(self.samples, DatasetSamples) else None
+        if order is None:
+            return {s.id: s for s in self.samples if s.id in wanted}
+        return {sid: self.samples[i] for i, sid in enumerate(order) if sid in wanted}
+
+
+@dataclass(frozen=True)
+class DatasetFacts:
+    """Facts of a whole dataset gathered by :func:`load_dataset` while it validates each GT.
+
+    Attributes
+    ----------
+    presets : tuple of str
+        Preset names of the GT files, sorted, once each.
+    lacking : dict
+        GT area key (``contour_px``, ...) -> index of the first image whose GT lacks it.
+    """
+
+    presets: tuple[str, ...]
+    lacking: dict[str, int]
+
+
+class DatasetSamples(Sequence[DatasetItem]):
+    """The images of a loaded dataset, in manifest order, holding only their ids and paths:
+    an item's GT file is read when the item is taken (and checked against its manifest hash
+    again), so a set of any size takes a few hundred bytes per image.
+
+    Parameters
+    ----------
+    base, shown : pathlib.Path
+        The dataset folder resolved, and as the user gave it (for messages).
+    entries : list of tuple
+        ``(id, image, gt, gt_sha256 or None)`` with paths relative to the folder.
+    """
+
+    def __init__(self, base: Path, shown: Path,
+                 entries: list[tuple[str, str, str, str | None]]) -> None:
+        self._base, self._shown, self._entries = base, shown, entries
+
+    def __len__(self) -> int:
+        return len(self._entries)
+
+    @property
+    def ids(self) -> list[str]:
+        """Image ids in order."""
+        return [e[0] for e in self._entries]
+
+    @overload
+    def __getitem__(self, index: int) -> DatasetItem: ...
+
+    @overload
+    def __getitem__(self, index: slice) -> DatasetSamples: ...
+
+    def __getitem__(self, index: int | slice) -> DatasetItem | DatasetSamples:
+        if isinstance(index, slice):
+            return DatasetSamples(self._base, self._shown, self._entries[index])
+        return self._item(self._entries[index])
+
+    def __iter__(self) -> Iterator[DatasetItem]:
+        for entry in self._entries:
+            yield self._item(entry)
+
+    def __reduce__(self) -> tuple[Any, ...]:  # a plain tuple of the items elsewhere
+        return (tuple, (tuple(self),))
+
+    def _item(self, entry: tuple[str, str, str, str | None]) -> DatasetItem:
+        sid, image, gt_rel, digest = entry
+        gt_path, shown_gt = self._base / gt_rel, self._shown / gt_rel
+        try:
+            gt_bytes = gt_path.read_bytes()
+        except OSError as exc:
+            raise _fail(shown_gt, f"cannot read ({exc.strerror or exc})") from None
+        if digest is not None and sha256_bytes(gt_bytes) != digest:
+            raise _fail(shown_gt, "changed since the dataset was loaded (content does not "
+                        "match gt_sha256 in manifest.jsonl)")
+        record = GroundTruth.from_dict(json.loads(gt_bytes))
+        return DatasetItem(id=sid, image_path=self._base / image, gt_path=gt_path, gt=record,
+                           params=_flat_params(record))
+
+
+def _flat_params(record: GroundTruth) -> dict[str, float]:
+    """A GT's flat scalar parameters (see :attr:`DatasetItem.params`)."""
+    if record.params is not None:
+        return {k: float(v) for k, v in record.params.items() if isinstance(v, (int, float))}
+    return flatten_numeric(record.scene or {})
 
 
 def flatten_numeric(obj: Any, prefix: str = "") -> dict[str, float]:
@@ -107,11 +221,11 @@ def flatten_numeric(obj: Any, prefix: str = "") -> dict[str, float]:
     return out
 
 
+_SHA256 = re.compile(r"[0-9a-f]{64}")
+
+
 def _is_sha256(value: Any) -> bool:
-    return (
-        isinstance(value, str) and len(value) == 64
-        and all(c in "0123456789abcdef" for c in value)
-    )
+    return isinstance(value, str) and _SHA256.fullmatch(value) is not None
 
 
 def _fail(path: Path, what: str) -> DatasetError:
@@ -135,7 +249,7 @@ def validate_gt(gt: Any, path: Path) -> None:
 
 def load_dataset(
     root: str | Path, *, limit: int | None = None, verify: bool = True,
-    skip_damaged: bool = False,
+    skip_damaged: bool = False, workers: int | None = None,
 ) -> Dataset:
     """Read and validate a dataset folder.
 
@@ -155,9 +269,17 @@ def load_dataset(
         :func:`arenabench.imageio.image_file_problem`; also with a matching SHA-256 or
         without ``verify``) is a :class:`DatasetError` ("dataset damaged"); with
         ``skip_damaged`` it is left out and listed in :attr:`Dataset.skipped`.
+    workers : int, keyword-only
+        Processes that check the files (:mod:`arenabench.eval.dataset_check`; the same
+        dataset and the same first error as one; with ``limit``, one). Default: one, or for a
+        manifest of more than about 20,000 entries the usable cores, at most 4.
 
     A manifest path that leaves the dataset folder (absolute, ``..``, or a symbolic link out
     of it) is a :class:`DatasetError`: a dataset is a closed folder.
+
+    Every file is checked here, before any image is scored, but only the ids and paths are
+    kept: :attr:`Dataset.samples` is a :class:`DatasetSamples` that reads an image's GT file
+    when its item is taken, so memory does not grow with the GT files (docs/big-sets.md).
 
     Returns
     -------
@@ -179,10 +301,69 @@ def load_dataset(
         raise DatasetError(f"{manifest}: not a regular file")
     if not manifest.is_file():
         raise DatasetError(f"{manifest}: missing (is {base} a dataset written by the generator?)")
-    samples: list[DatasetItem] = []
+    entries: list[tuple[str, str, str, str | None]] = []
     skipped: list[tuple[str, str]] = []
+    presets: set[str] = set()
+    lacking: dict[str, int] = {}
+    area_keys = tuple(sorted(set(AREA_REFERENCES.values())))
+
+    def accept(entry: dict[str, Any], outcome: str, value: Any) -> None:
+        """Keep a checked entry (``ok``: its preset and missing area keys), or leave out a
+        damaged image."""
+        if outcome == "damaged":
+            if not skip_damaged:
+                raise DatasetError(f"dataset damaged: {shown / entry['image']}: {value} "
+                                   "(--skip-damaged scores the other images)")
+            skipped.append((entry["id"], value))
+            return
+        preset, missing = value
+        presets.add(preset)
+        for key in missing:
+            lacking.setdefault(key, len(entries))
+        entries.append((entry["id"], entry["image"], entry["gt"],
+                        entry["gt_sha256"] if verify else None))
+
+    if limit is not None:
+        workers = 1
+    elif workers is None:
+        from .dataset_check import MAX_CHECK_WORKERS, PARALLEL_ABOVE_BYTES
+
+        big = limit is None and manifest.stat().st_size > PARALLEL_ABOVE_BYTES
+        workers = min(usable_cores(), MAX_CHECK_WORKERS) if big else 1
+    with open(manifest, encoding="utf-8") as fh:  # read as a stream: a line at a time
+        if workers > 1:
+            from .dataset_check import check_manifest
+
+            check_manifest(_manifest_entries(fh, manifest), accept, manifest=manifest,
+                           base=base, shown=shown, verify=verify, area_keys=area_keys,
+                           workers=workers)
+        else:
+            dirs: dict[str, Path] = {}  # resolved folders of the manifest's paths
+            for lineno, entry in _manifest_entries(fh, manifest):
+                gt = _checked_entry(entry, f"{manifest}:{lineno}", base=base, shown=shown,
+                                    verify=verify, dirs=dirs)
+                if isinstance(gt, str):  # a damaged image
+                    accept(entry, "damaged", gt)
+                else:
+                    area = gt["area"]
+                    accept(entry, "ok", (gt.get("preset") or "",
+                                         [k for k in area_keys if area.get(k) is None]))
+                if limit is not None and len(entries) >= limit:
+                    break
+    if not entries:
+        more = f" ({len(skipped)} damaged images left out)" if skipped else ""
+        raise DatasetError(f"{manifest}: no entries{more}")
+    return Dataset(root=base, samples=DatasetSamples(base, shown, entries),
+                   skipped=tuple(skipped),
+                   facts=DatasetFacts(presets=tuple(sorted(presets)), lacking=lacking))
+
+
+def _manifest_entries(fh: Iterable[str], manifest: Path) -> Iterator[tuple[int, dict[str, Any]]]:
+    """``(line number, entry)`` of each manifest line, in order; a line that is not an entry
+    (not JSON, not an object, a field missing, a duplicate id) is a :class:`DatasetError`
+    when it is reached."""
     seen: set[str] = set()
-    for lineno, line in enumerate(manifest.read_text(encoding="utf-8").splitlines(), 1):
+    for lineno, line in enumerate(_lines(fh), 1):
         if not line.strip():
             continue
         where = f"{manifest}:{lineno}"
@@ -198,68 +379,87 @@ def load_dataset(
         if entry["id"] in seen:
             raise DatasetError(f"{where}: duplicate id {entry['id']!r}")
         seen.add(entry["id"])
-        if verify:
-            for key in ("image_sha256", "gt_sha256"):
-                if not _is_sha256(entry.get(key)):
-                    raise DatasetError(
-                        f"{where}: field {key!r} missing or not a SHA-256 hex digest "
-                        "(--no-verify skips the check)"
-                    )
-        for key in ("image", "gt"):
-            rel = entry[key]
-            inside = not os.path.isabs(rel) and (base / rel).resolve().is_relative_to(base)
-            if not inside:
-                raise DatasetError(f"{where}: {key} path {rel!r} leaves the dataset folder "
-                                   f"{shown} (a dataset is a closed folder)")
-        image_path, gt_path = base / entry["image"], base / entry["gt"]
-        shown_image, shown_gt = shown / entry["image"], shown / entry["gt"]
-        for what, path, shown_path in (("image", image_path, shown_image),
-                                       ("ground-truth", gt_path, shown_gt)):
-            if not path.is_file():
-                why = "is not a regular file" if path.exists() else "does not exist"
-                raise DatasetError(f"{where}: {what} file {shown_path} {why}")
+        yield lineno, entry
+
+
+def _lines(fh: Iterable[str]) -> Iterator[str]:
+    """The lines of a text stream as :meth:`str.splitlines` splits the whole text."""
+    for raw in fh:
+        yield from raw.splitlines()
+
+
+def _inside(base: Path, rel: str, dirs: dict[str, Path]) -> bool:
+    """Whether ``rel`` names a path inside the resolved folder ``base``, symbolic links
+    followed; ``dirs`` caches the resolved folders (one ``lstat`` per file, not per
+    component, for the common ``images/NNNNNN.png``)."""
+    if os.path.isabs(rel):
+        return False
+    folder, _, name = rel.rpartition("/")
+    if name in ("", ".", "..") or any(p in ("", ".", "..") for p in folder.split("/") if folder):
+        return (base / rel).resolve().is_relative_to(base)
+    real = dirs.get(folder)
+    if real is None:
+        real = dirs[folder] = (base / folder).resolve()
+    path = real / name
+    if path.is_symlink():
+        return path.resolve().is_relative_to(base)
+    return real.is_relative_to(base)
+
+
+def _checked_entry(entry: dict[str, Any], where: str, *, base: Path, shown: Path,
+                   verify: bool, dirs: dict[str, Path]) -> dict[str, Any] | str:
+    """Check one manifest entry's files (closed folder, hashes, damage, GT schema): the
+    parsed GT, or why the image is damaged.
+
+    Raises
+    ------
+    DatasetError
+        For anything else wrong with the entry.
+    """
+    if verify:
+        for key in ("image_sha256", "gt_sha256"):
+            if not _is_sha256(entry.get(key)):
+                raise DatasetError(
+                    f"{where}: field {key!r} missing or not a SHA-256 hex digest "
+                    "(--no-verify skips the check)"
+                )
+    for key in ("image", "gt"):
+        rel = entry[key]
+        if not _inside(base, rel, dirs):
+            raise DatasetError(f"{where}: {key} path {rel!r} leaves the dataset folder "
+                               f"{shown} (a dataset is a closed folder)")
+    image_path, gt_path = base / entry["image"], base / entry["gt"]
+    shown_image, shown_gt = shown / entry["image"], shown / entry["gt"]
+    for what, path, shown_path in (("image", image_path, shown_image),
+                                   ("ground-truth", gt_path, shown_gt)):
+        if not path.is_file():
+            why = "is not a regular file" if path.exists() else "does not exist"
+            raise DatasetError(f"{where}: {what} file {shown_path} {why}")
+    try:
+        gt_bytes = gt_path.read_bytes()
+    except OSError as exc:
+        raise _fail(shown_gt, f"cannot read ({exc.strerror or exc})") from None
+    if verify and sha256_bytes(gt_bytes) != entry["gt_sha256"]:
+        raise _fail(shown_gt, "content does not match gt_sha256 in manifest.jsonl "
+                    "(corrupt or replaced; --no-verify skips the check)")
+    if verify:
         try:
-            gt_bytes = gt_path.read_bytes()
+            digest = sha256_file(image_path)
         except OSError as exc:
-            raise _fail(shown_gt, f"cannot read ({exc.strerror or exc})") from None
-        if verify and sha256_bytes(gt_bytes) != entry["gt_sha256"]:
-            raise _fail(shown_gt, "content does not match gt_sha256 in manifest.jsonl "
-                        "(corrupt or replaced; --no-verify skips the check)")
-        if verify:
-            try:
-                digest = sha256_file(image_path)
-            except OSError as exc:
-                raise _fail(shown_image, f"cannot read ({exc.strerror or exc})") from None
-            if digest != entry["image_sha256"]:
-                raise _fail(shown_image, "content does not match image_sha256 in manifest.jsonl "
-                            "(truncated, corrupt or replaced; --no-verify skips the check)")
-        damage = image_file_problem(image_path)
-        if damage is not None:
-            if not skip_damaged:
-                raise DatasetError(f"dataset damaged: {shown_image}: {damage} (--skip-damaged "
-                                   "scores the other images)")
-            skipped.append((entry["id"], damage))
-            continue
-        try:
-            gt = json.loads(gt_bytes.decode("utf-8"))
-        except UnicodeDecodeError:
-            raise _fail(shown_gt, "not UTF-8 text") from None
-        except json.JSONDecodeError as exc:
-            raise _fail(shown_gt, f"not JSON ({exc.msg} at line {exc.lineno})") from None
-        except RecursionError:
-            raise _fail(shown_gt, "not JSON (nested too deeply)") from None
-        validate_gt(gt, shown_gt)
-        record = GroundTruth.from_dict(gt)
-        flat = (
-            {k: float(v) for k, v in record.params.items() if isinstance(v, (int, float))}
-            if record.params is not None
-            else flatten_numeric(record.scene or {})
-        )
-        samples.append(DatasetItem(id=entry["id"], image_path=image_path, gt_path=gt_path,
-                                   gt=record, params=flat))
-        if limit is not None and len(samples) >= limit:
-            break
-    if not samples:
-        more = f" ({len(skipped)} damaged images left out)" if skipped else ""
-        raise DatasetError(f"{manifest}: no entries{more}")
-    return Dataset(root=base, samples=tuple(samples), skipped=tuple(skipped))
+            raise _fail(shown_image, f"cannot read ({exc.strerror or exc})") from None
+        if digest != entry["image_sha256"]:
+            raise _fail(shown_image, "content does not match image_sha256 in manifest.jsonl "
+                        "(truncated, corrupt or replaced; --no-verify skips the check)")
+    damage = image_file_problem(image_path)
+    if damage is not None:
+        return damage
+    try:
+        gt = json.loads(gt_bytes.decode("utf-8"))
+    except UnicodeDecodeError:
+        raise _fail(shown_gt, "not UTF-8 text") from None
+    except json.JSONDecodeError as exc:
+        raise _fail(shown_gt, f"not JSON ({exc.msg} at line {exc.lineno})") from None
+    except RecursionError:
+        raise _fail(shown_gt, "not JSON (nested too deeply)") from None
+    validate_gt(gt, shown_gt)
+    return gt

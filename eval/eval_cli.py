@@ -256,7 +256,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             executor=args.executor,
             progress=not args.no_progress,
             phases=resolve_phases(args.phase_check,
-                                  sorted({s.gt.preset or "" for s in dataset.samples})),
+                                  dataset.presets()),
             isolate=True,
             timeout_s=args.timeout,
         )

@@ -10,8 +10,15 @@ from __future__ import annotations
 
 import multiprocessing
 import os
-from collections.abc import Callable, Sequence
-from concurrent.futures import Executor, ProcessPoolExecutor, ThreadPoolExecutor
+from collections.abc import Callable, Iterable, Sequence
+from concurrent.futures import (
+    FIRST_COMPLETED,
+    Executor,
+    Future,
+    ProcessPoolExecutor,
+    ThreadPoolExecutor,
+    wait,
+)
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -22,6 +29,7 @@ from .breakdown import breakdown, rank_causes
 from .dataset_reader import AREA_REFERENCES, Dataset, DatasetItem, load_dataset
 from .metrics import DEFAULT_TOLERANCE, score_image, summarize
 from .pipelines import Pipeline, make_pipeline
+from .result_store import ResultStore
 from .results import ImageResult, Prediction, Report
 
 
@@ -46,6 +54,8 @@ class EvaluationInterrupted(Exception):
         super().__init__(f"interrupted after {report.images_done} images")
 
 EXECUTORS: tuple[str, ...] = ("thread", "process")
+#: Images submitted ahead per worker (the rest wait in the dataset, not in memory).
+IN_FLIGHT_PER_WORKER = 4
 
 
 
@@ -102,11 +112,13 @@ def build_report(
     tolerance: float = DEFAULT_TOLERANCE,
     complete: bool = True,
     n_total: int | None = None,
+    images: Sequence[ImageResult] | None = None,
 ) -> Report:
     """Summary, breakdown and ranked causes of scored images, as a :class:`Report`
     (``complete=False``: a run stopped early, ``n_done`` is then the number of images given, of
     ``n_total``). Phase-check results on the images (``ImageResult.phase``) fill the summary's
-    phase keys."""
+    phase keys. ``images``: the full per-image results when ``results`` are compact ones
+    (:func:`arenabench.eval.result_store.compact_result`, same order)."""
     from dataclasses import replace
 
     from .phase_check import phase_summary
@@ -121,7 +133,7 @@ def build_report(
         area_reference=area_reference,
         tolerance=tolerance,
         summary=replace(summary, **phase_summary(results)),
-        images=tuple(results),
+        images=tuple(results) if images is None else images,
         breakdown=breakdown(results),
         causes=tuple(rank_causes(results)),
     )
@@ -140,6 +152,7 @@ def evaluate(
     phases: int = 0,
     isolate: bool = False,
     timeout_s: float | None = None,
+    spill: bool | None = None,
 ) -> Report:
     """Run ``pipeline`` on every image of ``dataset`` and score it.
 
@@ -176,6 +189,11 @@ def evaluate(
     timeout_s : float, optional
         With ``isolate``: seconds one image may take (default: the ``--timeout`` default of
         external commands).
+    spill : bool, optional
+        Keep the per-image results in a temporary file rather than in memory
+        (:class:`~arenabench.eval.result_store.ResultStore`; default: for runs of more than
+        :data:`~arenabench.eval.result_store.SPILL_ABOVE` images). The report is the same
+        either way; its ``images`` are then read back from the file when used.
 
     Returns
     -------
@@ -203,8 +221,8 @@ def evaluate(
         raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
     data = dataset if isinstance(dataset, Dataset) else load_dataset(dataset, limit=limit)
     samples = data.samples[:limit] if limit else data.samples
-    for s in samples:  # a missing reference area is a data error, found before any work
-        s.truth(area_reference=area_reference)
+    # a missing reference area is a data error, found before any work
+    data.check_area_reference(area_reference, limit=limit)
     isolated = isolate and isinstance(pipeline, str) and ":" in pipeline  # a team's function
     if isolated:
         from arenabench.limits import DEFAULT_TIMEOUT_S
@@ -233,41 +251,27 @@ def evaluate(
         submit = lambda s: pool.submit(pipe.run, s.image_path)  # noqa: E731
     from arenabench.progress import progress as progress_bar
 
-    preds: list[Prediction | None] = [None] * len(samples)
+    store = ResultStore(len(samples), spill=spill)
     interrupted: Interrupted | None = None
     try:
         with (
             pool,
             progress_bar(len(samples), desc=f"eval {pipe.name}", enabled=progress) as bar,
         ):
-            from concurrent.futures import as_completed
-
-            futures: dict[Any, int] = {}
             try:
-                for i, s in enumerate(samples):
-                    futures[submit(s)] = i
-                for fut in as_completed(futures):
-                    i = futures[fut]
-                    try:
-                        preds[i] = fut.result()
-                    except Exception as exc:  # the harness never dies from a bad pipeline
-                        preds[i] = Prediction(status="crash",
-                                              message=f"{type(exc).__name__}: {exc}")
-                    bar.update(1)
+                _run_all(samples, submit, store, window=IN_FLIGHT_PER_WORKER * n_workers,
+                         on_image=lambda: bar.update(1), tolerance=tolerance,
+                         area_reference=area_reference)
             except Interrupted as exc:
                 interrupted = exc
                 stop = getattr(pipe, "stop", None)
                 if callable(stop):
                     stop()
                 pool.shutdown(wait=True, cancel_futures=True)
-        results = [
-            score_sample(s, p, tolerance=tolerance, area_reference=area_reference)
-            for s, p in zip(samples, preds, strict=True)
-            if p is not None
-        ]
-        if phases and interrupted is None and not all(r.passed for r in results):
+        if phases and interrupted is None and not all(r.passed for r in store.compact()):
+            results = list(store.images())
             try:
-                results = _check_phases(results, samples, pipe, phases=phases,
+                results = _check_phases(results, data, pipe, phases=phases,
                                         tolerance=tolerance, area_reference=area_reference,
                                         workers=n_workers, progress=progress)
             except Interrupted as exc:  # the images are scored; their phase check is not
@@ -275,12 +279,16 @@ def evaluate(
                 stop = getattr(pipe, "stop", None)
                 if callable(stop):
                     stop()
+            store = ResultStore(len(results), spill=store.spilled)
+            for i, r in enumerate(results):
+                store.add(i, r)
     finally:  # a command's warm servers and an isolated function's processes end here
         close = getattr(pipe, "close", None)
         if callable(close):
             close()
     report = build_report(
-        results,
+        store.compact(),
+        images=store.images(),
         pipeline=pipe.name,
         dataset=str(data.root),
         area_reference=area_reference,
@@ -293,7 +301,7 @@ def evaluate(
     return report
 
 
-def _check_phases(results: list[ImageResult], samples: Sequence[DatasetItem], pipe: Pipeline,
+def _check_phases(results: list[ImageResult], data: Dataset, pipe: Pipeline,
                   *, phases: int, tolerance: float, area_reference: str, workers: int,
                   progress: bool) -> list[ImageResult]:
     """The phase check of a run's failing images (docs/phase-check.md)."""
@@ -301,14 +309,44 @@ def _check_phases(results: list[ImageResult], samples: Sequence[DatasetItem], pi
 
     from .phase_check import UNCHECKED_CATEGORIES, check_phases
 
-    by_id = {s.id: s for s in samples}
     failing = sum(1 for r in results if not r.passed and r.category not in UNCHECKED_CATEGORIES)
     if not failing:
         return results
+    by_id = data.items_by_id(r.id for r in results)
     with progress_bar(failing, desc=f"phase check {pipe.name}", enabled=progress) as bar:
         return check_phases(results, [by_id[r.id].gt for r in results], pipe.run,
                             phases=phases, tolerance=tolerance, area_reference=area_reference,
                             workers=workers, on_image=lambda: bar.update(1))
+
+
+def _run_all(samples: Iterable[DatasetItem], submit: Callable[[DatasetItem], Future],
+             store: ResultStore, *, window: int, on_image: Callable[[], None],
+             tolerance: float, area_reference: str) -> None:
+    """Run every sample through ``submit`` with at most ``window`` images in flight, and
+    score each as it finishes into ``store`` (a pipeline that raises is a crash)."""
+    pending: dict[Future, tuple[int, DatasetItem]] = {}
+    queue = iter(enumerate(samples))
+
+    def refill() -> None:
+        while len(pending) < window:
+            nxt = next(queue, None)
+            if nxt is None:
+                return
+            pending[submit(nxt[1])] = nxt
+
+    refill()
+    while pending:
+        done, _ = wait(pending, return_when=FIRST_COMPLETED)
+        for fut in done:
+            i, sample = pending.pop(fut)
+            try:
+                pred = fut.result()
+            except Exception as exc:  # the harness never dies from a bad pipeline
+                pred = Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
+            store.add(i, score_sample(sample, pred, tolerance=tolerance,
+                                      area_reference=area_reference))
+            on_image()
+        refill()
 
 
 def score(

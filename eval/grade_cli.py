@@ -142,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         dataset = load_dataset(args.dataset)
         phases = resolve_phases(args.phase_check,
-                                sorted({s.gt.preset or "" for s in dataset.samples}))
+                                dataset.presets())
         options = GradeOptions(command=args.cmd, output=args.output, tolerance=args.tolerance,
                                area_reference=args.area_reference,
                                settings=run_settings_from_args(args), formats=formats,

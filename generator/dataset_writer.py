@@ -57,6 +57,7 @@ from arenabench.fileio import (
     sha256_bytes,
     sha256_file,
 )
+from arenabench.generator.coco_export import CocoParts, write_coco
 from arenabench.generator.edges import EDGE_MODEL
 from arenabench.generator.make import (
     GENERATOR_VERSION,
@@ -73,6 +74,7 @@ from arenabench.interrupts import (
     signal_name,
     worker_task,
 )
+from arenabench.jsonstream import atomic_text_writer
 from arenabench.limits import MAX_DATASET_SCENES, MAX_WORKERS, check_at_most
 from arenabench.local_pool import local_map
 from arenabench.workers import check_workers
@@ -418,13 +420,16 @@ def _coco_document(parts: list[dict[str, Any]]) -> dict[str, Any]:
     for part in parts:
         for ann in part["annotations"]:
             annotations.append({"id": len(annotations) + 1, **ann})
-    return {
-        "info": {"description": "arenabench synthetic arena scenes", "version": "1"},
-        "images": [part["image"] for part in parts],
-        "annotations": annotations,
-        "categories": [{"id": 1, "name": "obstacle", "supercategory": "object"},
-                       {"id": 2, "name": "marker", "supercategory": "object"}],
-    }
+    return {"info": dict(COCO_INFO), "images": [part["image"] for part in parts],
+            "annotations": annotations, "categories": [dict(c) for c in COCO_CATEGORIES]}
+
+
+#: ``info`` and ``categories`` of every ``coco.json``.
+COCO_INFO: dict[str, Any] = {"description": "arenabench synthetic arena scenes", "version": "1"}
+COCO_CATEGORIES: list[dict[str, Any]] = [
+    {"id": 1, "name": "obstacle", "supercategory": "object"},
+    {"id": 2, "name": "marker", "supercategory": "object"},
+]
 
 
 def _versions(gl: dict[str, str] | None) -> dict[str, str]:
@@ -449,25 +454,30 @@ def manifest_line(sid: str, ext: str, image_sha256: str, gt_sha256: str) -> str:
 
 
 def _finish(out: Path, args: DatasetArgs, gl: dict[str, str] | None,
-            results: list[dict[str, Any]] | None = None) -> None:
+            results: list[dict[str, Any]] | None = None,
+            parts: CocoParts | None = None) -> None:
     """Write the manifest, ``coco.json`` and the complete ``dataset.json``: the hashes and
-    COCO parts of the scenes rendered now come from ``results``; only scenes of an earlier
-    run are read (and hashed) again."""
+    COCO parts of the scenes rendered now come from ``results`` and ``parts`` (or the
+    results' own ``coco``); only scenes of an earlier run are read (and hashed) again. Both
+    files are written as streams (:mod:`arenabench.generator.coco_export`)."""
     known = {r["id"]: r for r in results or ()}
+    parts = parts if parts is not None else CocoParts()
     ext = args.image_ext
-    lines, parts = [], []
-    for i in range(args.count):
-        sid = scene_id(i)
-        res = known.get(sid)
-        if res is None:
-            gt_path, img_path = out / "gt" / f"{sid}.json", out / image_file(sid, ext)
-            gt_bytes = gt_path.read_bytes()
-            res = {"coco": coco_parts(GroundTruth.from_dict(json.loads(gt_bytes))),
-                   "image_sha256": sha256_file(img_path), "gt_sha256": sha256_bytes(gt_bytes)}
-        parts.append(res["coco"])
-        lines.append(manifest_line(sid, ext, res["image_sha256"], res["gt_sha256"]))
-    atomic_write_text(out / "manifest.jsonl", "".join(lines))
-    atomic_write_json(out / "coco.json", _coco_document(parts))
+    with atomic_text_writer(out / "manifest.jsonl") as manifest:
+        for i in range(args.count):
+            sid = scene_id(i)
+            res = known.get(sid)
+            if res is None:
+                gt_path, img_path = out / "gt" / f"{sid}.json", out / image_file(sid, ext)
+                gt_bytes = gt_path.read_bytes()
+                res = {"coco": coco_parts(GroundTruth.from_dict(json.loads(gt_bytes))),
+                       "image_sha256": sha256_file(img_path),
+                       "gt_sha256": sha256_bytes(gt_bytes)}
+            if "coco" in res:
+                parts.add(sid, res["coco"])
+            manifest.write(manifest_line(sid, ext, res["image_sha256"], res["gt_sha256"]))
+    write_coco(out / "coco.json", lambda: (parts.get(scene_id(i)) for i in range(args.count)),
+               COCO_INFO, COCO_CATEGORIES)
     _write_meta(out, args, complete=True, gl=gl)
 
 
@@ -676,18 +686,19 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
     tasks = [RenderTask(args=stored, seed=args.seed, index=i, out=str(root),
                         image_format=image_format, jpeg_quality=jpeg_quality) for i in todo]
     results: list[dict[str, Any]] = []
+    parts = CocoParts()  # the scenes' COCO parts wait on disk, not in results
     bar = _progress(len(tasks), progress)
     try:
         if client is not None and tasks:
             from arenabench.cluster import cluster_map
 
             for _, res in cluster_map(render_on_cluster, tasks, client):
-                results.append(write_rendered(root, res))
+                results.append(parts.keep(write_rendered(root, res)))
                 bar.update(1)
         else:
             with contextlib.closing(local_map(render_task, tasks, workers=workers)) as done:
                 for res in done:
-                    results.append(res)
+                    results.append(parts.keep(res))
                     bar.update(1)
     except Interrupted as exc:
         bar.close()
@@ -700,7 +711,7 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
     if gl is None:
         gl = worker_gl_info()
     gl = {k: v for k, v in gl.items() if k.startswith("gl_")}
-    _finish(root, args, gl, results)
+    _finish(root, args, gl, results, parts)
     timings = {}
     if results:
         for key in ("sample", "render", "gt", "encode", "write"):

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import csv
-import io
 import os
 from pathlib import Path
+from typing import IO
 
-from arenabench.fileio import atomic_write_text
+from arenabench.jsonstream import atomic_text_writer
 
 from ..results import Report
 
@@ -43,10 +43,19 @@ def _cell(value: object) -> object:
 
 
 def write_csv(report: Report, path: str | os.PathLike[str]) -> Path:
-    """Write one row per image; scene parameters follow as ``param:<name>`` columns."""
-    params = sorted({k for r in report.images for k in r.params})
-    buf = io.StringIO()
-    writer = csv.writer(buf, lineterminator="\n")
+    """Write one row per image; scene parameters follow as ``param:<name>`` columns (rows
+    written as they come: a run of any size)."""
+    with atomic_text_writer(path) as fh:
+        _write_rows(report, fh)
+    return Path(path)
+
+
+def _write_rows(report: Report, fh: IO[str]) -> None:
+    images = report.images  # results kept in a file: their JSON is enough for the names
+    entries = images.dicts() if hasattr(images, "dicts") else images
+    params = sorted({k for r in entries
+                     for k in (r["params"] if isinstance(r, dict) else r.params)})
+    writer = csv.writer(fh, lineterminator="\n")
     writer.writerow([*COLUMNS, *(f"param:{p}" for p in params)])
     for r in report.images:
         p, s = r.prediction, r.score
@@ -71,4 +80,3 @@ def write_csv(report: Report, path: str | os.PathLike[str]) -> Path:
               else (r.phase.passes, r.phase.n, r.phase.label)),
         ]
         writer.writerow([_cell(v) for v in row] + [_cell(r.params.get(k)) for k in params])
-    return atomic_write_text(path, buf.getvalue())

@@ -6,6 +6,7 @@ colours, the rectified frame beside it, and the pipeline's numbers."""
 from __future__ import annotations
 
 import base64
+import heapq
 import html
 import io
 import os
@@ -153,7 +154,8 @@ def worst_cases(images: Sequence[ImageResult], *, limit: int = 12) -> list[Image
         e = r.score.area_rel_err
         return abs(e) if e is not None and r.score.area_err_kind == "relative" else float("inf")
 
-    return sorted((r for r in images if not r.passed), key=lambda r: -err(r))[:limit]
+    # = sorted(...)[:limit] (stable), holding only ``limit`` results of a big run
+    return heapq.nsmallest(limit, (r for r in images if not r.passed), key=lambda r: -err(r))
 
 
 def _frame_to_image(h: np.ndarray | None) -> np.ndarray | None:
@@ -304,7 +306,9 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
             dataset = load_dataset(report.dataset)
         except (DatasetError, ValueError, OSError):
             dataset = None
-    gts = {s.id: s.gt.to_dict() for s in dataset.samples} if dataset is not None else {}
+    cases = worst_cases(report.images, limit=max_cases)
+    gts = ({i: s.gt.to_dict() for i, s in dataset.items_by_id(r.id for r in cases).items()}
+           if dataset is not None else {})
     s = report.summary
     parts = [
         "<!DOCTYPE html>",
@@ -327,7 +331,6 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
         for t, uri in _figures(report)
     ]
     parts.append("</div>")
-    cases = worst_cases(report.images, limit=max_cases)
     n_failed = s.n - s.n_passed
     parts.append("<h2>Failures</h2>")
     if not cases:

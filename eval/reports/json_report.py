@@ -4,16 +4,21 @@ from __future__ import annotations
 
 import json
 import os
+from dataclasses import replace
 from pathlib import Path
 
-from arenabench.fileio import atomic_write_json
+from arenabench.jsonstream import Streamed, write_json_stream
 
 from ..results import Report
 
 
 def write_json(report: Report, path: str | os.PathLike[str]) -> Path:
-    """Write ``report`` as canonical JSON."""
-    return atomic_write_json(path, report.to_dict())
+    """Write ``report`` as canonical JSON (the images one at a time: a run of any size)."""
+    images = report.images
+    entries = images.dicts() if hasattr(images, "dicts") else (r.to_dict() for r in images)
+    doc = replace(report, images=(), n_done=report.images_done).to_dict()
+    doc["images"] = Streamed(entries)
+    return write_json_stream(path, doc)
 
 
 def read_json(path: str | os.PathLike[str]) -> Report:

@@ -44,8 +44,13 @@ def markdown(report: Report, *, max_failures: int = 30) -> str:
         "|---|---|",
     ]
     lines += [f"| {_esc(k)} | {_esc(v)} |" for k, v in summary_rows(report.summary)]
-    failing = [r for r in report.images if not r.passed]
-    if failing:
+    failing, n_failing = [], 0  # the first max_failures kept: a big run fails 10^5 times
+    for r in report.images:
+        if not r.passed:
+            n_failing += 1
+            if len(failing) < max_failures:
+                failing.append(r)
+    if n_failing:
         lines += [
             "",
             "## Failing images",
@@ -54,15 +59,15 @@ def markdown(report: Report, *, max_failures: int = 30) -> str:
             "| area rel err | message |",
             "|---|---|---|---|---|---|---|---|---|",
         ]
-        for r in failing[:max_failures]:
+        for r in failing:
             p = r.prediction
             lines.append(
                 f"| {r.id} | {r.category} | {phase_cell(r.phase)} | {r.truth.count} | "
                 f"{fmt(p.count)} | {r.truth.area:.1f} | {fmt(p.area)} | "
                 f"{fmt(r.score.area_rel_err)} | {_esc(p.message)[:120]} |"
             )
-        if len(failing) > max_failures:
-            lines.append(f"\n... and {len(failing) - max_failures} more (see results.csv)")
+        if n_failing > max_failures:
+            lines.append(f"\n... and {n_failing - max_failures} more (see results.csv)")
     if report.causes:
         lines += [
             "",

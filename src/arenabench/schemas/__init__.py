@@ -51,6 +51,14 @@ def _gt_validator() -> Any:
     return cls(_inline_refs(schema, schema.get("$defs", {})))
 
 
+@cache
+def _quick_gt_check() -> Any:
+    from .quickcheck import compile_check
+
+    schema = gt_schema()
+    return compile_check(_inline_refs(schema, schema.get("$defs", {})))
+
+
 def dotted(path: Any) -> str:
     """``area.visible_px`` / ``markers[2].id`` from a sequence of keys and indices."""
     out = ""
@@ -91,6 +99,12 @@ def gt_problem(gt: Any) -> str | None:
         One line such as ``area.visible_px: nan is not a finite number`` or
         ``count: -1 is less than the minimum of 0``.
     """
+    quick = _quick_gt_check()  # valid files are answered without jsonschema (quickcheck.py)
+    try:
+        if quick is not None and quick(gt):
+            return None
+    except RecursionError:
+        return "nested too deeply"
     import jsonschema
 
     try:
