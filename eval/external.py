@@ -342,7 +342,7 @@ class CommandPipeline:
         self.sandbox = resolve_sandbox(self.settings.sandbox)
         self._cgroup = pids_cgroup_parent()
         sweep_stale_runs(cgroup_parent=self._cgroup)  # what SIGKILLed runs left, once
-        if self._cgroup is None and os.getuid() == 0:
+        if self._cgroup is None and os.getuid() == 0 and self.limits.max_procs:
             _warn_once("no writable pids cgroup and running as root: --max-procs cannot be "
                        "enforced for external commands")
         self._lock = threading.Lock()
@@ -612,7 +612,7 @@ class CommandPipeline:
         lim, rc = self.limits, result["rc"]
         last = stderr[-4000:]
         if result.get("pids_limit_hit") or (
-            self._cgroup is None and any(s in last for s in _NPROC_SIGNS)
+            self._cgroup is None and lim.max_procs and any(s in last for s in _NPROC_SIGNS)
         ):
             return f"process limit (--max-procs {lim.max_procs}) reached"
         if rc in (-signal.SIGXFSZ, 128 + signal.SIGXFSZ) or any(s in last for s in _FSIZE_SIGNS):
