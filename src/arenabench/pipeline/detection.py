@@ -145,7 +145,7 @@ def detect(image: np.ndarray, config: DetectConfig | None = None) -> Detection:
 
     # 4. markers
     search = markers.search_markers(marker_input, names, rule=config.profile, source=source,
-                                    prefilter=source == "gray")
+                                    prefilter=True)
     if not search.found and config.uses_fallback and source != "gray":
         retry = markers.search_markers(gray, names, rule=config.profile, source="gray",
                                        prefilter=True)

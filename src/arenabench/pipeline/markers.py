@@ -340,9 +340,12 @@ def search_markers(
         Label of the image searched (``"threshold"`` or ``"gray"``), reported back.
     prefilter : bool
         Skip the search (no pass) when :func:`.marker_prefilter.could_hold_marker` finds no
-        marker-like structure (used for grey images, where a search of noise is costly).
+        marker-like structure, where :func:`.marker_prefilter.worth_checking` says so (grey
+        and busy thresholded images, whose search of noise is costly).
     """
-    if prefilter and marker_prefilter.PREFILTER and not marker_prefilter.could_hold_marker(image):
+    if prefilter and marker_prefilter.worth_checking(image, source=source) and (
+        not marker_prefilter.could_hold_marker(image)
+    ):
         return MarkerSearch(False, None, [], [], source, 0)
     select = select_seed_four if rule == "seed" else select_reference_four
     most: DictionaryHits | None = None
