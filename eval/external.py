@@ -157,7 +157,7 @@ class CommandPipeline:
         self.sandbox = resolve_sandbox(self.settings.sandbox)
         self._cgroup = pids_cgroup_parent()
         sweep_stale_runs(cgroup_parent=self._cgroup)  # what SIGKILLed runs left, once
-        warn_if_procs_unlimited(self._cgroup)
+        warn_if_procs_unlimited(self._cgroup, max_procs=self.limits.max_procs)
         self._lock = threading.Lock()
         self._live: set[subprocess.Popen] = set()
         self._stopped = False

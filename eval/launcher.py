@@ -131,7 +131,7 @@ def kill_descendants(cgroup: str | None = None, *, scan: bool = True) -> None:
         time.sleep(0.001)
 
 
-def _make_cgroup(parent: str | None, max_procs: int) -> str | None:
+def _make_cgroup(parent: str | None, max_procs: int | str) -> str | None:
     if not parent:
         return None
     path = os.path.join(parent, f"arenabench-run-{os.getpid()}")
@@ -204,7 +204,7 @@ def _child_setup(cfg: dict, cgroup: str | None) -> None:
     resource.setrlimit(resource.RLIMIT_CORE, (0, 0))
     resource.setrlimit(resource.RLIMIT_AS, (cfg["memory_bytes"], cfg["memory_bytes"]))
     resource.setrlimit(resource.RLIMIT_FSIZE, (cfg["max_file_size"], cfg["max_file_size"]))
-    if cfg.get("nproc_rlimit"):
+    if cfg.get("nproc_rlimit") and cfg["max_procs"]:
         # RLIMIT_NPROC counts every process of the real uid, so the user's others are added
         # (approximate: the fallback where no pids cgroup can be made)
         n = cfg["pids_max"] + _processes_of(os.getuid())
@@ -307,7 +307,8 @@ def run(cfg: dict, *, become=None) -> int:
     tails = {"stdout": _Tail(cfg["max_output"]), "stderr": _Tail(cfg["max_output"])}
     result: dict = {"rc": None, "timed_out": False, "latency_ms": 0.0, "error": "",
                     "pids_limit_hit": False}
-    cgroup = _make_cgroup(cfg.get("cgroup_parent"), cfg["pids_max"])
+    # --max-procs 0: no process limit (the cgroup still holds the run's processes for cleanup)
+    cgroup = _make_cgroup(cfg.get("cgroup_parent"), cfg["pids_max"] if cfg["max_procs"] else "max")
     cleaned = False
     try:
         r_out, w_out = os.pipe()

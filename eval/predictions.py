@@ -256,7 +256,7 @@ def limit_hit(result: dict, stderr: str, *, limits: RunLimits, pids_cgroup: bool
     """
     rc, last = result["rc"], stderr[-4000:]
     if result.get("pids_limit_hit") or (
-        not pids_cgroup and any(s in last for s in _NPROC_SIGNS)
+        not pids_cgroup and limits.max_procs and any(s in last for s in _NPROC_SIGNS)
     ):
         return f"process limit (--max-procs {limits.max_procs}) reached"
     if rc in (-signal.SIGXFSZ, 128 + signal.SIGXFSZ) or any(s in last for s in _FSIZE_SIGNS):

@@ -1,14 +1,18 @@
 """``arenabench grade``'s preflight: prove the grading setup works before any team runs.
 
-Three checks, each ending the grade before any team is graded (``PreflightError``: one line,
+Four checks, each ending the grade before any team is graded (``PreflightError``: one line,
 exit 2) when it fails:
 
 1. **Sandbox** (:func:`require_sandbox`): ``grade`` fails closed. Without a working bubblewrap
    it refuses to run untrusted code unless ``--sandbox none`` is given explicitly.
-2. **Set** (:func:`check_dataset_seed`): a generated set whose seed is below 2**64 can be
+2. **Process limit** (:func:`process_limit`): the same for ``--max-procs``. As root the
+   kernel does not enforce ``RLIMIT_NPROC``, so without a pids cgroup (a read-only cgroup
+   file system, no pids controller) the limit would be silently absent: refused unless
+   ``--max-procs 0`` (no process limit) is given explicitly.
+3. **Set** (:func:`check_dataset_seed`): a generated set whose seed is below 2**64 can be
    re-rendered by a submission that brings (or imports) the open-source generator, which then
    reads its own answers; refused unless ``allow_guessable`` (``--allow-guessable-seed``).
-3. **Command** (:func:`preflight`): the grading command runs, in the same sandbox with the
+4. **Command** (:func:`preflight`): the grading command runs, in the same sandbox with the
    same limits and environment as every team, (a) a probe script in the place of the team's
    script that reports the interpreter, numpy, OpenCV (with ``aruco``) and whether arenabench
    itself is importable there, and (b) a known-good submission on the set's first image: the
@@ -107,6 +111,9 @@ class PreflightRecord:
     reference : dict
         The known-good submission's run: ``source``, ``image``, ``status``, ``count``,
         ``area`` (no timing: a re-run that grades nothing writes the same leaderboard).
+    process_limit : str or None
+        How ``--max-procs`` is enforced (:func:`process_limit`): ``"pids cgroup"``,
+        ``"RLIMIT_NPROC"`` or ``"none (--max-procs 0: no process limit)"``.
     """
 
     mode: str
@@ -116,6 +123,7 @@ class PreflightRecord:
     versions: dict[str, Any] = field(default_factory=dict)
     arenabench_importable: bool | None = None
     reference: dict[str, Any] = field(default_factory=dict)
+    process_limit: str | None = None
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form."""
@@ -143,6 +151,36 @@ def require_sandbox(mode: str) -> str:
     raise PreflightError(
         f"--sandbox {mode}: {problem}; grade runs untrusted code only in a sandbox: install "
         "bubblewrap (apt-get install bubblewrap) or pass --sandbox none to grade WITHOUT one")
+
+
+#: :attr:`PreflightRecord.process_limit` of ``--max-procs 0``.
+NO_PROCESS_LIMIT = "none (--max-procs 0: no process limit)"
+
+
+def process_limit(max_procs: int) -> str:
+    """How the teams' runs are held to ``max_procs`` processes: fail closed.
+
+    Returns ``"pids cgroup"`` (a pids cgroup per run can be made here), ``"RLIMIT_NPROC"``
+    (not root: the kernel enforces it) or :data:`NO_PROCESS_LIMIT` for ``max_procs`` 0.
+
+    Raises
+    ------
+    PreflightError
+        As root where no pids cgroup can be made (one line: why, and ``--max-procs 0``).
+    """
+    from .external import pids_cgroup_parent
+
+    if max_procs == 0:
+        return NO_PROCESS_LIMIT
+    if pids_cgroup_parent() is not None:
+        return "pids cgroup"
+    if os.getuid() != 0:
+        return "RLIMIT_NPROC"
+    raise PreflightError(
+        f"--max-procs {max_procs}: cannot be enforced here: no pids cgroup can be created "
+        "(the cgroup file system is read-only or has no pids controller) and RLIMIT_NPROC "
+        "does not bind root; make /sys/fs/cgroup writable (pids controller) or grade as "
+        "another user, or pass --max-procs 0 to grade with NO process limit")
 
 
 def dataset_seed(root: str | os.PathLike[str]) -> int | None:

@@ -51,7 +51,9 @@ class RunLimits:
         Address-space limit per process (``RLIMIT_AS``).
     max_procs : int
         Processes the run may have at once (a pids cgroup per run where the cgroup file
-        system is writable, else ``RLIMIT_NPROC``, which does not bind root).
+        system is writable, else ``RLIMIT_NPROC``, which does not bind root); 0: no process
+        limit (``grade`` requires it where the limit cannot be enforced:
+        :func:`arenabench.eval.preflight.process_limit`).
     max_file_size : int
         Largest file the run may write (``RLIMIT_FSIZE``).
     max_output : int

@@ -159,10 +159,10 @@ def _probe_pids_cgroup_parent() -> str | None:
     return None
 
 
-def warn_if_procs_unlimited(cgroup: str | None) -> None:
-    """Warn once when the process limit cannot be enforced: no pids cgroup, and root (whom
-    ``RLIMIT_NPROC`` does not bind)."""
-    if cgroup is None and os.getuid() == 0:
+def warn_if_procs_unlimited(cgroup: str | None, *, max_procs: int) -> None:
+    """Warn once when a process limit (``max_procs`` > 0) cannot be enforced: no pids cgroup,
+    and root (whom ``RLIMIT_NPROC`` does not bind)."""
+    if cgroup is None and os.getuid() == 0 and max_procs:
         warn_once("no writable pids cgroup and running as root: --max-procs cannot be "
                   "enforced for external commands")
 

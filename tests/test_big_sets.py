@@ -13,9 +13,9 @@ import pytest
 
 from arenabench.eval.bigset import fixed_answer, write_big_set
 from arenabench.eval.dataset_reader import DatasetError, DatasetSamples, load_dataset
+from arenabench.eval.evaluation import evaluate
 from arenabench.eval.reports import FORMATS, write_reports
 from arenabench.eval.result_store import ResultStore, StoredResults
-from arenabench.eval.evaluation import evaluate
 from arenabench.fileio import dumps_json
 from arenabench.jsonstream import Streamed, write_json_stream
 

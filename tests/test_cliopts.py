@@ -121,7 +121,7 @@ def test_size_rule():
         (("bench", "--rss-renders", "-1"), "argument --rss-renders: must be an integer"),
         (("fit", "x.png", "--out", "s.json", "--refine-rounds", "1000000000"),
          "argument --refine-rounds: must be an integer in [0, 100]"),
-        (("eval", ".", "--pipeline", "reference", "--max-procs", "0"), "--max-procs"),
+        (("eval", ".", "--pipeline", "reference", "--max-procs", "-1"), "--max-procs"),
         (("eval", ".", "--pipeline", "reference", "--wokers", "2"),
          "did you mean '--workers'?"),
         (("detect", "--image", "x.png", "--profile", "sed"), "did you mean 'seed'?"),

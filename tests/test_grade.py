@@ -14,6 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from procs_limit import GRADE_ARGS, grade_settings
 
 from arenabench.cli import main as arenabench_main
 from arenabench.eval.external import CommandPipeline
@@ -27,7 +28,6 @@ from arenabench.eval.grade.leaderboard import (
 from arenabench.eval.grade.submissions import submission_hash
 from arenabench.eval.phase_check import DEFAULT_PHASES
 from arenabench.eval.results import Summary
-from arenabench.eval.run_limits import RunLimits, RunSettings
 
 TEAMS_SRC = Path(__file__).resolve().parent / "grade_teams"
 TEAMS = ("cheating", "correct", "crashing", "partly_right", "slow", "total_area")
@@ -42,7 +42,8 @@ def _env() -> dict[str, str]:
 
 
 def _grade_cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "arenabench", "grade", *args, "--no-progress",
+    return subprocess.run([sys.executable, "-m", "arenabench", "grade", *args, *GRADE_ARGS,
+                           "--no-progress",
                            "--allow-guessable-seed"],
                           capture_output=True, text=True, env=_env(), timeout=600)
 
@@ -188,7 +189,7 @@ def test_dask_local_cluster_gives_the_same_leaderboard(graded, dataset, submissi
     out, _ = graded
     # the workers run 'python3' from PATH: this Python's
     monkeypatch.setenv("PATH", _env()["PATH"])
-    settings = RunSettings(limits=RunLimits(timeout_s=float(TIMEOUT)))
+    settings = grade_settings(limits={"timeout_s": float(TIMEOUT)})
     with distributed.LocalCluster(n_workers=2, threads_per_worker=2, processes=True,
                                   host="127.0.0.1", dashboard_address=None) as cluster:
         result = grade(dataset, submissions, tmp_path / "dask",  # as the CLI on eyrc
@@ -223,7 +224,7 @@ def _fast_teams(root: Path, counts: dict[str, int]) -> Path:
 
 def _opts(**kw) -> GradeOptions:
     return GradeOptions(command="{python} {submission}/map.py --image {image}",
-                        formats=("json",), **kw)
+                        formats=("json",), settings=grade_settings(), **kw)
 
 
 @pytest.mark.slow
@@ -373,7 +374,7 @@ def test_leaderboard_csv_escapes_formulas_and_rounds_floats():
 def test_bad_options_exit_2_with_one_line(extra, needle, dataset, tmp_path, capsys):
     subs = _fast_teams(tmp_path / "subs", {"a": 1})
     out = tmp_path / "out"
-    rc = arenabench_main(["grade", str(dataset), str(subs), "--out", str(out), *extra,
+    rc = arenabench_main(["grade", str(dataset), str(subs), "--out", str(out), *extra, *GRADE_ARGS,
                           "--allow-guessable-seed"])
     err = capsys.readouterr().err.strip()
     assert rc == 2 and needle in err and len(err.splitlines()) == 1, err
@@ -394,7 +395,7 @@ def test_bad_inputs_exit_2_naming_them(dataset, tmp_path, capsys):
         ([str(dataset), str(subs), "--out", str(tmp_path / "busy")], "not empty"),
     ]
     for argv, needle in cases:
-        rc = arenabench_main(["grade", *argv])
+        rc = arenabench_main(["grade", *argv, *GRADE_ARGS])
         err = capsys.readouterr().err.strip()
         assert rc == 2 and needle in err and len(err.splitlines()) == 1, (argv, err)
     assert sorted(p.name for p in tmp_path.iterdir()) == ["busy", "empty", "subs"]
@@ -436,7 +437,8 @@ def test_unreachable_scheduler_exits_2_before_writing(dataset, tmp_path):
     subs = _fast_teams(tmp_path / "subs", {"a": 1})
     out = tmp_path / "out"
     proc = subprocess.run(
-        [sys.executable, "-m", "arenabench", "grade", str(dataset), str(subs), "--out", str(out),
+        [sys.executable, "-m", "arenabench", "grade", *GRADE_ARGS, str(dataset), str(subs),
+         "--out", str(out),
          "--scheduler", "tcp://127.0.0.1:9", "--allow-guessable-seed"],
         capture_output=True, text=True, timeout=120,
         env={**_env(), "DASK_DISTRIBUTED__COMM__TIMEOUTS__CONNECT": "1s"})
@@ -456,7 +458,7 @@ def test_signal_stops_running_commands_and_keeps_finished_teams(sig, dataset, tm
     argv = [sys.executable, "-m", "arenabench", "grade", str(dataset), str(subs), "--out",
             str(out), "--cmd", "{python} {submission}/map.py --image {image}", "--workers", "1",
             "--report-workers", "1", "--formats", "json", "--timeout", "300", "--no-progress",
-            "--allow-guessable-seed"]
+            "--allow-guessable-seed", *GRADE_ARGS]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
     try:

@@ -12,9 +12,9 @@ import sys
 from pathlib import Path
 
 import pytest
+from procs_limit import GRADE_ARGS, grade_settings
 
 from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade
-from arenabench.eval.run_limits import RunSettings
 from arenabench.eval.sandbox import bwrap_problem
 from arenabench.generator.seeds import GUESSABLE_BELOW
 
@@ -40,7 +40,8 @@ def _cli(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedP
 
 
 def _grade(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
-    return _cli("grade", *args, "--no-progress", "--formats", "json,md,html", env=env)
+    return _cli("grade", *args, *GRADE_ARGS, "--no-progress", "--formats", "json,md,html",
+                env=env)
 
 
 def _team(root: Path, name: str, text: str) -> Path:
@@ -159,7 +160,7 @@ def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp
     _team(subs, "snoop", SNOOP)
     out = tmp_path / "out"
     cmd = "{python} {submission}/map.py --image {image} " + str(shared / "config.txt")
-    opts = GradeOptions(command=cmd, formats=("json",), settings=RunSettings(warm=warm))
+    opts = GradeOptions(command=cmd, formats=("json",), settings=grade_settings(warm=warm))
     grade(data, subs, out, options=opts, workers=1, allow_guessable_seed=True)
     rep = json.loads((out / "teams" / "snoop" / "report.json").read_text())
     import base64
@@ -203,7 +204,8 @@ def test_symlinked_team_grades_like_its_target(seed3_set, tmp_path):
     (subs / "linked").symlink_to(elsewhere)
     shutil.copytree(elsewhere, subs / "copied")
     result = grade(seed3_set, subs, tmp_path / "out", options=GradeOptions(
-        command=PY_CMD, formats=("json",)), workers=2, allow_guessable_seed=True)
+        command=PY_CMD, formats=("json",), settings=grade_settings()), workers=2,
+        allow_guessable_seed=True)
     rows = {r.team: r for r in result.rows}
     assert rows["linked"].summary.to_dict() | {"latency_ms": None} == \
         rows["copied"].summary.to_dict() | {"latency_ms": None}
@@ -357,7 +359,8 @@ def test_byte_identical_submissions_share_one_rank_every_run(seed3_set, tmp_path
     ranks = []
     for run in range(2):
         result = grade(seed3_set, subs, tmp_path / f"out{run}", options=GradeOptions(
-            command=PY_CMD, formats=("json",)), workers=3, allow_guessable_seed=True)
+            command=PY_CMD, formats=("json",), settings=grade_settings()), workers=3,
+            allow_guessable_seed=True)
         ranks.append([(r.team, r.rank, r.tied) for r in result.rows])
         csv_text = result.files["leaderboard.csv"].read_text()
         assert [line.split(",")[0] for line in csv_text.splitlines()[1:4]] == ["1", "1", "1"]
@@ -368,9 +371,7 @@ def test_byte_identical_submissions_share_one_rank_every_run(seed3_set, tmp_path
 
 
 def _settings(**limits):
-    from arenabench.eval.run_limits import RunLimits, RunSettings
-
-    return RunSettings(limits=RunLimits(**limits))
+    return grade_settings(limits=limits)
 
 
 # ----------------------------------------------------------------------------- INCOMPLETE
@@ -438,7 +439,8 @@ def test_interrupted_grade_and_eval_show_the_banner(seed3_set, tmp_path):
             raise KeyboardInterrupt
 
     with pytest.raises(KeyboardInterrupt):
-        grade(data, subs, out, options=GradeOptions(command=PY_CMD, formats=("json",)),
+        grade(data, subs, out, options=GradeOptions(command=PY_CMD, formats=("json",),
+                                                    settings=grade_settings()),
               workers=1, report_workers=1, log=interrupt, allow_guessable_seed=True)
     doc = json.loads((out / "leaderboard.json").read_text())
     assert doc["complete"] is False and doc["images_total"] == 9
@@ -476,7 +478,8 @@ def test_a_submission_too_large_to_fingerprint_is_refused_alone(seed3_set, tmp_p
     for i in range(60):
         (big / f"f{i}").write_text("")
     result = grade(seed3_set, subs, tmp_path / "out", options=GradeOptions(
-        command=PY_CMD, formats=("json",)), workers=1, allow_guessable_seed=True)
+        command=PY_CMD, formats=("json",), settings=grade_settings()), workers=1,
+        allow_guessable_seed=True)
     assert [r.team for r in result.rows] == ["fine"]
     assert "more than 50 entries" in result.errors["many_files"]
 

@@ -584,6 +584,8 @@ def test_second_generate_into_a_locked_folder_says_who_holds_it(tmp_path):
 
 @pytest.mark.parametrize("command", ["eval", "sweep", "grade", "demo"])
 def test_every_command_writing_a_folder_takes_generates_lock(toy, tmp_path, command):
+    from procs_limit import GRADE_ARGS
+
     out = tmp_path / "out"
     teams = tmp_path / "teams"
     (teams / "a").mkdir(parents=True)
@@ -591,7 +593,7 @@ def test_every_command_writing_a_folder_takes_generates_lock(toy, tmp_path, comm
     argv = {"eval": ("eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(out)),
             "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
                       "--per-point", "1", "--out", str(out)),
-            "grade": ("grade", str(toy), str(teams), "--out", str(out)),
+            "grade": ("grade", str(toy), str(teams), "--out", str(out), *GRADE_ARGS),
             "demo": ("demo", "--count", "1", "--out", str(out))}[command]
     with lock_folder(out, command="arenabench eval (test holder)"):
         proc = run(*argv, "--no-progress", cwd=tmp_path, timeout=120)

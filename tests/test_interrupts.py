@@ -333,7 +333,10 @@ def test_second_sigint_grade_exits_130(toy3, tmp_path, delay):
         (teams / team).mkdir(parents=True)
         (teams / team / "map.py").write_text("import time\ntime.sleep(1.5)\n")
     out = tmp_path / "out"
-    proc = _arenabench("grade", str(toy3), str(teams), "--out", str(out), "--workers", "2",
+    from procs_limit import GRADE_ARGS
+
+    proc = _arenabench("grade", *GRADE_ARGS, str(toy3), str(teams), "--out", str(out),
+                       "--workers", "2",
                        "--sandbox", "none", "--no-progress", "--allow-guessable-seed",
                        "--cmd", "{python} {submission}/map.py --image {image}")
     time.sleep(3.0)

@@ -10,7 +10,7 @@ import cv2
 import numpy as np
 import pytest
 
-from arenabench.pipeline import markers
+from arenabench.pipeline import marker_prefilter, markers
 from arenabench.pipeline.detection import detect
 
 EXAMPLE = Path(__file__).resolve().parent / "data" / "task1c_image.jpg"
@@ -26,12 +26,14 @@ def _boxes(seed: int) -> np.ndarray:
 
 
 def _both(image: np.ndarray, monkeypatch) -> tuple[dict, dict, int, int]:
-    """detect() with the shortcut and without it: results (timings and passes left out),
-    and the passes."""
+    """detect() with the shortcuts and without them (this one and the grey-image pre-check of
+    tests/test_marker_prefilter.py): results (timings and passes left out), and the passes."""
     fast = detect(image)
     monkeypatch.setattr(markers, "UNIFORM_SHORTCUT", False)
+    monkeypatch.setattr(marker_prefilter, "PREFILTER", False)
     full = detect(image)
     monkeypatch.setattr(markers, "UNIFORM_SHORTCUT", True)
+    monkeypatch.setattr(marker_prefilter, "PREFILTER", True)
     out = []
     for d in (fast, full):
         r = {k: v for k, v in d.to_dict().items() if k != "timings_ms"}

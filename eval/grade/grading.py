@@ -383,13 +383,14 @@ def grade(
     for name, value in (("workers", workers), ("report_workers", report_workers)):
         if value is not None and (int(value) != value or value < 1):
             raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-    from ..preflight import check_dataset_seed, preflight, require_sandbox
+    from ..preflight import check_dataset_seed, preflight, process_limit, require_sandbox
 
     data = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
     teams = find_teams(submissions)
     root = Path(out).resolve()
     check_out_dir(root, Path(submissions))
     mode = require_sandbox(opts.settings.sandbox)
+    procs = process_limit(opts.settings.limits.max_procs)
     opts = replace(opts, settings=replace(opts.settings, sandbox=mode))
     check_dataset_seed(data.root, allow_guessable=allow_guessable_seed)
     digests: dict[str, str] = {}
@@ -405,6 +406,7 @@ def grade(
         make_pipeline=lambda cmd, base, warm=True: _team_pipeline(
             cmd, settings=replace(opts.settings, warm=opts.settings.warm and warm),
             output=opts.output, team="preflight", base_dir=base))
+    record = replace(record, process_limit=procs)
     if record.arenabench_importable:
         print("arenabench grade: WARNING: arenabench is importable inside the sandbox (the "
               "grading interpreter has it): a submission can run the generator; the set's "

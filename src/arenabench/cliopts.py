@@ -137,8 +137,8 @@ WORKERS_RULE = Rule("int", 1, MAX_WORKERS)
 TOLERANCE_RULE = Rule("float", 0.0, 1.0)
 #: ``--timeout``: seconds per image of an external run.
 TIMEOUT_RULE = Rule("float", 0.0, MAX_TIMEOUT_S, lo_open=True)
-#: ``--max-procs``: processes one external run may have at once.
-MAX_PROCS_RULE = Rule("int", 1, MAX_RUN_PROCS)
+#: ``--max-procs``: processes one external run may have at once (0: no process limit).
+MAX_PROCS_RULE = Rule("int", 0, MAX_RUN_PROCS)
 #: Byte sizes of run limits (``--memory-limit``, ``--max-file-size``, ``--max-output``).
 BYTES_RULE = Rule("int", 1, MAX_RUN_BYTES)
 
@@ -459,7 +459,8 @@ def add_run_options(parser: CommandParser) -> None:
          "add_run_options")
     _tag(g.add_argument("--max-procs", type=MAX_PROCS_RULE.argtype("--max-procs"),
                         default=DEFAULT_MAX_PROCS,
-                        help="processes a run may have at once (default: %(default)s)"),
+                        help="processes a run may have at once; 0 = no process limit "
+                        "(default: %(default)s)"),
          "add_run_options")
     _tag(g.add_argument("--max-file-size", type=_size_type("--max-file-size"),
                         default=format_size(DEFAULT_MAX_FILE_SIZE),

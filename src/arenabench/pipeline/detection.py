@@ -144,9 +144,11 @@ def detect(image: np.ndarray, config: DetectConfig | None = None) -> Detection:
     clock.lap("threshold")
 
     # 4. markers
-    search = markers.search_markers(marker_input, names, rule=config.profile, source=source)
+    search = markers.search_markers(marker_input, names, rule=config.profile, source=source,
+                                    prefilter=True)
     if not search.found and config.uses_fallback and source != "gray":
-        retry = markers.search_markers(gray, names, rule=config.profile, source="gray")
+        retry = markers.search_markers(gray, names, rule=config.profile, source="gray",
+                                       prefilter=True)
         retry.passes += search.passes
         if retry.found or len(set(retry.ids)) > len(set(search.ids)):
             search = retry

@@ -53,6 +53,7 @@ import cv2
 import numpy as np
 
 from arenabench.frame import COMPETITION_MARKER_IDS
+from arenabench.pipeline import marker_prefilter
 
 #: Stages hold dictionaries totalling at most this many markers (see the module docstring).
 STAGE_BUDGET = 300
@@ -323,7 +324,7 @@ def select_seed_four(hits: DictionaryHits) -> tuple[list[int], list[np.ndarray]]
 
 
 def search_markers(
-    image: np.ndarray, names: Sequence[str], *, rule: str, source: str
+    image: np.ndarray, names: Sequence[str], *, rule: str, source: str, prefilter: bool = False
 ) -> MarkerSearch:
     """Search ``image`` (uint8, one channel) for the markers, dictionaries in ``names`` order.
 
@@ -337,7 +338,15 @@ def search_markers(
         Selection rule (see :func:`select_reference_four`, :func:`select_seed_four`).
     source : str
         Label of the image searched (``"threshold"`` or ``"gray"``), reported back.
+    prefilter : bool
+        Skip the search (no pass) when :func:`.marker_prefilter.could_hold_marker` finds no
+        marker-like structure, where :func:`.marker_prefilter.worth_checking` says so (grey
+        and busy thresholded images, whose search of noise is costly).
     """
+    if prefilter and marker_prefilter.worth_checking(image, source=source) and (
+        not marker_prefilter.could_hold_marker(image)
+    ):
+        return MarkerSearch(False, None, [], [], source, 0)
     select = select_seed_four if rule == "seed" else select_reference_four
     most: DictionaryHits | None = None
     passes = 0
