@@ -124,6 +124,14 @@ def run_cli(*argv: str, cwd: str | Path | None = None,
     return CliResult(args=tuple(argv), returncode=code, stdout=stdout, stderr=stderr)
 
 
+def env_changes(env: Mapping[str, str]) -> dict[str, str | None]:
+    """The ``env`` argument of :func:`run_cli` that makes the environment exactly ``env`` (the
+    ``env`` of :func:`subprocess.run`): its variables set, the others unset."""
+    changes: dict[str, str | None] = {k: v for k, v in env.items() if os.environ.get(k) != v}
+    changes.update({k: None for k in os.environ if k not in env})
+    return changes
+
+
 def _call(argv: list[str]) -> int:
     try:
         return main(argv)
@@ -136,4 +144,4 @@ def _call(argv: list[str]) -> int:
         return 1
 
 
-__all__ = ["CliResult", "run_cli"]
+__all__ = ["CliResult", "env_changes", "run_cli"]
