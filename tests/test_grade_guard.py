@@ -304,6 +304,7 @@ def test_a_broken_interpreter_stops_at_the_preflight(seed3_set, tmp_path):
     assert _no_team_graded(out)
 
 
+@pytest.mark.slow
 def test_sandbox_none_is_required_without_bubblewrap(seed3_set, tmp_path):
     # a PATH without bubblewrap (the harness is started by its absolute path)
     nobwrap = tmp_path / "bin"
@@ -342,6 +343,7 @@ def test_six_teams_failing_alike_exit_non_zero(seed3_set, tmp_path):
     assert (out / "leaderboard.json").is_file()
 
 
+@pytest.mark.slow
 def test_an_all_timeout_team_ranks_last_with_null_latency(seed3_set, tmp_path):
     subs = tmp_path / "subs"
     _team(subs, "a_sleeps", "import time\ntime.sleep(60)\n")

@@ -17,6 +17,9 @@ from arenabench.generator.presets import parse_overrides
 from arenabench.generator.render import Renderer
 from arenabench.generator.sample import make_sample
 
+#: 50 renders with instance masks (about 8 s): `make test`, not `make test-fast`
+pytestmark = pytest.mark.slow
+
 N_SCENES = 50
 OVERRIDES = ["camera.tilt_deg=0:30", "camera.altitude_m=9:11"]
 

@@ -105,6 +105,7 @@ def test_impossible_answer_of_a_callable_is_bad_output(toy, tmp_path, name):
         assert image["pred"]["area"] is None or math.isfinite(image["pred"]["area"])
 
 
+@pytest.mark.slow  # a pool of 2 processes per case, the endless ones wait out a timeout
 @pytest.mark.parametrize("executor", ["thread", "process"])
 @pytest.mark.parametrize(
     ("name", "category", "message"),
