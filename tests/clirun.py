@@ -26,9 +26,10 @@ from pathlib import Path
 
 from arenabench.cli import main
 
-#: Variables a command may set for the rest of the process, by design: the OpenGL platform
-#: is chosen once, before the first ``import OpenGL`` (:func:`arenabench.glplatform.configure`).
-PROCESS_WIDE_ENV = frozenset({"PYOPENGL_PLATFORM"})
+#: Variables set for the rest of the process, by design: the OpenGL platform is chosen once,
+#: before the first ``import OpenGL`` (:func:`arenabench.glplatform.configure`); OpenCV's
+#: loader extends the library path at its first import.
+PROCESS_WIDE_ENV = frozenset({"PYOPENGL_PLATFORM", "LD_LIBRARY_PATH"})
 
 _SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGPIPE, signal.SIGCHLD)
 
