@@ -1,5 +1,6 @@
 """Checking a big set's files on several processes
-(:func:`arenabench.eval.dataset_reader.load_dataset` with ``workers``; by default for manifests larger than :data:`PARALLEL_ABOVE_BYTES`).
+(:func:`arenabench.eval.dataset_reader.load_dataset` with ``workers``; by default for
+manifests larger than :data:`PARALLEL_ABOVE_BYTES`).
 
 The main process reads the manifest in order (JSON lines, fields, duplicate ids), as the
 one-process reader does; the entries are then checked (paths, hashes, damage, GT schema) in

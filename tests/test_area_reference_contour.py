@@ -101,6 +101,7 @@ def test_truth_without_contour_px_raises_naming_the_file():
     assert sample.truth(area_reference="contour").area == 8.5
 
 
+@pytest.mark.slow
 def test_sweep_with_contour_reference(tmp_path):
     # --workers 2: worker processes, so no renderer is left cached in this test process
     out = tmp_path / "sweep"

@@ -4,12 +4,10 @@ ran it (a real subprocess, sandboxed where bubblewrap works), the phase check, t
 from __future__ import annotations
 
 import json
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import pytest
+from clirun import CliResult, run_cli
 
 from arenabench.generator.make import GENERATOR_VERSION
 
@@ -19,10 +17,8 @@ PIPELINES = Path(__file__).resolve().parent / "pipelines"
 COUNT = 4
 
 
-def _check(*args: str, cache: Path) -> subprocess.CompletedProcess:
-    env = {**os.environ, "ARENABENCH_CACHE_DIR": str(cache)}
-    return subprocess.run([sys.executable, "-m", "arenabench", "check", *args, "--no-progress"],
-                          capture_output=True, text=True, env=env, timeout=600)
+def _check(*args: str, cache: Path) -> CliResult:
+    return run_cli("check", *args, "--no-progress", env={"ARENABENCH_CACHE_DIR": str(cache)})
 
 
 @pytest.fixture(scope="module")

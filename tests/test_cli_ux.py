@@ -17,6 +17,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 import pytest
+import toy_arena
+from clirun import CliResult, run_cli
 
 from arenabench.cli import COMMANDS, EXIT_BROKEN_PIPE
 from arenabench.cli import main as cli_main
@@ -24,14 +26,17 @@ from arenabench.cli import main as cli_main
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "tests" / "data" / "task1c_image.jpg"
 PIPES = ROOT / "tests" / "pipelines"
-sys.path.insert(0, str(PIPES))
-import toy_arena  # noqa: E402
 
 
-def _run(*args: str, cwd: Path | None = None, env: dict | None = None, **kw):
+def _run(*args: str, cwd: Path | None = None, env: dict | None = None) -> CliResult:
+    """``arenabench ARGS`` in this process (tests/clirun.py)."""
+    return run_cli(*args, cwd=cwd, env=env)
+
+
+def _run_process(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess:
+    """``arenabench ARGS`` in a fresh interpreter (its own ``sys.path`` and module cache)."""
     return subprocess.run([sys.executable, "-m", "arenabench", *args], cwd=cwd,
-                          capture_output=True, text=True, timeout=300,
-                          env={**os.environ, **(env or {})}, **kw)
+                          capture_output=True, text=True, timeout=300)
 
 
 @pytest.fixture(scope="module")
@@ -230,7 +235,8 @@ def test_pipeline_module_in_the_current_folder(tmp_path, monkeypatch, toy):
     before = list(sys.path)
     assert load_callable("mymod_ux:fn")(None) == {"count": 0, "area": 0.0}
     assert sys.path == before
-    proc = _run("eval", str(toy), "--pipeline", "mymod_ux:fn", "--no-progress", cwd=tmp_path)
+    proc = _run_process("eval", str(toy), "--pipeline", "mymod_ux:fn", "--no-progress",
+                        cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert "No module named" not in proc.stderr
 

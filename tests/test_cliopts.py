@@ -6,10 +6,9 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import subprocess
-import sys
 
 import pytest
+from clirun import run_cli
 
 from arenabench.cli import COMMANDS
 from arenabench.clihelp import HelpFormatter
@@ -130,8 +129,7 @@ def test_size_rule():
     ],
 )
 def test_one_rule_per_option_one_line(argv, needle, tmp_path):
-    proc = subprocess.run([sys.executable, "-m", "arenabench", *argv], capture_output=True,
-                          text=True, timeout=120, cwd=tmp_path)
+    proc = run_cli(*argv, cwd=tmp_path)
     err = proc.stderr.strip()
     assert proc.returncode == 2, (proc.returncode, err)
     assert len(err.splitlines()) == 1 and "Traceback" not in err, err

@@ -6,6 +6,7 @@ import sys
 import cv2
 import numpy as np
 import pytest
+from clirun import run_cli
 
 from arenabench.generator.contact_sheet import tile_images
 from arenabench.generator.presets import PRESETS, Range, resolve
@@ -56,7 +57,6 @@ def test_cli_writes_a_sheet(tmp_path):
     ],
 )
 def test_cli_usage_errors(tmp_path, args, fragment):
-    proc = subprocess.run([sys.executable, "-m", "arenabench", "contact-sheet", *args],
-                          capture_output=True, text=True, cwd=tmp_path, timeout=60)
+    proc = run_cli("contact-sheet", *args, cwd=tmp_path)
     assert proc.returncode == 2
     assert fragment in proc.stderr and len(proc.stderr.strip().splitlines()) == 1

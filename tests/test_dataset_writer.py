@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from clirun import run_cli
 
 from arenabench.fileio import sha256_file
 from arenabench.imageio import jpeg_layout, jpeg_quality
@@ -19,9 +18,8 @@ EXAMPLE = Path(__file__).resolve().parent / "data" / "task1c_image.jpg"
 
 
 def _generate(out: Path, *extra: str, count: int = COUNT, seed: int = 7):
-    cmd = [sys.executable, "-m", "arenabench", "generate", "--preset", "eyrc", "--count",
-           str(count), "--seed", str(seed), "--out", str(out), "--no-progress", *extra]
-    return subprocess.run(cmd, capture_output=True, text=True, timeout=300)
+    return run_cli("generate", "--preset", "eyrc", "--count", str(count), "--seed", str(seed),
+                   "--out", str(out), "--no-progress", *extra)
 
 
 def _files(root: Path) -> dict[str, bytes]:

@@ -204,7 +204,7 @@ def test_adapter_arguments_are_validated():
     "script, category, status",
     [
         ("crash.py", "crash", 1),
-        ("hang.py", "timeout", 1),
+        pytest.param("hang.py", "timeout", 1, marks=pytest.mark.slow),
         ("garbage.py", "bad_output", 1),
         ("total_area.py", None, 0),
     ],

@@ -13,6 +13,8 @@ import threading
 from pathlib import Path
 
 import pytest
+import toy_arena
+from hostile_util import processes_with, wait_for
 
 from arenabench.eval.evaluation import evaluate
 from arenabench.eval.external import CommandPipeline
@@ -20,13 +22,8 @@ from arenabench.eval.run_limits import RunLimits, RunSettings
 from arenabench.eval.sandbox import bwrap_problem, pids_cgroup_parent
 from arenabench.eval.warm_client import close_all
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from hostile_util import processes_with, wait_for
-
 PIPES = Path(__file__).resolve().parent / "pipelines"
 HOSTILE = PIPES / "hostile"
-sys.path.insert(0, str(PIPES))
-import toy_arena  # noqa: E402
 
 PY = sys.executable
 needs_bwrap = pytest.mark.skipif(bwrap_problem() is not None, reason=str(bwrap_problem()))

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import json
-import subprocess
-import sys
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from clirun import CliResult, run_cli
 
 from arenabench.generator.scene import load_scene
 from arenabench.generator.similarity import mean_abs_diff, ssim
@@ -25,9 +24,8 @@ MAX_MAD = 6.0
 MAX_AREA_REL = 0.01
 
 
-def _cli(*args: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "arenabench", *args],
-                          capture_output=True, text=True, timeout=300)
+def _cli(*args: str) -> CliResult:
+    return run_cli(*args)
 
 
 @pytest.fixture(scope="module")

@@ -433,6 +433,7 @@ def test_leaderboard_page_sorts_in_headless_chromium(graded, tmp_path):
     assert by_timeouts[0] == "slow"
 
 
+@pytest.mark.slow  # imports Dask
 def test_unreachable_scheduler_exits_2_before_writing(dataset, tmp_path):
     subs = _fast_teams(tmp_path / "subs", {"a": 1})
     out = tmp_path / "out"

@@ -12,6 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from clirun import CliResult, env_changes, run_cli
 from procs_limit import GRADE_ARGS, grade_settings
 
 from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade
@@ -34,14 +35,22 @@ def _env(**extra: str) -> dict[str, str]:
     return {**os.environ, "PATH": path, **extra}
 
 
-def _cli(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-m", "arenabench", *args], capture_output=True,
-                          text=True, env=env or _env(), timeout=600)
+def _cli(*args: str, env: dict[str, str] | None = None) -> CliResult:
+    """``arenabench ARGS`` in this process with the environment ``env`` (default :func:`_env`)."""
+    return run_cli(*args, env=env_changes(env or _env()))
 
 
-def _grade(*args: str, env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+def _grade(*args: str, env: dict[str, str] | None = None) -> CliResult:
     return _cli("grade", *args, *GRADE_ARGS, "--no-progress", "--formats", "json,md,html",
                 env=env)
+
+
+def _grade_process(*args: str, env: dict[str, str]) -> subprocess.CompletedProcess:
+    """``arenabench grade ARGS`` in a fresh interpreter: whether bubblewrap works is probed
+    once per process, so a PATH without it needs a process of its own."""
+    return subprocess.run([sys.executable, "-m", "arenabench", "grade", *args, *GRADE_ARGS,
+                           "--no-progress", "--formats", "json,md,html"],
+                          capture_output=True, text=True, env=env, timeout=600)
 
 
 def _team(root: Path, name: str, text: str) -> Path:
@@ -50,7 +59,8 @@ def _team(root: Path, name: str, text: str) -> Path:
     return root / name
 
 
-def _one_line_error(proc: subprocess.CompletedProcess, needle: str, code: int = 2) -> str:
+def _one_line_error(proc: CliResult | subprocess.CompletedProcess, needle: str,
+                    code: int = 2) -> str:
     err = proc.stderr.strip()
     assert proc.returncode == code, (proc.returncode, err[-3000:])
     assert len(err.splitlines()) == 1 and needle in err and "Traceback" not in err, err
@@ -296,6 +306,7 @@ def test_a_broken_interpreter_stops_at_the_preflight(seed3_set, tmp_path):
     assert _no_team_graded(out)
 
 
+@pytest.mark.slow
 def test_sandbox_none_is_required_without_bubblewrap(seed3_set, tmp_path):
     # a PATH without bubblewrap (the harness is started by its absolute path)
     nobwrap = tmp_path / "bin"
@@ -307,11 +318,11 @@ def test_sandbox_none_is_required_without_bubblewrap(seed3_set, tmp_path):
     _team(subs, "a", ANSWER.format(count=1))
     out = tmp_path / "out"
     base = ["--out", str(out), "--allow-guessable-seed", "--cmd", PY_CMD]
-    proc = _grade(str(seed3_set), str(subs), *base, env=env)
+    proc = _grade_process(str(seed3_set), str(subs), *base, env=env)
     err = _one_line_error(proc, "bubblewrap")
     assert "apt-get install bubblewrap" in err and "--sandbox none" in err
     assert not out.exists()
-    proc = _grade(str(seed3_set), str(subs), *base, "--sandbox", "none", env=env)
+    proc = _grade_process(str(seed3_set), str(subs), *base, "--sandbox", "none", env=env)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert json.loads((out / "leaderboard.json").read_text())["sandbox"]["mode"] == "none"
 
@@ -334,6 +345,7 @@ def test_six_teams_failing_alike_exit_non_zero(seed3_set, tmp_path):
     assert (out / "leaderboard.json").is_file()
 
 
+@pytest.mark.slow
 def test_an_all_timeout_team_ranks_last_with_null_latency(seed3_set, tmp_path):
     subs = tmp_path / "subs"
     _team(subs, "a_sleeps", "import time\ntime.sleep(60)\n")

@@ -33,7 +33,7 @@ def _raster(geom) -> tuple[float, int]:
     return float(sum(cv2.contourArea(c) for c in contours)), int(mask.sum())
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="module")  # 120 scenes rasterised at 1000 x 1000 (about 10 s): slow tests
 def rows() -> list[tuple[float, float, float, int]]:
     out = []
     for preset in PRESETS:
@@ -64,6 +64,7 @@ def test_contour_px_matches_rasterised_contour_area(rows):
     assert np.median(contour / measured) == pytest.approx(1.0, abs=5e-4)
 
 
+@pytest.mark.slow
 def test_contour_px_perimeter_term_with_phase_noise_removed(rows):
     contour, visible, measured, pixels = np.array(rows).T
     predicted = contour - visible + pixels  # the same formula, from the raster's pixel count
@@ -72,6 +73,7 @@ def test_contour_px_perimeter_term_with_phase_noise_removed(rows):
     assert abs(d.mean()) < 1.5
 
 
+@pytest.mark.slow
 def test_contour_px_is_below_visible_by_about_half_a_perimeter(rows):
     contour, visible, _, _ = np.array(rows).T
     low = 1 - contour / visible

@@ -17,6 +17,9 @@ from arenabench.generator.make import make_sample
 from arenabench.generator.presets import parse_overrides
 from arenabench.generator.render import Renderer
 
+#: 50 renders with instance masks (about 8 s): `make test`, not `make test-fast`
+pytestmark = pytest.mark.slow
+
 N_SCENES = 50
 OVERRIDES = ["camera.tilt_deg=0:30", "camera.altitude_m=9:11"]
 

@@ -1,6 +1,8 @@
-"""Hostile inputs, each run as a real ``arenabench`` subprocess with a timeout: the answer is
-a clean one-line error (exit 2) or a correct failure verdict, never a traceback, a hang or a
-wrong success.
+"""Hostile inputs given to ``arenabench``: the answer is a clean one-line error (exit 2) or a
+correct failure verdict, never a traceback, a hang or a wrong success. Commands run in the test
+process (:func:`clirun.run_cli`, output captured at the file descriptors); the ones that could
+block (FIFOs), write to devices, or run pipelines that end or hang their process run as a real
+``arenabench`` subprocess with a timeout.
 
 Covers: non-finite / negative / fractional answers (bad_output), invalid GT values (dataset
 error naming file and field), JSON output that stays valid, ``--out`` paths that cannot be
@@ -19,24 +21,32 @@ import subprocess
 import sys
 from pathlib import Path
 
+import liar
 import pytest
+import toy_arena
+from clirun import run_cli
 
 from arenabench.fileio import LOCK_FILE, dumps_json, dumps_json_line, lock_folder
 
 HERE = Path(__file__).resolve().parent
 PIPES = HERE / "pipelines"
 EXAMPLE = HERE / "data" / "task1c_image.jpg"
-sys.path.insert(0, str(PIPES))
-import liar  # noqa: E402
-import toy_arena  # noqa: E402
 
 TIMEOUT_S = 240
 
 
-def run(*argv: str, cwd: Path | None = None, timeout: float = TIMEOUT_S):
+def _pythonpath() -> str:
+    return os.pathsep.join([str(PIPES), os.environ.get("PYTHONPATH", "")]).rstrip(os.pathsep)
+
+
+def run(*argv: str, cwd: Path | None = None):
+    """``arenabench ARGV`` in this process; the test pipelines are importable by its children."""
+    return run_cli(*argv, cwd=cwd, env={"PYTHONPATH": _pythonpath()})
+
+
+def run_process(*argv: str, cwd: Path | None = None, timeout: float = TIMEOUT_S):
     """``arenabench ARGV`` in a fresh interpreter; the test pipelines are importable."""
-    env = {**os.environ, "PYTHONPATH": os.pathsep.join([str(PIPES), os.environ.get(
-        "PYTHONPATH", "")]).rstrip(os.pathsep)}
+    env = {**os.environ, "PYTHONPATH": _pythonpath()}
     return subprocess.run([sys.executable, "-m", "arenabench", *argv], capture_output=True,
                           text=True, timeout=timeout, cwd=cwd, env=env)
 
@@ -95,6 +105,7 @@ def test_impossible_answer_of_a_callable_is_bad_output(toy, tmp_path, name):
         assert image["pred"]["area"] is None or math.isfinite(image["pred"]["area"])
 
 
+@pytest.mark.slow  # a pool of 2 processes per case, the endless ones wait out a timeout
 @pytest.mark.parametrize("executor", ["thread", "process"])
 @pytest.mark.parametrize(
     ("name", "category", "message"),
@@ -107,9 +118,9 @@ def test_impossible_answer_of_a_callable_is_bad_output(toy, tmp_path, name):
 )
 def test_a_callable_that_exits_or_hangs_fails_its_images_only(toy, tmp_path, executor, name,
                                                                category, message):
-    proc = run("eval", str(toy), "--pipeline", f"hostile_callables:{name}", "--executor",
-               executor, "--timeout", "1.5", "--workers", "2", "--out", str(tmp_path / "o"),
-               "--formats", "json", "--no-progress")
+    proc = run_process("eval", str(toy), "--pipeline", f"hostile_callables:{name}",
+                       "--executor", executor, "--timeout", "1.5", "--workers", "2",
+                       "--out", str(tmp_path / "o"), "--formats", "json", "--no-progress")
     assert "Traceback" not in proc.stderr, proc.stderr
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith(f"hostile_callables:{name}: pass rate 0.0 % (0/3")
@@ -297,7 +308,7 @@ def test_unwritable_out_is_refused_before_any_work(toy, tmp_path, command, where
         target.mkdir()
     argv = _out_commands(toy, tmp_path)[command]
     flag = argv[-1]
-    proc = run(*argv, str(target), cwd=tmp_path, timeout=120)
+    proc = run(*argv, str(target), cwd=tmp_path)
     assert_clean_error(proc, f"{flag} {target}: ", prog=command)
     assert blocker.read_text() == "a file in the way\n"
 
@@ -331,8 +342,7 @@ def test_unwritable_out_is_refused_before_any_work(toy, tmp_path, command, where
 )
 def test_absurd_sizes_are_refused_at_once(tmp_path, argv, needle):
     out = ("--out", str(tmp_path / ("o.jpg" if argv[0] == "contact-sheet" else "o")))
-    proc = run(*argv, *(out if argv[0] not in ("detect", "eval") else ()), cwd=tmp_path,
-               timeout=120)
+    proc = run(*argv, *(out if argv[0] not in ("detect", "eval") else ()), cwd=tmp_path)
     assert_clean_error(proc, needle, prog=argv[0])
     assert not (tmp_path / "o").exists() and not (tmp_path / "o.jpg").exists()
 
@@ -343,7 +353,7 @@ def test_scene_file_wider_than_the_limit_is_refused(tmp_path):
     scene["camera"]["width"] = 200000
     path = tmp_path / "wide.json"
     path.write_text(json.dumps(scene))
-    proc = run("render", str(path), "--out", str(tmp_path / "o"), timeout=120)
+    proc = run("render", str(path), "--out", str(tmp_path / "o"))
     assert_clean_error(proc, "camera.width must be an integer in [16, 8192]", prog="render")
 
 
@@ -353,7 +363,8 @@ def test_scene_file_wider_than_the_limit_is_refused(tmp_path):
 def test_detect_on_a_fifo_is_refused_without_blocking(tmp_path):
     fifo = tmp_path / "image.png"
     os.mkfifo(fifo)
-    proc = run("detect", "--image", str(fifo), "--output", str(tmp_path / "o.txt"), timeout=60)
+    proc = run_process("detect", "--image", str(fifo), "--output", str(tmp_path / "o.txt"),
+                       timeout=60)
     assert_clean_error(proc, "not a regular file", prog="detect")
 
 
@@ -364,22 +375,22 @@ def test_other_inputs_that_are_fifos_are_refused_without_blocking(toy, tmp_path,
     fifo = tmp_path / "input.json"
     os.mkfifo(fifo)
     if command == "compare":
-        proc = run("eval", "--compare", str(fifo), str(fifo), timeout=60)
+        proc = run_process("eval", "--compare", str(fifo), str(fifo), timeout=60)
         assert_clean_error(proc, "not a regular file", prog="eval")
     elif command == "render":
-        proc = run("render", str(fifo), "--out", str(tmp_path / "o"), timeout=60)
+        proc = run_process("render", str(fifo), "--out", str(tmp_path / "o"), timeout=60)
         assert_clean_error(proc, "not a regular file", prog="render")
     else:
         bad = tmp_path / "bad"
         shutil.copytree(toy, bad)
         (bad / "gt" / "000001.json").unlink()
         os.mkfifo(bad / "gt" / "000001.json")
-        proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", timeout=60)
+        proc = run_process("eval", str(bad), "--pipeline", "toy_arena:detect", timeout=60)
         assert_clean_error(proc, "gt/000001.json is not a regular file", prog="eval")
 
 
 def test_detect_output_dash_is_stdout(tmp_path):
-    proc = run("detect", "--image", str(EXAMPLE), "--output", "-", cwd=tmp_path)
+    proc = run_process("detect", "--image", str(EXAMPLE), "--output", "-", cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith("Aruco ID: [80, 85, 90, 95]\nObstacles: 2\n")
     assert list(tmp_path.iterdir()) == []
@@ -388,7 +399,7 @@ def test_detect_output_dash_is_stdout(tmp_path):
 @pytest.mark.parametrize("device", ["/dev/stdout", "/dev/null"])
 def test_detect_writes_through_devices_and_never_replaces_them(tmp_path, device):
     before = os.lstat(device)
-    proc = run("detect", "--image", str(EXAMPLE), "--output", device, cwd=tmp_path)
+    proc = run_process("detect", "--image", str(EXAMPLE), "--output", device, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr
     after = os.lstat(device)
     assert (after.st_ino, stat.S_IFMT(after.st_mode)) == (before.st_ino,
@@ -575,7 +586,7 @@ def test_second_generate_into_a_locked_folder_says_who_holds_it(tmp_path):
     out = tmp_path / "ds"
     with lock_folder(out, command="arenabench generate --seed 1 (test holder)"):
         proc = run("generate", "--count", "1", "--seed", "2", "--out", str(out),
-                   "--no-progress", timeout=120)
+                   "--no-progress")
     err = assert_clean_error(proc, "is being written by another run", f"pid {os.getpid()}",
                              "(test holder)", prog="generate")
     assert "--out" in err
@@ -596,7 +607,7 @@ def test_every_command_writing_a_folder_takes_generates_lock(toy, tmp_path, comm
             "grade": ("grade", str(toy), str(teams), "--out", str(out), *GRADE_ARGS),
             "demo": ("demo", "--count", "1", "--out", str(out))}[command]
     with lock_folder(out, command="arenabench eval (test holder)"):
-        proc = run(*argv, "--no-progress", cwd=tmp_path, timeout=120)
+        proc = run(*argv, "--no-progress", cwd=tmp_path)
         err = assert_clean_error(proc, f"--out {out}: {out} is being written by another run",
                                  f"pid {os.getpid()}", "(test holder)", prog=command)
         assert sorted(p.name for p in out.iterdir()) == [LOCK_FILE], err
@@ -609,8 +620,7 @@ def test_every_command_writing_a_folder_takes_generates_lock(toy, tmp_path, comm
 @pytest.mark.slow
 def test_resumed_generate_removes_stale_temp_files_and_leaves_no_lock(tmp_path):
     out = tmp_path / "ds"
-    proc = run("generate", "--count", "1", "--seed", "4", "--out", str(out), "--no-progress",
-               timeout=300)
+    proc = run("generate", "--count", "1", "--seed", "4", "--out", str(out), "--no-progress")
     assert proc.returncode == 0, proc.stderr
     assert not (out / LOCK_FILE).exists()
     # a killed run: dataset.json says incomplete, temp files lie around
@@ -621,8 +631,7 @@ def test_resumed_generate_removes_stale_temp_files_and_leaves_no_lock(tmp_path):
              out / ".manifest.jsonl.y.tmp"]
     for path in stale:
         path.write_bytes(b"half written")
-    proc = run("generate", "--count", "1", "--seed", "4", "--out", str(out), "--no-progress",
-               timeout=300)
+    proc = run("generate", "--count", "1", "--seed", "4", "--out", str(out), "--no-progress")
     assert proc.returncode == 0, proc.stderr
     assert not any(p.exists() for p in stale)
     assert json.loads((out / "dataset.json").read_text())["complete"] is True
@@ -646,14 +655,14 @@ def test_two_generate_runs_at_once_the_second_is_refused_then_the_first_resumes(
             assert first.poll() is None and time.monotonic() < deadline, "no lock taken"
             time.sleep(0.05)
         second = run("generate", "--count", "6", "--seed", "2", "--out", str(out),
-                     "--no-progress", timeout=120)
+                     "--no-progress")
         assert_clean_error(second, "is being written by another run", f"pid {first.pid}",
                            "--seed 1", prog="generate")
     finally:
         first.send_signal(signal.SIGKILL)  # a killed run: the kernel releases its lock
         first.wait(timeout=60)
     resumed = run("generate", "--count", "6", "--seed", "1", "--workers", "1", "--out",
-                  str(out), "--no-progress", timeout=300)
+                  str(out), "--no-progress")
     assert resumed.returncode == 0, resumed.stderr
     seeds = {json.loads(p.read_text())["seed"] for p in (out / "gt").glob("*.json")}
     assert seeds == {1} and len(list((out / "gt").glob("*.json"))) == 6
@@ -678,7 +687,7 @@ def test_generate_values_that_fail_when_drawn_are_refused_before_any_file(tmp_pa
                                                                           needle):
     out = tmp_path / "ds"
     proc = run("generate", "--count", "2", "--workers", "1", "--out", str(out), "--set", value,
-               "--no-progress", timeout=120)
+               "--no-progress")
     assert_clean_error(proc, needle, prog="generate")
     assert not out.exists()
 
@@ -690,17 +699,17 @@ def test_generate_scene_failing_after_the_first_leaves_the_folder_as_it_was(tmp_
     out = tmp_path / "ds"
     base = ("generate", "--seed", "1", "--set", "obstacles.count=1:12", "--out", str(out),
             "--no-progress")
-    proc = run(*base, "--count", "4", "--workers", "2", timeout=300)
+    proc = run(*base, "--count", "4", "--workers", "2")
     assert_clean_error(proc, "could not place obstacle", prog="generate")
     assert not out.exists()  # a new set: nothing left
-    proc = run(*base, "--count", "3", "--workers", "1", timeout=300)
+    proc = run(*base, "--count", "3", "--workers", "1")
     assert proc.returncode == 0, proc.stderr  # the corrected command works
     before = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
-    proc = run(*base, "--count", "4", "--workers", "1", timeout=300)
+    proc = run(*base, "--count", "4", "--workers", "1")
     assert_clean_error(proc, "could not place obstacle", prog="generate")
     after = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
     assert after == before  # an extension that fails: the set as it was
-    proc = run(*base, "--count", "3", "--workers", "1", timeout=300)
+    proc = run(*base, "--count", "3", "--workers", "1")
     assert proc.returncode == 0 and "already complete: 3 images" in proc.stdout, proc.stderr
 
 
@@ -708,7 +717,7 @@ def test_generate_into_a_folder_whose_dataset_json_is_a_fifo_is_refused(tmp_path
     out = tmp_path / "ds"
     out.mkdir()
     os.mkfifo(out / "dataset.json")
-    proc = run("generate", "--count", "1", "--out", str(out), "--no-progress", timeout=60)
+    proc = run_process("generate", "--count", "1", "--out", str(out), "--no-progress", timeout=60)
     assert_clean_error(proc, "dataset.json is not a regular file", prog="generate")
     assert sorted(p.name for p in out.iterdir()) == ["dataset.json"]
 
@@ -749,7 +758,7 @@ def test_render_of_a_hostile_scene_file_is_one_line_and_writes_nothing(tmp_path,
     path = tmp_path / "scene.json"
     path.write_text(_scene_text(edit))
     out = tmp_path / "o"
-    proc = run("render", str(path), "--out", str(out), timeout=120)
+    proc = run("render", str(path), "--out", str(out))
     assert_clean_error(proc, needle, prog="render")
     assert not out.exists()
 
@@ -757,14 +766,14 @@ def test_render_of_a_hostile_scene_file_is_one_line_and_writes_nothing(tmp_path,
 @pytest.mark.parametrize("side", ["inf", "nan", "1e309", "-1"])
 def test_fit_arena_side_that_is_not_a_finite_positive_length_is_refused(tmp_path, side):
     out = tmp_path / "scene.json"
-    proc = run("fit", str(EXAMPLE), "--arena-side", side, "--out", str(out), timeout=120)
+    proc = run("fit", str(EXAMPLE), "--arena-side", side, "--out", str(out))
     assert_clean_error(proc, "--arena-side must be", prog="fit")
     assert not out.exists()
 
 
 def test_demo_with_an_unknown_pipeline_is_refused_before_rendering(tmp_path):
     out = tmp_path / "demo"
-    proc = run("demo", "--pipeline", "nosuch", "--out", str(out), "--no-progress", timeout=60)
+    proc = run("demo", "--pipeline", "nosuch", "--out", str(out), "--no-progress")
     assert_clean_error(proc, "--pipeline", "'nosuch'", prog="demo")
     assert not out.exists()
 
@@ -802,7 +811,7 @@ def test_generate_into_a_folder_with_a_hostile_dataset_json_is_refused(tmp_path,
     out = tmp_path / "ds"
     out.mkdir()
     (out / "dataset.json").write_text(text)
-    proc = run("generate", "--count", "1", "--out", str(out), "--no-progress", timeout=60)
+    proc = run("generate", "--count", "1", "--out", str(out), "--no-progress")
     assert_clean_error(proc, "dataset.json is unreadable", prog="generate")
     assert sorted(p.name for p in out.iterdir()) == ["dataset.json"]
     assert (out / "dataset.json").read_text() == text
@@ -816,7 +825,7 @@ def test_render_into_a_generated_dataset_is_refused(toy, tmp_path):
     (ds / "dataset.json").write_text("{}")
     before = {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()}
     scene = HERE.parent / "generator" / "scenes" / "task1c_example.json"
-    proc = run("render", str(scene), "--out", str(ds), timeout=120)
+    proc = run("render", str(scene), "--out", str(ds))
     assert_clean_error(proc, "holds a generated dataset", prog="render")
     assert {p: p.read_bytes() for p in ds.rglob("*") if p.is_file()} == before
 @pytest.fixture()
@@ -844,5 +853,5 @@ def test_disk_full_while_writing_reports_is_one_line(toy, small_disk):
 
 
 def test_presets_show_of_an_empty_name_is_refused():
-    proc = run("presets", "--show", "", timeout=60)
+    proc = run("presets", "--show", "")
     assert_clean_error(proc, "unknown preset ''", prog="presets")

@@ -285,7 +285,6 @@ def _double_sigint(proc: subprocess.Popen, delay: float) -> tuple[int, str]:
 
 @pytest.fixture(scope="module")
 def toy3(tmp_path_factory):
-    sys.path.insert(0, str(Path(__file__).resolve().parent / "pipelines"))
     import toy_arena
 
     return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("dbl") / "toy", n=3, seed=2)

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import cv2
@@ -17,7 +16,6 @@ from arenabench.generator.render import Renderer
 from arenabench.generator.scene import load_scene
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests" / "pipelines"))
 IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
 SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
 #: Floor, top face, north face and dark side faces of the example (grey levels).

@@ -69,6 +69,7 @@ def test_which_commands_run_warm(tmp_path):
     assert CommandPipeline(f"{PY} {PROBE}", settings=RunSettings(warm=False))._warm is None
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_each_image_is_a_fresh_run_of_the_script_as_main(sandbox, toy, run_tmp):
     cold = {r.id: r for r in evaluate(_probe(sandbox, warm=False), toy, workers=1).images}
@@ -97,7 +98,7 @@ def _sha(path: Path) -> str:
 
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 @pytest.mark.parametrize("mode, category, limits", [
-    ("hang", "timeout", {"timeout_s": 3.0}),
+    pytest.param("hang", "timeout", {"timeout_s": 3.0}, marks=pytest.mark.slow),
     ("memory", "limit", {"memory_bytes": 1024**3}),
     ("forkbomb", "limit", {"max_procs": 16}),
 ])
