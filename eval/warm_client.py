@@ -62,6 +62,7 @@ RUN_GRACE_S = 30.0
 
 SERVER_SOURCE = Path(__file__).with_name("warm_server.py")
 LAUNCHER_SOURCE = Path(__file__).with_name("launcher.py")
+WARM_UP_SOURCE = Path(__file__).with_name("warm_up.py")
 _PYTHON_NAME = re.compile(r"python(\d+(\.\d+)*)?")
 _MODULE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
 KEEPER = str(Path(__file__).with_name("warm_keeper.py"))
@@ -164,7 +165,7 @@ class WarmServer:
         send_message(ours, {
             "parent_pid": 0 if self.isolate else self.proc.pid, "isolate": self.isolate,
             "launcher_source": LAUNCHER_SOURCE.read_text(), "script": self.target.script,
-            "private_dirs": private,
+            "private_dirs": private, "warm_up_source": WARM_UP_SOURCE.read_text(),
         })
         ours.settimeout(START_TIMEOUT_S)
         try:
@@ -332,18 +333,31 @@ _servers: OrderedDict[tuple, WarmServer] = OrderedDict()
 _cold: set[tuple] = set()
 
 
+#: The image-folder part of a server's key, by (command key, image folder as named): finding
+#: the sandbox's visible folders reads the interpreter's site-packages (milliseconds per run).
+_folder_parts: dict[tuple, str] = {}
+_MAX_FOLDER_PARTS = 4096
+
+
 def _key(pipe: CommandPipeline, image_path: Path | None) -> tuple:
     """Servers are shared by the same command, settings and folder; under bubblewrap also
     by the image folder when it lies inside a visible folder (the sandbox hides it)."""
     key = (pipe.template, pipe.base_dir, pipe.settings, pipe.sandbox, pipe._executable)
     if image_path is None:
         return key
-    folder = str(Path(os.path.realpath(image_path)).parent)
-    from .external import _is_within
+    named = (key, os.path.dirname(os.path.abspath(image_path)))
+    part = _folder_parts.get(named)
+    if part is None:
+        folder = str(Path(os.path.realpath(image_path)).parent)
+        from .external import _is_within
 
-    hidden = pipe.sandbox == "bwrap" and any(_is_within(folder, v)
-                                              for v in pipe._visible_paths())
-    return (*key, folder if hidden else "")
+        hidden = pipe.sandbox == "bwrap" and any(_is_within(folder, v)
+                                                  for v in pipe._visible_paths())
+        part = folder if hidden else ""
+        if len(_folder_parts) >= _MAX_FOLDER_PARTS:
+            _folder_parts.clear()
+        _folder_parts[named] = part
+    return (*key, part)
 
 
 def _server_for(pipe: CommandPipeline, target: WarmTarget, image_path: Path) -> WarmServer | None:
