@@ -331,6 +331,7 @@ class WarmServer:
 _registry_lock = threading.Lock()
 _servers: OrderedDict[tuple, WarmServer] = OrderedDict()
 _cold: set[tuple] = set()
+_start_locks: dict[tuple, threading.Lock] = {}
 
 
 #: The image-folder part of a server's key, by (command key, image folder as named): finding
@@ -360,31 +361,52 @@ def _key(pipe: CommandPipeline, image_path: Path | None) -> tuple:
     return (*key, part)
 
 
+def _live(key: tuple) -> WarmServer | None:
+    """The key's running server (marked most recently used), with the registry lock held."""
+    server = _servers.get(key)
+    if server is None or server.dead:
+        return None
+    _servers.move_to_end(key)
+    return server
+
+
 def _server_for(pipe: CommandPipeline, target: WarmTarget, image_path: Path) -> WarmServer | None:
     key = _key(pipe, image_path)
     with _registry_lock:
         if key in _cold:
             return None
-        server = _servers.get(key)
-        if server is not None and not server.dead:
-            _servers.move_to_end(key)
-            return server
+        server = _live(key)
         if server is not None:
-            del _servers[key]
-            server.close()
+            return server
+        start_lock = _start_locks.setdefault(key, threading.Lock())
+    # one start per key at a time; the runs of other servers go on meanwhile (grade: a
+    # team's server starts while the other worker finishes the team before)
+    with start_lock:
+        with _registry_lock:
+            if key in _cold:
+                return None
+            server = _live(key)
+            if server is not None:
+                return server
+            dead = _servers.pop(key, None)
+        if dead is not None:
+            dead.close()
         try:
             server = WarmServer(pipe, image_path, target)
         except (OSError, RuntimeError, ValueError) as exc:
-            _cold.add(key)
+            with _registry_lock:
+                _cold.add(key)
             from .external import _warn_once
 
             _warn_once(f"{exc}; {pipe.name!r} runs with one Python process per image")
             return None
-        _servers[key] = server
-        idle = [k for k, s in _servers.items() if k != key and not s.busy]
-        for k in idle[: max(0, len(_servers) - MAX_IDLE_SERVERS)]:
-            _servers.pop(k).close()
-        return server
+        with _registry_lock:
+            _servers[key] = server
+            idle = [k for k, s in _servers.items() if k != key and not s.busy]
+            ends = [_servers.pop(k) for k in idle[: max(0, len(_servers) - MAX_IDLE_SERVERS)]]
+    for old in ends:
+        old.close()
+    return server
 
 
 def run_warm(pipe: CommandPipeline, target: WarmTarget, image_path: Path) -> Prediction | None:
