@@ -168,7 +168,7 @@ def process_limit(max_procs: int) -> str:
     PreflightError
         As root where no pids cgroup can be made (one line: why, and ``--max-procs 0``).
     """
-    from .external import pids_cgroup_parent
+    from .sandbox import pids_cgroup_parent
 
     if max_procs == 0:
         return NO_PROCESS_LIMIT

@@ -62,6 +62,7 @@ RUN_GRACE_S = 30.0
 
 SERVER_SOURCE = Path(__file__).with_name("warm_server.py")
 LAUNCHER_SOURCE = Path(__file__).with_name("launcher.py")
+WARM_UP_SOURCE = Path(__file__).with_name("warm_up.py")
 _PYTHON_NAME = re.compile(r"python(\d+(\.\d+)*)?")
 _MODULE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
 KEEPER = str(Path(__file__).with_name("warm_keeper.py"))
@@ -164,7 +165,7 @@ class WarmServer:
         send_message(ours, {
             "parent_pid": 0 if self.isolate else self.proc.pid, "isolate": self.isolate,
             "launcher_source": LAUNCHER_SOURCE.read_text(), "script": self.target.script,
-            "private_dirs": private,
+            "private_dirs": private, "warm_up_source": WARM_UP_SOURCE.read_text(),
         })
         ours.settimeout(START_TIMEOUT_S)
         try:
@@ -330,6 +331,13 @@ class WarmServer:
 _registry_lock = threading.Lock()
 _servers: OrderedDict[tuple, WarmServer] = OrderedDict()
 _cold: set[tuple] = set()
+_start_locks: dict[tuple, threading.Lock] = {}
+
+
+#: The image-folder part of a server's key, by (command key, image folder as named): finding
+#: the sandbox's visible folders reads the interpreter's site-packages (milliseconds per run).
+_folder_parts: dict[tuple, str] = {}
+_MAX_FOLDER_PARTS = 4096
 
 
 def _key(pipe: CommandPipeline, image_path: Path | None) -> tuple:
@@ -338,12 +346,28 @@ def _key(pipe: CommandPipeline, image_path: Path | None) -> tuple:
     key = (pipe.template, pipe.base_dir, pipe.settings, pipe.sandbox, pipe._executable)
     if image_path is None:
         return key
-    folder = str(Path(os.path.realpath(image_path)).parent)
-    from .sandbox import is_within
+    named = (key, os.path.dirname(os.path.abspath(image_path)))
+    part = _folder_parts.get(named)
+    if part is None:
+        folder = str(Path(os.path.realpath(image_path)).parent)
+        from .sandbox import is_within
 
-    hidden = pipe.sandbox == "bwrap" and any(is_within(folder, v)
-                                              for v in pipe._visible_paths())
-    return (*key, folder if hidden else "")
+        hidden = pipe.sandbox == "bwrap" and any(is_within(folder, v)
+                                                  for v in pipe._visible_paths())
+        part = folder if hidden else ""
+        if len(_folder_parts) >= _MAX_FOLDER_PARTS:
+            _folder_parts.clear()
+        _folder_parts[named] = part
+    return (*key, part)
+
+
+def _live(key: tuple) -> WarmServer | None:
+    """The key's running server (marked most recently used), with the registry lock held."""
+    server = _servers.get(key)
+    if server is None or server.dead:
+        return None
+    _servers.move_to_end(key)
+    return server
 
 
 def _server_for(pipe: CommandPipeline, target: WarmTarget, image_path: Path) -> WarmServer | None:
@@ -351,26 +375,38 @@ def _server_for(pipe: CommandPipeline, target: WarmTarget, image_path: Path) -> 
     with _registry_lock:
         if key in _cold:
             return None
-        server = _servers.get(key)
-        if server is not None and not server.dead:
-            _servers.move_to_end(key)
-            return server
+        server = _live(key)
         if server is not None:
-            del _servers[key]
-            server.close()
+            return server
+        start_lock = _start_locks.setdefault(key, threading.Lock())
+    # one start per key at a time; the runs of other servers go on meanwhile (grade: a
+    # team's server starts while the other worker finishes the team before)
+    with start_lock:
+        with _registry_lock:
+            if key in _cold:
+                return None
+            server = _live(key)
+            if server is not None:
+                return server
+            dead = _servers.pop(key, None)
+        if dead is not None:
+            dead.close()
         try:
             server = WarmServer(pipe, image_path, target)
         except (OSError, RuntimeError, ValueError) as exc:
-            _cold.add(key)
+            with _registry_lock:
+                _cold.add(key)
             from .sandbox import warn_once
 
             warn_once(f"{exc}; {pipe.name!r} runs with one Python process per image")
             return None
-        _servers[key] = server
-        idle = [k for k, s in _servers.items() if k != key and not s.busy]
-        for k in idle[: max(0, len(_servers) - MAX_IDLE_SERVERS)]:
-            _servers.pop(k).close()
-        return server
+        with _registry_lock:
+            _servers[key] = server
+            idle = [k for k, s in _servers.items() if k != key and not s.busy]
+            ends = [_servers.pop(k) for k in idle[: max(0, len(_servers) - MAX_IDLE_SERVERS)]]
+    for old in ends:
+        old.close()
+    return server
 
 
 def run_warm(pipe: CommandPipeline, target: WarmTarget, image_path: Path) -> Prediction | None:

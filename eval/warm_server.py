@@ -93,9 +93,10 @@ def recv_message(sock):
     return None if body is None else json.loads(body)
 
 
-def _load_launcher(source):
-    mod = types.ModuleType("_arenabench_launcher")
-    mod.__file__ = "<arenabench launcher>"
+def _load_source(source, name):
+    """One of the project's modules sent as source (the launcher, the warm-up)."""
+    mod = types.ModuleType(f"_arenabench_{name.replace(' ', '_')}")
+    mod.__file__ = f"<arenabench {name}>"
     exec(compile(source, mod.__file__, "exec"), mod.__dict__)
     return mod
 
@@ -118,10 +119,13 @@ def _top_level_imports(path):
 
 def _preload(names, private_dirs):
     """Import ``names`` where they come from outside ``private_dirs`` (the submission's own
-    folders: their modules are the team's code and are never run by the server).
+    folders: their modules are the team's code and are never run by the server; a name that
+    one of them holds, such as a submission's own ``cv2.py``, is left for the run to import,
+    as a cold run would find the submission's module first).
 
     Returns the environment variables each import set or changed (cv2 sets
     ``LD_LIBRARY_PATH``), by module name."""
+    import importlib.machinery
     import importlib.util
 
     changes = {}
@@ -129,6 +133,8 @@ def _preload(names, private_dirs):
         if name in sys.modules or name == "__main__":
             continue
         try:
+            if importlib.machinery.PathFinder.find_spec(name, list(private_dirs)) is not None:
+                continue
             spec = importlib.util.find_spec(name)
         except (ImportError, ValueError):
             continue
@@ -414,9 +420,18 @@ def main():
     del sys.argv[1:]
     if config["isolate"]:
         _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
-    launcher = _load_launcher(config["launcher_source"])
+    launcher = _load_source(config["launcher_source"], "launcher")
     imported = _top_level_imports(config["script"]) if config.get("script") else []
     changes = _preload(["numpy", "cv2", *imported], config.get("private_dirs", []))
+    # what every run imports to become the script and to exit (become_script), and what the
+    # preloaded libraries set up on first use (warm_up.py, synthetic data only): once here
+    # rather than in every run
+    import atexit  # noqa: F401
+    import pkgutil  # noqa: F401
+    import runpy  # noqa: F401
+    import threading  # noqa: F401
+
+    _load_source(config["warm_up_source"], "warm up").warm_up()
     # a run gets what an import set in the environment where the script imports the module
     # itself (top level; a cold run would have it from that import)
     env_changes = {k: v for name in imported for k, v in changes.get(name, {}).items()}

@@ -1,0 +1,89 @@
+"""The warm server's warm-up (eval/warm_up.py) in a fresh interpreter, and what a run sees of
+it: the libraries exercised on synthetic data only, OpenCV's threads and every random
+generator left as they were, a submission's own module of a preloaded name its own."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from arenabench.eval.pipelines import CommandPipeline
+from arenabench.eval.run_limits import RunSettings
+from arenabench.eval.warm_client import WARM_UP_SOURCE, close_all
+
+PROBE = r"""
+import json, random, sys
+import argparse, cv2, numpy
+sys.path.insert(0, sys.argv[1])
+import warm_up
+
+def threads():
+    for line in open("/proc/self/status"):
+        if line.startswith("Threads:"):
+            return int(line.split()[1])
+
+def draws(seed):
+    random.seed(seed)
+    numpy.random.seed(seed)
+    cv2.setRNGSeed(seed)
+    return lambda: [random.random(), float(numpy.random.random()),
+                    cv2.randu(numpy.zeros(4, numpy.float32), 0, 1).tolist()]
+
+before = (threads(), cv2.getNumThreads())
+expected = draws(7)()
+draw = draws(7)
+done = warm_up.warm_up()
+print(json.dumps({"done": done, "threads": [before[0], threads()],
+                  "num_threads": [before[1], cv2.getNumThreads()],
+                  "draws_same": draw() == expected,
+                  "partial": warm_up.warm_up({"numpy": numpy})}))
+"""
+
+
+def test_warm_up_exercises_the_libraries_and_leaves_threads_and_generators_alone():
+    out = subprocess.run([sys.executable, "-c", PROBE, str(WARM_UP_SOURCE.parent)],
+                         capture_output=True, text=True, check=True, timeout=120)
+    seen = json.loads(out.stdout.strip().splitlines()[-1])
+    assert seen["done"] == ["argparse", "numpy", "cv2"]
+    assert seen["threads"][1] == seen["threads"][0], "the warm-up started threads"
+    assert seen["num_threads"][1] == seen["num_threads"][0]
+    assert seen["draws_same"], "the warm-up drew from a random generator"
+    assert seen["partial"] == ["numpy"]  # only what the server has imported
+    assert out.stderr == ""  # argparse's error path writes to a captured stream
+
+
+SHADOW = """
+import argparse
+import cv2
+
+parser = argparse.ArgumentParser()
+parser.add_argument("--image", required=True)
+parser.parse_args()
+print(cv2.WHOSE)
+with open("obstacles.txt", "w") as fh:
+    fh.write("Aruco ID: []\\nObstacles: 0\\nArea: 0\\n")
+"""
+
+
+@pytest.mark.parametrize("warm", [True, False])
+def test_a_submissions_own_module_of_a_preloaded_name_is_its_own(tmp_path, warm):
+    sub = tmp_path / "team"
+    sub.mkdir()
+    (sub / "map.py").write_text(SHADOW)
+    (sub / "cv2.py").write_text("WHOSE = 'the team'\n")
+    image = tmp_path / "img.png"
+    image.write_bytes(b"not read")
+    close_all()
+    try:
+        pipe = CommandPipeline(f"{sys.executable} {sub / 'map.py'} --image {{image}}",
+                               settings=RunSettings(sandbox="none", warm=warm))
+        preds = [pipe.run(Path(image)) for _ in range(2)]
+        pipe.close()
+    finally:
+        close_all()
+    assert [p.status for p in preds] == ["ok", "ok"], preds[0].stderr
+    assert [p.stdout.strip() for p in preds] == ["the team", "the team"]
