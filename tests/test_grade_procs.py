@@ -126,7 +126,7 @@ def test_grade_without_a_pids_cgroup_stops_before_any_team(one_image, tmp_path):
 def test_grade_with_max_procs_0_proceeds_without_a_pids_cgroup(one_image, tmp_path):
     out = tmp_path / "out"
     proc = _cli("grade", *_grade_argv(one_image, _teams(tmp_path / "subs"), out),
-                "--max-procs", "0", prefix=NO_CGROUPS)
+                "--max-procs", "0", "--formats", "json,html", prefix=NO_CGROUPS)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "--max-procs" not in proc.stderr  # no process limit asked for: nothing to warn of
     doc = json.loads((out / "leaderboard.json").read_text())
@@ -134,6 +134,7 @@ def test_grade_with_max_procs_0_proceeds_without_a_pids_cgroup(one_image, tmp_pa
     assert doc["sandbox"]["limits"]["max_procs"] == 0
     assert sorted(t["team"] for t in doc["teams"]) == ["a", "b"]
     assert all(t["n"] == 1 and not t["failures"].get("crash") for t in doc["teams"]), doc
+    assert f"process limit {NO_PROCESS_LIMIT}" in (out / "leaderboard.html").read_text()
 
 
 @pytest.mark.slow

@@ -144,3 +144,8 @@ def test_every_preset_gives_the_same_results(tmp_path, monkeypatch):
             image = cv2.imread(str(path))
             for variant, label in ((image, ""), (_noisy(image, 25.0, k), " sigma 25")):
                 _assert_same_either_way(variant, monkeypatch, f"{preset} {path.name}{label}")
+
+
+def test_the_seed_profile_searches_as_published():
+    result = detect(markerless_images(0)["noise"], DetectConfig(profile="seed"))
+    assert result.details["marker_passes"] >= 1  # not skipped

@@ -15,7 +15,8 @@ is its JSON Schema)::
      "ranking": ["pass_rate desc", "count_exact_rate desc", ...], "tie_order": "team asc",
      "complete": true, "images_done": 1200, "images_total": 1200,
      "sandbox": {the preflight: sandbox mode, limits, interpreter and module versions seen
-                 inside the sandbox, whether arenabench is importable there},
+                 inside the sandbox, whether arenabench is importable there, how --max-procs
+                 is enforced ("process_limit")},
      "categories": ["markers_not_found", "wrong_count", ...],
      "teams": [{"rank": 1, "tied": false, "team": "alpha", "n": 200, "n_passed": 198,
                 "pass_rate": 0.99,

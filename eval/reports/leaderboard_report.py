@@ -164,6 +164,8 @@ def leaderboard_html(doc: dict[str, Any]) -> str:
     box = doc.get("sandbox") or {}
     seen = ", ".join(f"{k} {v}" for k, v in (box.get("versions") or {}).items() if v)
     sandbox = (f' Sandbox {html.escape(str(box.get("mode", "?")))}'
+               + (f"; process limit {html.escape(str(box['process_limit']))}"
+                  if box.get("process_limit") else "")
                + (f"; seen inside it: {html.escape(seen)}" if seen else "") + "."
                ) if box else ""
     meta = (f'{len(teams)} teams on {html.escape(str(ds["path"]))} ({ds["n"]} images, manifest '

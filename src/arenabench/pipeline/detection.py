@@ -144,11 +144,13 @@ def detect(image: np.ndarray, config: DetectConfig | None = None) -> Detection:
     clock.lap("threshold")
 
     # 4. markers
+    # the pre-check (pipeline/marker_prefilter.py) is the reference profile's; seed: as published
+    prefilter = config.profile == "reference"
     search = markers.search_markers(marker_input, names, rule=config.profile, source=source,
-                                    prefilter=True)
+                                    prefilter=prefilter)
     if not search.found and config.uses_fallback and source != "gray":
         retry = markers.search_markers(gray, names, rule=config.profile, source="gray",
-                                       prefilter=True)
+                                       prefilter=prefilter)
         retry.passes += search.passes
         if retry.found or len(set(retry.ids)) > len(set(search.ids)):
             search = retry

@@ -38,9 +38,10 @@ What this guarantees, and where not:
 - The window of 3 px is not used: its dark pixels are the 1 px rim of dark regions, never a
   solid square. Inverted markers (``detectInvertedMarker``) switch the check off.
 
-Which searches are checked (:func:`worth_checking`): every search of the grey image (the
-reference profile's fallback, or the first search when ``threshold`` is ``None``), and a
-search of the thresholded (binary) image only where it is *busy*: more than
+Which searches are checked (:func:`worth_checking`; in the ``reference`` profile only: the
+``seed`` profile searches as published): every search of the grey image (the fallback, or
+the first search when ``threshold`` is ``None``), and a search of the thresholded (binary)
+image only where it is *busy*: more than
 :data:`BUSY_FRACTION` of its horizontally adjacent pixel pairs differ (0.05 ms to count). On
 the bench's noise image that is 24 %, and its search costs about 25 ms; on every preset's
 scenes at most 0.6 %, on the competition example with noise of sigma 80 1.5 %, so images
