@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from arenabench.eval.pipelines import CommandPipeline
+from arenabench.eval.external import CommandPipeline
 from arenabench.eval.run_limits import RunSettings
 from arenabench.eval.warm_client import WARM_UP_SOURCE, close_all
 
