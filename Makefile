@@ -1,6 +1,7 @@
 # The two commands a newcomer runs: `make demo` and `make test`.
 # Inner loop while developing: `make test-fast` (skips tests marked slow, runs the rest in
-# parallel with pytest-xdist; CI runs `make test`, everything, one process).
+# parallel with pytest-xdist, one file per worker so a module's fixtures are built once; CI runs
+# `make test`, everything, one process).
 # Both create .venv when missing and install the project into it; only python3 and make are assumed.
 
 PYTHON ?= python3
@@ -32,7 +33,7 @@ test: $(STAMP) system-deps
 	  exit $$rc
 
 test-fast: $(STAMP) system-deps
-	@$(PY) -m pytest -m "not slow" -n auto $(PYTEST_ARGS); rc=$$?; \
+	@$(PY) -m pytest -m "not slow" -n auto --dist loadfile $(PYTEST_ARGS); rc=$$?; \
 	  if [ $$rc -eq 5 ]; then echo "make test-fast: pytest collected no tests - failing" >&2; exit 1; fi; \
 	  exit $$rc
 

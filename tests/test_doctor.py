@@ -1,10 +1,9 @@
 """`arenabench doctor`: real checks (real OpenCV, a real off-screen context in a subprocess)."""
 
 import json
-import subprocess
-import sys
 
 import pytest
+from clirun import run_cli
 
 from arenabench import doctor, glplatform
 
@@ -60,8 +59,7 @@ def test_text_report_and_bad_option():
 
 
 def test_command_line_json_no_context():
-    proc = subprocess.run([sys.executable, "-m", "arenabench", "doctor", "--json",
-                           "--no-context"], capture_output=True, text=True, timeout=120)
+    proc = run_cli("doctor", "--json", "--no-context")
     data = json.loads(proc.stdout)
     assert proc.returncode == (0 if data["ok"] else 1)
     assert {c["name"] for c in data["checks"]} >= {"python", "opencv", "opengl platform"}
