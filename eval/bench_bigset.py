@@ -21,8 +21,9 @@ from typing import Any
 
 #: The child's program: argv = dataset folder, report folder; prints one JSON line.
 _CHILD = """
-import json, resource, sys, time
+import resource, sys, time
 from arenabench.eval.bigset import fixed_answer
+from arenabench.fileio import dumps_json_line
 from arenabench.eval.dataset_reader import load_dataset
 from arenabench.eval.reports import write_reports
 from arenabench.eval.evaluation import evaluate
@@ -34,10 +35,16 @@ report = evaluate(fixed_answer, data, workers=2)
 t2, c2 = time.perf_counter(), time.process_time()
 write_reports(report, sys.argv[2], formats=("json", "csv", "junit"))
 t3, c3 = time.perf_counter(), time.process_time()
-print(json.dumps({"entries": len(data), "load_s": t1 - t0, "eval_s": t2 - t1,
+# VmHWM: this program's own peak (ru_maxrss keeps the parent's size at the fork)
+try:
+    with open("/proc/self/status") as fh:
+        peak_mb = next(int(l.split()[1]) for l in fh if l.startswith("VmHWM:")) / 1024
+except (OSError, StopIteration):
+    peak_mb = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+print(dumps_json_line({"entries": len(data), "load_s": t1 - t0, "eval_s": t2 - t1,
                   "reports_s": t3 - t2, "load_cpu_s": c1 - c0, "eval_cpu_s": c2 - c1,
                   "reports_cpu_s": c3 - c2, "n_passed": report.summary.n_passed,
-                  "peak_rss_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024}))
+                  "peak_rss_mb": peak_mb}), end="")
 """
 
 

@@ -117,6 +117,12 @@ class Dataset:
         if first is not None and (limit is None or first < limit):
             self.samples[first].truth(area_reference=area_reference)
 
+    def image_paths(self) -> list[Path]:
+        """The image files in order (no GT file read)."""
+        if isinstance(self.samples, DatasetSamples):
+            return self.samples.image_paths
+        return [s.image_path for s in self.samples]
+
     def items_by_id(self, ids: Iterable[str]) -> dict[str, DatasetItem]:
         """The items of ``ids`` (those in the set), reading only their GT files."""
         wanted = set(ids)
@@ -142,10 +148,15 @@ class DatasetFacts:
     lacking: dict[str, int]
 
 
+#: Sets of at most this many images keep each item once it is built.
+KEEP_ITEMS_UP_TO = 2000
+
+
 class DatasetSamples(Sequence[DatasetItem]):
     """The images of a loaded dataset, in manifest order, holding only their ids and paths:
     an item's GT file is read when the item is taken (and checked against its manifest hash
-    again), so a set of any size takes a few hundred bytes per image.
+    again), so a big set takes a few hundred bytes per image. A set of at most
+    :data:`KEEP_ITEMS_UP_TO` images keeps each item once built.
 
     Parameters
     ----------
@@ -156,8 +167,14 @@ class DatasetSamples(Sequence[DatasetItem]):
     """
 
     def __init__(self, base: Path, shown: Path,
-                 entries: list[tuple[str, str, str, str | None]]) -> None:
+                 entries: list[tuple[str, str, str, str | None]],
+                 cache: list[DatasetItem | None] | None = None) -> None:
         self._base, self._shown, self._entries = base, shown, entries
+        # a set of normal size keeps its items once built (a GT parsed once however often
+        # the set is gone through, as grade does per team); a big one builds them each time
+        if cache is None and len(entries) <= KEEP_ITEMS_UP_TO:
+            cache = [None] * len(entries)
+        self._cache = cache
 
     def __len__(self) -> int:
         return len(self._entries)
@@ -167,6 +184,11 @@ class DatasetSamples(Sequence[DatasetItem]):
         """Image ids in order."""
         return [e[0] for e in self._entries]
 
+    @property
+    def image_paths(self) -> list[Path]:
+        """Image files in order (no GT file read)."""
+        return [self._base / e[1] for e in self._entries]
+
     @overload
     def __getitem__(self, index: int) -> DatasetItem: ...
 
@@ -175,10 +197,20 @@ class DatasetSamples(Sequence[DatasetItem]):
 
     def __getitem__(self, index: int | slice) -> DatasetItem | DatasetSamples:
         if isinstance(index, slice):
-            return DatasetSamples(self._base, self._shown, self._entries[index])
-        return self._item(self._entries[index])
+            return DatasetSamples(self._base, self._shown, self._entries[index],
+                                  None if self._cache is None else self._cache[index])
+        if self._cache is None:
+            return self._item(self._entries[index])
+        item = self._cache[index]
+        if item is None:
+            item = self._cache[index] = self._item(self._entries[index])
+        return item
 
     def __iter__(self) -> Iterator[DatasetItem]:
+        if self._cache is not None:
+            for i in range(len(self._entries)):
+                yield self[i]
+            return
         for entry in self._entries:
             yield self._item(entry)
 

@@ -468,9 +468,9 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
     owner: list[int] = []
     for k, (team, _) in enumerate(todo):
         command = team_command(opts.command, team.path)
-        for sample in data.samples:
+        for image in data.image_paths():
             units.append(GradeUnit(team=team.name, submission=str(team.path),
-                                   image=str(sample.image_path), command=command,
+                                   image=str(image), command=command,
                                    output=opts.output, settings=opts.settings))
             owner.append(k)
 
