@@ -116,24 +116,39 @@ def _warp_corner_greys(gray: np.ndarray) -> tuple[np.ndarray, float]:
 
 
 def test_marker_pixels_are_close_to_the_real_image(real, renders):
-    """Around the markers the render is 0.52 grey levels from the real image on average (the
-    issue's target: 2.0; 4.49 with the 1.047 rad camera fitted to the corners, 6.96 with the
-    earlier texture sampling), and no marker's square more than 0.6 (measured 0.49-0.59)."""
+    """Around the markers the render is 0.43 grey levels from the real image on average (the
+    issue's target: 2.0; 0.52 at llvmpipe's own level of detail, 4.49 with the 1.047 rad
+    camera fitted to the corners, 6.96 with the earlier texture sampling), and no marker's
+    square more than 0.5 (measured 0.41-0.49)."""
     squares = _marker_squares(real)
     diff = np.abs(renders[True].astype(float) - real)
-    assert diff[squares].mean() <= 0.6, diff[squares].mean()  # measured 0.52
+    assert diff[squares].mean() <= 0.48, diff[squares].mean()  # measured 0.43
     for marker_id, square in _marker_squares_by_id(real).items():
-        assert diff[square].mean() <= 0.7, (marker_id, diff[square].mean())
+        assert diff[square].mean() <= 0.55, (marker_id, diff[square].mean())
 
 
 def test_warp_corner_pixels_stay_above_otsu(real, renders):
     """Every-contour styles count a warp corner pixel darker than Otsu's threshold as an
     obstacle: on the real image all four are lighter (185, 187, 218, 239; threshold 182), and
-    so are the render's, within 2 grey levels of the real ones (184, 185, 217, 240); the
+    so are the render's, within 2 grey levels of the real ones (184, 187, 217, 239); the
     earlier texture sampling gave 148 at the top right, the earlier camera 210 at the top left."""
     want, otsu = _warp_corner_greys(real)
     got, _ = _warp_corner_greys(renders[True])
     assert (want > otsu).all() and (got > otsu).all(), (want, got, otsu)
+    assert np.abs(got - want).max() <= 2, (want, got)
+
+
+def test_jpeg_render_has_the_examples_top_left_warp_corner(real, renders):
+    """Through the twin's JPEG (quality 95) the render's warp corners are 185, 186, 219, 241
+    (real 185, 187, 218, 239): the top-left one, which Otsu's threshold of a single-box twin
+    scene reaches at 184, is the example's 185 (184 at llvmpipe's own level of detail, which
+    cost `style_otsu_every_contour` 6 of 200 twin scenes)."""
+    from arenabench.imageio import decode_image, encode_jpeg
+
+    bgr = decode_image(encode_jpeg(cv2.cvtColor(renders[True], cv2.COLOR_GRAY2BGR), quality=95))
+    want, _ = _warp_corner_greys(real)
+    got, _ = _warp_corner_greys(cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY))
+    assert got[0] == want[0], (want, got)
     assert np.abs(got - want).max() <= 2, (want, got)
 
 

@@ -32,7 +32,12 @@ vec3 linear_to_srgb(vec3 c)
 
 void main()
 {
-    vec4 texel = texture(material.base_color_texture, uv_0);
+    // GL's level of detail, lambda = log2(rho), rho the larger of the texel footprints of a
+    // pixel step in x and in y (derivatives per 2 x 2 quad, as GPUs take them), computed
+    // exactly: llvmpipe's implicit lambda comes out 0.03-0.04 lower (docs/rendering.md)
+    vec2 texels = uv_0 * vec2(textureSize(material.base_color_texture, 0));
+    float rho = max(length(dFdx(texels)), length(dFdy(texels)));
+    vec4 texel = textureLod(material.base_color_texture, uv_0, log2(rho));
     vec4 base_color = material.base_color_factor * vec4(linear_to_srgb(texel.rgb), texel.a);
 #ifdef COLOR_0_LOC
     base_color *= color_multiplier;
