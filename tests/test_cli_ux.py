@@ -328,6 +328,7 @@ def test_eval_progress_in_a_log_is_plain_lines(toy):
     assert "eval reference: 3/3 img (100 %)" in proc.stderr
 
 
+@pytest.mark.slow
 def test_generate_progress_in_a_log_is_plain_lines(tmp_path):
     proc = _run("generate", "--count", "2", "--out", str(tmp_path / "g"), "--workers", "1")
     assert proc.returncode == 0, proc.stderr

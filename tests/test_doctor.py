@@ -27,6 +27,7 @@ def test_checks_without_context_pass_here():
 
 
 @pytest.mark.skipif(not _gl_available(), reason="no EGL/OSMesa on this machine")
+@pytest.mark.slow
 def test_full_doctor_creates_a_context_and_exits_0(capsys):
     assert doctor.main(["--json"]) == 0
     data = json.loads(capsys.readouterr().out)
@@ -35,6 +36,7 @@ def test_full_doctor_creates_a_context_and_exits_0(capsys):
     assert ctx["ok"] and ctx["detail"].split(":")[0] in ("egl", "osmesa")
 
 
+@pytest.mark.slow
 def test_broken_platform_fails_with_fix_and_exit_1(monkeypatch, capsys):
     # A platform name PyOpenGL does not know: the subprocess fails, the caller survives.
     monkeypatch.setenv("PYOPENGL_PLATFORM", "nosuchplatform")

@@ -97,6 +97,7 @@ def test_csv_junit_markdown_html_written(run_dir):
     assert html.startswith("<!DOCTYPE html>") and "data:image/png;base64," in html
 
 
+@pytest.mark.slow
 def test_fail_under_thresholds_and_directions(toy, tmp_path, capsys):
     base = ["eval", str(toy), "--pipeline", "toy_arena:detect", "--no-progress"]
     assert arenabench_main([*base, "--fail-under", "pass_rate=0.95,count_exact_rate=1"]) == 0

@@ -470,6 +470,7 @@ def test_pids_cgroup_probe_is_thread_safe(monkeypatch):
 
 
 @pytest.mark.parametrize("sandbox", SANDBOXES)
+@pytest.mark.slow
 def test_ptrace_of_the_launcher_is_refused_and_the_timeout_holds(sandbox, toy, run_tmp):
     import time
 

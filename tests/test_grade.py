@@ -249,6 +249,7 @@ def test_changed_submission_or_options_are_graded_again(dataset, tmp_path):
     assert {r.team for r in fourth.rows} == {"a", "b"}
 
 
+@pytest.mark.slow
 def test_interrupted_grade_keeps_finished_teams(dataset, tmp_path):
     subs = _fast_teams(tmp_path / "subs", {"a": 1, "b": 2, "c": 3})
     out = tmp_path / "out"

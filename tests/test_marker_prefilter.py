@@ -80,6 +80,7 @@ def test_noise_is_skipped_without_a_pass():
         assert result.details["marker_passes"] == 0
 
 
+@pytest.mark.slow
 def test_blank_and_boxes_keep_their_results(monkeypatch):
     images = markerless_images(3)
     _assert_same_either_way(images["boxes"], monkeypatch, "boxes")
@@ -120,6 +121,7 @@ def test_sheets_of_one_to_three_markers(name, monkeypatch):
 
 
 @pytest.mark.parametrize("side", [24, 48, 96])
+@pytest.mark.slow
 def test_a_marker_pasted_on_noise(side, monkeypatch):
     image = np.random.default_rng(side).integers(0, 256, (1000, 1000), dtype=np.uint8)
     q = side // 2

@@ -77,6 +77,7 @@ print(json.dumps({"shape": list(rgb.shape), "dtype": str(rgb.dtype),
 """
 
 
+@pytest.mark.slow
 def test_the_naive_baseline_renders_through_the_interface():
     proc = subprocess.run([sys.executable, "-c", _NAIVE], capture_output=True, text=True,
                           timeout=300)

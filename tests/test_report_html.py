@@ -156,6 +156,7 @@ def _colour_pixels(image: np.ndarray) -> dict[str, int]:
     }
 
 
+@pytest.mark.slow
 def test_thumbnails_draw_the_builtin_pipelines_contours(chromium, builtin_pages, report_page,
                                                          tmp_path):
     """In the browser's screenshot: the reference pipeline's outlines (magenta) beside the GT
