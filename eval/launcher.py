@@ -311,6 +311,14 @@ def run(cfg: dict, *, become=None) -> int:
     cgroup = _make_cgroup(cfg.get("cgroup_parent"), cfg["pids_max"] if cfg["max_procs"] else "max")
     cleaned = False
     try:
+        if cgroup is None and cfg.get("cgroup_parent") and cfg["max_procs"]:
+            # the parent took a probe's pids cgroup: failing now, run nothing rather than run
+            # without the process limit (fail closed)
+            result["error"] = (f"cannot create the run's pids cgroup under "
+                               f"{cfg['cgroup_parent']}: --max-procs {cfg['max_procs']} cannot "
+                               "be enforced, so the command was not run")
+            cleaned = True
+            return 0
         r_out, w_out = os.pipe()
         r_err, w_err = os.pipe()
         start = time.perf_counter()

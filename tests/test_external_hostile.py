@@ -517,3 +517,21 @@ def test_sigterm_with_a_command_that_ignores_it_is_not_exit_0(toy, tmp_path, tar
         return Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0] == "Z"
 
     assert wait_for(gone, timeout=10)
+
+
+@pytest.mark.parametrize("warm", [False, True])
+def test_a_run_whose_pids_cgroup_cannot_be_made_is_not_run(warm, toy, run_tmp, tmp_path):
+    """The pids cgroup parent was probed writable but the run's own cgroup cannot be made (here:
+    the parent vanished): the command is not run at all, rather than run without --max-procs."""
+    ran = tmp_path / "ran"
+    script = tmp_path / "map.py"
+    script.write_text(f"open({str(ran)!r}, 'w').close()\n")
+    settings = RunSettings(limits=RunLimits(timeout_s=30.0, max_procs=16), sandbox="none",
+                           warm=warm)
+    pipe = CommandPipeline(f"{PY} {script} --image {{image}}", settings=settings)
+    pipe._cgroup = str(tmp_path / "no such cgroup")
+    images = evaluate(pipe, toy, workers=1, limit=1).images
+    assert images[0].prediction.status == "crash"
+    assert "cannot create the run's pids cgroup" in images[0].prediction.message
+    assert "--max-procs 16 cannot be enforced" in images[0].prediction.message
+    assert not ran.exists()
