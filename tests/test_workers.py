@@ -1,6 +1,8 @@
 """One worker module: the state registry, the llvmpipe cap, the core count."""
 
 import os
+import subprocess
+import sys
 import threading
 
 import pytest
@@ -53,6 +55,14 @@ def test_init_worker_sets_lp_num_threads_unless_set(monkeypatch):
     assert os.environ["LP_NUM_THREADS"] == "3"
     workers.init_worker(5)
     assert os.environ["LP_NUM_THREADS"] == "3"
+
+
+def test_init_worker_outside_a_pool_keeps_the_exit_status():
+    """Its fast-exit hook belongs to pool workers: called in a main process (as a test does),
+    the process must still exit with its own status (else a failing pytest run exits 0)."""
+    code = ("import sys; from arenabench import workers; workers.init_worker(2, None); "
+            "sys.exit(7)")
+    assert subprocess.run([sys.executable, "-c", code]).returncode == 7
 
 
 def test_task_records_pickle():

@@ -85,10 +85,12 @@ def init_worker(lp_threads: int | None = None, parent_pid: int | None = None) ->
         os.environ[LLVMPIPE_THREADS_ENV] = str(int(lp_threads))
     # The last of multiprocessing's exit hooks in this worker: once its tasks are done and
     # their results sent, it exits without tearing the interpreter down (GL context, modules:
-    # about 0.4 s), so that a pool's close() + join() returns at once.
+    # about 0.4 s), so that a pool's close() + join() returns at once. Only in a process that
+    # multiprocessing started: anywhere else it would turn the process's exit status into 0.
     import multiprocessing.util
 
-    multiprocessing.util.Finalize(None, _exit_now, exitpriority=-100)
+    if multiprocessing.parent_process() is not None:
+        multiprocessing.util.Finalize(None, _exit_now, exitpriority=-100)
 
 
 def _exit_now() -> None:
