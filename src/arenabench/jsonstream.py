@@ -14,13 +14,12 @@ from __future__ import annotations
 import contextlib
 import json
 import os
-import tempfile
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from arenabench.fileio import _FILE_MODE, TEMP_SUFFIX, json_safe
+from arenabench.fileio import atomic_writer, json_safe
 
 _INDENT = "  "
 
@@ -95,25 +94,10 @@ def write_json_stream(path: str | os.PathLike[str], obj: Any) -> Path:
     return Path(path)
 
 
-@contextlib.contextmanager
-def atomic_text_writer(path: str | os.PathLike[str]) -> Iterator[IO[str]]:
+def atomic_text_writer(path: str | os.PathLike[str]) -> contextlib.AbstractContextManager[IO[str]]:
     """A UTF-8 text file (no newline translation) written piece by piece and renamed over
-    ``path`` when the block ends without an exception (as
-    :func:`arenabench.fileio.atomic_write_bytes`, which needs the whole content at once)."""
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{target.name}.", suffix=TEMP_SUFFIX, dir=target.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="") as fh:
-            yield fh
-        os.chmod(tmp, _FILE_MODE)
-        os.replace(tmp, target)
-    except BaseException:
-        try:
-            os.unlink(tmp)
-        except FileNotFoundError:
-            pass
-        raise
+    ``path`` when the block ends without an exception (:func:`arenabench.fileio.atomic_writer`)."""
+    return atomic_writer(path, text=True)
 
 
 def write_pieces(fh: IO[str], pieces: Iterable[str], *, chunk_chars: int = 1 << 20) -> None:
