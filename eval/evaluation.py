@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from arenabench.interrupts import checkpoint
 from arenabench.workers import process_state, usable_cores
 
 from .breakdown import breakdown, rank_causes
@@ -336,6 +337,7 @@ def _run_all(samples: Iterable[DatasetItem], submit: Callable[[DatasetItem], Fut
 
     refill()
     while pending:
+        checkpoint()  # a stop signal a library swallowed
         done, _ = wait(pending, return_when=FIRST_COMPLETED)
         for fut in done:
             i, sample = pending.pop(fut)

@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 from arenabench.gtrecord import GroundTruth
+from arenabench.interrupts import checkpoint
 
 from .results import ImageResult, Prediction
 
@@ -341,6 +342,7 @@ def check_phases(
         with ThreadPoolExecutor(max_workers=max(1, workers),
                                 thread_name_prefix="arenabench-phase") as pool:
             for i in failing:
+                checkpoint()  # a stop signal the re-rendering swallowed (trimesh)
                 folder = Path(tmp, f"{i:06d}")
                 folder.mkdir()
                 suffix = Path(results[i].image).suffix or ".png"

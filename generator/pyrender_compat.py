@@ -24,6 +24,7 @@ import numpy as np
 
 from arenabench import glplatform
 from arenabench.glplatform import PYRENDER_VERSION
+from arenabench.interrupts import deferred_stops
 
 __all__ = ["PYRENDER_VERSION", "LeanOffscreen", "SrgbTexture", "check_version", "draw_order",
            "pyrender"]
@@ -62,7 +63,8 @@ def _import_pyrender():
     for name in held:
         sys.modules[name] = None  # type: ignore[assignment]  # importing it fails meanwhile
     try:
-        import pyrender
+        with deferred_stops():  # a Ctrl-C that trimesh's imports swallowed would break them
+            import pyrender
     finally:
         for name in held:
             if name in sys.modules and sys.modules[name] is None:

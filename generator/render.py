@@ -46,6 +46,7 @@ from arenabench.generator.renderer_api import RenderOutput, SceneRenderer
 from arenabench.generator.scene import Obstacle, Scene
 from arenabench.generator.shading import floor_factor, shade_factors
 from arenabench.generator.textures import floor_texture, marker_texture
+from arenabench.interrupts import deferred_stops
 
 _GL_LINEAR = 9729
 #: Trilinear: ogre2's default sampler (``HlmsSamplerblock``: min, mag and mip filters
@@ -163,6 +164,14 @@ class Renderer(SceneRenderer):
         self.antialias = bool(antialias)
         self._offscreen: pyrender_compat.LeanOffscreen | None = None
         self._size: tuple[int, int] | None = None
+        # pyrender textures by the identity of their (cached, read-only) image: pyrender keeps
+        # a texture in the GL context while any mesh uses it, so reusing the object between
+        # scenes avoids re-uploading it
+        self._textures: dict[int, tuple[np.ndarray, Any]] = {}
+        self._new_scene()
+
+    def _new_scene(self) -> None:
+        """An empty pyrender scene and no cached layer: the state of a new renderer."""
         self._scene = self._pr.Scene(bg_color=[1.0, 1.0, 1.0, 1.0], ambient_light=[1, 1, 1])
         # floor node keyed by the arena; marker nodes by (arena, markers): a scene that changes
         # only the markers (e.g. a drawn markers.side_m) keeps the big floor texture uploaded
@@ -170,10 +179,6 @@ class Renderer(SceneRenderer):
         self._floor_nodes: list = []
         self._markers_key = None
         self._marker_nodes: list = []
-        # pyrender textures by the identity of their (cached, read-only) image: pyrender keeps
-        # a texture in the GL context while any mesh uses it, so reusing the object between
-        # scenes avoids re-uploading it
-        self._textures: dict[int, tuple[np.ndarray, Any]] = {}
         self._obstacle_nodes: list = []
         self._overlay_nodes: list = []
         self._camera_node = None
@@ -328,7 +333,15 @@ class Renderer(SceneRenderer):
         key = (scene, bool(depth), bool(masks), self.antialias)
         if self._last is not None and self._last[0] == key:
             return _copied(self._last[1])
-        out = self._render(scene, depth=depth, masks=masks)
+        # A stop signal waits for the render to end (arenabench.interrupts.deferred_stops):
+        # raised inside trimesh or PyOpenGL it was swallowed (``except BaseException``) or
+        # turned into a ctypes.ArgumentError, a crash instead of a stop.
+        with deferred_stops():
+            try:
+                out = self._render(scene, depth=depth, masks=masks)
+            except BaseException:  # e.g. KeyboardInterrupt between two node updates
+                self._new_scene()
+                raise
         self._last = (key, _copied(out, writeable=False))
         return out
 

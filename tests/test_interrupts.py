@@ -19,8 +19,10 @@ from pathlib import Path
 
 import pytest
 
+from arenabench.cli import run
 from arenabench.fileio import sha256_file
-from arenabench.interrupts import Interrupted, stop_on_signals
+from arenabench.interrupts import Interrupted, checkpoint, stop_on_signals
+from arenabench.local_pool import local_map
 
 #: Long enough that a signal sent after the third image lands mid-run (a twin image takes
 #: about 30 ms with one worker).
@@ -140,6 +142,56 @@ def test_stop_on_signals_raises_once_and_defers():
                 done = True  # the block ran to its end
         assert done and stop.signal_name == "SIGINT" and stop.exit_code == 130
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def _swallowed_signal(sig: int = signal.SIGINT) -> None:
+    """What trimesh does around its imports: ``except BaseException`` eats the Interrupted."""
+    try:
+        os.kill(os.getpid(), sig)
+        time.sleep(5)
+    except BaseException:  # the library's habit under test
+        pass
+
+
+def test_a_stop_a_library_swallowed_is_raised_again_at_the_next_checkpoint():
+    checkpoint()  # outside a stop_on_signals block: nothing to raise
+    with stop_on_signals() as stop:
+        _swallowed_signal()
+        assert stop.requested
+        with stop.deferred():
+            checkpoint()  # held back while a deferred block runs
+        with pytest.raises(Interrupted) as info:  # ... and raised when it ends
+            checkpoint()
+        assert info.value.exit_code == 130
+    checkpoint()  # the block is left: nothing pending any more
+
+
+def test_local_map_stops_after_the_task_that_swallowed_the_stop():
+    ran = []
+
+    def task(i: int) -> int:
+        ran.append(i)
+        if i == 1:
+            _swallowed_signal(signal.SIGTERM)
+        return i
+
+    got = []
+    with stop_on_signals(), pytest.raises(Interrupted) as info:
+        for value in local_map(task, range(5), workers=1):
+            got.append(value)
+    assert ran == [0, 1] and got == [0, 1] and info.value.signum == signal.SIGTERM
+
+
+def test_a_command_that_returns_0_after_a_stop_exits_with_its_status(capsys):
+    def command() -> int:
+        with stop_on_signals():
+            _swallowed_signal()
+        return 0
+
+    assert run(command) == 130
+    assert capsys.readouterr().err == (
+        "arenabench: SIGINT arrived as the command finished; its outputs are complete\n")
+    assert run(lambda: 0) == 0  # the next command starts afresh
 
 
 @pytest.mark.slow
@@ -359,3 +411,38 @@ def test_eval_stopped_before_any_image_still_writes_empty_partial_reports(toy3, 
     assert report["complete"] is False and report["images"] == []
     assert sorted(p.name for p in out.iterdir()) == [
         "junit.xml", "report.html", "report.json", "report.md", "results.csv"]
+
+
+
+def test_a_stop_during_the_pyrender_import_waits_for_it_to_finish():
+    """trimesh imports ``trimesh.path`` inside ``except BaseException`` and keeps an
+    ExceptionWrapper in its place: a stop landing there was swallowed and broke the process
+    (a later TypeError reported as a broken OpenGL context). The import now runs whole and
+    the stop is raised after it. A fresh interpreter, signalled as ``trimesh.path`` starts."""
+    code = """
+import os, signal, sys
+from arenabench.interrupts import Interrupted, stop_on_signals
+
+def tracer(frame, event, arg):
+    if event == "call" and frame.f_code.co_filename.endswith(
+            os.path.join("trimesh", "path", "__init__.py")):
+        sys.settrace(None)
+        os.kill(os.getpid(), signal.SIGINT)
+
+with stop_on_signals():
+    sys.settrace(tracer)
+    try:
+        from arenabench.generator.make import worker_gl_info
+        worker_gl_info()  # imports pyrender, hence trimesh
+        print("not interrupted")
+    except Interrupted:
+        print("interrupted")
+    sys.settrace(None)
+import trimesh
+from arenabench.generator.make import worker_gl_info
+print(type(trimesh.path).__name__, "gl_renderer" in worker_gl_info())
+"""
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                          timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.split() == ["interrupted", "module", "True"], done.stdout + done.stderr

@@ -133,3 +133,38 @@ def test_a_noise_sweep_gives_the_images_of_a_fresh_renderer(tmp_path):
             sample = make_sample(spec.preset, seed=spec.seed, index=s,
                                  overrides={**spec.overrides, **points[p]}, renderer=fresh)
         assert png == encode_png(sample.bgr), (p, s)
+
+
+def test_a_render_interrupted_between_two_node_updates_leaves_the_renderer_usable():
+    """Ctrl-C may land anywhere in a render; the next render must still be right (it failed
+    with "node not in the digraph" when the camera had been removed and not added back)."""
+    import sys
+
+    a, b = _scenes()
+    want = _fresh(b)
+
+    def interrupt_after_camera_removal(frame, event, arg):
+        if frame.f_code.co_name != "_update_dynamic":
+            return None
+
+        def line(frame, event, arg):
+            if event == "line" and "cam.intrinsics" in _source_line(frame):
+                raise KeyboardInterrupt
+            return line
+        return line
+
+    with Renderer() as r:
+        r.render(a)
+        sys.settrace(interrupt_after_camera_removal)
+        try:
+            with pytest.raises(KeyboardInterrupt):
+                r.render(b)
+        finally:
+            sys.settrace(None)
+        _equal(r.render(b), want)
+
+
+def _source_line(frame) -> str:
+    import linecache
+
+    return linecache.getline(frame.f_code.co_filename, frame.f_lineno)

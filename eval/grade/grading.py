@@ -41,6 +41,7 @@ from arenabench.fileio import (
     sha256_bytes,
     sha256_file,
 )
+from arenabench.interrupts import checkpoint
 from arenabench.workers import init_worker, process_state, usable_cores
 
 from ..dataset_reader import AREA_REFERENCES, Dataset, load_dataset
@@ -282,6 +283,7 @@ def _threads(units: list[GradeUnit],
     futures = {pool.submit(runs.run, u): i for i, u in enumerate(units)}
     try:
         for fut in as_completed(futures):
+            checkpoint()
             yield futures[fut], fut.result()
     finally:
         runs.stop()  # no-op after the last unit; on an interrupt, ends the running commands

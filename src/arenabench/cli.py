@@ -90,7 +90,9 @@ def _dispatch(args: list[str]) -> int:
 
 def run(entry: Callable[[], int | None]) -> int:
     """Call a command's ``entry()`` and return its exit status, quietly giving up when the
-    reader of stdout has gone away (a closed pipe): no traceback, exit status 141.
+    reader of stdout has gone away (a closed pipe): no traceback, exit status 141. A command
+    that returns 0 after a stop signal (:func:`arenabench.interrupts.received`) exits with
+    that signal's status.
 
     Parameters
     ----------
@@ -101,9 +103,18 @@ def run(entry: Callable[[], int | None]) -> int:
     -------
     int
     """
+    from arenabench import interrupts
+
+    interrupts.forget_received()
     try:
         rc = int(entry() or 0)
         sys.stdout.flush()
+        if rc == 0 and (signum := interrupts.received()) is not None:
+            # the stop reached no checkpoint before the work ended: its outputs are whole,
+            # but a stopped command does not exit 0
+            print(f"arenabench: {interrupts.signal_name(signum)} arrived as the command "
+                  "finished; its outputs are complete", file=sys.stderr)
+            return interrupts.exit_code(signum)
         return rc
     except KeyboardInterrupt:  # Ctrl-C outside a command's own handling (or after it)
         import signal

@@ -14,6 +14,8 @@ from __future__ import annotations
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
+from arenabench.interrupts import checkpoint
+
 
 def connect(scheduler: Any) -> Any:
     """A ``distributed.Client`` of ``scheduler``.
@@ -71,6 +73,7 @@ def cluster_map(
         del futures  # from here on only `done` holds the pending futures
         try:
             for fut in done:
+                checkpoint()
                 result = fut.result()
                 key = fut.key
                 del fut  # release the result on the worker before handing it over

@@ -17,12 +17,16 @@ The first SIGINT or SIGTERM raises :class:`Interrupted` in the main thread, wher
 ``finally`` blocks: pools are shut down, subprocesses killed, temporary files removed.
 :class:`Interrupted` derives from ``BaseException``, so ``except Exception`` does not swallow
 it. ``with stop.deferred():`` holds it back while a block runs and raises it when the block
-ends. A second signal does not cut the unwinding short: what finished is still written (partial
-reports take a second or two; one line on stderr says so); a third exits at once with the same
-status (the user insists). A signal ignored
-when the block is entered (``nohup``, a background job of a non-interactive shell) stays
-ignored. Exit statuses follow the shell's convention for a process ended by a signal:
-128 + the signal number.
+ends. Libraries may swallow it all the same (trimesh wraps its imports, and some of its
+computations, in ``except BaseException``; Python drops an exception raised in a ``__del__``),
+so every work loop also calls :func:`checkpoint` between its units: it raises
+:class:`Interrupted` again once a stop was asked, and :func:`arenabench.cli.run` turns a
+command that still returns 0 after a stop signal into that signal's exit status. A second
+signal does not cut the unwinding short: what finished is still written (partial reports
+take a second or two; one line on stderr says so); a third exits at once with the same status
+(the user insists). A signal ignored when the block is entered (``nohup``, a background job
+of a non-interactive shell) stays ignored. Exit statuses follow the shell's convention for a
+process ended by a signal: 128 + the signal number.
 
 In worker processes (a ``multiprocessing`` pool's initializer): :func:`init_worker_process`
 makes the worker die with its parent (even one killed with SIGKILL; Linux), ignore SIGINT
@@ -130,7 +134,10 @@ class StopRequest:
             self.check()
 
     def _handle(self, signum: int, frame) -> None:
+        global _received
         self.count += 1
+        if _received is None:
+            _received = int(signum)
         if self.count >= INSIST_SIGNALS:  # the user insists: leave now
             os._exit(exit_code(self.signum or signum))
         if self.signum is not None:  # a second signal: finish writing what finished
@@ -143,6 +150,56 @@ class StopRequest:
         self.signum = int(signum)
         if not self._deferring:
             self.check()
+
+
+#: The :class:`StopRequest` of every :func:`stop_on_signals` block now entered (innermost last).
+_ACTIVE: list[StopRequest] = []
+#: The first stop signal a :func:`stop_on_signals` block received since :func:`forget_received`.
+_received: int | None = None
+
+
+def checkpoint() -> None:
+    """Raise :class:`Interrupted` when the innermost :func:`stop_on_signals` block got a stop.
+
+    Call it between a loop's units of work (an image, a render, a team). The handler already
+    raised :class:`Interrupted` where the main thread was, but a library may have swallowed it
+    (trimesh catches ``BaseException`` around imports and computations); raising it again
+    here keeps a stop from being lost. No effect outside such a block, or inside a
+    :meth:`StopRequest.deferred` block (the stop is raised when that block ends).
+    """
+    if _ACTIVE:
+        stop = _ACTIVE[-1]
+        if stop.signum is not None and not stop._deferring:
+            stop._raised = True
+            raise Interrupted(stop.signum)
+
+
+@contextmanager
+def deferred_stops() -> Iterator[None]:
+    """:meth:`StopRequest.deferred` of the innermost :func:`stop_on_signals` block (no effect
+    outside one, or outside the main thread).
+
+    For code that a stop must not cut in two, when the caller has no :class:`StopRequest` at
+    hand: importing trimesh, whose ``except BaseException`` around optional imports would
+    swallow the stop and leave the module half-imported for the rest of the process.
+    """
+    if _ACTIVE and threading.current_thread() is threading.main_thread():
+        with _ACTIVE[-1].deferred():
+            yield
+    else:
+        yield
+
+
+def received() -> int | None:
+    """The first stop signal received inside a :func:`stop_on_signals` block since
+    :func:`forget_received` (None: none)."""
+    return _received
+
+
+def forget_received() -> None:
+    """Start a command afresh: :func:`received` is None until its next stop signal."""
+    global _received
+    _received = None
 
 
 @contextmanager
@@ -170,9 +227,11 @@ def stop_on_signals(signals: tuple[int, ...] = STOP_SIGNALS) -> Iterator[StopReq
             continue
         previous[sig] = old
         signal.signal(sig, stop._handle)
+    _ACTIVE.append(stop)
     try:
         yield stop
     finally:
+        _ACTIVE.remove(stop)
         for sig, old in previous.items():
             signal.signal(sig, old)
 

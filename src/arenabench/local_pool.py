@@ -11,6 +11,8 @@ The pool's rules, stated here once:
   the llvmpipe threads their share of the cores allows and this process's pid
   (:func:`arenabench.workers.init_worker`, or an initializer with the same arguments);
 - results come back in completion order, one task at a time (``chunksize=1``);
+- before each task run here and after each result from a worker,
+  :func:`arenabench.interrupts.checkpoint` raises a stop signal a library swallowed;
 - a stop signal (:class:`arenabench.interrupts.Interrupted`), or the caller closing the
   iterator early, ends the workers (:func:`arenabench.interrupts.stop_workers`) before the
   pool's own ``terminate()``, which waits on them;
@@ -29,7 +31,7 @@ import os
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
-from arenabench.interrupts import children_ignore_sigint, stop_workers
+from arenabench.interrupts import checkpoint, children_ignore_sigint, stop_workers
 from arenabench.workers import check_workers, init_worker, llvmpipe_threads
 
 
@@ -67,6 +69,7 @@ def local_map(
     items = list(items)
     if check_workers(workers) == 1 or len(items) <= 1:
         for item in items:
+            checkpoint()
             yield func(item)
         return
     lp = llvmpipe_threads(workers)
@@ -75,7 +78,9 @@ def local_map(
         pool = ctx.Pool(workers, initializer=initializer, initargs=(lp, os.getpid()))
     with pool:
         try:
-            yield from pool.imap_unordered(func, items, chunksize=1)
+            for result in pool.imap_unordered(func, items, chunksize=1):
+                checkpoint()
+                yield result
         except Exception:  # a task failed: leaving the with, terminate() ends the workers
             raise
         except BaseException:  # interrupted, or the caller closed this iterator early
