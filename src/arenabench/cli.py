@@ -103,13 +103,15 @@ def run(entry: Callable[[], int | None]) -> int:
     -------
     int
     """
-    from arenabench import interrupts
-
-    interrupts.forget_received()
+    # only a command that imported arenabench.interrupts can have received a stop (a
+    # command such as detect, run once per image, does not pay for importing it)
+    if (interrupts := sys.modules.get("arenabench.interrupts")) is not None:
+        interrupts.forget_received()
     try:
         rc = int(entry() or 0)
         sys.stdout.flush()
-        if rc == 0 and (signum := interrupts.received()) is not None:
+        interrupts = sys.modules.get("arenabench.interrupts")
+        if rc == 0 and interrupts is not None and (signum := interrupts.received()) is not None:
             # the stop reached no checkpoint before the work ended: its outputs are whole,
             # but a stopped command does not exit 0
             print(f"arenabench: {interrupts.signal_name(signum)} arrived as the command "
