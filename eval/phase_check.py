@@ -342,7 +342,7 @@ def check_phases(
         with ThreadPoolExecutor(max_workers=max(1, workers),
                                 thread_name_prefix="arenabench-phase") as pool:
             for i in failing:
-                checkpoint()  # a stop signal the re-rendering swallowed (trimesh)
+                checkpoint()  # a stop signal a library swallowed
                 folder = Path(tmp, f"{i:06d}")
                 folder.mkdir()
                 suffix = Path(results[i].image).suffix or ".png"

@@ -18,10 +18,12 @@ The first SIGINT or SIGTERM raises :class:`Interrupted` in the main thread, wher
 :class:`Interrupted` derives from ``BaseException``, so ``except Exception`` does not swallow
 it. ``with stop.deferred():`` holds it back while a block runs and raises it when the block
 ends. Libraries may swallow it all the same (trimesh wraps its imports, and some of its
-computations, in ``except BaseException``; Python drops an exception raised in a ``__del__``),
-so every work loop also calls :func:`checkpoint` between its units: it raises
-:class:`Interrupted` again once a stop was asked, and :func:`arenabench.cli.run` turns a
-command that still returns 0 after a stop signal into that signal's exit status. A second
+computations, in ``except BaseException``; PyOpenGL turns it into ``ctypes.ArgumentError``;
+Python drops an exception raised in a ``__del__``). So code that runs such libraries holds a
+stop until it ends (:func:`deferred_stops`: a render, the import of pyrender), every work loop
+calls :func:`checkpoint` between its units, which raises :class:`Interrupted` again once a
+stop was asked, and :func:`arenabench.cli.run` turns a command that still returns 0 after a
+stop signal into that signal's exit status. A second
 signal does not cut the unwinding short: what finished is still written (partial reports
 take a second or two; one line on stderr says so); a third exits at once with the same status
 (the user insists). A signal ignored when the block is entered (``nohup``, a background job
@@ -180,8 +182,9 @@ def deferred_stops() -> Iterator[None]:
     outside one, or outside the main thread).
 
     For code that a stop must not cut in two, when the caller has no :class:`StopRequest` at
-    hand: importing trimesh, whose ``except BaseException`` around optional imports would
-    swallow the stop and leave the module half-imported for the rest of the process.
+    hand: a render (trimesh and PyOpenGL would swallow the stop or turn it into a crash) and
+    the import of pyrender (trimesh's ``except BaseException`` around its optional imports
+    would leave a module half-imported for the rest of the process).
     """
     if _ACTIVE and threading.current_thread() is threading.main_thread():
         with _ACTIVE[-1].deferred():
