@@ -655,15 +655,6 @@ def _sandbox_overhead(image: Path, runs: int) -> tuple[float, dict[str, Any]]:
 SCRIPT_PATH = Path(__file__).with_name("bench_map.py")
 
 
-def _cpu_s() -> float:
-    """CPU seconds of this process and of its children that have been waited for."""
-    import resource
-
-    me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(
-        resource.RUSAGE_CHILDREN)
-    return me.ru_utime + me.ru_stime + kids.ru_utime + kids.ru_stime
-
-
 def script_per_image(images: list[Path]) -> tuple[dict[str, float], dict[str, Any]]:
     """Item 9: CPU (and wall) ms per image of :data:`SCRIPT_PATH` run in this process with
     :mod:`runpy`, as a cold command and through its warm interpreter (one image at a time).
@@ -691,31 +682,31 @@ def script_per_image(images: list[Path]) -> tuple[dict[str, float], dict[str, An
         os.chdir(work)
         for i in range(len(images) + 1):  # the first run warms up (imports)
             if i == 1:
-                c0, t0 = _cpu_s(), time.perf_counter()
+                c0, t0 = _cpu_seconds(), time.perf_counter()
             sys.argv = [str(SCRIPT_PATH), "--image", str(images[max(0, i - 1)])]
             try:
                 runpy.run_path(str(SCRIPT_PATH), run_name="__main__")
             except SystemExit:
                 pass
-        cpu["inprocess"], wall["inprocess"] = _cpu_s() - c0, time.perf_counter() - t0
+        cpu["inprocess"], wall["inprocess"] = _cpu_seconds() - c0, time.perf_counter() - t0
     finally:
         os.chdir(old_cwd)
         sys.argv = old_argv
         shutil.rmtree(work, ignore_errors=True)
     for name, warm in (("cold", False), ("warm", True)):
-        c0, t0 = _cpu_s(), time.perf_counter()
+        c0, t0 = _cpu_seconds(), time.perf_counter()
         pipe = CommandPipeline(cmd, settings=RunSettings(warm=warm))
         preds = [pipe.run(image) for image in images]
         pipe.close()  # the warm server ends (and is waited for): its CPU time is counted
-        cpu[name], wall[name] = _cpu_s() - c0, time.perf_counter() - t0
+        cpu[name], wall[name] = _cpu_seconds() - c0, time.perf_counter() - t0
         answers[name] = [(p.status, p.count, p.area) for p in preds]
     # the warm server's start and end alone (with one run): what the warm figure spends once
-    c0 = _cpu_s()
+    c0 = _cpu_seconds()
     pipe = CommandPipeline(cmd, settings=RunSettings(warm=True))
     pipe.run(images[0])
     pipe.close()
     warm_client.close_all()
-    once = 1000.0 * (_cpu_s() - c0)
+    once = 1000.0 * (_cpu_seconds() - c0)
     n = len(images)
     per = {k: 1000.0 * v / n for k, v in cpu.items()}
     figures = {

@@ -13,7 +13,7 @@ import pytest
 
 from arenabench.eval.external import CommandPipeline
 from arenabench.eval.run_limits import RunSettings
-from arenabench.eval.warm_client import WARM_UP_SOURCE, close_all
+from arenabench.eval.warm_client import WARM_UP_SOURCE, WarmTarget, _server_for, close_all
 
 PROBE = r"""
 import json, random, sys
@@ -87,3 +87,37 @@ def test_a_submissions_own_module_of_a_preloaded_name_is_its_own(tmp_path, warm)
         close_all()
     assert [p.status for p in preds] == ["ok", "ok"], preds[0].stderr
     assert [p.stdout.strip() for p in preds] == ["the team", "the team"]
+
+
+def _threads_of_server(home):
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            argv = (entry / "cmdline").read_bytes().split(b"\0")
+            status = (entry / "status").read_text()
+        except OSError:
+            continue
+        if argv[1:2] == [b"-c"] and home.encode() in argv:  # not the keeper (python -I -S)
+            return int(status.split("Threads:")[1].split()[0])
+    raise AssertionError(f"no server process with {home} on its command line")
+
+
+def test_the_server_is_single_threaded_when_ready(tmp_path):
+    """numpy's and OpenCV's OpenBLAS start spinning threads at import; the server stops them
+    (as each run's fork would) before it says it is ready, rather than let them spin."""
+    script = tmp_path / "map.py"
+    script.write_text("import cv2\nimport numpy\n")
+    image = tmp_path / "img.png"
+    image.write_bytes(b"not read")
+    close_all()
+    try:
+        pipe = CommandPipeline(f"{sys.executable} {script} --image {{image}}",
+                               settings=RunSettings(sandbox="none"))
+        server = _server_for(pipe, WarmTarget(script=str(script)), image)
+        assert server is not None
+        threads = _threads_of_server(server.home)  # no run forked yet
+        pipe.close()
+    finally:
+        close_all()
+    assert threads == 1
