@@ -163,11 +163,12 @@ def _threads():
 def stop_library_threads():
     """Stop the worker threads a library started at import, the way every run's fork does.
 
-    numpy's and OpenCV's OpenBLAS start a thread per core when loaded; idle, each spins for
-    about 0.1 s before sleeping (about 80 ms of CPU per server start, on 2 cores). Their fork
-    handlers (``pthread_atfork``) stop them before a fork, and they start again only on a
-    later parallel call: a fork and ``_exit`` here leaves the server as the first run's fork
-    leaves it, so a run inherits the same state as before, sooner.
+    numpy's and OpenCV's OpenBLAS start a worker thread per core beyond the first when
+    loaded; idle, each spins for about 0.1 s before it sleeps (about 80 ms of CPU per server
+    start, measured on 2 cores). Their fork handlers (``pthread_atfork``) stop them before a
+    fork, and they start again only on a later parallel call: a fork and ``_exit`` here
+    leaves the server as the first run's fork leaves it, so a run inherits the same state as
+    before, sooner.
     """
     if _threads() <= 1:
         return
@@ -175,7 +176,10 @@ def stop_library_threads():
 
     with warnings.catch_warnings():  # Python 3.12+: "multi-threaded, use of fork()" (it is
         warnings.simplefilter("ignore", DeprecationWarning)  # only _exit in the child)
-        pid = os.fork()
+        try:
+            pid = os.fork()
+        except OSError:  # no process to spare: the threads spin a while longer
+            return
     if pid == 0:
         os._exit(0)
     os.waitpid(pid, 0)
