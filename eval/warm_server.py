@@ -164,7 +164,7 @@ def stop_library_threads():
     """Stop the worker threads a library started at import, the way every run's fork does.
 
     numpy's and OpenCV's OpenBLAS start a worker thread per core beyond the first when
-    loaded; idle, each spins for about 0.1 s before it sleeps (about 80 ms of CPU per server
+    loaded; idle, each spins for about 0.1 s before it sleeps (about 60 ms of CPU per server
     start, measured on 2 cores). Their fork handlers (``pthread_atfork``) stop them before a
     fork, and they start again only on a later parallel call: a fork and ``_exit`` here
     leaves the server as the first run's fork leaves it, so a run inherits the same state as
