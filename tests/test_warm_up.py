@@ -1,6 +1,7 @@
 """The warm server's warm-up (eval/warm_up.py) in a fresh interpreter, and what a run sees of
 it: the libraries exercised on synthetic data only, OpenCV's threads and every random
-generator left as they were, a submission's own module of a preloaded name its own."""
+generator left as they were, a submission's own module of a preloaded name its own; and the
+server single-threaded when it says it is ready (the libraries' spinning threads stopped)."""
 
 from __future__ import annotations
 
