@@ -651,8 +651,7 @@ def _generate_locked(out: str | os.PathLike[str], args: DatasetArgs, *, workers:
     start = time.perf_counter()
     meta = _check_existing(root, args)
     # ours (same arguments) or empty: files a killed run was writing are garbage
-    for folder in (root, root / "images", root / "gt"):
-        remove_temp_files(folder)
+    _remove_temp_files(root)
     todo = [i for i in range(args.count) if not _present(root, scene_id(i), args.image_ext)]
     skipped = args.count - len(todo)
     if meta is not None and meta.get("complete") and not todo:
@@ -669,8 +668,16 @@ def _generate_locked(out: str | os.PathLike[str], args: DatasetArgs, *, workers:
             for name in ("dataset.json", "manifest.jsonl", "coco.json"):
                 (root / name).unlink(missing_ok=True)
         else:  # resumed or extended: the set as it was (scenes finished are kept)
+            _remove_temp_files(root)
             atomic_write_bytes(root / "dataset.json", old_meta)
         raise
+
+
+def _remove_temp_files(root: Path) -> None:
+    """Remove the half-written files of the set's writers (this process holds the lock, and
+    its workers have ended)."""
+    for folder in (root, root / "images", root / "gt"):
+        remove_temp_files(folder)
 
 
 def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
@@ -702,6 +709,9 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
                     bar.update(1)
     except Interrupted as exc:
         bar.close()
+        # the workers have ended; one that did not unwind in its grace time was killed and
+        # may have left the file it was writing
+        _remove_temp_files(root)
         finished = _finish_partial(root, args, results)
         return DatasetResult(root, len(results), skipped, time.perf_counter() - start,
                              count=args.count, interrupted=exc.signum, finished=finished)

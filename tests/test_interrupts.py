@@ -201,6 +201,10 @@ def test_generate_stops_keeps_what_finished_and_resumes_byte_identical(
     out = tmp_path / "ds"
     proc = _arenabench(*_generate_args(out, workers))
     _wait_until(proc, lambda: _count(out / "gt") >= 3)
+    # what a worker killed in the middle of a write leaves (one that did not unwind in its
+    # grace time): the stopped run removes it
+    for name in ("images/.000098.jpg.k1ll3d.tmp", "gt/.000098.json.k1ll3d.tmp"):
+        (out / name).write_bytes(b"half")
     rc, err, seconds, kids = _stop(proc, sig)
     assert rc == 128 + sig, err
     assert seconds < STOP_S
