@@ -305,7 +305,7 @@ class CommandPipeline:
         if self.sandbox == "bwrap":
             argv = self._bwrap_argv(work, tmp, image_path) + self.argv(image_path)
             env = self._env(SANDBOX_DIR, "/tmp")
-            pids_max = lim.max_procs + 2  # bubblewrap's own two processes
+            pids_max = lim.max_procs + 1  # bubblewrap's own process (the command is pid 1)
         else:
             argv = self.argv(image_path, image_dir=work)
             env = self._env(work, tmp)

@@ -16,14 +16,19 @@ ID, "cfg": {...}, "target": {...}}`` (``cfg`` is a launch configuration of
 :mod:`arenabench.eval.launcher`) and ``{"op": "kill", "id": ID}``. End of file on the socket:
 every run is killed and the server exits.
 
-For each run the server forks a *run manager* (the launcher's role: child subreaper, pids
-cgroup, limits, output tails, timeout, killing every process of the run, ``result.bin``); the
-manager forks the *run* itself, which (under bubblewrap) enters new user, mount, IPC, network
-and UTS namespaces, binds its private directory at ``/sandbox`` and its own ``/tmp``, hides
-the server's folders, drops every capability, and then becomes the script: ``sys.argv``,
-environment, working directory and signal dispositions as a fresh interpreter has them, the
-script run as ``__main__`` with :mod:`runpy`, interpreter exit (threads joined, ``atexit``,
-streams flushed) and its exit status. The server never runs a script's code itself.
+For each run a *run manager* (the launcher's role: child subreaper, pids cgroup, limits,
+output tails, timeout, killing every process of the run, ``result.bin``) forked from the
+server takes the run: a *standby*, forked ahead, that waits in a pids cgroup of its own for its
+run (so the run starts in its cgroup by ``fork`` alone: moving a process into a cgroup waits
+for an RCU grace period, 10-30 ms), or one forked for it (the first run, and where runs have
+no pids cgroup). The server keeps :data:`STANDBYS` standbys and removes a standby's cgroup
+once it has ended. The manager forks the *run* itself, which (under bubblewrap) enters new
+user, mount, IPC, network and UTS namespaces, binds its private directory at ``/sandbox`` and
+its own ``/tmp``, hides the server's folders, drops every capability, and then becomes the
+script: ``sys.argv``, environment, working directory and signal dispositions as a fresh
+interpreter has them, the script run as ``__main__`` with :mod:`runpy`, interpreter exit
+(threads joined, ``atexit``, streams flushed) and its exit status. The server never runs a
+script's code itself.
 """
 
 import ast
@@ -54,11 +59,15 @@ _LIBC = ctypes.CDLL(None, use_errno=True)
 
 
 class _BecomeRunManager(BaseException):
-    """Raised in a freshly forked run manager, to leave the server's loop."""
+    """Raised in a freshly forked run manager, to leave the server's loop: with the run's
+    ``message``, or (a standby) with the read end of the pipe its run will come on and the
+    cgroup parent it enters a cgroup under while it waits."""
 
-    def __init__(self, message):
+    def __init__(self, message=None, *, request_fd=-1, cgroup_parent=None):
         super().__init__()
         self.message = message
+        self.request_fd = request_fd
+        self.cgroup_parent = cgroup_parent
 
 
 def _check(result, what):
@@ -369,76 +378,210 @@ def become_script(cfg):
     os._exit(code)
 
 
-def _run_manager(launcher, message):
-    """The forked run manager: the launcher's ``main`` with the script in place of exec."""
-    cfg = message["cfg"]
-    cfg["warm_target"] = message["target"]
+def _read_request(fd):
+    """A standby's run: one length-prefixed JSON message on its pipe (``None`` at EOF)."""
+    with os.fdopen(fd, "rb") as fh:
+        head = fh.read(4)
+        if len(head) < 4:
+            return None
+        body = fh.read(struct.unpack(">I", head)[0])
+    return json.loads(body)
+
+
+def _run_manager(launcher, become, server_pid, env_changes):
+    """The forked run manager: the launcher's ``main`` with the script in place of exec.
+
+    A standby (``become.request_fd``) first enters its own run cgroup
+    (:func:`launcher.enter_cgroup`), then waits for its run; the run's process is then in
+    that cgroup from its ``fork``."""
     for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
         signal.signal(s, launcher._on_signal)
+    message, own_cgroup, cfg = become.message, None, None
     try:
         launcher._prctl(PR_SET_CHILD_SUBREAPER, 1)
         launcher._prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
         # as the cold launcher: not ptrace-attachable by the run it manages (which would stop
         # the manager and with it the timeout)
         _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
-        if os.getppid() != cfg["parent_pid"]:
-            launcher._rmtree(cfg["rundir"])
+        if os.getppid() != server_pid:
+            if message is not None:
+                launcher._rmtree(message["cfg"]["rundir"])
             return 128 + signal.SIGTERM
-        return launcher.run(cfg, become=become_script)
+        if message is None:
+            own_cgroup = launcher.enter_cgroup(become.cgroup_parent)
+            message = _read_request(become.request_fd)
+            if message is None:  # the server has ended, or has no run for it
+                return 0
+            if message["cfg"].get("cgroup_parent") != become.cgroup_parent:
+                own_cgroup = None  # a run for another parent: made and entered as usual
+        cfg = message["cfg"]
+        cfg["warm_target"] = message["target"]
+        cfg["warm_env_changes"] = env_changes
+        return launcher.run(cfg, become=become_script, own_cgroup=own_cgroup)
     except launcher._Stop:
-        launcher.kill_descendants(None)
-        launcher._rmtree(cfg["rundir"])
+        launcher.kill_descendants(own_cgroup)
+        if cfg is not None:
+            launcher._rmtree(cfg["rundir"])
         return 128 + signal.SIGTERM
 
 
-def _serve(sock, launcher):
-    """The server's loop: fork a run manager per request, report its end. Returns at end of
-    file on the socket, after killing every run."""
-    runs = {}  # pidfd -> (id, pid)
-    by_id = {}
-    poller = select.poll()
-    poller.register(sock.fileno(), select.POLLIN)
-    me = os.getpid()
-    while True:
-        for fd, _ in poller.poll():
-            if fd in runs:
-                run_id, pid = runs.pop(fd)
-                poller.unregister(fd)
-                os.close(fd)
-                by_id.pop(run_id, None)
-                _, status = os.waitpid(pid, 0)
-                rc = -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
-                send_message(sock, {"id": run_id, "rc": rc})
-                continue
-            message = recv_message(sock)
-            if message is None:
-                for _, pid in runs.values():
-                    try:
-                        os.kill(pid, signal.SIGTERM)
-                    except OSError:
-                        pass
-                for pidfd, (_, pid) in runs.items():
-                    os.waitpid(pid, 0)
-                    os.close(pidfd)
+#: Standby run managers a server keeps ready (each waits in its own run cgroup).
+STANDBYS = 2
+
+
+class _Runs:
+    """The server's run managers, and its standbys: forked ahead, each in a run cgroup of its
+    own (moving a process into a cgroup waits for an RCU grace period, 10-30 ms: a standby
+    pays it while earlier runs go)."""
+
+    def __init__(self, launcher):
+        self.launcher = launcher
+        self.poller = select.poll()
+        self.runs = {}  # pidfd -> (id, pid, cgroup or None)
+        self.by_id = {}
+        self.standbys = []  # (pidfd, pid, request write fd, cgroup parent)
+
+    def _watch(self, pid):
+        pidfd = os.pidfd_open(pid)
+        self.poller.register(pidfd, select.POLLIN)
+        return pidfd
+
+    def fork_standbys(self, cgroup_parent):
+        """Keep :data:`STANDBYS` standbys for ``cgroup_parent`` (runs without a cgroup
+        parent get none)."""
+        for standby in [s for s in self.standbys if s[3] != cgroup_parent]:
+            self.standbys.remove(standby)
+            self._end(standby)
+        while cgroup_parent and len(self.standbys) < STANDBYS:
+            r, w = os.pipe()
+            sys.stdout.flush()
+            sys.stderr.flush()
+            try:
+                pid = os.fork()
+            except OSError:  # no process to spare: runs start as before
+                os.close(r)
+                os.close(w)
                 return
-            if message.get("op") == "kill":
-                pid = by_id.get(message["id"])
-                if pid:
-                    try:
-                        os.kill(pid, signal.SIGTERM)
-                    except OSError:
-                        pass
+            if pid == 0:
+                os.close(w)
+                raise _BecomeRunManager(request_fd=r, cgroup_parent=cgroup_parent)
+            os.close(r)
+            self.standbys.append((self._watch(pid), pid, w, cgroup_parent))
+
+    def _end(self, standby):
+        """End a standby that no run will use (closing its pipe: it exits; reaped when its
+        pidfd says so)."""
+        pidfd, pid, w, parent = standby
+        os.close(w)
+        self.runs[pidfd] = (None, pid, parent)
+
+    def start(self, message):
+        """Hand ``message`` to a standby for its cgroup parent, or fork a manager for it."""
+        parent = message["cfg"].get("cgroup_parent")
+        while self.standbys:
+            pidfd, pid, w, s_parent = self.standbys.pop(0)
+            data = json.dumps(message).encode()
+            try:
+                _write_all(w, struct.pack(">I", len(data)) + data)
+            except OSError:  # it has ended: reaped when its pidfd says so
+                self.runs[pidfd] = (None, pid, s_parent)
+                os.close(w)
                 continue
-            message["cfg"]["parent_pid"] = me
+            os.close(w)
+            self.runs[pidfd] = (message["id"], pid, s_parent)
+            self.by_id[message["id"]] = pid
+            break
+        else:
             sys.stdout.flush()
             sys.stderr.flush()
             pid = os.fork()
             if pid == 0:
                 raise _BecomeRunManager(message)
-            pidfd = os.pidfd_open(pid)
-            runs[pidfd] = (message["id"], pid)
-            by_id[message["id"]] = pid
-            poller.register(pidfd, select.POLLIN)
+            self.runs[self._watch(pid)] = (message["id"], pid, None)
+            self.by_id[message["id"]] = pid
+        self.fork_standbys(parent)
+
+    def ended(self, pidfd):
+        """Reap the manager of ``pidfd``; its run id (``None`` for a standby) and status."""
+        for standby in [s for s in self.standbys if s[0] == pidfd]:  # ended before its run
+            self.standbys.remove(standby)
+            self._end(standby)
+        run_id, pid, parent = self.runs.pop(pidfd)
+        self.poller.unregister(pidfd)
+        os.close(pidfd)
+        self.by_id.pop(run_id, None)
+        _, status = os.waitpid(pid, 0)
+        if parent:  # a standby's cgroup, empty once it has ended
+            _remove_cgroup_dir(self.launcher.cgroup_path(parent, pid))
+        return run_id, (-os.WTERMSIG(status) if os.WIFSIGNALED(status)
+                        else os.WEXITSTATUS(status))
+
+    def kill(self, run_id):
+        pid = self.by_id.get(run_id)
+        if pid:
+            try:
+                os.kill(pid, signal.SIGTERM)
+            except OSError:
+                pass
+
+    def end_all(self):
+        """Kill every run and standby and reap them (at end of file on the socket)."""
+        for s in self.standbys:
+            self._end(s)
+        self.standbys = []
+        for _, pid, _ in self.runs.values():
+            try:
+                os.kill(pid, signal.SIGTERM)
+            except OSError:
+                pass
+        for pidfd in list(self.runs):
+            self.ended(pidfd)
+
+    def inherited_fds(self):
+        """What a forked manager closes: the server's pidfds and standby pipes."""
+        return [*self.runs, *(fd for s in self.standbys for fd in (s[0], s[2]))]
+
+
+def _write_all(fd, data):
+    view = memoryview(data)
+    while view:
+        view = view[os.write(fd, view):]
+
+
+def _remove_cgroup_dir(path):
+    for _ in range(20):
+        try:
+            os.rmdir(path)
+            return
+        except FileNotFoundError:
+            return
+        except OSError:  # still busy a moment after its last process: the keeper sweeps it
+            import time
+
+            time.sleep(0.001)
+
+
+def _serve(sock, runs):
+    """The server's loop: hand each run to a standby manager (or fork one), report its end.
+    Returns at end of file on the socket, after killing every run."""
+    runs.poller.register(sock.fileno(), select.POLLIN)
+    me = os.getpid()
+    while True:
+        for fd, _ in runs.poller.poll():
+            if fd != sock.fileno():  # a manager's (or a standby's) pidfd: it has ended
+                run_id, rc = runs.ended(fd)
+                if run_id is not None:
+                    send_message(sock, {"id": run_id, "rc": rc})
+                continue
+            message = recv_message(sock)
+            if message is None:
+                runs.end_all()
+                return
+            if message.get("op") == "kill":
+                runs.kill(message["id"])
+                continue
+            message["cfg"]["parent_pid"] = me
+            runs.start(message)
 
 
 def main():
@@ -477,13 +620,22 @@ def main():
     gc.collect()
     gc.freeze()
     send_message(sock, {"ready": True, "isolation": isolation, "pid": os.getpid()})
+    runs = _Runs(launcher)
+    me = os.getpid()
     try:
-        _serve(sock, launcher)
+        _serve(sock, runs)
     except _BecomeRunManager as become:
-        sock.close()
-        become.message["cfg"]["warm_env_changes"] = env_changes
-        code = _run_manager(launcher, become.message)
-        os._exit(code)
+        code = 1
+        try:
+            sock.close()
+            for fd in runs.inherited_fds():
+                try:
+                    os.close(fd)
+                except OSError:
+                    pass
+            code = _run_manager(launcher, become, me, env_changes)
+        finally:
+            os._exit(code)  # a manager never returns into the server's code
     return 0
 
 

@@ -120,6 +120,86 @@ def test_a_misbehaving_run_ends_alone_and_the_server_goes_on(sandbox, mode, cate
     assert list(warm_client._servers.values()) == [server] and not server.dead
 
 
+_COUNT_FORKS = """
+import os, signal, time
+kids = []
+for _ in range(64):
+    try:
+        pid = os.fork()
+    except OSError:
+        break
+    if pid == 0:
+        time.sleep(60)
+        os._exit(0)
+    kids.append(pid)
+for pid in kids:
+    os.kill(pid, signal.SIGKILL)
+    os.waitpid(pid, 0)
+print(len(kids))
+"""
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_max_procs_gives_a_warm_run_the_processes_of_a_cold_one(sandbox, toy, run_tmp,
+                                                                 tmp_path):
+    # a warm run's manager waits in the run's cgroup (a standby) from the second run on:
+    # it must not take one of the script's processes
+    if pids_cgroup_parent() is None:
+        pytest.skip("no writable pids cgroup here")
+    script = tmp_path / "forks.py"
+    script.write_text(_COUNT_FORKS)
+    images = sorted((toy / "images").iterdir())[:3]
+    counts = {}
+    for warm in (False, True):
+        settings = RunSettings(limits=RunLimits(timeout_s=30.0, max_procs=6), sandbox=sandbox,
+                               warm=warm)
+        pipe = CommandPipeline(f"{PY} {script} --image {{image}}", settings=settings)
+        counts[warm] = [int(pipe.run(image).stdout.split()[-1]) for image in images]
+        assert (pipe._warm is not None) == warm
+        pipe.close()
+    assert counts[False] == counts[True] == [5, 5, 5]  # the script and five more
+
+
+def _standby_cgroups(server):
+    """The run cgroups that hold one process of ``server``'s tree each: its standbys."""
+    from arenabench.eval.launcher import descendants
+
+    parent = Path(server.cgroup if server.isolate else pids_cgroup_parent())
+    tree = set(descendants(server.proc.pid))
+    found = []
+    for group in parent.glob("arenabench-run-*"):
+        try:
+            procs = [int(p) for p in (group / "cgroup.procs").read_text().split()]
+        except OSError:
+            continue
+        if len(procs) == 1 and procs[0] in tree:
+            found.append(group)
+    return found
+
+
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, toy, run_tmp):
+    from hostile_util import wait_for
+
+    from arenabench.eval.warm_server import STANDBYS
+
+    if pids_cgroup_parent() is None:
+        pytest.skip("no writable pids cgroup here")
+    images = sorted((toy / "images").iterdir())
+    pipe = _probe(sandbox)
+    seen = set()
+    for image in images[:3]:
+        assert pipe.run(image).status == "ok"
+        (server,) = warm_client._servers.values()
+        standbys = wait_for(lambda s=server: len(_standby_cgroups(s)) == STANDBYS and
+                            _standby_cgroups(s), timeout=10)
+        assert standbys, _standby_cgroups(server)
+        seen |= set(standbys)
+    assert len(seen) == STANDBYS + 2  # one used by each run after the first
+    close_all()
+    assert not [g for g in seen if g.exists()], "a standby's cgroup was left behind"
+
+
 @pytest.mark.parametrize("module, argv", [
     ("arenabench.eval.eval_cli", ["data", "--cmd", "x {image}"]),
     ("arenabench.eval.sweep_cli", ["--preset", "eyrc", "--cmd", "x {image}", "--out", "o"]),
