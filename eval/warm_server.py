@@ -437,7 +437,7 @@ class _Runs:
     def __init__(self, launcher):
         self.launcher = launcher
         self.poller = select.poll()
-        self.runs = {}  # pidfd -> (id, pid, cgroup or None)
+        self.runs = {}  # pidfd -> (run id or None, pid, cgroup parent of a standby or None)
         self.by_id = {}
         self.standbys = []  # (pidfd, pid, request write fd, cgroup parent)
 

@@ -8,6 +8,7 @@ import json
 import os
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -179,6 +180,8 @@ def _standby_cgroups(server):
 
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, toy, run_tmp):
+    from concurrent.futures import ThreadPoolExecutor
+
     from hostile_util import wait_for
 
     from arenabench.eval.warm_server import STANDBYS
@@ -186,7 +189,7 @@ def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, t
     if pids_cgroup_parent() is None:
         pytest.skip("no writable pids cgroup here")
     images = sorted((toy / "images").iterdir())
-    pipe = _probe(sandbox)
+    pipe = _probe(sandbox, env={"PROBE_BAD": _sha(images[3]), "PROBE_MODE": "slow"})
     seen = set()
     for image in images[:3]:
         assert pipe.run(image).status == "ok"
@@ -196,6 +199,22 @@ def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, t
         assert standbys, _standby_cgroups(server)
         seen |= set(standbys)
     assert len(seen) == STANDBYS + 2  # one used by each run after the first
+    # standbys that die while they wait, during a run (2 s): the server reaps them, reports
+    # the run's end as it comes, and forks the next run's manager
+    with ThreadPoolExecutor(1) as pool:
+        slow = pool.submit(pipe.run, images[3])
+        time.sleep(0.3)
+        waiting = wait_for(lambda s=server: len(_standby_cgroups(s)) == STANDBYS and
+                           _standby_cgroups(s), timeout=1.5)
+        assert waiting and not slow.done()
+        for group in waiting:
+            os.kill(int((group / "cgroup.procs").read_text()), 9)
+        pred = slow.result(timeout=15)
+    assert pred.status == "ok" and pred.latency_ms < 10_000, (pred.message, pred.latency_ms)
+    pred = pipe.run(images[0])
+    assert pred.status == "ok" and _seen(pred)["preloaded"] == ["cv2", "numpy"], pred.message
+    assert not server.dead
+    seen |= set(waiting) | set(_standby_cgroups(server))
     close_all()
     assert not [g for g in seen if g.exists()], "a standby's cgroup was left behind"
 

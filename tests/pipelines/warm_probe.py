@@ -3,7 +3,8 @@ marks in every writable place it knows, and answers like the toy detector.
 
 Used by tests/test_warm.py: a warm run finds cv2 already imported, no mark of an earlier run,
 ``__name__ == "__main__"`` and the command line's ``sys.argv``. ``$PROBE_MODE`` = ``hang``,
-``memory`` or ``forkbomb`` misbehaves instead, for the image whose sha256 is ``$PROBE_BAD``.
+``memory`` or ``forkbomb`` misbehaves instead, ``slow`` takes two seconds first, for the image
+whose sha256 is ``$PROBE_BAD``.
 """
 
 import hashlib
@@ -21,6 +22,8 @@ if digest == os.environ.get("PROBE_BAD"):
         time.sleep(600)
     elif mode == "memory":
         block = bytearray(1024 * 1024**2)
+    elif mode == "slow":
+        time.sleep(2)
     elif mode == "forkbomb":
         for _ in range(500):
             if os.fork() == 0:
