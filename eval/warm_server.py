@@ -41,6 +41,7 @@ import signal
 import socket
 import struct
 import sys
+import time
 import types
 
 PR_SET_PDEATHSIG = 1
@@ -60,13 +61,13 @@ _LIBC = ctypes.CDLL(None, use_errno=True)
 
 class _BecomeRunManager(BaseException):
     """Raised in a freshly forked run manager, to leave the server's loop: with the run's
-    ``message``, or (a standby) with the read end of the pipe its run will come on and the
-    cgroup parent it enters a cgroup under while it waits."""
+    ``message``, or (a standby) with its end of the socket pair its run will come on and
+    the cgroup parent it enters a cgroup under while it waits."""
 
-    def __init__(self, message=None, *, request_fd=-1, cgroup_parent=None):
+    def __init__(self, message=None, *, request=None, cgroup_parent=None):
         super().__init__()
         self.message = message
-        self.request_fd = request_fd
+        self.request = request
         self.cgroup_parent = cgroup_parent
 
 
@@ -378,20 +379,10 @@ def become_script(cfg):
     os._exit(code)
 
 
-def _read_request(fd):
-    """A standby's run: one length-prefixed JSON message on its pipe (``None`` at EOF)."""
-    with os.fdopen(fd, "rb") as fh:
-        head = fh.read(4)
-        if len(head) < 4:
-            return None
-        body = fh.read(struct.unpack(">I", head)[0])
-    return json.loads(body)
-
-
 def _run_manager(launcher, become, server_pid, env_changes):
     """The forked run manager: the launcher's ``main`` with the script in place of exec.
 
-    A standby (``become.request_fd``) first enters its own run cgroup
+    A standby (``become.request``) first enters its own run cgroup
     (:func:`launcher.enter_cgroup`), then waits for its run; the run's process is then in
     that cgroup from its ``fork``."""
     for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
@@ -409,7 +400,8 @@ def _run_manager(launcher, become, server_pid, env_changes):
             return 128 + signal.SIGTERM
         if message is None:
             own_cgroup = launcher.enter_cgroup(become.cgroup_parent)
-            message = _read_request(become.request_fd)
+            with become.request:
+                message = recv_message(become.request)
             if message is None:  # the server has ended, or has no run for it
                 return 0
             if message["cfg"].get("cgroup_parent") != become.cgroup_parent:
@@ -439,7 +431,7 @@ class _Runs:
         self.poller = select.poll()
         self.runs = {}  # pidfd -> (run id or None, pid, cgroup parent of a standby or None)
         self.by_id = {}
-        self.standbys = []  # (pidfd, pid, request write fd, cgroup parent)
+        self.standbys = []  # (pidfd, pid, the server's end of its socket pair, cgroup parent)
 
     def _watch(self, pid):
         pidfd = os.pidfd_open(pid)
@@ -453,41 +445,39 @@ class _Runs:
             self.standbys.remove(standby)
             self._end(standby)
         while cgroup_parent and len(self.standbys) < STANDBYS:
-            r, w = os.pipe()
+            ours, theirs = socket.socketpair()
             sys.stdout.flush()
             sys.stderr.flush()
             try:
                 pid = os.fork()
             except OSError:  # no process to spare: runs start as before
-                os.close(r)
-                os.close(w)
+                ours.close()
+                theirs.close()
                 return
             if pid == 0:
-                os.close(w)
-                raise _BecomeRunManager(request_fd=r, cgroup_parent=cgroup_parent)
-            os.close(r)
-            self.standbys.append((self._watch(pid), pid, w, cgroup_parent))
+                ours.close()
+                raise _BecomeRunManager(request=theirs, cgroup_parent=cgroup_parent)
+            theirs.close()
+            self.standbys.append((self._watch(pid), pid, ours, cgroup_parent))
 
     def _end(self, standby):
-        """End a standby that no run will use (closing its pipe: it exits; reaped when its
+        """End a standby that no run will use (closing its socket: it exits; reaped when its
         pidfd says so)."""
-        pidfd, pid, w, parent = standby
-        os.close(w)
+        pidfd, pid, channel, parent = standby
+        channel.close()
         self.runs[pidfd] = (None, pid, parent)
 
     def start(self, message):
         """Hand ``message`` to a standby for its cgroup parent, or fork a manager for it."""
         parent = message["cfg"].get("cgroup_parent")
         while self.standbys:
-            pidfd, pid, w, s_parent = self.standbys.pop(0)
-            data = json.dumps(message).encode()
+            pidfd, pid, channel, s_parent = self.standbys.pop(0)
             try:
-                _write_all(w, struct.pack(">I", len(data)) + data)
+                with channel:
+                    send_message(channel, message)
             except OSError:  # it has ended: reaped when its pidfd says so
                 self.runs[pidfd] = (None, pid, s_parent)
-                os.close(w)
                 continue
-            os.close(w)
             self.runs[pidfd] = (message["id"], pid, s_parent)
             self.by_id[message["id"]] = pid
             break
@@ -538,14 +528,8 @@ class _Runs:
             self.ended(pidfd)
 
     def inherited_fds(self):
-        """What a forked manager closes: the server's pidfds and standby pipes."""
-        return [*self.runs, *(fd for s in self.standbys for fd in (s[0], s[2]))]
-
-
-def _write_all(fd, data):
-    view = memoryview(data)
-    while view:
-        view = view[os.write(fd, view):]
+        """What a forked manager closes: the server's pidfds and standby sockets."""
+        return [*self.runs, *(fd for s in self.standbys for fd in (s[0], s[2].fileno()))]
 
 
 def _remove_cgroup_dir(path):
@@ -556,8 +540,6 @@ def _remove_cgroup_dir(path):
         except FileNotFoundError:
             return
         except OSError:  # still busy a moment after its last process: the keeper sweeps it
-            import time
-
             time.sleep(0.001)
 
 
