@@ -7,6 +7,11 @@ harness), becomes a child subreaper, starts ``COMMAND`` (bubblewrap with the ser
 or the server itself with ``--sandbox none``) with ``PR_SET_PDEATHSIG`` = SIGKILL, and when
 the command ends or the harness dies: kills it and every process left under it, then removes
 the server's folder ``HOME`` and its pids cgroup ``CGROUP`` (``-`` for none).
+
+``PR_SET_PDEATHSIG`` is sent when the *thread* that started the keeper ends, and again for
+every thread it is handed to after that (a harness killed with SIGKILL ends its threads one
+by one): a SIGTERM while the harness is still the keeper's parent is one of those and is
+ignored, and the clean-up runs once however many signals follow.
 """
 
 import ctypes
@@ -24,7 +29,17 @@ class _Stop(Exception):
     pass
 
 
+_harness = 0
+_stopping = False
+
+
 def _on_signal(signum, frame):
+    global _stopping
+    if _stopping:  # cleaning up already
+        return
+    if signum == signal.SIGTERM and os.getppid() == _harness:
+        return  # PR_SET_PDEATHSIG for one of the harness's threads, not for the harness
+    _stopping = True
     raise _Stop()
 
 
@@ -97,31 +112,33 @@ def _remove_cgroup(cgroup):
 
 def main(argv):
     """Entry point (see the module docstring); returns the command's exit status."""
+    global _harness
     parent, home, cgroup, fd, cmd = int(argv[1]), argv[2], argv[3], int(argv[4]), argv[6:]
+    _harness = parent
     for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
         signal.signal(s, _on_signal)
-    _LIBC.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
-    _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
-    status = 0
-    if os.getppid() == parent:
-        pid = os.fork()
-        if pid == 0:
-            try:
-                for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
-                    signal.signal(s, signal.SIG_DFL)
-                _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
-                os.execv(cmd[0], cmd)
-            finally:
-                os._exit(127)
-        os.close(fd)
-        try:
+    status, pid = 0, 0
+    try:
+        _LIBC.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+        _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+        if os.getppid() == parent:
+            pid = os.fork()
+            if pid == 0:
+                try:
+                    for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
+                        signal.signal(s, signal.SIG_DFL)
+                    _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+                    os.execv(cmd[0], cmd)
+                finally:
+                    os._exit(127)
+            os.close(fd)
             _, status = os.waitpid(pid, 0)
-        except _Stop:
-            for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
-                signal.signal(s, signal.SIG_IGN)
+            pid = 0
+    except _Stop:  # the harness has ended (or a stop signal): the command goes now
+        if pid:
             os.kill(pid, signal.SIGKILL)
             _, status = os.waitpid(pid, 0)
-    _reap_all(5.0)
+    _reap_all(5.0)  # a command forked but not yet known here is among these
     _rmtree(home)
     if cgroup != "-":
         _remove_cgroup(cgroup)

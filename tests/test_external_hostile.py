@@ -224,11 +224,21 @@ def test_sigxfsz_of_a_native_writer_is_a_limit(sandbox, toy, run_tmp):
         assert r.prediction.message.startswith("file size limit (--max-file-size 1M)")
 
 
-def _eval_cmd(toy, out, tmpdir, *, hang, marker, workers=1, sandbox="auto"):
+def _own_hang_on(tmp_path: Path) -> Path:
+    """A copy of ``hang_on.py`` at a path of this test's own: what is left of its runs is
+    told apart from another test's hanging runs (``pytest -n``) by its command line."""
+    folder = tmp_path / "hang_on"
+    folder.mkdir()
+    for name in ("hang_on.py", "common.py"):
+        (folder / name).write_bytes((HOSTILE / name).read_bytes())
+    return folder / "hang_on.py"
+
+
+def _eval_cmd(toy, out, tmpdir, *, script, hang, marker, workers=1, sandbox="auto"):
     env = {**os.environ, "TMPDIR": str(tmpdir)}
     argv = [
         PY, "-m", "arenabench", "eval", str(toy), "--cmd",
-        f"{PY} {HOSTILE / 'hang_on.py'} --image {{image}}", "--env", f"HANG={hang}",
+        f"{PY} {script} --image {{image}}", "--env", f"HANG={hang}",
         "--env", f"MARKER={marker}", "--workers", str(workers), "--no-progress",
         "--formats", "json", "--out", str(out), "--timeout", "120", "--sandbox", sandbox,
     ]  # fmt: skip
@@ -249,7 +259,9 @@ def test_signal_stops_eval_with_a_partial_report(signum, toy, tmp_path):
     second = sorted((toy / "images").iterdir())[1]
     tmpdir = tmp_path / "tmp"
     tmpdir.mkdir()
-    proc = _eval_cmd(toy, tmp_path / "out", tmpdir, hang=_sha(second), marker=marker)
+    script = _own_hang_on(tmp_path)
+    proc = _eval_cmd(toy, tmp_path / "out", tmpdir, script=script, hang=_sha(second),
+                     marker=marker)
     try:
         assert wait_for(lambda: processes_with(children), timeout=60), "the pipeline never hung"
         proc.send_signal(signum)
@@ -262,7 +274,7 @@ def test_signal_stops_eval_with_a_partial_report(signum, toy, tmp_path):
     assert report["complete"] is False and report["n_done"] == 1
     assert [i["id"] for i in report["images"]] == ["000000"]
     assert wait_for(lambda: not processes_with(children), timeout=5)
-    assert processes_with(str(HOSTILE / "hang_on.py")) == []
+    assert processes_with(str(script)) == []
     assert processes_with(str(tmpdir)) == []  # launchers
     assert list(tmpdir.iterdir()) == []
 
@@ -273,7 +285,9 @@ def test_sigkill_of_the_harness_leaves_no_processes_or_directories(toy, tmp_path
     children = f"{marker}:child"
     tmpdir = tmp_path / "tmp"
     tmpdir.mkdir()
-    proc = _eval_cmd(toy, tmp_path / "out", tmpdir, hang="all", marker=marker, workers=2)
+    script = _own_hang_on(tmp_path)
+    proc = _eval_cmd(toy, tmp_path / "out", tmpdir, script=script, hang="all", marker=marker,
+                     workers=2)
     try:
         assert wait_for(lambda: len(processes_with(children)) >= 4, timeout=60)
         proc.kill()
@@ -281,7 +295,7 @@ def test_sigkill_of_the_harness_leaves_no_processes_or_directories(toy, tmp_path
     finally:
         proc.kill()
     assert wait_for(lambda: not processes_with(children), timeout=10), processes_with(children)
-    assert wait_for(lambda: not processes_with(str(HOSTILE / "hang_on.py")), timeout=10)
+    assert wait_for(lambda: not processes_with(str(script)), timeout=10)
     assert wait_for(lambda: not processes_with(str(tmpdir)), timeout=10)  # launchers
     assert wait_for(lambda: not list(tmpdir.iterdir()), timeout=10), list(tmpdir.iterdir())
 

@@ -284,7 +284,11 @@ def test_sweep_stop_ends_hanging_commands(tmp_path, workers):
     tag = f"arenabench-test-hang-{os.getpid()}-{workers}"
     cmd = f"{{python}} -c \"import time; time.sleep(300)\" {tag} {{image}}"
     proc = _arenabench(*_sweep_args(out, workers, "--cmd", cmd))
-    _wait_until(proc, lambda: any(tag in c for c in _descendants(proc.pid).values()))
+    # a child forked but not yet exec'd shows the sweep's own command line (which holds the
+    # tag too: a subprocess the sweep starts before its tasks): only the command counts
+    own = _cmdline(proc.pid)
+    _wait_until(proc, lambda: any(tag in c and c != own
+                                  for c in _descendants(proc.pid).values()))
     rc, err, seconds, kids = _stop(proc, signal.SIGTERM)
     assert rc == 143, err
     assert seconds < STOP_S

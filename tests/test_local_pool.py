@@ -6,6 +6,8 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import subprocess
+import sys
 import time
 
 import pytest
@@ -57,9 +59,7 @@ def test_a_failing_task_is_raised_here_and_no_worker_is_left():
 @pytest.mark.slow
 def test_closing_early_ends_the_workers():
     """Closed while every worker is inside a task (the first result comes at once, its worker
-    takes the next task): the workers are ended, not waited for. (A worker ended while it
-    holds a lock of the pool's queues, sending a result or idle in ``get``, would leave
-    ``Pool.terminate()`` waiting for that lock: the pool has no way around it.)"""
+    takes the next task): the workers are ended, not waited for."""
     results = local_map(_first_at_once, range(6), workers=2)
     assert next(results) == 0
     start = time.monotonic()
@@ -67,3 +67,27 @@ def test_closing_early_ends_the_workers():
     results.close()
     assert not multiprocessing.active_children()
     assert time.monotonic() - start < 2.0  # ended, not waited for (the tasks take 2 s)
+
+
+_CLOSE_WHEN_IDLE = """
+import multiprocessing, time
+from arenabench.local_pool import local_map
+results = local_map(abs, [1, -2], workers=2)
+next(results)
+time.sleep(1.0)  # both tasks are done: the workers wait for more, one holding the queue's lock
+start = time.monotonic()
+results.close()
+print(round(time.monotonic() - start, 1), len(multiprocessing.active_children()))
+"""
+
+
+@pytest.mark.slow
+def test_closing_when_the_workers_are_idle_does_not_hang():
+    # an idle worker waits for its next task holding the task queue's read lock; ended there,
+    # it never releases it, and Pool.terminate() takes that lock without a timeout (in a
+    # process of its own: a hang here would otherwise hang pytest at exit)
+    done = subprocess.run([sys.executable, "-c", _CLOSE_WHEN_IDLE], capture_output=True,
+                          text=True, timeout=30)
+    assert done.returncode == 0, done.stderr
+    seconds, left = done.stdout.split()
+    assert float(seconds) < 10.0 and left == "0"

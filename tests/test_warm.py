@@ -234,6 +234,27 @@ def test_no_warm_is_an_option_of_eval_sweep_and_grade(module, argv):
     assert run_settings_from_args(parser.parse_args(argv)).warm is True
 
 
+@pytest.mark.parametrize("sandbox", SANDBOXES)
+def test_a_server_outlives_the_thread_that_started_it(sandbox, toy, run_tmp):
+    # PR_SET_PDEATHSIG follows the thread that started the keeper: the end of that thread
+    # (a pool's worker, a caller's own thread) is not the end of the harness
+    import threading
+
+    images = sorted((toy / "images").iterdir())
+    pipe = _probe(sandbox)
+    first = []
+    starter = threading.Thread(target=lambda: first.append(pipe.run(images[0])))
+    starter.start()
+    starter.join()
+    assert first[0].status == "ok", (first[0].message, first[0].stderr)
+    (server,) = warm_client._servers.values()
+    time.sleep(0.5)  # the keeper has had its signal by now
+    assert server.proc.poll() is None, server.proc.returncode
+    again = pipe.run(images[1])
+    assert again.status == "ok", (again.message, again.stderr)
+    assert list(warm_client._servers.values()) == [server] and not server.dead
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_sigkill_of_the_harness_ends_the_server_and_its_runs(sandbox, toy, tmp_path):

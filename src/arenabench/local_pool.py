@@ -14,8 +14,10 @@ The pool's rules, stated here once:
 - before each task run here and after each result from a worker,
   :func:`arenabench.interrupts.checkpoint` raises a stop signal a library swallowed;
 - a stop signal (:class:`arenabench.interrupts.Interrupted`), or the caller closing the
-  iterator early, ends the workers (:func:`arenabench.interrupts.stop_workers`) before the
-  pool's own ``terminate()``, which waits on them;
+  iterator early, ends the pool within a bound (:func:`_end_pool`): its ``terminate()`` (which
+  first stops the pool from replacing ended workers, lets idle workers leave on their
+  sentinel and sends SIGTERM to the busy ones, which unwind their task), and what has not
+  ended after :data:`arenabench.interrupts.WORKER_GRACE_S` gets SIGKILL;
 - a task that raises: its exception is re-raised here and the pool's ``terminate()`` ends the
   workers (killing them first could kill an idle one holding the lock of the task queue, and
   ``terminate()`` would wait for that lock forever);
@@ -28,10 +30,16 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import threading
 from collections.abc import Callable, Iterable, Iterator
 from typing import Any
 
-from arenabench.interrupts import checkpoint, children_ignore_sigint, stop_workers
+from arenabench.interrupts import (
+    WORKER_GRACE_S,
+    checkpoint,
+    children_ignore_sigint,
+    stop_workers,
+)
 from arenabench.workers import check_workers, init_worker, llvmpipe_threads
 
 
@@ -84,7 +92,52 @@ def local_map(
         except Exception:  # a task failed: leaving the with, terminate() ends the workers
             raise
         except BaseException:  # interrupted, or the caller closed this iterator early
-            stop_workers()  # before the pool's own terminate(), which waits on them
+            _end_pool(pool)
             raise
         pool.close()
         pool.join()
+
+
+def _end_pool(pool: Any, *, grace_s: float = WORKER_GRACE_S) -> None:
+    """End ``pool`` and its workers within about ``2 * grace_s`` seconds.
+
+    ``Pool.terminate()`` runs in a thread of its own: it waits for its workers without a
+    timeout, and a busy worker unwinds its task first (a render holds a stop until it ends).
+    Workers still running after ``grace_s`` get SIGKILL
+    (:func:`arenabench.interrupts.stop_workers`), and the queue locks they held are released
+    so that ``terminate()`` can finish (:func:`_free_queue_locks`). Killing workers before
+    ``terminate()`` would not do: the pool's worker handler replaces a worker that ended while
+    tasks are outstanding, and the replacement waits for a task holding the task queue's
+    read lock, which ``terminate()`` then waits for.
+    """
+    ender = threading.Thread(target=pool.terminate, name="arenabench-pool-end", daemon=True)
+    ender.start()
+    ender.join(grace_s)
+    if ender.is_alive():
+        stop_workers(grace_s=0.0)
+        _free_queue_locks(pool)
+        ender.join(grace_s)
+
+
+def _free_queue_locks(pool: Any) -> None:
+    """Release the locks of ``pool``'s queues that its ended workers held.
+
+    ``Pool.terminate()`` takes the task queue's read lock and the result queue's write lock,
+    without a timeout. A worker holds the first while it waits for a task and the second
+    while it sends a result; one ended meanwhile never releases it. Call only once every
+    worker has ended (:func:`arenabench.interrupts.stop_workers`): a lock still held then
+    has no live holder. Uses ``multiprocessing.pool.Pool`` internals (``_inqueue._rlock``,
+    ``_outqueue._wlock``: CPython 3.8-3.13); without them, nothing is done.
+    """
+    if multiprocessing.active_children():  # a worker that outlived SIGKILL: leave its locks
+        return
+    for queue, name in ((getattr(pool, "_inqueue", None), "_rlock"),
+                        (getattr(pool, "_outqueue", None), "_wlock")):
+        lock = getattr(queue, name, None)
+        if lock is None:
+            continue
+        lock.acquire(block=False)  # held by an ended worker (or terminate()), or now here
+        try:
+            lock.release()
+        except ValueError:  # released meanwhile by terminate(): nothing to free
+            pass
