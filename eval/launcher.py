@@ -139,6 +139,16 @@ def cgroup_path(parent: str, pid: int) -> str:
     return os.path.join(parent, f"arenabench-run-{pid}")
 
 
+def _write_cgroup_file(path: str, name: str, value: str) -> bool:
+    """Write ``value`` into the file ``name`` of cgroup ``path``; whether it worked."""
+    try:
+        with open(os.path.join(path, name), "w") as fh:
+            fh.write(value)
+    except OSError:
+        return False
+    return True
+
+
 def _new_cgroup(parent: str, name: str, value: str) -> str | None:
     """Make this process's run cgroup under ``parent`` and write ``value`` into its file
     ``name``; ``None`` (and no folder) where either fails."""
@@ -147,10 +157,7 @@ def _new_cgroup(parent: str, name: str, value: str) -> str | None:
         os.mkdir(path)
     except OSError:
         return None
-    try:
-        with open(os.path.join(path, name), "w") as fh:
-            fh.write(value)
-    except OSError:
+    if not _write_cgroup_file(path, name, value):
         try:
             os.rmdir(path)
         except OSError:
@@ -181,12 +188,7 @@ def enter_cgroup(parent: str) -> str | None:
 def _limit_own_cgroup(path: str, max_procs: int | str) -> str | None:
     """Set ``pids.max`` of the cgroup this manager is in (one more for the manager)."""
     value = "max" if max_procs == "max" else str(int(max_procs) + 1)
-    try:
-        with open(os.path.join(path, "pids.max"), "w") as fh:
-            fh.write(value)
-    except OSError:
-        return None
-    return path
+    return path if _write_cgroup_file(path, "pids.max", value) else None
 
 
 def _pids_limit_hit(cgroup: str | None) -> bool:

@@ -438,6 +438,12 @@ class _Runs:
         self.poller.register(pidfd, select.POLLIN)
         return pidfd
 
+    @staticmethod
+    def _fork():
+        sys.stdout.flush()  # nothing buffered is written twice
+        sys.stderr.flush()
+        return os.fork()
+
     def fork_standbys(self, cgroup_parent):
         """Keep :data:`STANDBYS` standbys for ``cgroup_parent`` (runs without a cgroup
         parent get none)."""
@@ -446,10 +452,8 @@ class _Runs:
             self._end(standby)
         while cgroup_parent and len(self.standbys) < STANDBYS:
             ours, theirs = socket.socketpair()
-            sys.stdout.flush()
-            sys.stderr.flush()
             try:
-                pid = os.fork()
+                pid = self._fork()
             except OSError:  # no process to spare: runs start as before
                 ours.close()
                 theirs.close()
@@ -471,20 +475,19 @@ class _Runs:
         """Hand ``message`` to a standby for its cgroup parent, or fork a manager for it."""
         parent = message["cfg"].get("cgroup_parent")
         while self.standbys:
-            pidfd, pid, channel, s_parent = self.standbys.pop(0)
+            standby = self.standbys.pop(0)
+            pidfd, pid, channel, s_parent = standby
             try:
                 with channel:
                     send_message(channel, message)
             except OSError:  # it has ended: reaped when its pidfd says so
-                self.runs[pidfd] = (None, pid, s_parent)
+                self._end(standby)
                 continue
             self.runs[pidfd] = (message["id"], pid, s_parent)
             self.by_id[message["id"]] = pid
             break
         else:
-            sys.stdout.flush()
-            sys.stderr.flush()
-            pid = os.fork()
+            pid = self._fork()
             if pid == 0:
                 raise _BecomeRunManager(message)
             self.runs[self._watch(pid)] = (message["id"], pid, None)
@@ -509,10 +512,7 @@ class _Runs:
     def kill(self, run_id):
         pid = self.by_id.get(run_id)
         if pid:
-            try:
-                os.kill(pid, signal.SIGTERM)
-            except OSError:
-                pass
+            _terminate(pid)
 
     def end_all(self):
         """Kill every run and standby and reap them (at end of file on the socket)."""
@@ -520,16 +520,21 @@ class _Runs:
             self._end(s)
         self.standbys = []
         for _, pid, _ in self.runs.values():
-            try:
-                os.kill(pid, signal.SIGTERM)
-            except OSError:
-                pass
+            _terminate(pid)
         for pidfd in list(self.runs):
             self.ended(pidfd)
 
     def inherited_fds(self):
         """What a forked manager closes: the server's pidfds and standby sockets."""
         return [*self.runs, *(fd for s in self.standbys for fd in (s[0], s[2].fileno()))]
+
+
+def _terminate(pid):
+    """SIGTERM to a run manager (one that has ended already is reaped by its pidfd)."""
+    try:
+        os.kill(pid, signal.SIGTERM)
+    except OSError:
+        pass
 
 
 def _remove_cgroup_dir(path):
