@@ -55,6 +55,7 @@ from pathlib import Path
 
 from arenabench.competition import OBSTACLES_FILE
 
+from .dir_remover import remove_later, wait_removed
 from .predictions import OUTPUT_MODES, prediction_from_run
 from .results import Prediction, tail
 from .run_limits import RunLimits, RunSettings
@@ -271,7 +272,9 @@ class CommandPipeline:
             stop_warm(self)
 
     def close(self) -> None:
-        """End the command's idle warm servers (a later run starts one again)."""
+        """End the command's idle warm servers (a later run starts one again), once the
+        folders of finished runs are removed."""
+        wait_removed()
         if self._warm is not None:
             from .warm_client import close_warm
 
@@ -292,7 +295,7 @@ class CommandPipeline:
         try:
             return self._run_in(Path(image_path), rundir)
         finally:
-            shutil.rmtree(rundir, ignore_errors=True)
+            remove_later(rundir)  # the worker goes on with its next image meanwhile
 
     def _run_in(self, image_path: Path, rundir: str) -> Prediction:
         work, tmp = os.path.join(rundir, "work"), os.path.join(rundir, "tmp")

@@ -42,6 +42,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from .dir_remover import remove_later, wait_removed
 from .results import Prediction, tail
 from .stale_runs import WARM_PREFIX, warm_dir_prefix
 from .warm_server import recv_message, send_message
@@ -222,7 +223,7 @@ class WarmServer:
                 return Prediction(status="crash", message=problem)
             return self._run_in(pipe, image_path, token, rundir, work, tmp)
         finally:
-            shutil.rmtree(rundir, ignore_errors=True)
+            remove_later(rundir)  # the worker goes on with its next image meanwhile
 
     def _run_in(self, pipe: CommandPipeline, image_path: Path, token: str, rundir: str,
                 work: str, tmp: str) -> Prediction:
@@ -434,7 +435,9 @@ def close_warm(pipe: CommandPipeline) -> None:
 
 
 def close_all() -> None:
-    """End every warm server (their runs are killed, their folders removed)."""
+    """End every warm server (their runs are killed, their folders removed), once the folders
+    of finished runs are removed."""
+    wait_removed()
     with _registry_lock:
         servers = list(_servers.values())
         _servers.clear()

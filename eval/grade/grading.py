@@ -45,6 +45,7 @@ from arenabench.interrupts import checkpoint
 from arenabench.workers import init_worker, process_state, usable_cores
 
 from ..dataset_reader import AREA_REFERENCES, Dataset, load_dataset
+from ..dir_remover import wait_removed
 from ..evaluation import build_report, score_sample
 from ..external import CommandPipeline
 from ..metrics import DEFAULT_TOLERANCE
@@ -288,6 +289,7 @@ def _threads(units: list[GradeUnit],
     finally:
         runs.stop()  # no-op after the last unit; on an interrupt, ends the running commands
         pool.shutdown(wait=True, cancel_futures=True)
+        wait_removed()  # the runs' folders
 
 
 def _execute(units: list[GradeUnit], *, workers: int | None,
