@@ -61,18 +61,28 @@ def remove_later(path: str) -> None:
     """Remove the folder ``path`` (and what it holds) soon, in the remover thread; at once, in
     this thread, when :data:`MAX_PENDING` folders are already waiting or in a process that
     :mod:`multiprocessing` started."""
-    global _busy, _thread
+    global _busy
     with _cond:
-        if _busy < MAX_PENDING and multiprocessing.parent_process() is None:
-            if _thread is None or not _thread.is_alive():
-                _thread = threading.Thread(target=_remover, name="arenabench-remover",
-                                           daemon=True)
-                _thread.start()
+        if _busy < MAX_PENDING and multiprocessing.parent_process() is None and _running():
             _busy += 1
             _queue.append(path)
             _cond.notify_all()
             return
     shutil.rmtree(path, ignore_errors=True)
+
+
+def _running() -> bool:
+    # the remover thread, started on first use (with _cond held); False when no thread can
+    # start (the interpreter is shutting down): the caller then removes its folder itself
+    global _thread
+    if _thread is None or not _thread.is_alive():
+        thread = threading.Thread(target=_remover, name="arenabench-remover", daemon=True)
+        try:
+            thread.start()
+        except RuntimeError:
+            return False
+        _thread = thread
+    return True
 
 
 def wait_removed(timeout: float | None = None) -> bool:
