@@ -32,6 +32,7 @@ from .metrics import DEFAULT_TOLERANCE, score_image, summarize
 from .pipelines import Pipeline, make_pipeline
 from .result_store import ResultStore
 from .results import ImageResult, Prediction, Report
+from .run_slots import RunSlots, extra_thread
 
 
 class EvaluationInterrupted(Exception):
@@ -237,6 +238,11 @@ def evaluate(
     n_workers = min(workers or usable_cores(), max(1, len(samples)))
     use_process = (executor == "process" and pipe.in_process and isinstance(pipeline, str)
                    and not isolated)  # an isolated function has its own processes
+    # an external command without run slots of its own gets n_workers for this evaluation,
+    # and one more thread than runs at once prepares the next image meanwhile (run_slots)
+    slots = None
+    if not use_process and getattr(pipe, "slots", False) is None:
+        slots = pipe.slots = RunSlots(n_workers)  # type: ignore[attr-defined]
     pool: Executor
     if use_process:
         pool = ProcessPoolExecutor(
@@ -248,7 +254,8 @@ def evaluate(
         submit = lambda s: pool.submit(  # noqa: E731
             run_in_worker, PipelineRun(spec=pipeline, image_path=str(s.image_path)))
     else:
-        pool = ThreadPoolExecutor(max_workers=n_workers, thread_name_prefix="arenabench-eval")
+        pool = ThreadPoolExecutor(max_workers=n_workers + extra_thread(slots, n_workers),
+                                  thread_name_prefix="arenabench-eval")
         submit = lambda s: pool.submit(pipe.run, s.image_path)  # noqa: E731
     from arenabench.progress import progress as progress_bar
 
@@ -287,6 +294,8 @@ def evaluate(
         close = getattr(pipe, "close", None)
         if callable(close):
             close()
+        if slots is not None:
+            pipe.slots = None  # given for this evaluation only
     report = build_report(
         store.compact(),
         images=store.images(),

@@ -59,6 +59,7 @@ from .dir_remover import remove_later, wait_removed
 from .predictions import OUTPUT_MODES, prediction_from_run
 from .results import Prediction, tail
 from .run_limits import RunLimits, RunSettings
+from .run_slots import RunSlots
 from .sandbox import (
     SANDBOX_DIR,
     bwrap_argv,
@@ -121,6 +122,10 @@ class CommandPipeline:
     base_dir : str, keyword-only
         Folder that relative paths in the template are relative to (default: the current
         directory when the pipeline is created).
+    slots : RunSlots, optional, keyword-only
+        Shared with the other pipelines of a grade or evaluation: a run waits for a free slot
+        before its command starts and gives it back at its end (:mod:`.run_slots`). Default:
+        no limit beyond the caller's threads.
 
     Raises
     ------
@@ -140,6 +145,7 @@ class CommandPipeline:
     output: str = "obstacles"
     name: str = ""
     base_dir: str = field(default_factory=os.getcwd)
+    slots: RunSlots | None = field(default=None, repr=False, compare=False)
     in_process: bool = field(default=False, init=False)
 
     def __post_init__(self) -> None:
@@ -266,6 +272,8 @@ class CommandPipeline:
                 proc.send_signal(signal.SIGTERM)
             except OSError:
                 pass
+        if self.slots is not None:
+            self.slots.wake()
         if self._warm is not None:
             from .warm_client import stop_warm
 
@@ -323,32 +331,24 @@ class CommandPipeline:
         cfg_path = os.path.join(rundir, "launch.bin")
         with open(cfg_path, "wb") as fh:
             marshal.dump(cfg, fh)
-        with self._lock:
-            if self._stopped:
-                return Prediction(status="crash", message="interrupted")
-            with open(os.path.join(rundir, "launcher.log"), "wb") as log:
-                # close_fds=False lets Python use posix_spawn (no fork of the harness); the
-                # harness's own descriptors are non-inheritable (PEP 446)
-                proc = subprocess.Popen(
-                    [sys.executable, "-I", "-S", LAUNCHER, cfg_path],
-                    stdin=subprocess.DEVNULL, stdout=log, stderr=log, close_fds=False,
-                )
-            self._live.add(proc)
-        launcher_hung = False
+        if self.slots is not None and not self.slots.take(lambda: self._stopped):
+            return Prediction(status="crash", message="interrupted")
         try:
-            try:
-                _wait(proc, lim.timeout_s + LAUNCHER_GRACE_S)
-            except subprocess.TimeoutExpired:
-                launcher_hung = True
-                proc.terminate()
-                try:
-                    proc.wait(timeout=10)
-                except subprocess.TimeoutExpired:
-                    proc.kill()
-                    proc.wait()
-        finally:
             with self._lock:
-                self._live.discard(proc)
+                if self._stopped:
+                    return Prediction(status="crash", message="interrupted")
+                with open(os.path.join(rundir, "launcher.log"), "wb") as log:
+                    # close_fds=False lets Python use posix_spawn (no fork of the harness);
+                    # the harness's own descriptors are non-inheritable (PEP 446)
+                    proc = subprocess.Popen(
+                        [sys.executable, "-I", "-S", LAUNCHER, cfg_path],
+                        stdin=subprocess.DEVNULL, stdout=log, stderr=log, close_fds=False,
+                    )
+                self._live.add(proc)
+            launcher_hung = self._wait_launcher(proc)
+        finally:
+            if self.slots is not None:
+                self.slots.give()
         try:
             result = marshal.loads(Path(rundir, "result.bin").read_bytes())
         except (OSError, ValueError, EOFError, TypeError):
@@ -365,6 +365,24 @@ class CommandPipeline:
         out = _decode(Path(rundir, "stdout").read_bytes())
         err = _decode(Path(rundir, "stderr").read_bytes())
         return self._interpret(result, out, err, work)
+
+    def _wait_launcher(self, proc: subprocess.Popen) -> bool:
+        """Wait for a cold run's launcher; ``True`` when it outlived the timeout and its grace
+        and was killed."""
+        try:
+            _wait(proc, self.limits.timeout_s + LAUNCHER_GRACE_S)
+            return False
+        except subprocess.TimeoutExpired:
+            proc.terminate()
+            try:
+                proc.wait(timeout=10)
+            except subprocess.TimeoutExpired:
+                proc.kill()
+                proc.wait()
+            return True
+        finally:
+            with self._lock:
+                self._live.discard(proc)
 
     def _interpret(self, result: dict, stdout: str, stderr: str, workdir: str) -> Prediction:
         """The run's :class:`Prediction` (:func:`.predictions.prediction_from_run`)."""

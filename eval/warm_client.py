@@ -44,6 +44,7 @@ from typing import TYPE_CHECKING
 
 from .dir_remover import remove_later, wait_removed
 from .results import Prediction, tail
+from .run_slots import Held
 from .stale_runs import WARM_PREFIX, warm_dir_prefix
 from .warm_server import recv_message, send_message
 
@@ -60,6 +61,12 @@ MAX_IDLE_SERVERS = 4
 START_TIMEOUT_S = 120.0
 #: Seconds the harness waits for a run's end beyond the command's own timeout.
 RUN_GRACE_S = 30.0
+#: glibc tunables of the server process (inherited by its runs, as memory, not as environment).
+SERVER_MALLOC_TUNABLES = "glibc.malloc.hugetlb=1"
+#: Where glibc reads, at a process's start, whether transparent huge pages are left to
+#: madvise: bound read-only into the server's sandbox (which has no /sys otherwise) and hidden
+#: from its runs again, as the server's own folders are.
+THP_SETTINGS = "/sys/kernel/mm/transparent_hugepage"
 
 SERVER_SOURCE = Path(__file__).with_name("warm_server.py")
 LAUNCHER_SOURCE = Path(__file__).with_name("launcher.py")
@@ -99,6 +106,13 @@ class _Waiter:
         self.pipe = pipe
         self.done = threading.Event()
         self.rc: int | None = None
+        self.slot: Held | None = None  # its run slot, given back as soon as the run has ended
+
+    def ended(self, rc: int | None) -> None:
+        self.rc = rc
+        if self.slot is not None:
+            self.slot.release()
+        self.done.set()
 
 
 _counter = itertools.count()
@@ -112,6 +126,7 @@ class WarmServer:
         self.isolate = pipe.sandbox == "bwrap"
         self.home = tempfile.mkdtemp(prefix=warm_dir_prefix())  # names its owner: stale_runs
         self.cgroup: str | None = None
+        self.thp_bound = False
         self.keep: list[str] = []
         self._lock = threading.Lock()
         self._waiting: dict[str, _Waiter] = {}
@@ -140,6 +155,9 @@ class WarmServer:
                 self.cgroup = cg
             argv = pipe._bwrap_argv(base_work, base_tmp, image_path)
             extra = ["--bind", self.home, WARM_DIR]
+            if os.path.isdir(THP_SETTINGS):  # read by the server's glibc at its start only
+                extra += ["--ro-bind", THP_SETTINGS, THP_SETTINGS]
+                self.thp_bound = True
             if self.cgroup:
                 extra += ["--bind", self.cgroup, CGROUP_DIR]
             at = argv.index("--remount-ro")
@@ -149,6 +167,10 @@ class WarmServer:
             env = pipe._env(SANDBOX_DIR, "/tmp")
         else:
             argv, env = server, pipe._env(base_work, base_tmp)
+        # the server's malloc (and so every run's, a fork of it) backs its big blocks with
+        # transparent huge pages where the kernel leaves them to madvise: a run's fresh
+        # image buffers fault in 2 MiB at a time (the runs' environment does not name it)
+        env.setdefault("GLIBC_TUNABLES", SERVER_MALLOC_TUNABLES)
         log = open(os.path.join(self.home, "server.log"), "wb")
         try:
             self.proc = subprocess.Popen(
@@ -192,8 +214,7 @@ class WarmServer:
                 with self._lock:
                     waiter = self._waiting.get(msg["id"])
                 if waiter is not None:
-                    waiter.rc = msg["rc"]
-                    waiter.done.set()
+                    waiter.ended(msg["rc"])
         except (OSError, ValueError):
             pass
         with self._lock:
@@ -254,7 +275,8 @@ class WarmServer:
             "cgroup_parent": cgroup_parent, "sandboxed": self.isolate,
             "nproc_rlimit": cgroup_parent is None and os.getuid() != 0, "parent_pid": 0,
             "warm_isolate": self.isolate,
-            "warm_hide": [WARM_DIR] + ([CGROUP_DIR] if self.cgroup else []),
+            "warm_hide": [WARM_DIR] + ([CGROUP_DIR] if self.cgroup else [])
+                         + ([THP_SETTINGS] if self.thp_bound else []),
             "warm_keep": self.keep,
         }  # fmt: skip
         waiter = _Waiter(pipe)
@@ -265,6 +287,10 @@ class WarmServer:
         try:
             if pipe._stopped:  # stopped before its waiter was there for stop() to find
                 return Prediction(status="crash", message="interrupted")
+            if pipe.slots is not None:
+                if not pipe.slots.take(lambda: pipe._stopped):
+                    return Prediction(status="crash", message="interrupted")
+                waiter.slot = Held(pipe.slots)
             assert self.sock is not None
             try:
                 send_message(self.sock, {"op": "run", "id": token, "cfg": cfg, "target": target})
@@ -276,6 +302,8 @@ class WarmServer:
         finally:
             with self._lock:
                 self._waiting.pop(token, None)
+            if waiter.slot is not None:
+                waiter.slot.release()
         try:
             result = marshal.loads(Path(rundir, "result.bin").read_bytes())
         except (OSError, ValueError, EOFError, TypeError):

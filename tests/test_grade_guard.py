@@ -15,6 +15,7 @@ import pytest
 from clirun import CliResult, env_changes, run_cli
 from procs_limit import GRADE_ARGS, grade_settings
 
+from arenabench.eval import warm_client
 from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade
 from arenabench.eval.sandbox import bwrap_problem
 from arenabench.generator.seeds import GUESSABLE_BELOW
@@ -191,7 +192,7 @@ def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp
     points = {line.split()[1] for line in seen["mountinfo"]}
     system = ("/usr", "/sandbox", "/proc", "/dev", "/etc", "/bin", "/sbin", "/lib", "/lib64")
     if warm:  # the warm server's own mount points inside the sandbox: no host path in them
-        system += ("/.arenabench-warm", "/.arenabench-cgroup")
+        system += ("/.arenabench-warm", "/.arenabench-cgroup", warm_client.THP_SETTINGS)
     host = {p for p in points if p not in ("/", "/tmp")
             and not any(p == s or p.startswith(s + "/") for s in system)}
     assert host <= allowed and str(subs / "snoop") in host

@@ -53,6 +53,7 @@ from ..predictions import OUTPUT_MODES
 from ..reports import FORMATS, write_reports
 from ..results import Prediction, Summary
 from ..run_limits import RunSettings
+from ..run_slots import RunSlots, extra_thread
 from .leaderboard import LeaderboardRow, leaderboard_dict, rank_rows
 from .submissions import SubmissionsError, Team, find_teams, submission_hash
 
@@ -183,12 +184,13 @@ def team_command(template: str, submission: str | os.PathLike[str]) -> str:
 
 
 def _team_pipeline(
-    command: str, *, settings: RunSettings, output: str, team: str, base_dir: str
+    command: str, *, settings: RunSettings, output: str, team: str, base_dir: str,
+    slots: RunSlots | None = None,
 ) -> CommandPipeline:
     """The team's :class:`CommandPipeline`: ``settings`` plus :data:`TEAM_ENV`."""
     settings = replace(settings, env={**settings.env, **TEAM_ENV})
     return CommandPipeline(command, settings=settings, output=output, name=team,
-                           base_dir=base_dir)
+                           base_dir=base_dir, slots=slots)
 
 
 def run_unit(unit: GradeUnit, pipe: CommandPipeline | None = None) -> Prediction:
@@ -247,15 +249,16 @@ def _row(team: str, state: dict[str, Any]) -> LeaderboardRow:
 class _LocalRuns:
     """The units running in this process's threads, so that an interrupt can stop them."""
 
-    def __init__(self) -> None:
+    def __init__(self, slots: RunSlots) -> None:
         self._lock = threading.Lock()
         self._live: dict[int, CommandPipeline] = {}
         self._stopped = False
+        self.slots = slots
 
     def run(self, unit: GradeUnit) -> Prediction:
         try:
             pipe = _team_pipeline(unit.command, settings=unit.settings, output=unit.output,
-                                  team=unit.team, base_dir=unit.submission)
+                                  team=unit.team, base_dir=unit.submission, slots=self.slots)
         except Exception as exc:
             return Prediction(status="crash", message=f"grader: {type(exc).__name__}: {exc}")
         with self._lock:
@@ -279,8 +282,12 @@ class _LocalRuns:
 
 def _threads(units: list[GradeUnit],
              workers: int) -> Generator[tuple[int, Prediction], None, None]:
-    runs = _LocalRuns()
-    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="arenabench-grade")
+    # one thread more than runs at once: it prepares the next image while the runs go, and
+    # starts it the moment a run's slot frees (run_slots)
+    slots = RunSlots(workers)
+    runs = _LocalRuns(slots)
+    pool = ThreadPoolExecutor(max_workers=workers + extra_thread(slots, workers),
+                              thread_name_prefix="arenabench-grade")
     futures = {pool.submit(runs.run, u): i for i, u in enumerate(units)}
     try:
         for fut in as_completed(futures):

@@ -53,5 +53,6 @@ print(json.dumps({
     "cwd": os.getcwd(), "cwd_files": sorted(os.listdir(".")), "path0": sys.path[1],
     "env": sorted(os.environ),
     "hidden": [os.listdir(p) if os.path.isdir(p) else None
-               for p in ("/.arenabench-warm", "/.arenabench-cgroup")],
+               for p in ("/.arenabench-warm", "/.arenabench-cgroup",
+                         "/sys/kernel/mm/transparent_hugepage")],
 }))

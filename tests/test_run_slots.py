@@ -1,0 +1,152 @@
+"""Run slots (eval/run_slots.py): no more commands at once than slots, whatever the threads;
+real threads, real commands (cold and warm, with bubblewrap where it works here)."""
+
+from __future__ import annotations
+
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import pytest
+import toy_arena  # tests/pipelines (pytest's pythonpath)
+
+from arenabench.eval.evaluation import evaluate
+from arenabench.eval.external import CommandPipeline
+from arenabench.eval.run_limits import RunLimits, RunSettings
+from arenabench.eval.run_slots import RunSlots
+from arenabench.eval.sandbox import bwrap_problem
+from arenabench.eval.warm_client import close_all
+
+PY = sys.executable
+needs_bwrap = pytest.mark.skipif(bwrap_problem() is not None, reason=str(bwrap_problem()))
+
+#: Prints when it ran (CLOCK_MONOTONIC is the machine's, inside a sandbox too) and answers.
+TIMED = """\
+import sys, time
+t0 = time.monotonic()
+time.sleep(float(sys.argv[1]))
+open("obstacles.txt", "w").write("Aruco ID: [80, 85, 90, 95]\\nObstacles: 0\\nArea: 0\\n")
+print(t0, time.monotonic())
+"""
+
+
+@pytest.fixture(scope="module")
+def toy(tmp_path_factory):
+    return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("toy") / "toy", n=6, seed=5)
+
+
+@pytest.fixture()
+def run_tmp(tmp_path, monkeypatch):
+    close_all()
+    d = tmp_path / "runs"
+    d.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(d))
+    yield d
+    close_all()
+    assert list(d.iterdir()) == [], "a run's directory was left behind"
+
+
+def _timed(tmp_path: Path, sandbox: str, *, warm: bool, sleep: float = 0.4,
+           slots: RunSlots | None = None) -> CommandPipeline:
+    script = tmp_path / "timed.py"
+    script.write_text(TIMED)
+    return CommandPipeline(f"{PY} {script} {sleep}", settings=RunSettings(
+        limits=RunLimits(timeout_s=60.0), sandbox=sandbox, warm=warm), slots=slots)
+
+
+def _most_at_once(intervals: list[tuple[float, float]]) -> int:
+    events = sorted([(t0, 1) for t0, _ in intervals] + [(t1, -1) for _, t1 in intervals])
+    most = now = 0
+    for _, step in events:  # an end before a start at the same instant
+        now += step
+        most = max(most, now)
+    return most
+
+
+def test_bad_slot_counts_are_refused_naming_the_value():
+    for bad in (0, -1, 1.5, True, None):
+        with pytest.raises(ValueError, match="run slots must be a positive integer"):
+            RunSlots(bad)  # type: ignore[arg-type]
+
+
+def test_a_slot_is_handed_to_one_waiter_and_stop_wakes_the_others():
+    slots = RunSlots(1)
+    assert slots.take(lambda: False)
+    got: list[bool] = []
+    stopped = threading.Event()
+    waiters = [threading.Thread(target=lambda: got.append(slots.take(stopped.is_set)))
+               for _ in range(3)]
+    for w in waiters:
+        w.start()
+    time.sleep(0.2)
+    assert got == [] and slots.free == 0  # all three wait for the one slot
+    slots.give()
+    deadline = time.monotonic() + 5
+    while not got and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert got == [True]  # one took it; two still wait
+    stopped.set()
+    slots.wake()
+    for w in waiters:
+        w.join(5)
+    assert sorted(got) == [False, False, True] and slots.free == 0
+    slots.give()
+    with pytest.raises(RuntimeError, match="given back twice"):
+        slots.give()
+
+
+@pytest.mark.parametrize("sandbox", [pytest.param("bwrap", marks=needs_bwrap), "none"])
+@pytest.mark.parametrize("warm", [True, False], ids=["warm", "cold"])
+@pytest.mark.parametrize("workers", [2, 3])
+def test_eval_runs_no_more_commands_at_once_than_workers(sandbox, warm, workers, toy, run_tmp,
+                                                         tmp_path):
+    # evaluate runs workers + 1 threads: without the slots, workers + 1 commands would overlap
+    pipe = _timed(tmp_path, sandbox, warm=warm)
+    report = evaluate(pipe, toy, workers=workers)
+    assert pipe.slots is None  # the evaluation's slots are not left on the caller's pipeline
+    assert [r.prediction.status for r in report.images] == ["ok"] * 6
+    spans = [tuple(map(float, r.prediction.stdout.split())) for r in report.images]
+    assert _most_at_once(spans) == workers
+
+
+@pytest.mark.parametrize("warm", [True, False], ids=["warm", "cold"])
+def test_stop_ends_the_running_command_and_the_one_waiting_for_its_slot(warm, toy, run_tmp,
+                                                                       tmp_path):
+    slots = RunSlots(1)
+    pipe = _timed(tmp_path, "none", warm=warm, sleep=30.0, slots=slots)
+    images = sorted((toy / "images").iterdir())
+    preds: dict[int, object] = {}
+    runs = [threading.Thread(target=lambda i=i: preds.__setitem__(
+        i, pipe.run(images[i]))) for i in range(2)]
+    runs[0].start()
+    deadline = time.monotonic() + 60  # a warm server starts first
+    while slots.free and time.monotonic() < deadline:
+        time.sleep(0.05)
+    runs[1].start()
+    time.sleep(1.0)
+    assert slots.free == 0 and not preds  # one runs (30 s), the other waits for the slot
+    t = time.monotonic()
+    pipe.stop()
+    for r in runs:
+        r.join(30)
+    assert time.monotonic() - t < 10
+    assert {p.message for p in preds.values()} == {"interrupted"}
+    assert slots.free == 1
+
+
+@pytest.mark.parametrize("warm", [True, False], ids=["warm", "cold"])
+def test_grade_runs_no_more_commands_at_once_than_workers(warm, toy, run_tmp, tmp_path):
+    from arenabench.eval.grade.grading import GradeUnit, _execute
+
+    (tmp_path / "timed.py").write_text(TIMED)
+    settings = RunSettings(limits=RunLimits(timeout_s=60.0), sandbox="none", warm=warm)
+    units = [GradeUnit(team=team, submission=str(tmp_path), image=str(image),
+                       command=f"{PY} timed.py 0.3", output="obstacles", settings=settings)
+             for team in ("a", "b") for image in sorted((toy / "images").iterdir())]
+    preds = dict(_execute(units, workers=2, scheduler=None))  # 3 threads
+    assert sorted(preds) == list(range(12))
+    assert {p.status for p in preds.values()} == {"ok"}
+    spans = [tuple(map(float, p.stdout.split())) for p in preds.values()]
+    assert _most_at_once(spans) == 2
