@@ -8,7 +8,6 @@ import signal
 import socket
 import subprocess
 import sys
-import tempfile
 import threading
 from pathlib import Path
 
@@ -20,7 +19,6 @@ from arenabench.eval.evaluation import evaluate
 from arenabench.eval.external import CommandPipeline
 from arenabench.eval.run_limits import RunLimits, RunSettings
 from arenabench.eval.sandbox import bwrap_problem, pids_cgroup_parent
-from arenabench.eval.warm_client import close_all
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 HOSTILE = PIPES / "hostile"
@@ -33,17 +31,6 @@ SANDBOXES = [pytest.param("bwrap", marks=needs_bwrap), "none"]
 @pytest.fixture(scope="module")
 def toy(tmp_path_factory):
     return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("toy") / "toy set", n=4, seed=5)
-
-
-@pytest.fixture()
-def run_tmp(tmp_path, monkeypatch):
-    """Private directories of the runs go here (checked empty afterwards)."""
-    d = tmp_path / "runs"
-    d.mkdir()
-    monkeypatch.setattr(tempfile, "tempdir", str(d))
-    yield d
-    close_all()  # the warm servers of the test's commands, and their folders
-    assert list(d.iterdir()) == [], "a run's directory was left behind"
 
 
 def _pipe(script, sandbox, *, env=None, **limits):

@@ -4,7 +4,6 @@ real threads, real commands (cold and warm, with bubblewrap where it works here)
 from __future__ import annotations
 
 import sys
-import tempfile
 import threading
 import time
 from pathlib import Path
@@ -17,7 +16,6 @@ from arenabench.eval.external import CommandPipeline
 from arenabench.eval.run_limits import RunLimits, RunSettings
 from arenabench.eval.run_slots import RunSlots
 from arenabench.eval.sandbox import bwrap_problem
-from arenabench.eval.warm_client import close_all
 
 PY = sys.executable
 needs_bwrap = pytest.mark.skipif(bwrap_problem() is not None, reason=str(bwrap_problem()))
@@ -35,17 +33,6 @@ print(t0, time.monotonic())
 @pytest.fixture(scope="module")
 def toy(tmp_path_factory):
     return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("toy") / "toy", n=6, seed=5)
-
-
-@pytest.fixture()
-def run_tmp(tmp_path, monkeypatch):
-    close_all()
-    d = tmp_path / "runs"
-    d.mkdir()
-    monkeypatch.setattr(tempfile, "tempdir", str(d))
-    yield d
-    close_all()
-    assert list(d.iterdir()) == [], "a run's directory was left behind"
 
 
 def _timed(tmp_path: Path, sandbox: str, *, warm: bool, sleep: float = 0.4,

@@ -7,7 +7,6 @@ import hashlib
 import json
 import os
 import sys
-import tempfile
 import time
 from pathlib import Path
 
@@ -32,17 +31,6 @@ SANDBOXES = [pytest.param("bwrap", marks=needs_bwrap), "none"]
 @pytest.fixture(scope="module")
 def toy(tmp_path_factory):
     return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("toy") / "toy", n=4, seed=3)
-
-
-@pytest.fixture()
-def run_tmp(tmp_path, monkeypatch):
-    close_all()  # servers an earlier test left in this process (pytest-xdist mixes modules)
-    d = tmp_path / "runs"
-    d.mkdir()
-    monkeypatch.setattr(tempfile, "tempdir", str(d))
-    yield d
-    close_all()
-    assert list(d.iterdir()) == [], "a server's or run's directory was left behind"
 
 
 def _probe(sandbox, *, warm=True, env=None, **limits):

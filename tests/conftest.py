@@ -1,0 +1,23 @@
+"""Fixtures shared by the test modules of external commands."""
+
+from __future__ import annotations
+
+import tempfile
+
+import pytest
+
+from arenabench.eval.warm_client import close_all
+
+
+@pytest.fixture()
+def run_tmp(tmp_path, monkeypatch):
+    """The folder the runs' private directories (and warm servers' folders) go to, checked
+    empty afterwards; warm servers an earlier test left in this process (pytest-xdist mixes
+    modules) are ended first, and the test's own at its end."""
+    close_all()
+    d = tmp_path / "runs"
+    d.mkdir()
+    monkeypatch.setattr(tempfile, "tempdir", str(d))
+    yield d
+    close_all()
+    assert list(d.iterdir()) == [], "a server's or run's directory was left behind"
