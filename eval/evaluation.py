@@ -240,9 +240,11 @@ def evaluate(
                    and not isolated)  # an isolated function has its own processes
     # an external command without run slots of its own gets n_workers for this evaluation,
     # and one more thread than runs at once prepares the next image meanwhile (run_slots)
+    from .external import CommandPipeline
+
     slots = None
-    if not use_process and getattr(pipe, "slots", False) is None:
-        slots = pipe.slots = RunSlots(n_workers)  # type: ignore[attr-defined]
+    if not use_process and isinstance(pipe, CommandPipeline) and pipe.slots is None:
+        slots = pipe.slots = RunSlots(n_workers)
     pool: Executor
     if use_process:
         pool = ProcessPoolExecutor(

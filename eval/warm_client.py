@@ -126,7 +126,6 @@ class WarmServer:
         self.isolate = pipe.sandbox == "bwrap"
         self.home = tempfile.mkdtemp(prefix=warm_dir_prefix())  # names its owner: stale_runs
         self.cgroup: str | None = None
-        self.thp_bound = False
         self.keep: list[str] = []
         self._lock = threading.Lock()
         self._waiting: dict[str, _Waiter] = {}
@@ -155,9 +154,8 @@ class WarmServer:
                 self.cgroup = cg
             argv = pipe._bwrap_argv(base_work, base_tmp, image_path)
             extra = ["--bind", self.home, WARM_DIR]
-            if os.path.isdir(THP_SETTINGS):  # read by the server's glibc at its start only
-                extra += ["--ro-bind", THP_SETTINGS, THP_SETTINGS]
-                self.thp_bound = True
+            # read by the server's glibc at its start only; hidden from the runs again
+            extra += ["--ro-bind-try", THP_SETTINGS, THP_SETTINGS]
             if self.cgroup:
                 extra += ["--bind", self.cgroup, CGROUP_DIR]
             at = argv.index("--remount-ro")
@@ -275,8 +273,8 @@ class WarmServer:
             "cgroup_parent": cgroup_parent, "sandboxed": self.isolate,
             "nproc_rlimit": cgroup_parent is None and os.getuid() != 0, "parent_pid": 0,
             "warm_isolate": self.isolate,
-            "warm_hide": [WARM_DIR] + ([CGROUP_DIR] if self.cgroup else [])
-                         + ([THP_SETTINGS] if self.thp_bound else []),
+            "warm_hide": [WARM_DIR] + ([CGROUP_DIR] if self.cgroup else []),
+            "warm_hide_if_there": [THP_SETTINGS],
             "warm_keep": self.keep,
         }  # fmt: skip
         waiter = _Waiter(pipe)

@@ -231,7 +231,9 @@ def _enter_private_namespaces(cfg):
     if os.path.isdir("/dev/shm"):
         _check(_LIBC.mount(b"tmpfs", b"/dev/shm", b"tmpfs", MS_NOSUID | MS_NODEV, None),
                "tmpfs /dev/shm")
-    for hidden in cfg["warm_hide"]:
+    # the server's folders always; a folder bound for the server only where it was bound
+    hide = [*cfg["warm_hide"], *filter(os.path.isdir, cfg.get("warm_hide_if_there", ()))]
+    for hidden in hide:
         _check(_LIBC.mount(b"tmpfs", hidden.encode(), b"tmpfs",
                            MS_RDONLY | MS_NOSUID | MS_NODEV, b"size=4k"), f"hide {hidden}")
     try:
