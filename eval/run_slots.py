@@ -89,6 +89,7 @@ class Held:
         self._lock = threading.Lock()
 
     def release(self) -> None:
+        """Give the slot back, unless it was given back already."""
         with self._lock:
             slots, self._slots = self._slots, None
         if slots is not None:

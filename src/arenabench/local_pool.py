@@ -18,9 +18,11 @@ The pool's rules, stated here once:
   first stops the pool from replacing ended workers, lets idle workers leave on their
   sentinel and sends SIGTERM to the busy ones, which unwind their task), and what has not
   ended after :data:`arenabench.interrupts.WORKER_GRACE_S` gets SIGKILL;
-- a task that raises: its exception is re-raised here and the pool's ``terminate()`` ends the
-  workers (killing them first could kill an idle one holding the lock of the task queue, and
-  ``terminate()`` would wait for that lock forever);
+- a task that raises: its exception is re-raised here once the pool has ended the same way
+  (:func:`_end_pool`). A plain ``terminate()`` could wait forever: once in a full test run it
+  waited 8 minutes joining an idle worker that never got its SIGTERM, blocked on the task
+  queue's read lock that ``terminate()`` itself holds. Killing the workers *before*
+  ``terminate()`` would not do either (an idle one may hold that lock);
 - done: the pool is closed and joined, so the workers exit on their own (no signal to an idle
   worker);
 - one worker, or at most one task: everything runs in this process, no pool.
@@ -89,9 +91,7 @@ def local_map(
             for result in pool.imap_unordered(func, items, chunksize=1):
                 checkpoint()
                 yield result
-        except Exception:  # a task failed: leaving the with, terminate() ends the workers
-            raise
-        except BaseException:  # interrupted, or the caller closed this iterator early
+        except BaseException:  # a task failed, a stop signal, or the caller closed early
             _end_pool(pool)
             raise
         pool.close()
