@@ -59,7 +59,7 @@ from .dir_remover import remove_later, wait_removed
 from .predictions import OUTPUT_MODES, prediction_from_run
 from .results import Prediction, tail
 from .run_limits import RunLimits, RunSettings
-from .run_slots import RunSlots
+from .run_slots import RunSlots, hold
 from .sandbox import (
     SANDBOX_DIR,
     bwrap_argv,
@@ -331,7 +331,8 @@ class CommandPipeline:
         cfg_path = os.path.join(rundir, "launch.bin")
         with open(cfg_path, "wb") as fh:
             marshal.dump(cfg, fh)
-        if self.slots is not None and not self.slots.take(lambda: self._stopped):
+        slot = hold(self.slots, lambda: self._stopped)
+        if slot is None:
             return Prediction(status="crash", message="interrupted")
         try:
             with self._lock:
@@ -347,8 +348,7 @@ class CommandPipeline:
                 self._live.add(proc)
             launcher_hung = self._wait_launcher(proc)
         finally:
-            if self.slots is not None:
-                self.slots.give()
+            slot.release()
         try:
             result = marshal.loads(Path(rundir, "result.bin").read_bytes())
         except (OSError, ValueError, EOFError, TypeError):

@@ -78,14 +78,22 @@ def extra_thread(slots: RunSlots | None, workers: int) -> int:
     return int(slots is not None and workers >= 2)
 
 
+def hold(slots: RunSlots | None, stopped: Callable[[], bool]) -> Held | None:
+    """A run's slot before its command starts: a :class:`Held` (holding nothing without
+    ``slots``), or ``None`` once ``stopped()`` (the run is not to start)."""
+    if slots is not None and not slots.take(stopped):
+        return None
+    return Held(slots)
+
+
 class Held:
     """One run's hold on a slot: given back once, by whichever side learns of the end first
     (the warm server's reader thread, or the run's own thread)."""
 
     __slots__ = ("_lock", "_slots")
 
-    def __init__(self, slots: RunSlots) -> None:
-        self._slots: RunSlots | None = slots
+    def __init__(self, slots: RunSlots | None) -> None:
+        self._slots = slots
         self._lock = threading.Lock()
 
     def release(self) -> None:

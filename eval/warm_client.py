@@ -44,7 +44,7 @@ from typing import TYPE_CHECKING
 
 from .dir_remover import remove_later, wait_removed
 from .results import Prediction, tail
-from .run_slots import Held
+from .run_slots import Held, hold
 from .stale_runs import WARM_PREFIX, warm_dir_prefix
 from .warm_server import recv_message, send_message
 
@@ -285,10 +285,9 @@ class WarmServer:
         try:
             if pipe._stopped:  # stopped before its waiter was there for stop() to find
                 return Prediction(status="crash", message="interrupted")
-            if pipe.slots is not None:
-                if not pipe.slots.take(lambda: pipe._stopped):
-                    return Prediction(status="crash", message="interrupted")
-                waiter.slot = Held(pipe.slots)
+            waiter.slot = hold(pipe.slots, lambda: pipe._stopped)
+            if waiter.slot is None:
+                return Prediction(status="crash", message="interrupted")
             assert self.sock is not None
             try:
                 send_message(self.sock, {"op": "run", "id": token, "cfg": cfg, "target": target})
