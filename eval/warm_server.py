@@ -3,8 +3,9 @@
 Started by :mod:`arenabench.eval.warm_client` as ``PYTHON -c <this source> FD FOLDER``
 with the command's own interpreter, inside the same bubblewrap sandbox as a cold run (or
 with ``--sandbox none`` without one). Standard library only, besides the modules it preloads
-(``numpy``, ``cv2`` and the standard-library or installed modules the script's top-level
-``import`` statements name, found with :mod:`ast`; the script itself is never run here).
+(``numpy``, ``cv2`` and the standard-library or installed modules that the script's
+``import`` statements name, or those of the submission's own modules it imports, found with
+:mod:`ast`; the script and the submission's modules are never run here).
 
 Protocol (a socketpair passed as the inherited fd ``FD``): each message is a 4-byte big-endian
 length followed by that many bytes of JSON. Harness to server first: the configuration
@@ -111,19 +112,70 @@ def _load_source(source, name):
     return mod
 
 
-def _top_level_imports(path):
-    """Top-level module names the script's ``import`` statements name (not run)."""
+#: The submission's own modules read for what they import (parsed, never run): at most this
+#: many files, each at most this many bytes (a submission cannot make a server's start long).
+LOCAL_MODULES_MAX, LOCAL_MODULE_BYTES_MAX = 64, 1 << 20
+
+
+def _imports_of(path):
+    """``(absolute, relative)`` imports of one Python file, found with :mod:`ast` (the file
+    is never run): dotted names of ``import a.b`` and ``from a.b import c`` (``a.b``, and
+    ``a.b.c`` in case ``c`` is a module), and ``(level, dotted name)`` of relative ones."""
     try:
+        if os.path.getsize(path) > LOCAL_MODULE_BYTES_MAX:
+            return [], []
         with open(path, "rb") as fh:
             tree = ast.parse(fh.read())
-    except (OSError, SyntaxError, ValueError):
-        return []
-    names = []
+    except (OSError, SyntaxError, ValueError, RecursionError, MemoryError):
+        return [], []
+    absolute, relative = [], []
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
-            names += [a.name.split(".")[0] for a in node.names]
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            names.append(node.module.split(".")[0])
+            absolute += [a.name for a in node.names]
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            subs = [f"{base}.{a.name}" if base else a.name for a in node.names if a.name != "*"]
+            if node.level == 0 and base:
+                absolute += [base, *subs]
+            elif node.level:
+                relative += [(node.level, name) for name in ([base] if base else []) + subs]
+    return absolute, relative
+
+
+def _module_file(folders, parts):
+    """``folders/a/b.py`` or ``folders/a/b/__init__.py`` for ``parts`` ``["a", "b"]``."""
+    for folder in folders:
+        path = os.path.join(folder, *parts)
+        for candidate in (path + ".py", os.path.join(path, "__init__.py")):
+            if os.path.isfile(candidate):
+                return candidate
+    return None
+
+
+def _script_imports(script, private_dirs):
+    """Top-level names of the modules the script imports, and those the submission's own
+    modules it imports (in ``private_dirs``, then their own, and so on) import: what a run of
+    the script will import (an import in a function counts too). The submission's modules are
+    read with :mod:`ast`, never run; :func:`_preload` leaves their own names to the run.
+
+    At most :data:`LOCAL_MODULES_MAX` files are read, each at most
+    :data:`LOCAL_MODULE_BYTES_MAX` bytes."""
+    names, seen, queue = [], set(), [os.path.realpath(script)]
+    while queue and len(seen) < LOCAL_MODULES_MAX:
+        path = queue.pop(0)
+        if path in seen:
+            continue
+        seen.add(path)
+        absolute, relative = _imports_of(path)
+        names += [name.split(".")[0] for name in absolute]
+        found = [_module_file(private_dirs, name.split(".")) for name in absolute]
+        here = os.path.dirname(path)
+        for level, name in relative:
+            package = here
+            for _ in range(level - 1):
+                package = os.path.dirname(package)
+            found.append(_module_file([package], name.split(".")))
+        queue += [os.path.realpath(f) for f in found if f and os.path.realpath(f) not in seen]
     return list(dict.fromkeys(names))
 
 
@@ -586,8 +638,9 @@ def main():
     if config["isolate"]:
         _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
     launcher = _load_source(config["launcher_source"], "launcher")
-    imported = _top_level_imports(config["script"]) if config.get("script") else []
-    changes = _preload(["numpy", "cv2", *imported], config.get("private_dirs", []))
+    private_dirs = config.get("private_dirs", [])
+    imported = _script_imports(config["script"], private_dirs) if config.get("script") else []
+    changes = _preload(["numpy", "cv2", *imported], private_dirs)
     # what every run imports to become the script and to exit (become_script), and what the
     # preloaded libraries set up on first use (warm_up.py, synthetic data only): once here
     # rather than in every run

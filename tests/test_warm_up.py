@@ -122,3 +122,76 @@ def test_the_server_is_single_threaded_when_ready(tmp_path):
     finally:
         close_all()
     assert threads == 1
+
+
+def _submission(root: Path, files: dict[str, str]) -> Path:
+    for name, text in files.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text(text)
+    return root / "map.py"
+
+
+def test_what_the_submissions_own_modules_import_is_found_without_running_them(tmp_path):
+    """The script's imports and, through the submission's modules it imports (plain, package,
+    relative, a cycle), theirs: read with ast, never run."""
+    from arenabench.eval.warm_server import _script_imports
+
+    ran = tmp_path / "ran"
+    boom = f"open({str(ran)!r}, 'w').close()\n"
+    script = _submission(tmp_path / "team", {
+        "map.py": "import sys\nimport helper\nfrom pkg import sub\n" + boom,
+        "helper.py": "import argparse\nimport map\n" + boom,  # a cycle back to the script
+        "pkg/__init__.py": boom,
+        "pkg/sub.py": "from .inner import thing\n\ndef later():\n    import json\n" + boom,
+        "pkg/inner.py": "import shutil\nthing = 1\n" + boom,
+    })
+    names = _script_imports(str(script), [str(script.parent)])
+    assert names[:3] == ["sys", "helper", "pkg"]
+    assert {"argparse", "json", "shutil"} <= set(names) and "inner" not in names
+    assert not ran.exists(), "a submission's module was run"
+
+
+def test_the_search_through_a_submissions_modules_is_bounded(tmp_path, monkeypatch):
+    from arenabench.eval import warm_server
+
+    n = warm_server.LOCAL_MODULES_MAX + 5
+    files = {"map.py": "import m0\n"}
+    files.update({f"m{i}.py": f"import m{i + 1}\nimport mod_of_{i}\n" for i in range(n)})
+    script = _submission(tmp_path / "team", files)
+    names = warm_server._script_imports(str(script), [str(script.parent)])
+    read = [int(x[len("mod_of_"):]) for x in names if x.startswith("mod_of_")]
+    assert read == list(range(warm_server.LOCAL_MODULES_MAX - 1))  # the script is one file
+    monkeypatch.setattr(warm_server, "LOCAL_MODULE_BYTES_MAX", 5)  # "import m0\n" is 10
+    assert warm_server._script_imports(str(script), [str(script.parent)]) == []
+
+
+HELPED = """
+import sys
+seen = "argparse" in sys.modules, "helper" in sys.modules
+import helper
+print(*seen)
+with open("obstacles.txt", "w") as fh:
+    fh.write("Aruco ID: []\\nObstacles: 0\\nArea: 0\\n")
+"""
+
+
+@pytest.mark.parametrize("warm", [True, False])
+def test_a_helper_modules_imports_are_preloaded_and_the_helper_runs_in_each_run(tmp_path, warm):
+    """What a submission's own module imports (argparse) is in the server; the module itself
+    is imported by each run, as in a cold run."""
+    script = _submission(tmp_path / "team", {
+        "map.py": HELPED,
+        "helper.py": "import argparse\n",
+    })
+    image = tmp_path / "img.png"
+    image.write_bytes(b"not read")
+    close_all()
+    try:
+        pipe = CommandPipeline(f"{sys.executable} {script} --image {{image}}",
+                               settings=RunSettings(sandbox="none", warm=warm))
+        preds = [pipe.run(Path(image)) for _ in range(2)]
+        pipe.close()
+    finally:
+        close_all()
+    assert [p.status for p in preds] == ["ok", "ok"], preds[0].stderr
+    assert [p.stdout.split() for p in preds] == [[str(warm), "False"]] * 2
