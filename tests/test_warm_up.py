@@ -14,6 +14,7 @@ import pytest
 
 from arenabench.eval.external import CommandPipeline
 from arenabench.eval.run_limits import RunSettings
+from arenabench.eval.sandbox import bwrap_problem
 from arenabench.eval.warm_client import WARM_UP_SOURCE, WarmTarget, _server_for, close_all
 
 PROBE = r"""
@@ -175,8 +176,11 @@ with open("obstacles.txt", "w") as fh:
 """
 
 
+@pytest.mark.parametrize("sandbox", [pytest.param("bwrap", marks=pytest.mark.skipif(
+    bwrap_problem() is not None, reason=str(bwrap_problem()))), "none"])
 @pytest.mark.parametrize("warm", [True, False])
-def test_a_helper_modules_imports_are_preloaded_and_the_helper_runs_in_each_run(tmp_path, warm):
+def test_a_helper_modules_imports_are_preloaded_and_the_helper_runs_in_each_run(
+        tmp_path, warm, sandbox):
     """What a submission's own module imports (argparse) is in the server; the module itself
     is imported by each run, as in a cold run."""
     script = _submission(tmp_path / "team", {
@@ -188,7 +192,7 @@ def test_a_helper_modules_imports_are_preloaded_and_the_helper_runs_in_each_run(
     close_all()
     try:
         pipe = CommandPipeline(f"{sys.executable} {script} --image {{image}}",
-                               settings=RunSettings(sandbox="none", warm=warm))
+                               settings=RunSettings(sandbox=sandbox, warm=warm))
         preds = [pipe.run(Path(image)) for _ in range(2)]
         pipe.close()
     finally:
