@@ -113,8 +113,9 @@ def _load_source(source, name):
 
 
 #: The submission's own modules read for what they import (parsed, never run): at most this
-#: many files, each at most this many bytes (a submission cannot make a server's start long).
-LOCAL_MODULES_MAX, LOCAL_MODULE_BYTES_MAX = 64, 1 << 20
+#: many files, each at most this many bytes, and at most this many distinct module names
+#: looked at in all (a submission cannot make a server's start long).
+LOCAL_MODULES_MAX, LOCAL_MODULE_BYTES_MAX, IMPORTED_NAMES_MAX = 64, 1 << 20, 512
 
 
 def _imports_of(path):
@@ -122,10 +123,11 @@ def _imports_of(path):
     is never run): dotted names of ``import a.b`` and ``from a.b import c`` (``a.b``, and
     ``a.b.c`` in case ``c`` is a module), and ``(level, dotted name)`` of relative ones."""
     try:
-        if os.path.getsize(path) > LOCAL_MODULE_BYTES_MAX:
-            return [], []
         with open(path, "rb") as fh:
-            tree = ast.parse(fh.read())
+            source = fh.read(LOCAL_MODULE_BYTES_MAX + 1)
+        if len(source) > LOCAL_MODULE_BYTES_MAX:
+            return [], []
+        tree = ast.parse(source)
     except (OSError, SyntaxError, ValueError, RecursionError, MemoryError):
         return [], []
     absolute, relative = [], []
@@ -142,13 +144,16 @@ def _imports_of(path):
     return absolute, relative
 
 
-def _module_file(folders, parts):
-    """``folders/a/b.py`` or ``folders/a/b/__init__.py`` for ``parts`` ``["a", "b"]``."""
+def _module_file(folders, parts, *, within):
+    """``folders/a/b.py`` or ``folders/a/b/__init__.py`` for ``parts`` ``["a", "b"]``, its
+    real path, where that lies in one of the folders ``within``."""
     for folder in folders:
         path = os.path.join(folder, *parts)
         for candidate in (path + ".py", os.path.join(path, "__init__.py")):
             if os.path.isfile(candidate):
-                return candidate
+                real = os.path.realpath(candidate)
+                if any(real.startswith(os.path.join(d, "")) for d in within):
+                    return real
     return None
 
 
@@ -159,23 +164,33 @@ def _script_imports(script, private_dirs):
     read with :mod:`ast`, never run; :func:`_preload` leaves their own names to the run.
 
     At most :data:`LOCAL_MODULES_MAX` files are read, each at most
-    :data:`LOCAL_MODULE_BYTES_MAX` bytes."""
-    names, seen, queue = [], set(), [os.path.realpath(script)]
+    :data:`LOCAL_MODULE_BYTES_MAX` bytes, and :data:`IMPORTED_NAMES_MAX` distinct names looked
+    at; what lies beyond is left for the run to import."""
+    within = [os.path.realpath(d) for d in private_dirs]
+    names, looked, seen, queue = [], set(), set(), [os.path.realpath(script)]
     while queue and len(seen) < LOCAL_MODULES_MAX:
         path = queue.pop(0)
         if path in seen:
             continue
         seen.add(path)
         absolute, relative = _imports_of(path)
-        names += [name.split(".")[0] for name in absolute]
-        found = [_module_file(private_dirs, name.split(".")) for name in absolute]
-        here = os.path.dirname(path)
-        for level, name in relative:
+        here, found = os.path.dirname(path), []
+        for level, name in [(0, n) for n in absolute] + relative:
+            key = (level, here if level else "", name)
+            if key in looked:
+                continue
+            if len(looked) >= IMPORTED_NAMES_MAX:
+                break
+            looked.add(key)
+            if level == 0:
+                names.append(name.split(".")[0])
+                found.append(_module_file(private_dirs, name.split("."), within=within))
+                continue
             package = here
             for _ in range(level - 1):
                 package = os.path.dirname(package)
-            found.append(_module_file([package], name.split(".")))
-        queue += [os.path.realpath(f) for f in found if f and os.path.realpath(f) not in seen]
+            found.append(_module_file([package], name.split("."), within=within))
+        queue += [f for f in found if f and f not in seen]
     return list(dict.fromkeys(names))
 
 

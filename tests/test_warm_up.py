@@ -146,9 +146,13 @@ def test_what_the_submissions_own_modules_import_is_found_without_running_them(t
         "pkg/sub.py": "from .inner import thing\n\ndef later():\n    import json\n" + boom,
         "pkg/inner.py": "import shutil\nthing = 1\n" + boom,
     })
+    (tmp_path / "outside.py").write_text("import zipfile\n" + boom)  # beside the submission
+    (script.parent / "pkg" / "inner.py").write_text(
+        "import shutil\nfrom ... import outside\nthing = 1\n" + boom)
     names = _script_imports(str(script), [str(script.parent)])
     assert names[:3] == ["sys", "helper", "pkg"]
     assert {"argparse", "json", "shutil"} <= set(names) and "inner" not in names
+    assert "zipfile" not in names, "a file outside the submission's folder was read"
     assert not ran.exists(), "a submission's module was run"
 
 
@@ -162,6 +166,9 @@ def test_the_search_through_a_submissions_modules_is_bounded(tmp_path, monkeypat
     names = warm_server._script_imports(str(script), [str(script.parent)])
     read = [int(x[len("mod_of_"):]) for x in names if x.startswith("mod_of_")]
     assert read == list(range(warm_server.LOCAL_MODULES_MAX - 1))  # the script is one file
+    monkeypatch.setattr(warm_server, "IMPORTED_NAMES_MAX", 7)
+    assert warm_server._script_imports(str(script), [str(script.parent)]) == [
+        "m0", "m1", "mod_of_0", "m2", "mod_of_1", "m3", "mod_of_2"]
     monkeypatch.setattr(warm_server, "LOCAL_MODULE_BYTES_MAX", 5)  # "import m0\n" is 10
     assert warm_server._script_imports(str(script), [str(script.parent)]) == []
 
