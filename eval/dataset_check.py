@@ -37,9 +37,10 @@ class Chunk:
 
 
 def check_chunk(chunk: Chunk) -> list[tuple[str, Any]]:
-    """Each entry's outcome, in order, up to the first error: ``("ok", (preset, missing
-    area keys))``, ``("damaged", why)`` or ``("error", message)`` (then nothing more)."""
-    from .dataset_reader import DatasetError, _checked_entry
+    """Each entry's outcome, in order, up to the first error: ``("ok", gt_facts)``
+    (:func:`~arenabench.eval.dataset_reader.gt_facts`), ``("damaged", why)`` or
+    ``("error", message)`` (then nothing more)."""
+    from .dataset_reader import DatasetError, _checked_entry, gt_facts
 
     base, shown = Path(chunk.base), Path(chunk.shown)
     dirs: dict[str, Path] = {}
@@ -54,9 +55,7 @@ def check_chunk(chunk: Chunk) -> list[tuple[str, Any]]:
         if isinstance(gt, str):
             out.append(("damaged", gt))
         else:
-            area = gt["area"]
-            out.append(("ok", (gt.get("preset") or "",
-                               tuple(k for k in chunk.area_keys if area.get(k) is None))))
+            out.append(("ok", gt_facts(gt, chunk.area_keys)))
     return out
 
 

@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import io
 import json
 import os
 import re
@@ -11,11 +12,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, overload
 
-from arenabench.fileio import sha256_bytes, sha256_file
+from arenabench.fileio import open_regular, read_regular, sha256_bytes, sha256_file
 from arenabench.gtrecord import AREA_REFERENCES as AREA_REFERENCES  # declared there
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE as DEFAULT_AREA_REFERENCE
 from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import image_file_problem
+from arenabench.limits import MAX_DATASET_META_BYTES, MAX_IMAGE_ID_CHARS
 from arenabench.schemas import gt_problem
 from arenabench.workers import usable_cores
 
@@ -91,6 +93,9 @@ class Dataset:
     #: What :func:`load_dataset` learnt of every GT while validating it (``None``: look at
     #: the samples).
     facts: DatasetFacts | None = None
+    #: ``dataset.json`` as :func:`load_dataset` read it (``None``: not read; see
+    #: :func:`read_dataset_meta`).
+    meta: DatasetMeta | None = None
 
     @property
     def name(self) -> str:
@@ -142,10 +147,67 @@ class DatasetFacts:
         Preset names of the GT files, sorted, once each.
     lacking : dict
         GT area key (``contour_px``, ...) -> index of the first image whose GT lacks it.
+    weakest_seed : tuple or None
+        ``(index, seed)`` of the image whose GT records the weakest ``seed``: the first one
+        that is not an integer (``None`` for a GT without one) if any, else the smallest
+        (the first of equals); ``None`` for a set without images. ``grade`` judges it
+        (:func:`arenabench.eval.preflight.check_dataset_seed`).
     """
 
     presets: tuple[str, ...]
     lacking: dict[str, int]
+    weakest_seed: tuple[int, Any] | None = None
+
+
+@dataclass(frozen=True)
+class DatasetMeta:
+    """A dataset's ``dataset.json`` (written by ``arenabench generate``).
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The file, as the user named the dataset (for messages).
+    doc : Any
+        Its parsed JSON (``None`` when there is none to read: see ``problem``).
+    problem : str or None
+        Why it could not be read (``"missing"``, ``"not JSON (...)"``, ...), or ``None``.
+    """
+
+    path: Path
+    doc: Any = None
+    problem: str | None = None
+
+
+def read_dataset_meta(root: str | Path) -> DatasetMeta:
+    """Read ``ROOT/dataset.json``, never blocking on it.
+
+    A missing, unreadable, too large (:data:`arenabench.limits.MAX_DATASET_META_BYTES`) or
+    garbled file is a :class:`DatasetMeta` with a ``problem``: a set needs none to be scored.
+
+    Raises
+    ------
+    DatasetError
+        When it exists and is not a regular file (a FIFO would block a reader for ever).
+    """
+    from arenabench.fileio import NotRegularFileError
+
+    path = Path(root) / "dataset.json"
+    try:
+        data = read_regular(path, limit=MAX_DATASET_META_BYTES)
+    except NotRegularFileError as exc:
+        raise DatasetError(f"{path}: {exc.strerror}") from None
+    except FileNotFoundError:
+        return DatasetMeta(path, problem="missing")
+    except OSError as exc:
+        return DatasetMeta(path, problem=f"cannot read ({exc.strerror or exc})")
+    try:
+        return DatasetMeta(path, doc=json.loads(data.decode("utf-8")))
+    except UnicodeDecodeError:
+        return DatasetMeta(path, problem="not UTF-8 text")
+    except json.JSONDecodeError as exc:
+        return DatasetMeta(path, problem=f"not JSON ({exc.msg} at line {exc.lineno})")
+    except (RecursionError, ValueError):  # nested too deeply; an integer of too many digits
+        return DatasetMeta(path, problem="not JSON")
 
 
 #: Sets of at most this many images keep each item once it is built.
@@ -189,6 +251,10 @@ class DatasetSamples(Sequence[DatasetItem]):
         """Image files in order (no GT file read)."""
         return [self._base / e[1] for e in self._entries]
 
+    def gt_file(self, index: int) -> Path:
+        """The GT file of image ``index``, as the user named the dataset (nothing read)."""
+        return self._shown / self._entries[index][2]
+
     @overload
     def __getitem__(self, index: int) -> DatasetItem: ...
 
@@ -221,7 +287,7 @@ class DatasetSamples(Sequence[DatasetItem]):
         sid, image, gt_rel, digest = entry
         gt_path, shown_gt = self._base / gt_rel, self._shown / gt_rel
         try:
-            gt_bytes = gt_path.read_bytes()
+            gt_bytes = read_regular(gt_path)
         except OSError as exc:
             raise _fail(shown_gt, f"cannot read ({exc.strerror or exc})") from None
         if digest is not None and sha256_bytes(gt_bytes) != digest:
@@ -333,25 +399,29 @@ def load_dataset(
         raise DatasetError(f"{manifest}: not a regular file")
     if not manifest.is_file():
         raise DatasetError(f"{manifest}: missing (is {base} a dataset written by the generator?)")
+    meta = read_dataset_meta(shown)
     entries: list[tuple[str, str, str, str | None]] = []
     skipped: list[tuple[str, str]] = []
     presets: set[str] = set()
     lacking: dict[str, int] = {}
+    weakest: list[tuple[int, Any]] = []  # (index, seed) of the weakest seed so far
     area_keys = tuple(sorted(set(AREA_REFERENCES.values())))
 
     def accept(entry: dict[str, Any], outcome: str, value: Any) -> None:
-        """Keep a checked entry (``ok``: its preset and missing area keys), or leave out a
-        damaged image."""
+        """Keep a checked entry (``ok``: its :func:`_gt_facts`), or leave out a damaged
+        image."""
         if outcome == "damaged":
             if not skip_damaged:
                 raise DatasetError(f"dataset damaged: {shown / entry['image']}: {value} "
                                    "(--skip-damaged scores the other images)")
             skipped.append((entry["id"], value))
             return
-        preset, missing = value
+        preset, missing, seed = value
         presets.add(preset)
         for key in missing:
             lacking.setdefault(key, len(entries))
+        if not weakest or _seed_strength(seed) < _seed_strength(weakest[0][1]):
+            weakest[:] = [(len(entries), seed)]
         entries.append((entry["id"], entry["image"], entry["gt"],
                         entry["gt_sha256"] if verify else None))
 
@@ -362,7 +432,11 @@ def load_dataset(
 
         big = limit is None and manifest.stat().st_size > PARALLEL_ABOVE_BYTES
         workers = min(usable_cores(), MAX_CHECK_WORKERS) if big else 1
-    with open(manifest, encoding="utf-8") as fh:  # read as a stream: a line at a time
+    try:
+        stream = open_regular(manifest)
+    except OSError as exc:
+        raise DatasetError(f"{manifest}: cannot read ({exc.strerror or exc})") from None
+    with io.TextIOWrapper(stream, encoding="utf-8") as fh:  # a line at a time
         if workers > 1:
             from .dataset_check import check_manifest
 
@@ -377,9 +451,7 @@ def load_dataset(
                 if isinstance(gt, str):  # a damaged image
                     accept(entry, "damaged", gt)
                 else:
-                    area = gt["area"]
-                    accept(entry, "ok", (gt.get("preset") or "",
-                                         [k for k in area_keys if area.get(k) is None]))
+                    accept(entry, "ok", gt_facts(gt, area_keys))
                 if limit is not None and len(entries) >= limit:
                     break
     if not entries:
@@ -387,7 +459,23 @@ def load_dataset(
         raise DatasetError(f"{manifest}: no entries{more}")
     return Dataset(root=base, samples=DatasetSamples(base, shown, entries),
                    skipped=tuple(skipped),
-                   facts=DatasetFacts(presets=tuple(sorted(presets)), lacking=lacking))
+                   facts=DatasetFacts(presets=tuple(sorted(presets)), lacking=lacking,
+                                      weakest_seed=weakest[0] if weakest else None),
+                   meta=meta)
+
+
+def _seed_strength(seed: Any) -> tuple[int, int]:
+    """Sort key of recorded seeds, weakest first: anything but an integer, then integers by
+    size."""
+    return (1, seed) if type(seed) is int else (0, 0)
+
+
+def gt_facts(gt: dict[str, Any], area_keys: tuple[str, ...]) -> tuple[str, tuple[str, ...], Any]:
+    """What :class:`DatasetFacts` keeps of one valid GT record: its preset (``""`` for none),
+    the keys of ``area_keys`` its area lacks, and its ``seed`` (``None`` for none)."""
+    area = gt["area"]
+    return (gt.get("preset") or "", tuple(k for k in area_keys if area.get(k) is None),
+            gt.get("seed"))
 
 
 def _manifest_entries(fh: Iterable[str], manifest: Path) -> Iterator[tuple[int, dict[str, Any]]]:
@@ -408,10 +496,31 @@ def _manifest_entries(fh: Iterable[str], manifest: Path) -> Iterator[tuple[int, 
         for key in ("id", "image", "gt"):
             if not isinstance(entry.get(key), str):
                 raise DatasetError(f"{where}: field {key!r} missing or not a string")
+        if not _IMAGE_ID.fullmatch(entry["id"]) or len(entry["id"]) > MAX_IMAGE_ID_CHARS:
+            raise DatasetError(
+                f"{where}: field 'id' {_quoted(entry['id'])}: an image id is 1 to "
+                f"{MAX_IMAGE_ID_CHARS} letters, digits, '.', '_' or '-', not starting with "
+                "'.' or '-'")
+        for key in ("image", "gt"):
+            if not entry[key].isprintable():
+                raise DatasetError(f"{where}: field {key!r} {_quoted(entry[key])}: a path "
+                                   "holds no newline or other control character")
         if entry["id"] in seen:
             raise DatasetError(f"{where}: duplicate id {entry['id']!r}")
         seen.add(entry["id"])
         yield lineno, entry
+
+
+#: What an image id may be (and at most :data:`arenabench.limits.MAX_IMAGE_ID_CHARS` long):
+#: it names files (``gt/<id>.json``) and rows of every report.
+_IMAGE_ID = re.compile(r"[A-Za-z0-9_][A-Za-z0-9._-]*")
+
+
+def _quoted(text: str, keep: int = 60) -> str:
+    """``repr(text)``, shortened to about ``keep`` characters (one line whatever it holds)."""
+    if len(text) <= keep:
+        return repr(text)
+    return f"{text[:keep - 20]!r}... ({len(text)} characters)"
 
 
 def _lines(fh: Iterable[str]) -> Iterator[str]:
@@ -468,7 +577,7 @@ def _checked_entry(entry: dict[str, Any], where: str, *, base: Path, shown: Path
             why = "is not a regular file" if path.exists() else "does not exist"
             raise DatasetError(f"{where}: {what} file {shown_path} {why}")
     try:
-        gt_bytes = gt_path.read_bytes()
+        gt_bytes = read_regular(gt_path)
     except OSError as exc:
         raise _fail(shown_gt, f"cannot read ({exc.strerror or exc})") from None
     if verify and sha256_bytes(gt_bytes) != entry["gt_sha256"]:

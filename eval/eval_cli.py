@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import sys
 from contextlib import ExitStack
-from pathlib import Path
+from typing import TYPE_CHECKING
 
 from arenabench.cliopts import (
     EXIT_FAILED,
@@ -32,6 +32,9 @@ from .phase_check import add_phase_check_argument
 from .pipelines import BUILTIN_PIPELINES
 from .predictions import OUTPUT_MODES
 from .run_limits import run_settings_from_args
+
+if TYPE_CHECKING:
+    from .dataset_reader import Dataset
 
 EPILOG = """\
 examples:
@@ -131,18 +134,17 @@ def build_parser() -> CommandParser:
     return p
 
 
-def _warn_if_incomplete(root: Path) -> None:
+def _warn_if_incomplete(dataset: Dataset) -> None:
     """One warning line when ``dataset.json`` says an interrupted ``generate`` left the dataset
     unfinished: the scores then cover only the scenes its manifest lists."""
-    import json
+    from .dataset_reader import read_dataset_meta
 
-    try:
-        meta = json.loads((root / "dataset.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return
+    info = dataset.meta if dataset.meta is not None else read_dataset_meta(dataset.root)
+    meta = info.doc
     if isinstance(meta, dict) and meta.get("complete") is False:
-        count = (meta.get("args") or {}).get("count", "?")
-        print(f"arenabench eval: warning: {root}/dataset.json: the dataset is incomplete "
+        args = meta.get("args")
+        count = args.get("count", "?") if isinstance(args, dict) else "?"
+        print(f"arenabench eval: warning: {info.path}: the dataset is incomplete "
               f"({meta.get('finished', '?')} of {count} scenes; an interrupted generate): only "
               "those are scored; run the same generate command again to finish it",
               file=sys.stderr)
@@ -240,7 +242,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         held.enter_context(lock_out(args.out))
     except FolderLockedError as exc:
         return _usage_error(parser, str(exc))
-    _warn_if_incomplete(Path(args.dataset))
+    _warn_if_incomplete(dataset)
     if dataset.skipped:
         first, why = dataset.skipped[0]
         print(f"arenabench eval: warning: {len(dataset.skipped)} damaged image(s) left out "

@@ -54,9 +54,18 @@ class Pipeline(Protocol):
 
 
 def _read_image(path: Path) -> Any:
+    """The image as ``cv2.imread(path, IMREAD_COLOR)`` gives it, read only if it is a regular
+    file (a FIFO in its place never blocks)."""
     import cv2
+    import numpy as np
 
-    image = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    from arenabench.imageio import ImageLoadError, read_image_bytes
+
+    try:
+        data = read_image_bytes(path)
+    except ImageLoadError as exc:
+        raise OSError(f"could not read image {exc}") from None
+    image = cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
     if image is None:
         raise OSError(f"could not read image {path}")
     return image

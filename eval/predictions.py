@@ -23,6 +23,7 @@ JSON line); else ``ok``.
 
 from __future__ import annotations
 
+import itertools
 import json
 import os
 import reprlib
@@ -39,8 +40,10 @@ from arenabench.competition import (
     OutputFormatError,
     check_area,
     check_count,
+    check_marker_id,
     parse_obstacles_txt,
 )
+from arenabench.limits import MAX_MARKER_ID
 
 from .results import Prediction, tail
 from .run_limits import RunLimits
@@ -74,13 +77,23 @@ def _short(value: Any) -> str:
         return f"<unprintable {type(value).__name__}>"
 
 
+#: Most marker ids an answer may list: every id of the largest ArUco dictionary once.
+MAX_ANSWER_MARKER_IDS = MAX_MARKER_ID + 1
+
+
 def _as_list(ids: Any) -> list[Any]:
+    """The first :data:`MAX_ANSWER_MARKER_IDS` items of ``ids`` (an endless iterable is not
+    drained), or :class:`OutputFormatError` when there are more or it is not a list."""
     if isinstance(ids, (str, bytes, Mapping)):
         raise OutputFormatError(f"marker ids are not a list of integers: {_short(ids)}")
     try:
-        return list(ids)
+        out = list(itertools.islice(iter(ids), MAX_ANSWER_MARKER_IDS + 1))
     except Exception:
         raise OutputFormatError(f"marker ids are not a list of integers: {_short(ids)}") from None
+    if len(out) > MAX_ANSWER_MARKER_IDS:
+        raise OutputFormatError(f"more than {MAX_ANSWER_MARKER_IDS} marker ids, more than any "
+                                "ArUco dictionary holds")
+    return out
 
 
 def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") -> Prediction:
@@ -100,8 +113,11 @@ def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") 
     -------
     Prediction
         Status ``bad_output`` (with a message) when fields are missing or malformed: a count
-        or marker id that is not a non-negative integer, an area that is negative or not a
-        finite number (NaN, infinity), a boolean or a string where a number belongs.
+        or marker id that is not a non-negative integer or is beyond any scene
+        (:func:`~arenabench.competition.check_count`,
+        :func:`~arenabench.competition.check_marker_id`), more marker ids than any dictionary
+        holds, an area that is negative or not a finite number (NaN, infinity), a boolean or
+        a string where a number belongs.
     """
     def bad(msg: str) -> Prediction:
         return Prediction(
@@ -123,7 +139,7 @@ def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") 
         area_v = None if area is None else check_area(area)
         ids_v = (
             None if ids is None
-            else tuple(check_count(i, name="marker id") for i in _as_list(ids))
+            else tuple(check_marker_id(i) for i in _as_list(ids))
         )
     except OutputFormatError as exc:
         return bad(str(exc))

@@ -11,7 +11,9 @@ exit 2) when it fails:
    ``--max-procs 0`` (no process limit) is given explicitly.
 3. **Set** (:func:`check_dataset_seed`): a generated set whose seed is below 2**64 can be
    re-rendered by a submission that brings (or imports) the open-source generator, which then
-   reads its own answers; refused unless ``allow_guessable`` (``--allow-guessable-seed``).
+   reads its own answers. Fail closed: unless ``allow_guessable`` (``--allow-guessable-seed``),
+   only a set whose ``dataset.json`` and every GT file record an integer seed of at least
+   2**64 is graded.
 4. **Command** (:func:`preflight`): the grading command runs, in the same sandbox with the
    same limits and environment as every team, (a) a probe script in the place of the team's
    script that reports the interpreter, numpy, OpenCV (with ``aruco``) and whether arenabench
@@ -34,9 +36,12 @@ import tempfile
 from collections.abc import Callable
 from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from arenabench.generator.seeds import GUESSABLE_BELOW, is_guessable
+from arenabench.generator.seeds import GUESSABLE_BELOW, is_guessable, seed_problem
+
+if TYPE_CHECKING:
+    from .dataset_reader import Dataset
 
 #: The line by which the probe reports what it found (followed by one JSON object).
 PROBE_TAG = "ARENABENCH-PREFLIGHT "
@@ -183,33 +188,81 @@ def process_limit(max_procs: int) -> str:
         "another user, or pass --max-procs 0 to grade with NO process limit")
 
 
-def dataset_seed(root: str | os.PathLike[str]) -> int | None:
-    """The run seed recorded in ``ROOT/dataset.json`` (``None``: not a generated set)."""
-    try:
-        meta = json.loads(Path(root, "dataset.json").read_text(encoding="utf-8"))
-    except (OSError, ValueError):
-        return None
-    seed = meta.get("seed") if isinstance(meta, dict) else None
-    if seed is None and isinstance(meta, dict) and isinstance(meta.get("args"), dict):
-        seed = meta["args"].get("seed")
-    return seed if isinstance(seed, int) and not isinstance(seed, bool) else None
+#: The end of every refusal of :func:`check_dataset_seed`.
+_SEED_HINT = ("grade takes only a set whose every recorded seed is an integer of at least "
+              f"2**{GUESSABLE_BELOW.bit_length() - 1} (a submission may re-render any other "
+              "set and read its answers): generate the hidden set with 'arenabench generate "
+              "--seed random', or pass --allow-guessable-seed")
 
 
-def check_dataset_seed(root: str | os.PathLike[str], *, allow_guessable: bool) -> int | None:
-    """Refuse a generated set whose seed can be enumerated.
+def _meta_seed(doc: Any) -> tuple[Any, str | None]:
+    """The seed ``dataset.json`` records (top level and ``args``), and why it proves
+    nothing (``None``: it proves the set unguessable)."""
+    if not isinstance(doc, dict):
+        return None, "not a JSON object"
+    recorded = [doc[k] for k in ("seed",) if k in doc]
+    if isinstance(doc.get("args"), dict) and "seed" in doc["args"]:
+        recorded.append(doc["args"]["seed"])
+    for seed in recorded or [None]:
+        if (problem := seed_problem(seed)) is not None:
+            return seed, problem
+    return recorded[0], None
+
+
+def _gt_seeds(data: Dataset) -> tuple[Path, Any] | None:
+    """The GT file (as named for the user) and seed of an image whose GT's seed does not
+    prove the set unguessable (the weakest one), or ``None``."""
+    from .dataset_reader import DatasetSamples
+
+    samples = data.samples
+    if data.facts is not None:
+        if data.facts.weakest_seed is None or not is_guessable(data.facts.weakest_seed[1]):
+            return None
+        index, seed = data.facts.weakest_seed
+    else:  # a Dataset made by hand: look at every GT
+        found = next(((i, s.gt.seed) for i, s in enumerate(samples)
+                      if is_guessable(s.gt.seed)), None)
+        if found is None:
+            return None
+        index, seed = found
+    if isinstance(samples, DatasetSamples):
+        return samples.gt_file(index), seed
+    return samples[index].gt_path, seed
+
+
+def check_dataset_seed(data: Dataset, *, allow_guessable: bool) -> int | None:
+    """Refuse a set whose seed is not proven unguessable: fail closed.
+
+    Every place that records the seed must hold an integer of at least 2**64
+    (:func:`arenabench.generator.seeds.seed_problem`): ``dataset.json`` (its ``seed`` and
+    ``args.seed``; a missing, unreadable or garbled file proves nothing) and every GT file's
+    ``seed`` (gathered by :func:`~arenabench.eval.dataset_reader.load_dataset` while it
+    validates them).
+
+    Returns
+    -------
+    int or None
+        The set's seed, when proven (``None`` when ``allow_guessable`` let an unproven one
+        through).
 
     Raises
     ------
     PreflightError
-        When ``dataset.json`` records a seed below 2**64 and ``allow_guessable`` is false.
+        One line naming the file and the seed found there (or why it could not be read),
+        unless ``allow_guessable``.
     """
-    seed = dataset_seed(root)
-    if seed is not None and is_guessable(seed) and not allow_guessable:
-        raise PreflightError(
-            f"{root}: generated with seed {seed} (below 2**{GUESSABLE_BELOW.bit_length() - 1}): "
-            "a submission can re-render the set and read its answers; generate the hidden set "
-            "with 'arenabench generate --seed random' (or pass --allow-guessable-seed)")
-    return seed
+    from .dataset_reader import read_dataset_meta
+
+    meta = data.meta if data.meta is not None else read_dataset_meta(data.root)
+    where: Path = meta.path
+    seed, problem = (None, meta.problem) if meta.problem else _meta_seed(meta.doc)
+    if problem is None and (weak := _gt_seeds(data)) is not None:
+        where, problem = weak[0], seed_problem(weak[1])
+    if problem is None:
+        return seed
+    if allow_guessable:
+        return None
+    raise PreflightError(f"{where}: {problem}: {_SEED_HINT}")
 
 
 def _script_args(template: str) -> list[str]:

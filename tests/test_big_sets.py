@@ -3,6 +3,7 @@ temporary file, the report files and coco.json are written as streams, with the 
 when everything is held in memory; and a 100,000-image set evaluates under 1 GB."""
 
 import csv
+import hashlib
 import json
 import math
 import subprocess
@@ -129,6 +130,35 @@ def _first_error(root, workers):
     except DatasetError as exc:
         return str(exc)
     return None
+
+
+def test_several_processes_refuse_junk_ids_and_gt_values_first_as_one_does(small_set,
+                                                                          tmp_path):
+    import shutil
+
+    root = tmp_path / "set"
+    shutil.copytree(small_set.root, root)
+    one, two = load_dataset(root, workers=1), load_dataset(root, workers=2)
+    assert one.facts == two.facts and one.facts.weakest_seed == (0, 0)  # every GT says seed 0
+    manifest = root / "manifest.jsonl"
+    lines = manifest.read_text().splitlines(keepends=True)
+    entry = json.loads(lines[50])
+    entry["id"] = "../x"
+    manifest.write_text("".join([*lines[:50], json.dumps(entry) + "\n", *lines[51:]]))
+    assert "manifest.jsonl:51: field 'id' '../x'" in _first_error(root, 1)
+    assert _first_error(root, 2) == _first_error(root, 1)
+    gt = root / "gt" / "000020.json"
+    doc = json.loads(gt.read_text())
+    doc["markers"][1]["id"] = float(doc["markers"][1]["id"])
+    gt.write_text(json.dumps(doc))
+    lines = manifest.read_text().splitlines(keepends=True)
+    entry = json.loads(lines[20])
+    entry["gt_sha256"] = hashlib.sha256(gt.read_bytes()).hexdigest()
+    lines[20] = json.dumps(entry) + "\n"
+    manifest.write_text("".join(lines))
+    first = _first_error(root, 1)
+    assert "000020.json: markers[1].id" in first and "is not an integer" in first
+    assert _first_error(root, 2) == first
 
 
 @pytest.mark.slow

@@ -106,6 +106,140 @@ def test_grade_refuses_a_guessable_seed_before_any_team(seed3_set, tmp_path):
     assert not out.exists()
 
 
+def _with_seeds(src: Path, dst: Path, *, meta: object = "keep", gt: object = "keep",
+                gt_index: int | None = None) -> Path:
+    """A copy of the generated set ``src`` whose ``dataset.json`` records the seed ``meta``
+    (top level and ``args``), and whose GT files (or only the one at ``gt_index``) record
+    ``gt`` (``"absent"``: none); ``meta`` may also be ``"missing"``, ``"directory"`` or
+    ``"garbage"``. The manifest's hashes follow."""
+    import hashlib
+
+    shutil.copytree(src, dst)
+    meta_path = dst / "dataset.json"
+    if meta == "missing":
+        meta_path.unlink()
+    elif meta == "directory":
+        meta_path.unlink()
+        meta_path.mkdir()
+    elif meta == "garbage":
+        meta_path.write_text("{not json")
+    elif meta != "keep":
+        doc = json.loads(meta_path.read_text())
+        doc["seed"] = doc["args"]["seed"] = meta
+        meta_path.write_text(json.dumps(doc))
+    rows = [json.loads(line) for line in (dst / "manifest.jsonl").read_text().splitlines()]
+    for i, row in enumerate(rows):
+        if gt != "keep" and gt_index in (None, i):
+            path = dst / row["gt"]
+            doc = json.loads(path.read_text())
+            if gt == "absent":
+                del doc["seed"]
+            else:
+                doc["seed"] = gt
+            path.write_text(json.dumps(doc))
+            row["gt_sha256"] = hashlib.sha256(path.read_bytes()).hexdigest()
+    (dst / "manifest.jsonl").write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return dst
+
+
+BIG_SEED = GUESSABLE_BELOW + 12345
+
+
+@pytest.mark.parametrize(
+    ("meta", "gt", "needle"),
+    [
+        ("3", "keep", "dataset.json: seed '3' is not an integer"),
+        (3.0, "keep", "dataset.json: seed 3.0 is not an integer"),
+        (-1, "keep", "dataset.json: seed -1 is below 2**64"),
+        (None, "keep", "dataset.json: no seed recorded"),
+        ([1], "keep", "dataset.json: seed [1] is not an integer"),
+        (True, "keep", "dataset.json: seed True is not an integer"),
+        (2**64 - 1, "keep", f"dataset.json: seed {2**64 - 1} is below 2**64"),
+        ("missing", BIG_SEED, "dataset.json: missing"),
+        ("garbage", BIG_SEED, "dataset.json: not JSON"),
+        ("missing", 1, "dataset.json: missing"),
+        (BIG_SEED, 1, "gt/000000.json: seed 1 is below 2**64"),
+        (BIG_SEED, "absent", "gt/000000.json: no seed recorded"),
+        (BIG_SEED, float(BIG_SEED), "gt/000000.json: seed 1.8446744073709564e+19 is not an "
+                                    "integer"),
+    ],
+    ids=["str", "float", "negative", "null", "list", "true", "2**64-1", "no-dataset.json",
+         "dataset.json-garbage", "no-dataset.json-gt-1", "big-dataset.json-gt-1",
+         "gt-without-seed", "gt-float"],
+)
+def test_grade_refuses_a_seed_not_proven_unguessable_wherever_it_is_recorded(
+        seed3_set, tmp_path, meta, gt, needle):
+    err = _refused_seeded_grade(seed3_set, tmp_path, meta, gt, needle)
+    assert "--seed random" in err and "--allow-guessable-seed" in err, err
+
+
+def _refused_seeded_grade(seed3_set: Path, tmp_path: Path, meta: object, gt: object,
+                          needle: str, *args: str) -> str:
+    """The one-line refusal of a grade of ``_with_seeds(seed3_set, ...)``, holding
+    ``DATA/needle``; nothing is written."""
+    data = _with_seeds(seed3_set, tmp_path / "hidden", meta=meta, gt=gt)
+    subs = tmp_path / "subs"
+    _team(subs, "a", ANSWER.format(count=1))
+    out = tmp_path / "out"
+    err = _one_line_error(_grade(str(data), str(subs), "--out", str(out), "--cmd", PY_CMD,
+                                 *args), f"{data}/{needle}")
+    assert not out.exists()
+    return err
+
+
+@pytest.mark.parametrize(
+    ("meta", "gt", "needle"),
+    [
+        ("directory", BIG_SEED, "dataset.json: not a regular file (a directory)"),
+        (BIG_SEED, "3", "gt/000000.json: seed: '3' is not of type 'integer'"),
+        (BIG_SEED, None, "gt/000000.json: seed: None is not of type 'integer'"),
+    ],
+    ids=["dataset.json-folder", "gt-str", "gt-null"],
+)
+def test_a_seed_no_generator_writes_is_a_dataset_error_even_when_guessable_is_allowed(
+        seed3_set, tmp_path, meta, gt, needle):
+    _refused_seeded_grade(seed3_set, tmp_path, meta, gt, needle, "--allow-guessable-seed")
+
+
+def test_a_set_whose_every_seed_is_big_passes_the_seed_check(seed3_set, tmp_path):
+    from arenabench.eval.dataset_reader import load_dataset
+    from arenabench.eval.preflight import PreflightError, check_dataset_seed
+
+    data = _with_seeds(seed3_set, tmp_path / "hidden", meta=BIG_SEED, gt=BIG_SEED)
+    assert check_dataset_seed(load_dataset(data), allow_guessable=False) == BIG_SEED
+    # and the flag lets a guessable one through
+    weak = _with_seeds(seed3_set, tmp_path / "weak", meta=BIG_SEED, gt=1)
+    with pytest.raises(PreflightError, match="seed 1 is below"):
+        check_dataset_seed(load_dataset(weak), allow_guessable=False)
+    check_dataset_seed(load_dataset(weak), allow_guessable=True)
+
+
+def test_answers_beyond_any_scene_are_bad_output_and_every_team_is_ranked(seed3_set, tmp_path):
+    """2**53 once stopped a team's report ("array is too big") and 6000 took minutes and
+    gigabytes (the count confusion grew with the count squared): both are bad_output now, and
+    every report of every team is written."""
+    subs = tmp_path / "subs"
+    _team(subs, "huge", ANSWER.format(count=2**53))
+    _team(subs, "many", ANSWER.format(count=6000))
+    _team(subs, "plain", ANSWER.format(count=1))
+    formats = ("json", "csv", "md", "html", "junit")
+    result = grade(seed3_set, subs, tmp_path / "out", options=GradeOptions(
+        command=PY_CMD, formats=formats, settings=grade_settings(sandbox="none")),
+        workers=2, report_workers=1, allow_guessable_seed=True)
+    assert result.errors == {}
+    rows = {r.team: r for r in result.rows}
+    assert set(rows) == {"huge", "many", "plain"}
+    for team in ("huge", "many"):
+        failures = {k: v for k, v in rows[team].summary.failures.items() if v}
+        assert failures == {"bad_output": 1}, rows[team].summary
+        report = json.loads((tmp_path / "out" / "teams" / team / "report.json").read_text())
+        assert "obstacle count is larger than 1000" in report["images"][0]["message"]
+        for name in ("report.html", "report.md", "junit.xml", "results.csv"):
+            assert (tmp_path / "out" / "teams" / team / name).is_file(), (team, name)
+    doc = json.loads((tmp_path / "out" / "leaderboard.json").read_text())
+    assert {t["team"] for t in doc["teams"]} == {"huge", "many", "plain"}
+
+
 @pytest.mark.slow
 @needs_bwrap
 def test_seed_brute_force_wins_on_seed_3_and_fails_on_a_random_set(random_set, seed3_set,

@@ -86,3 +86,28 @@ def test_unsupported_keyword_is_not_compiled():
 
 def test_schema_sanity():
     jsonschema.validators.validator_for(schemas.gt_schema()).check_schema(schemas.gt_schema())
+
+
+def test_the_schema_bounds_are_the_declared_limits():
+    """The shipped schema states the limits of ``arenabench.limits`` (a JSON file cannot
+    import them): the numbers reports bin or plot are bounded by what a scene or frame holds."""
+    from arenabench import limits
+
+    s = schemas.gt_schema()
+    props = s["properties"]
+    assert props["count"]["maximum"] == props["components"]["maximum"] == limits.MAX_COUNT
+    assert limits.MAX_COUNT == limits.MAX_SCENE_OBJECTS
+    assert s["$defs"]["area"]["maximum"] == limits.MAX_AREA_PX
+    assert s["$defs"]["size"]["items"]["maximum"] == limits.MAX_IMAGE_SIDE_PX
+    assert props["markers"]["items"]["properties"]["id"]["maximum"] == limits.MAX_MARKER_ID
+    assert props["obstacles"]["maxItems"] == limits.MAX_SCENE_OBJECTS
+
+
+def test_max_marker_id_is_the_last_id_of_the_largest_predefined_dictionary():
+    import cv2
+
+    from arenabench.limits import MAX_MARKER_ID
+
+    sizes = [cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name)).bytesList.shape[0]
+             for name in dir(cv2.aruco) if name.startswith("DICT_")]
+    assert max(sizes) - 1 == MAX_MARKER_ID

@@ -141,6 +141,14 @@ def test_a_callable_that_exits_or_hangs_fails_its_images_only(toy, tmp_path, exe
         (("--obstacles", "Obstacles: 1\\nTotal Area: -inf"), "area is not a finite number"),
         (("--obstacles", "Obstacles: 1\\nArea: -3"), "area is negative"),
         (("--obstacles", "Obstacles: 1e400\\nArea: 3"), "count is not a finite number"),
+        (("--obstacles", "Obstacles: 9007199254740992\\nArea: 3"),
+         "obstacle count is larger than 1000"),
+        (("--obstacles", "Obstacles: 6000\\nArea: 3"), "obstacle count is larger than 1000"),
+        (("--obstacles", "Aruco ID: [80, -1]\\nObstacles: 1\\nArea: 3"), "marker id is negative"),
+        (("--output", "json", "--json", '{"count": 6000, "area": 5}'),
+         "count is larger than 1000"),
+        (("--output", "json", "--json", '{"count": 1, "area": 5, "marker_ids": [99999]}'),
+         "marker id is larger than"),
     ],
 )
 def test_impossible_answer_of_a_command_is_bad_output(toy, tmp_path, args, needle):
@@ -183,6 +191,25 @@ def test_score_never_passes_a_non_finite_value():
         (lambda g: g.update(count=-1), "count: -1 is less than the minimum of 0"),
         (lambda g: g["markers"][0].update(id="80"), "markers[0].id: '80' is not of type"),
         (lambda g: g.update(schema="arenabench.gt/0"), "schema: 'arenabench.gt/1' was expected"),
+        # numbers that reports bin or plot: at most what a scene or a frame can hold
+        (lambda g: g.update(count=10**30),
+         f"count: {10**30} is greater than the maximum of 1000"),
+        (lambda g: g.update(components=10**30),
+         f"components: {10**30} is greater than the maximum of 1000"),
+        (lambda g: g["area"].update(visible_px=1e308),
+         "area.visible_px: 1e+308 is greater than the maximum of 134217728"),
+        (lambda g: g["area"].update(footprint_px=2e8),
+         "area.footprint_px: 200000000.0 is greater than the maximum of 134217728"),
+        (lambda g: g.update(image_size=[10**6, 1000]),
+         "image_size[0]: 1000000 is greater than the maximum of 8192"),
+        # junk marker ids
+        (lambda g: g["markers"][0].update(id=-1), "markers[0].id: -1 is less than the minimum"),
+        (lambda g: g["markers"][0].update(id=2**70),
+         f"markers[0].id: {2**70} is greater than the maximum of 2319"),
+        (lambda g: g["markers"][2].update(id=90.0), "markers[2].id: 90.0 is not an integer"),
+        (lambda g: g["markers"][0].update(id=1e20), "markers[0].id: 1e+20 is "),
+        (lambda g: g["markers"][3].update(id=g["markers"][1]["id"]),
+         "markers[3].id: 85 repeats markers[1].id"),
     ],
 )
 def test_invalid_gt_value_is_a_dataset_error_naming_file_and_field(toy, tmp_path, edit,
@@ -198,6 +225,49 @@ def test_invalid_gt_value_is_a_dataset_error_naming_file_and_field(toy, tmp_path
     rehash(bad)
     proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress")
     assert_clean_error(proc, f"gt/000001.json: {message}", prog="eval")
+
+
+def _manifest_with(toy: Path, tmp_path: Path, key: str, value: str) -> Path:
+    """A copy of ``toy`` whose second manifest entry has ``key`` = ``value``."""
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    manifest = bad / "manifest.jsonl"
+    rows = [json.loads(line) for line in manifest.read_text().splitlines()]
+    rows[1][key] = value
+    manifest.write_text("".join(json.dumps(r) + "\n" for r in rows))
+    return bad
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "needle"),
+    [
+        ("id", "a/b", "field 'id' 'a/b': "),
+        ("id", "x" * 300, "field 'id' 'xxxxxxxx"),
+        ("id", "", "field 'id' '': "),
+        ("id", "-rf", "field 'id' '-rf': "),
+        ("image", "images/000001\n.png", "field 'image' 'images/000001\\n.png': "),
+        ("gt", "gt/000001.json\r", "field 'gt' 'gt/000001.json\\r': "),
+    ],
+)
+@pytest.mark.parametrize("command", ["eval", "grade"])
+def test_manifest_ids_and_paths_that_no_report_can_show_are_refused(toy, tmp_path, key, value,
+                                                                    needle, command):
+    bad = _manifest_with(toy, tmp_path, key, value)
+    if command == "eval":
+        proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+                   "--out", str(tmp_path / "out"))
+    else:
+        teams = tmp_path / "teams"
+        (teams / "a").mkdir(parents=True)
+        from procs_limit import GRADE_ARGS
+
+        proc = run("grade", str(bad), str(teams), "--out", str(tmp_path / "out"),
+                   "--allow-guessable-seed", *GRADE_ARGS)
+    err = assert_clean_error(proc, f"{bad / 'manifest.jsonl'}:2: {needle}", prog=command)
+    assert len(err) < 400, err  # a 300-character id is shortened
+    assert not (tmp_path / "out").exists()
 
 
 def test_gt_count_1e400_is_refused(toy, tmp_path):
@@ -387,6 +457,49 @@ def test_other_inputs_that_are_fifos_are_refused_without_blocking(toy, tmp_path,
         os.mkfifo(bad / "gt" / "000001.json")
         proc = run_process("eval", str(bad), "--pipeline", "toy_arena:detect", timeout=60)
         assert_clean_error(proc, "gt/000001.json is not a regular file", prog="eval")
+
+
+@pytest.mark.parametrize("name", ["dataset.json", "manifest.jsonl", "gt/000001.json",
+                                  "images/000001.png"])
+@pytest.mark.parametrize("command", ["eval", "grade"])
+def test_dataset_files_that_are_fifos_are_refused_without_blocking(toy, tmp_path, command,
+                                                                    name):
+    import shutil
+
+    from procs_limit import GRADE_ARGS
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    (bad / name).unlink(missing_ok=True)
+    os.mkfifo(bad / name)
+    out = tmp_path / "out"
+    if command == "eval":
+        proc = run_process("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+                           "--out", str(out), timeout=60)
+    else:
+        (tmp_path / "teams" / "a").mkdir(parents=True)
+        proc = run_process("grade", str(bad), str(tmp_path / "teams"), "--out", str(out),
+                           "--allow-guessable-seed", "--no-progress", *GRADE_ARGS, timeout=60)
+    assert_clean_error(proc, str(bad / name), "not a regular file", prog=command)
+    assert not out.exists()
+
+
+def test_reading_a_dataset_file_never_opens_a_fifo(tmp_path):
+    """The one reader of dataset files refuses what is not a regular file from its open
+    descriptor: a FIFO never blocks it, even when it appears after a check by name."""
+    from arenabench.fileio import NotRegularFileError, read_regular, sha256_file
+
+    fifo = tmp_path / "fifo"
+    os.mkfifo(fifo)
+    for read in (read_regular, sha256_file):
+        with pytest.raises(NotRegularFileError, match="not a regular file"):
+            read(fifo)
+    with pytest.raises(NotRegularFileError, match="a directory"):
+        read_regular(tmp_path)
+    (tmp_path / "f").write_bytes(b"12345")
+    assert read_regular(tmp_path / "f") == b"12345"
+    with pytest.raises(OSError, match="more than the 4 bytes allowed"):
+        read_regular(tmp_path / "f", limit=4)
 
 
 def test_detect_output_dash_is_stdout(tmp_path):

@@ -209,3 +209,17 @@ def test_histogram_range_follows_the_data():
     lim, n_out = histogram_range([0.3, -0.2], 0.05)
     assert lim == pytest.approx(0.315) and n_out == 0
     assert histogram_range([5.0, 0.1], 0.05) == (1.0, 1)  # clipped at 1, and counted
+
+
+def test_count_confusion_follows_the_data_up_to_an_n_or_more_bin():
+    from arenabench.eval.reports.html_report import CONFUSION_COUNTS, count_confusion
+
+    mat, labels = count_confusion([0, 3, 2], [0, 3, None])
+    assert labels == ["0", "1", "2", "3"] and mat.shape == (4, 5)  # and a "none" column
+    assert mat[0, 0] == mat[3, 3] == mat[2, 4] == 1 and mat.sum() == 3
+    # counts no scene holds (refused before a report is made) still give a bounded figure
+    top = CONFUSION_COUNTS
+    mat, labels = count_confusion([3, 40, 10**30], [10**6, 2**53, 7])
+    assert mat.shape == (top + 1, top + 2) and labels[-1] == f"{top}+"
+    assert labels[:top] == [str(i) for i in range(top)]
+    assert mat[3, top] == mat[top, top] == mat[top, 7] == 1 and mat.sum() == 3

@@ -372,7 +372,9 @@ def grade(
     log : callable, optional, keyword-only
         Receives one line per team (graded, skipped or failed).
     allow_guessable_seed : bool, keyword-only
-        Grade a set generated with a seed below 2**64 (a submission can re-render it).
+        Grade a set whose seed is not proven unguessable: one that some file records as
+        below 2**64 (a submission can re-render it), or as anything but an integer, or not
+        at all (:func:`arenabench.eval.preflight.check_dataset_seed`).
     reference : path-like, optional, keyword-only
         A known-good submission for the preflight (default: the built-in reference).
 
@@ -397,13 +399,13 @@ def grade(
     from ..preflight import check_dataset_seed, preflight, process_limit, require_sandbox
 
     data = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
+    check_dataset_seed(data, allow_guessable=allow_guessable_seed)
     teams = find_teams(submissions)
     root = Path(out).resolve()
     check_out_dir(root, Path(submissions))
     mode = require_sandbox(opts.settings.sandbox)
     procs = process_limit(opts.settings.limits.max_procs)
     opts = replace(opts, settings=replace(opts.settings, sandbox=mode))
-    check_dataset_seed(data.root, allow_guessable=allow_guessable_seed)
     digests: dict[str, str] = {}
     refused: dict[str, str] = {}  # a submission that cannot be fingerprinted is not graded
     for t in teams:

@@ -18,6 +18,7 @@ import numpy as np
 
 from arenabench.fileio import atomic_write_text
 from arenabench.gtrecord import AREA_REFERENCE_FIELDS, DEFAULT_AREA_REFERENCE
+from arenabench.limits import MAX_IMAGE_SIDE_PX
 
 from ..breakdown import shown_breakdown, strongest_cause_text
 from ..dataset_reader import Dataset, DatasetError, load_dataset
@@ -66,6 +67,36 @@ def histogram_range(errors: Sequence[float], tolerance: float) -> tuple[float, i
     return lim, int(np.sum(np.abs(errors) > lim))
 
 
+#: Most count values the count confusion shows one by one: larger counts share its last bin,
+#: "N or more" (``N+``), so no answer or ground truth can make the figure grow without bound.
+CONFUSION_COUNTS = 20
+
+
+def count_confusion(gts: Sequence[int], preds: Sequence[int | None], *,
+                    most: int = CONFUSION_COUNTS) -> tuple[np.ndarray, list[str]]:
+    """The count confusion: ground-truth counts (rows) against predicted ones (columns, and
+    a last column for images with no count).
+
+    The bins follow the data: counts ``0 .. top``, ``top`` the largest count found, and at
+    most ``most + 1`` of them: from ``most`` on, a count falls in the last bin, ``"most+"``.
+
+    Returns
+    -------
+    matrix : numpy.ndarray
+        Image numbers, ``(len(labels), len(labels) + 1)``.
+    labels : list of str
+        The bins' labels.
+    """
+    top = min(max([*gts, *(p for p in preds if p is not None), 0]), most)
+    labels = [str(i) for i in range(top + 1)]
+    if top == most:
+        labels[-1] = f"{most}+"
+    mat = np.zeros((top + 1, top + 2), dtype=np.int64)
+    for g, p in zip(gts, preds, strict=True):
+        mat[min(int(g), top), top + 1 if p is None else min(int(p), top)] += 1
+    return mat, labels
+
+
 def _figures(report: Report) -> list[tuple[str, str]]:
     import matplotlib
 
@@ -98,13 +129,8 @@ def _figures(report: Report) -> list[tuple[str, str]]:
     ax.set_title("Area error (dashed: tolerance)")
     out.append(("Area error histogram", _png_data_uri(fig)))
 
-    gts = [r.truth.count for r in report.images]
-    preds = [r.prediction.count for r in report.images]
-    hi = max([*gts, *[p for p in preds if p is not None], 0])
-    size = hi + 2  # counts 0..hi plus a "none" column
-    mat = np.zeros((hi + 1, size), dtype=np.int64)
-    for g, p in zip(gts, preds, strict=True):
-        mat[g, size - 1 if p is None else p] += 1
+    mat, labels = count_confusion([r.truth.count for r in report.images],
+                                  [r.prediction.count for r in report.images])
     fig = Figure(figsize=(6, 4.2))
     ax = fig.add_subplot()
     ax.imshow(mat, cmap="Blues", aspect="auto")
@@ -119,8 +145,8 @@ def _figures(report: Report) -> list[tuple[str, str]]:
                 color="white" if v > mat.max() / 2 else "black",
                 fontsize=8,
             )
-    ax.set_xticks(range(size), [*map(str, range(hi + 1)), "none"])
-    ax.set_yticks(range(hi + 1), [str(i) for i in range(hi + 1)])
+    ax.set_xticks(range(len(labels) + 1), [*labels, "none"])
+    ax.set_yticks(range(len(labels)), labels)
     ax.set_xlabel("predicted count")
     ax.set_ylabel("ground-truth count")
     ax.set_title("Count confusion")
@@ -156,6 +182,20 @@ def worst_cases(images: Sequence[ImageResult], *, limit: int = 12) -> list[Image
 
     # = sorted(...)[:limit] (stable), holding only ``limit`` results of a big run
     return heapq.nsmallest(limit, (r for r in images if not r.passed), key=lambda r: -err(r))
+
+
+def _read_colour(image_path: str) -> np.ndarray | None:
+    """The image as ``cv2.imread(..., IMREAD_COLOR)`` reads it, only from a regular file;
+    ``None`` when it cannot be read."""
+    import cv2
+
+    from arenabench.imageio import ImageLoadError, read_image_bytes
+
+    try:
+        data = read_image_bytes(image_path)
+    except ImageLoadError:
+        return None
+    return cv2.imdecode(np.frombuffer(data, dtype=np.uint8), cv2.IMREAD_COLOR)
 
 
 def _frame_to_image(h: np.ndarray | None) -> np.ndarray | None:
@@ -260,9 +300,8 @@ def thumbnail(image_path: str, gt: dict[str, Any] | None, *, width: int = 380,
     """JPEG data URI of the image with the GT obstacle outlines (wide, green), the markers
     (blue) and the pipeline's obstacles (narrow, magenta, on top; when it reported polygons),
     or ``None`` when the image cannot be read."""
-    import cv2
 
-    image = cv2.imread(image_path, cv2.IMREAD_COLOR)
+    image = _read_colour(image_path)
     if image is None:
         return None
     small, scale = _small(image, width)
@@ -285,12 +324,12 @@ def frame_thumbnail(image_path: str, gt: dict[str, Any] | None, *, width: int = 
     import cv2
 
     h = _homography(pred, gt)
-    image = cv2.imread(image_path, cv2.IMREAD_COLOR)
+    image = _read_colour(image_path)
     if h is None or image is None:
         return None
     size = (gt or {}).get("frame", {}).get("size") or [1000, 1000]
     fw, fh = int(size[0]), int(size[1])
-    if not (16 <= fw <= 8000 and 16 <= fh <= 8000):
+    if not (16 <= fw <= MAX_IMAGE_SIDE_PX and 16 <= fh <= MAX_IMAGE_SIDE_PX):
         return None
     small, scale = _small(cv2.warpPerspective(image, h, (fw, fh)), width)
     _outline(small, gt_frame_polygons(gt, h, area_key=area_key), GT_BGR, 5, scale)

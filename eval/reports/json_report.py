@@ -7,6 +7,7 @@ import os
 from dataclasses import replace
 from pathlib import Path
 
+from arenabench.fileio import read_regular
 from arenabench.jsonstream import Streamed, write_json_stream
 
 from ..results import Report
@@ -32,7 +33,7 @@ def read_json(path: str | os.PathLike[str]) -> Report:
     if Path(path).exists() and not Path(path).is_file():
         raise ValueError(f"{path}: not a regular file (a folder, pipe or device)")
     try:
-        data = json.loads(Path(path).read_text(encoding="utf-8"))
+        data = json.loads(read_regular(path).decode("utf-8"))  # never blocks on a FIFO
         return Report.from_dict(data)
     except (OSError, json.JSONDecodeError, KeyError, ValueError, TypeError) as exc:
         raise ValueError(f"{path}: not a readable arenabench report ({exc})") from None

@@ -16,6 +16,8 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+from arenabench.limits import MAX_COUNT, MAX_MARKER_ID
+
 OBSTACLES_FILE = "obstacles.txt"
 
 #: Largest ``|area_rel_err|`` of a passing answer unless ``--tolerance`` says otherwise
@@ -46,14 +48,10 @@ class CompetitionOutput:
 #: run by the harness) says "markers not found".
 EXIT_MARKERS_NOT_FOUND = 3
 
-#: Largest count accepted: beyond 2**53 an integer has no exact float (nor JSON) value.
-MAX_COUNT = 2**53
-
-
 def _refuse(name: str, problem: str, value: Any, shown: str | None) -> OutputFormatError:
     if shown is not None:
         quoted = shown
-    elif isinstance(value, int) and abs(value) > MAX_COUNT:
+    elif isinstance(value, int) and value.bit_length() > 64:
         quoted = f"an integer of {value.bit_length()} bits"  # repr may refuse huge ints
     else:
         try:
@@ -66,8 +64,10 @@ def _refuse(name: str, problem: str, value: Any, shown: str | None) -> OutputFor
 def check_count(value: Any, *, name: str = "count", shown: str | None = None) -> int:
     """An obstacle count as a Python ``int``, or :class:`OutputFormatError`.
 
-    Accepted: a non-negative integer, or a float with an integral, finite value (``2.0``).
-    Refused: booleans, strings, fractions, NaN, infinities and negative values.
+    Accepted: an integer in ``[0, MAX_COUNT]`` (:data:`arenabench.limits.MAX_COUNT`, the most
+    obstacles a scene holds), or a float with such an integral value (``2.0``). Refused:
+    booleans, strings, fractions, NaN, infinities, negative values and larger values (the
+    message names the bound).
 
     Parameters
     ----------
@@ -78,6 +78,20 @@ def check_count(value: Any, *, name: str = "count", shown: str | None = None) ->
     shown : str, optional
         Text quoted in the message (default: ``repr(value)``).
     """
+    return _check_integer(value, name=name, shown=shown, maximum=MAX_COUNT,
+                          bound="the most obstacles a scene holds")
+
+
+def check_marker_id(value: Any, *, shown: str | None = None) -> int:
+    """A reported ArUco marker id as a Python ``int`` in ``[0, MAX_MARKER_ID]``
+    (:data:`arenabench.limits.MAX_MARKER_ID`), or :class:`OutputFormatError` (the rules of
+    :func:`check_count`)."""
+    return _check_integer(value, name="marker id", shown=shown, maximum=MAX_MARKER_ID,
+                          bound="the largest id of any ArUco dictionary")
+
+
+def _check_integer(value: Any, *, name: str, shown: str | None, maximum: int,
+                   bound: str) -> int:
     if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise _refuse(name, "is not an integer", value, shown)
     if isinstance(value, numbers.Integral):
@@ -91,8 +105,8 @@ def check_count(value: Any, *, name: str = "count", shown: str | None = None) ->
         number = int(as_float)
     if number < 0:
         raise _refuse(name, "is negative", value, shown)
-    if number > MAX_COUNT:
-        raise _refuse(name, f"is larger than {MAX_COUNT}", value, shown)
+    if number > maximum:
+        raise _refuse(name, f"is larger than {maximum}, {bound}", value, shown)
     return number
 
 
@@ -148,7 +162,8 @@ def parse_obstacles_txt(text: str) -> CompetitionOutput:
     ------
     OutputFormatError
         When the count or area line is missing or malformed, or a value is not finite,
-        negative, or (for the count) not an integer; the message quotes the text.
+        negative, or (for the count and the marker ids) not an integer or beyond any scene
+        (:func:`check_count`, :func:`check_marker_id`); the message quotes the text.
     """
     ids: list[int] = []
     count: int | None = None
@@ -160,9 +175,13 @@ def parse_obstacles_txt(text: str) -> CompetitionOutput:
         if m := _RE_IDS.match(line):
             body = m.group(1).strip()
             try:
-                ids = [int(tok) for tok in re.split(r"[,\s]+", body) if tok]
+                tokens = [int(tok) for tok in re.split(r"[,\s]+", body) if tok]
             except ValueError:
-                raise OutputFormatError(f"bad marker id list: {raw!r}") from None
+                raise OutputFormatError(f"bad marker id list: {raw!r}"[:300]) from None
+            if len(tokens) > MAX_MARKER_ID + 1:
+                raise OutputFormatError(f"more marker ids ({len(tokens)}) than any ArUco "
+                                        f"dictionary holds ({MAX_MARKER_ID + 1})")
+            ids = [check_marker_id(i, shown=repr(raw.strip())[:200]) for i in tokens]
         elif m := _RE_COUNT.match(line):
             count = check_count(float(m.group(1)), name="obstacle count", shown=repr(raw.strip()))
         elif m := _RE_AREA.match(line):

@@ -14,6 +14,7 @@ import json
 import math
 import os
 import re
+import stat
 import sys
 import tempfile
 import time
@@ -174,12 +175,68 @@ def sha256_bytes(data: bytes) -> str:
 
 
 def sha256_file(path: str | os.PathLike[str], chunk: int = 1 << 20) -> str:
-    """Hex SHA-256 of the file at ``path``, read in chunks."""
+    """Hex SHA-256 of the regular file at ``path``, read in chunks
+    (:class:`NotRegularFileError` for anything else: :func:`open_regular`)."""
     h = hashlib.sha256()
-    with open(path, "rb") as fh:
+    with open_regular(path) as fh:
         while block := fh.read(chunk):
             h.update(block)
     return h.hexdigest()
+
+
+class NotRegularFileError(OSError):
+    """A file to read is a FIFO, a device, a socket or a folder (``strerror`` says which)."""
+
+
+def _kind(mode: int) -> str:
+    if stat.S_ISDIR(mode):
+        return "a directory"
+    return "a pipe, device or socket"
+
+
+def open_regular(path: str | os.PathLike[str]) -> IO[bytes]:
+    """Open ``path`` for reading, in binary, only if it is a regular file.
+
+    The file is opened without blocking (``O_NONBLOCK``: a FIFO with no writer would
+    otherwise block the open, and a read, for ever) and judged by its open descriptor
+    (``fstat``), so a file swapped for a FIFO after a check by name is refused too; the
+    descriptor is then made blocking again. Symbolic links are followed.
+
+    Raises
+    ------
+    NotRegularFileError
+        For a FIFO, device, socket or folder (``strerror``: ``"not a regular file (...)"``).
+    OSError
+        When it cannot be opened.
+    """
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_CLOEXEC)
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            raise NotRegularFileError(0, f"not a regular file ({_kind(mode)})", str(path))
+        os.set_blocking(fd, True)
+    except BaseException:
+        os.close(fd)
+        raise
+    return os.fdopen(fd, "rb")
+
+
+def read_regular(path: str | os.PathLike[str], *, limit: int | None = None) -> bytes:
+    """The bytes of the regular file at ``path`` (:func:`open_regular`).
+
+    Parameters
+    ----------
+    limit : int, optional, keyword-only
+        Largest size read: a larger file is an ``OSError`` whose ``strerror`` is ``"more
+        than the <limit> bytes allowed"`` (nothing more is read).
+    """
+    with open_regular(path) as fh:
+        if limit is None:
+            return fh.read()
+        data = fh.read(limit + 1)
+    if len(data) > limit:
+        raise OSError(0, f"more than the {limit} bytes allowed", str(path))
+    return data
 
 
 def rounded(obj: Any, decimals: int = JSON_DECIMALS) -> Any:

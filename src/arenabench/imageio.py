@@ -19,6 +19,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
+from arenabench.fileio import open_regular, read_regular
+
 #: zlib level of :func:`encode_png` (1 = fast; PNG is lossless whatever the level).
 PNG_COMPRESSION = 1
 
@@ -55,8 +57,8 @@ def image_file_problem(path: str | os.PathLike[str]) -> str | None:
     """
     p = Path(path)
     try:
-        size = p.stat().st_size
-        with open(p, "rb") as fh:
+        with open_regular(p) as fh:  # never blocks on a FIFO
+            size = os.fstat(fh.fileno()).st_size
             head = fh.read(16)
             fh.seek(max(0, size - 256))
             tail = fh.read(256)
@@ -152,11 +154,22 @@ def load_image(path: str | os.PathLike[str]) -> np.ndarray:
         raise ImageLoadError(f"{name}: is a directory, not an image file")
     if not p.is_file():  # a FIFO or a device would block or never end
         raise ImageLoadError(f"{name}: not a regular file (a pipe, device or socket)")
+    return decode_image(read_image_bytes(p), name=name)
+
+
+def read_image_bytes(path: str | os.PathLike[str]) -> bytes:
+    """The bytes of an image file, read only if it is a regular file (never blocking on a
+    FIFO that takes the place of an image: :func:`arenabench.fileio.open_regular`).
+
+    Raises
+    ------
+    ImageLoadError
+        When it is not a regular file or cannot be read (one line naming the file).
+    """
     try:
-        data = p.read_bytes()
+        return read_regular(path)
     except OSError as exc:
-        raise ImageLoadError(f"{name}: cannot read ({exc.strerror or exc})") from None
-    return decode_image(data, name=name)
+        raise ImageLoadError(f"{path}: cannot read ({exc.strerror or exc})") from None
 
 
 def encode_png(bgr: np.ndarray) -> bytes:

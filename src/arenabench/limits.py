@@ -16,6 +16,31 @@ MAX_IMAGE_SIDE_PX = 8192
 #: for the visibility of every box against every other).
 MAX_SCENE_OBJECTS = 1000
 
+#: Largest obstacle count, and number of connected components, of a ground truth and of a
+#: pipeline's answer: a scene holds at most :data:`MAX_SCENE_OBJECTS` obstacles, its GT counts
+#: those overlapping the frame, and the union of their (convex) silhouettes has at most as many
+#: pieces. An answer beyond it is ``bad_output``, a GT beyond it a dataset error; reports bin
+#: counts up to it at most.
+MAX_COUNT = MAX_SCENE_OBJECTS
+
+#: Largest ArUco marker id of a ground truth and of an answer: the last id of the largest
+#: predefined OpenCV dictionary (``DICT_APRILTAG_36h10``, 2320 ids).
+MAX_MARKER_ID = 2319
+
+#: Largest area of a ground truth, in frame px: every GT area is clipped to the frame square,
+#: whose side is at most :data:`MAX_IMAGE_SIDE_PX` (``frame.size``), so it is at most the side
+#: squared; the factor 2 leaves room for ``area.contour_px``, which counts a pixelated outline
+#: and may pass the polygon's area by up to a pixel per piece.
+MAX_AREA_PX = 2 * MAX_IMAGE_SIDE_PX**2
+
+#: Longest image id of a dataset's manifest (ids name files: ``gt/<id>.json``, and rows of
+#: every report); an id is letters, digits, ``.``, ``_`` and ``-``, not starting with ``.``
+#: or ``-``.
+MAX_IMAGE_ID_CHARS = 128
+
+#: Largest ``dataset.json`` read (the generator's is a few kilobytes).
+MAX_DATASET_META_BYTES = 1024**2
+
 #: Largest magnitude of any number in a scene (metres, degrees, pixels, intrinsics): beyond
 #: it the camera and geometry arithmetic loses all precision (``inf`` and ``nan`` never pass).
 MAX_SCENE_NUMBER = 1e6

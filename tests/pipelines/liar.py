@@ -22,6 +22,10 @@ ANSWERS: dict[str, dict] = {
     "negative_count": {"count": -1, "area": 100.0},
     "nan_marker_id": {"count": 1, "area": 100.0, "marker_ids": [80, float("nan")]},
     "huge_count": {"count": 2**20000, "area": 100.0},  # repr() of it raises in Python 3.11+
+    "count_2_53": {"count": 2**53, "area": 100.0},  # more obstacles than a scene can hold
+    "count_6000": {"count": 6000, "area": 100.0},
+    "huge_marker_id": {"count": 1, "area": 100.0, "marker_ids": [80, 10**6]},
+    "endless_marker_ids": {"count": 1, "area": 100.0, "marker_ids": range(10**12)},
     "huge_area": {"count": 1, "area": 2**20000},
     "status_array": {"status": [1, 2], "count": 1, "area": 100.0},
 }

@@ -1,8 +1,10 @@
 """JSON Schemas of the files arenabench writes, shipped as package data.
 
-``gt.schema.json`` describes one ground-truth file (schema ``arenabench.gt/1``). JSON Schema
-accepts NaN and infinities as ``number``; :func:`gt_problem` also refuses any non-finite
-number, wherever it is.
+``gt.schema.json`` describes one ground-truth file (schema ``arenabench.gt/1``); its maxima
+are limits of :mod:`arenabench.limits` (``tests/test_gt_quickcheck.py`` checks that they
+agree). JSON Schema accepts NaN and infinities as ``number`` and ``3.0`` as ``integer``;
+:func:`gt_problem` also refuses any non-finite number, wherever it is, a count or marker id
+written with a fraction or exponent, and a marker id listed twice.
 """
 
 from __future__ import annotations
@@ -84,8 +86,35 @@ def _one_line(text: str, limit: int = 200) -> str:
     return text if len(text) <= limit else text[: limit - 3] + "..."
 
 
+#: Integer fields that must be written as JSON integers (``3``, not ``3.0`` or ``3e0``, which
+#: JSON Schema's ``integer`` accepts): a fraction or an exponent is not what the generator
+#: writes, so it is a hand-edited or damaged file.
+_WRITTEN_AS_INTEGERS = ("count", "components")
+
+
+def _rules_problem(gt: dict[str, Any]) -> str | None:
+    """The rules JSON Schema cannot state, on a record the schema accepts: the integer
+    fields written as integers, and each marker id once."""
+    for key in _WRITTEN_AS_INTEGERS:
+        if type(gt.get(key)) is float:
+            return f"{key}: {gt[key]!r} is not an integer (written with a fraction or exponent)"
+    seen: dict[int, int] = {}
+    for i, marker in enumerate(gt.get("markers") or ()):
+        mid = marker["id"]
+        if type(mid) is float:
+            return (f"markers[{i}].id: {mid!r} is not an integer (written with a fraction or "
+                    "exponent)")
+        if mid in seen:
+            return f"markers[{i}].id: {mid} repeats markers[{seen[mid]}].id (each marker once)"
+        seen[mid] = i
+    return None
+
+
 def gt_problem(gt: Any) -> str | None:
     """The first problem of a parsed ground-truth record, or ``None`` when it is valid.
+
+    Valid: the schema holds (:func:`gt_schema`: types, bounds), every number is finite, the
+    integer fields are written as integers and no marker id repeats.
 
     Parameters
     ----------
@@ -102,7 +131,7 @@ def gt_problem(gt: Any) -> str | None:
     quick = _quick_gt_check()  # valid files are answered without jsonschema (quickcheck.py)
     try:
         if quick is not None and quick(gt):
-            return None
+            return _rules_problem(gt)
     except RecursionError:
         return "nested too deeply"
     import jsonschema
@@ -115,6 +144,6 @@ def gt_problem(gt: Any) -> str | None:
     except RecursionError:
         return "nested too deeply"
     if error is None:
-        return None
+        return _rules_problem(gt)
     where = dotted(error.absolute_path)
     return _one_line(f"{where}: {error.message}" if where else error.message)
