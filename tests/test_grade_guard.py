@@ -308,6 +308,20 @@ def test_a_broken_interpreter_stops_at_the_preflight(seed3_set, tmp_path):
     assert _no_team_graded(out)
 
 
+def test_a_relative_interpreter_is_named_as_relative_to_each_team_folder(seed3_set, tmp_path):
+    """Relative paths in --cmd resolve from each team's folder: the preflight says so, and
+    never names its own temporary folder."""
+    subs = tmp_path / "subs"
+    _team(subs, "a", ANSWER.format(count=1))
+    out = tmp_path / "out"
+    proc = _grade(str(seed3_set), str(subs), "--out", str(out), "--allow-guessable-seed",
+                  "--cmd", "venv/bin/python {submission}/map.py --image {image}")
+    err = _one_line_error(proc, "venv/bin/python")
+    assert "relative paths resolve from each team's folder" in err
+    assert "arenabench-preflight" not in err
+    assert _no_team_graded(out)
+
+
 @pytest.mark.slow
 def test_sandbox_none_is_required_without_bubblewrap(seed3_set, tmp_path):
     # a PATH without bubblewrap (the harness is started by its absolute path)
