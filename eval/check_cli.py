@@ -413,7 +413,8 @@ def _probe(interpreter, template: str, script: Path, make_pipeline, settings, *,
         image.write_bytes(cv2.imencode(".png", np.zeros((1, 1), np.uint8))[1].tobytes())
         record = probe_interpreter(
             probe_template, image=image, make_pipeline=make_pipeline, mode=mode,
-            record=PreflightRecord(mode=mode, limits=settings.to_dict()), option="--python")
+            record=PreflightRecord(mode=mode, limits=settings.to_dict()), option="--python",
+            command_name="the command running the script")
     return interpreter.with_versions(record.versions)
 
 

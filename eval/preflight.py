@@ -275,6 +275,7 @@ def probe_interpreter(
     mode: str,
     record: PreflightRecord,
     option: str = "--cmd",
+    command_name: str = "the grading command",
 ) -> PreflightRecord:
     """Run the probe script in the place of the command's script, plainly (no warm server,
     so a broken interpreter is named by its own error), with the command's settings.
@@ -294,6 +295,8 @@ def probe_interpreter(
         ``arenabench_importable``.
     option : str
         The option that names the interpreter (for messages).
+    command_name : str
+        What the command is called in messages.
 
     Returns
     -------
@@ -332,7 +335,7 @@ def probe_interpreter(
                 "numpy and OpenCV with aruco (install them into that interpreter, or "
                 f"name another with {option})")
         raise PreflightError(
-            f"preflight: the command cannot run a Python script in the "
+            f"preflight: {command_name} cannot run a Python script in the "
             f"sandbox ({mode}): {pred.status}: {why[:300]}")
     return replace(
         record, versions={k: info.get(k) for k in ("python", "numpy", "cv2", "aruco")},
