@@ -170,10 +170,10 @@ def report_dir(script: Path, *, preset: str, seed: int, count: int, interpreter:
     """The default report folder: ``reports/<script>-<preset>-s<seed>-n<count>-<hash>`` in the
     cache, the hash over everything else that changes the result (the script's path, the
     interpreter, the run settings, the phase check)."""
-    import json
+    from arenabench.fileio import dumps_json
 
-    key = json.dumps({"script": str(script), "interpreter": interpreter,
-                      "settings": settings, "phases": phases}, sort_keys=True, default=str)
+    key = dumps_json({"script": str(script), "interpreter": interpreter,
+                      "settings": settings, "phases": phases})
     digest = hashlib.sha256(key.encode()).hexdigest()[:10]
     return cache_dir() / "reports" / f"{script.stem}-{preset}-s{seed}-n{count}-{digest}"
 

@@ -48,6 +48,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from arenabench.cliopts import COMPETITION_PYTHON_PLACEHOLDER
 from arenabench.limits import COMPETITION_ENV_BUILD_TIMEOUT_S
 
 
@@ -91,24 +92,23 @@ COMPETITION_PINS: tuple[Pin, ...] = (
 )
 #: Stands for the competition environment's interpreter in ``check --python`` and in the
 #: ``--cmd`` templates of ``eval`` and ``sweep``.
-PLACEHOLDER = "{competition_python}"
+PLACEHOLDER = COMPETITION_PYTHON_PLACEHOLDER
 #: Stands for the Python running arenabench (the same commands; resolved by the run machinery).
 OWN_PLACEHOLDER = "{python}"
 #: The record of what was made, in the environment's folder.
 RECORD_FILE = "arenabench-env.json"
 RECORD_SCHEMA = "arenabench.competition-env/1"
-#: ``Interpreter.source`` values.
-SOURCES = ("competition", "fallback", "own", "given")
 
 _PROBE = (
-    "import json, sys\n"
+    "import sys\n"
+    "from json import dumps\n"
     "info = {'python': sys.version.split()[0]}\n"
     "for name in ('numpy', 'cv2'):\n"
     "    try:\n"
     "        info[name] = __import__(name).__version__\n"
     "    except Exception as exc:\n"
     "        info[name + '_error'] = f'{type(exc).__name__}: {exc}'\n"
-    "print(json.dumps(info))\n"
+    "print(dumps(info))\n"
 )
 #: pip lines shown while the environment is made (the others are kept for the error message).
 _SHOWN = re.compile(r"^\s*(Collecting|Processing|Downloading|Using cached|Installing collected|"
@@ -265,9 +265,11 @@ def env_folder(cache: str | os.PathLike[str] | None = None) -> Path:
         from .check_cli import cache_dir
 
         cache = cache_dir()
-    key = json.dumps({"pins": [p.requirement for p in COMPETITION_PINS],
+    from arenabench.fileio import dumps_json
+
+    key = dumps_json({"pins": [p.requirement for p in COMPETITION_PINS],
                       "base": _base_executable(), "python": platform.python_version(),
-                      "machine": platform.machine()}, sort_keys=True)
+                      "machine": platform.machine()})
     digest = hashlib.sha256(key.encode()).hexdigest()[:10]
     return Path(cache) / "envs" / f"competition-{sys.implementation.cache_tag}-{digest}"
 
