@@ -72,8 +72,8 @@ the interpreter and the run options), or --out.
 The script's conventions, as the competition ran it: 'PYTHON SCRIPT --image IMAGE' with its
 own folder visible read-only and, as its working directory, a private copy of that folder
 (what the competition's run in the script's folder amounts to, without letting one run see
-another's obstacles.txt); it writes obstacles.txt there; its exit status 3 means markers not
-found, any other non-zero status is a crash.
+another's obstacles.txt); it writes obstacles.txt there; its own exit status 0 means an answer,
+3 means markers not found, any other status a crash.
 
 arenabench's exit status: 0 pass rate >= --fail-under, 1 below it, 2 bad input (before any
 work), 130/143 interrupted.
