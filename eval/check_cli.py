@@ -1,9 +1,12 @@
 """``arenabench check map.py``: know before you submit.
 
-Generates (or reuses, from the user cache) a set of hidden-test twin scenes, runs the script on
-each as the competition did (``python3 map.py --image PATH``, ``obstacles.txt`` in the working
-directory; sandboxed where bubblewrap works: the ``eval --cmd`` machinery), phase-checks the
-failures, and prints a short verdict with the report's path (docs/phase-check.md).
+Checks the interpreter first (the preflight's probe: Python, numpy, OpenCV with aruco, through
+the same run settings as the script), generates (or reuses, from the user cache) a set of
+hidden-test twin scenes, runs the script on each as the competition did (``python3 map.py
+--image PATH`` with the competition's numpy and OpenCV: :mod:`arenabench.eval.competition_env`;
+``obstacles.txt`` in the working directory; sandboxed where bubblewrap works: the ``eval --cmd``
+machinery), phase-checks the failures, and prints a short verdict with the versions that ran the
+script and the report's path (docs/phase-check.md).
 
 Exit status: 0 the pass rate reaches ``--fail-under``; 1 it does not; 2 bad input (before any
 work); 130/143 stopped by SIGINT/SIGTERM.
@@ -15,6 +18,7 @@ import argparse
 import hashlib
 import math
 import os
+import shutil
 import sys
 from pathlib import Path
 
@@ -29,6 +33,7 @@ from arenabench.cliopts import (
     usage_error,
 )
 
+from .competition_env import OWN_PLACEHOLDER, PLACEHOLDER
 from .phase_check import add_phase_check_argument
 
 PROG = "arenabench check"
@@ -48,16 +53,30 @@ examples:
   arenabench check map.py                       # 200 eyrc twin scenes, threshold 95 %
   arenabench check map.py --count 50 --fail-under 0.9
   arenabench check src/map.py --preset eyrc-jitter --seed 3 --out check-report/
+  arenabench check map.py --python ~/teams-venv/bin/python
+
+The interpreter: {competition_python} (the default) is the competition's environment (numpy and
+OpenCV at the competition's versions), made once from the package index into the cache
+(envs/) and reused; where it cannot be made, one line says so and arenabench's own Python runs
+the script. --python {python} runs it with arenabench's own Python, --python PATH with another.
+Before any scene is rendered the interpreter is probed (Python, numpy, OpenCV with aruco)
+through the same sandbox and limits; one that lacks them is refused (exit 2). The versions
+that ran the script are printed and recorded in the reports.
 
 The twin set is generated once per (preset, seed, count, generator version) into the cache
 (ARENABENCH_CACHE_DIR, else $XDG_CACHE_HOME/arenabench, else ~/.cache/arenabench: sets/) and
-reused. The script runs as '{python} SCRIPT --image IMAGE' (the Python running arenabench,
-which has OpenCV; --python for another) with its own folder visible read-only and, as its
-working directory, a private copy of that folder (what the competition's run in the script's
-folder amounts to, without letting one run see another's obstacles.txt); exit status 3 means
-markers not found.
+reused; a smaller --count takes the first scenes of a larger cached set (the same scenes).
+Reports go to reports/SCRIPT-PRESET-sSEED-nCOUNT-HASH/ in the cache (HASH: the script's path,
+the interpreter and the run options), or --out.
 
-exit status: 0 pass rate >= --fail-under, 1 below it, 2 bad input, 130/143 interrupted.
+The script's conventions, as the competition ran it: 'PYTHON SCRIPT --image IMAGE' with its
+own folder visible read-only and, as its working directory, a private copy of that folder
+(what the competition's run in the script's folder amounts to, without letting one run see
+another's obstacles.txt); it writes obstacles.txt there; its own exit status 0 means an answer,
+3 means markers not found, any other status a crash.
+
+arenabench's exit status: 0 pass rate >= --fail-under, 1 below it, 2 bad input (before any
+work), 130/143 interrupted.
 """
 
 
@@ -77,9 +96,10 @@ def build_parser() -> CommandParser:
                    help="scene preset (default: %(default)s, the hidden-test twin)")
     p.add_argument("--fail-under", type=float, default=DEFAULT_FAIL_UNDER, metavar="RATE",
                    help="pass rate needed for exit status 0 (default: %(default)s)")
-    p.add_argument("--python", default="{python}",
-                   help="interpreter that runs the script (default: the one running "
-                   "arenabench)")
+    p.add_argument("--python", default=PLACEHOLDER, metavar="PYTHON",
+                   help=f"interpreter that runs the script: {PLACEHOLDER} (the competition's "
+                   f"numpy and OpenCV, made once into the cache), {OWN_PLACEHOLDER} (the one "
+                   "running arenabench) or a path (default: %(default)s)")
     add_out(p, help="folder for the report files (default: the cache's reports/ folder)")
     add_workers(p, help="scripts run at once")
     add_no_progress(p)
@@ -103,13 +123,79 @@ def twin_set_dir(*, preset: str, seed: int, count: int) -> Path:
     return cache_dir() / "sets" / f"{preset}-{seed}-{count}-v{GENERATOR_VERSION}"
 
 
-def _report_dir(script: Path) -> Path:
-    digest = hashlib.sha256(str(script).encode()).hexdigest()[:10]
-    return cache_dir() / "reports" / f"{script.stem}-{digest}"
+def larger_twin_set(*, preset: str, seed: int, count: int) -> tuple[Path, int] | None:
+    """The smallest complete cached twin set of ``preset`` and ``seed`` (this generator
+    version, no ``--set``) with more than ``count`` scenes, and its size; ``None`` when there
+    is none.
+
+    Its first ``count`` scenes are the scenes of a ``count``-scene set: scene ``i`` draws
+    only from the streams of ``(seed, i)`` (:func:`arenabench.generator.sampler.stream_rng`),
+    whatever the set's size.
+    """
+    import json
+    import re
+
+    from arenabench.generator.make import GENERATOR_VERSION
+
+    pattern = re.compile(rf"{re.escape(preset)}-{seed}-(\d+)-v{re.escape(str(GENERATOR_VERSION))}")
+    found: list[tuple[int, Path]] = []
+    folder = cache_dir() / "sets"
+    try:
+        names = [p for p in folder.iterdir() if (m := pattern.fullmatch(p.name))
+                 and int(m.group(1)) > count]
+    except OSError:
+        return None
+    for path in names:
+        meta_path = path / "dataset.json"
+        try:
+            if not meta_path.is_file():  # never open a FIFO
+                continue
+            meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        args = meta.get("args") if isinstance(meta, dict) else None
+        n = int(pattern.fullmatch(path.name).group(1))  # type: ignore[union-attr]
+        if (isinstance(args, dict) and meta.get("complete") is True
+                and args == {"preset": preset, "count": n, "seed": seed, "overrides": {},
+                             "generator_version": GENERATOR_VERSION}):
+            found.append((n, path))
+    if not found:
+        return None
+    n, path = min(found)
+    return path, n
+
+
+def report_dir(script: Path, *, preset: str, seed: int, count: int, interpreter: str,
+               settings: dict[str, object], phases: int) -> Path:
+    """The default report folder: ``reports/<script>-<preset>-s<seed>-n<count>-<hash>`` in the
+    cache, the hash over everything else that changes the result (the script's path, the
+    interpreter, the run settings, the phase check)."""
+    from arenabench.fileio import dumps_json
+
+    key = dumps_json({"script": str(script), "interpreter": interpreter,
+                      "settings": settings, "phases": phases})
+    digest = hashlib.sha256(key.encode()).hexdigest()[:10]
+    return cache_dir() / "reports" / f"{script.stem}-{preset}-s{seed}-n{count}-{digest}"
 
 
 def _error(message: str) -> int:
     return usage_error(PROG, message)
+
+
+def _python_problem(python: str) -> str | None:
+    """Why ``--python`` cannot be run, as one line (placeholders are resolved later)."""
+    if python in (PLACEHOLDER, OWN_PLACEHOLDER):
+        return None
+    if "{" in python:
+        return (f"--python {python}: not an interpreter (give {PLACEHOLDER}, "
+                f"{OWN_PLACEHOLDER} or a path)")
+    if "/" not in python:
+        return None if shutil.which(python) else f"--python {python}: not found on PATH"
+    if not os.path.exists(python):
+        return f"--python {python}: no such file"
+    if not (os.path.isfile(python) and os.access(python, os.X_OK)):
+        return f"--python {python}: not an executable file"
+    return None
 
 
 def _validate(args: argparse.Namespace) -> str | None:
@@ -131,7 +217,7 @@ def _validate(args: argparse.Namespace) -> str | None:
         get_preset(args.preset)
     except ValueError as exc:
         return f"--preset: {exc}"
-    return None
+    return _python_problem(args.python)
 
 
 def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
@@ -189,17 +275,22 @@ def _main(argv: list[str] | None) -> int:
     problem = _validate(args)
     if problem:
         return _error(problem)
-    import shlex
+    from dataclasses import replace
 
     from .external import CommandPipeline
+    from .phase_check import resolve_phases
     from .run_limits import run_settings_from_args
 
     script = Path(args.script).resolve()
-    out = args.out if args.out is not None else _report_dir(script)
-    if problem := output_problem(out):
+    if args.out is not None and (problem := output_problem(args.out)):
         return _error(problem)
-    template = f"{shlex.quote(args.python)} {shlex.quote(str(script))} --image {{image}}"
-    from dataclasses import replace
+    python = args.python
+    if python not in (PLACEHOLDER, OWN_PLACEHOLDER) and "/" in python:
+        python = os.path.abspath(python)  # from where the command runs, not the script's folder
+
+    def make_pipeline(template: str, base: str, *, warm: bool = True) -> CommandPipeline:
+        return CommandPipeline(template, settings=replace(settings, warm=settings.warm and warm),
+                               name=script.name, base_dir=base)
 
     try:
         # the working directory holds a copy of the script's folder, as when the competition
@@ -207,33 +298,54 @@ def _main(argv: list[str] | None) -> int:
         base = run_settings_from_args(args)
         settings = replace(base, workdir_from=str(script.parent),  # and no __pycache__ there
                            env={"PYTHONDONTWRITEBYTECODE": "1", **base.env})
-        pipeline = CommandPipeline(template, settings=settings,
-                                   name=script.name, base_dir=str(script.parent))
+        make_pipeline(_template(OWN_PLACEHOLDER, script), str(script.parent))  # the options
     except ValueError as exc:
         return _error(str(exc))
+    phases = resolve_phases(args.phase_check, [args.preset])
+    progress = not args.no_progress
+
+    interpreter = _interpreter(python, progress=progress)
+    template = _template(interpreter.executable if python == PLACEHOLDER else python, script)
+    try:
+        pipeline = make_pipeline(template, str(script.parent))
+        interpreter = _probe(interpreter, template, script, make_pipeline, settings,
+                             mode=pipeline.sandbox)
+    except ValueError as exc:  # PreflightError: the interpreter lacks numpy, cv2 or aruco
+        return _error(str(exc))
+    out = args.out if args.out is not None else report_dir(
+        script, preset=args.preset, seed=args.seed, count=args.count,
+        interpreter=interpreter.executable, settings=settings.to_dict(), phases=phases)
+    if problem := output_problem(out):
+        return _error(problem)
+    print(f"interpreter: {interpreter.describe()}")
 
     from arenabench.generator.dataset_writer import GenerateError, generate_dataset
 
     from .dataset_reader import DatasetError, load_dataset
     from .evaluation import EvaluationInterrupted, evaluate
-    from .phase_check import resolve_phases
     from .reports import write_reports
 
     twin = twin_set_dir(preset=args.preset, seed=args.seed, count=args.count)
-    progress = not args.no_progress
+    larger = None if twin.exists() else larger_twin_set(preset=args.preset, seed=args.seed,
+                                                         count=args.count)
     try:
-        made = generate_dataset(twin, preset=args.preset, count=args.count, seed=args.seed,
-                                workers=min(args.workers or _cores(), 8), progress=progress)
-        dataset = load_dataset(twin)
+        if larger is not None:  # its first scenes are this set's: nothing to render
+            twin = larger[0]
+            dataset = load_dataset(twin, limit=args.count)
+            what = f"reused twin set {twin} (its first {args.count} of {larger[1]} scenes"
+        else:
+            made = generate_dataset(twin, preset=args.preset, count=args.count, seed=args.seed,
+                                    workers=min(args.workers or _cores(), 8),
+                                    progress=progress)
+            if made.interrupted is not None:
+                print(f"{PROG}: {made.summary()}", file=sys.stderr)
+                return 128 + made.interrupted
+            dataset = load_dataset(twin)
+            what = (("reused" if made.rendered == 0 else f"generated {made.rendered} scenes of")
+                    + f" twin set {twin} ({args.count} scenes")
     except (GenerateError, DatasetError, ValueError) as exc:
         return _error(f"twin set {twin}: {exc}")
-    if made.interrupted is not None:
-        print(f"{PROG}: {made.summary()}", file=sys.stderr)
-        return 128 + made.interrupted
-    what = "reused" if made.rendered == 0 else f"generated {made.rendered} scenes of"
-    print(f"{PROG}: {what} twin set {twin} ({args.count} scenes of {args.preset}, seed "
-          f"{args.seed})")
-    phases = resolve_phases(args.phase_check, [args.preset])
+    print(f"{PROG}: {what} of {args.preset}, seed {args.seed}); report folder {out}")
     from arenabench.cliopts import lock_out
     from arenabench.fileio import FolderLockedError
 
@@ -243,10 +355,12 @@ def _main(argv: list[str] | None) -> int:
                 report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
                                   phases=phases)
             except EvaluationInterrupted as exc:  # partial reports, marked INCOMPLETE
-                write_reports(exc.report, out, dataset=dataset)
+                write_reports(replace(exc.report, interpreter=interpreter.to_dict()), out,
+                              dataset=dataset)
                 print(f"{PROG}: interrupted after {exc.report.images_done} images; running "
                       f"scripts killed; partial report in {out}", file=sys.stderr)
                 return exc.exit_code
+            report = replace(report, interpreter=interpreter.to_dict())
             written = write_reports(report, out, dataset=dataset)
     except FolderLockedError as exc:
         return _error(str(exc))
@@ -254,6 +368,54 @@ def _main(argv: list[str] | None) -> int:
         print(line)
     print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
     return 0 if report.summary.pass_rate >= args.fail_under else 1
+
+
+def _template(python: str, script: Path) -> str:
+    """The command that runs ``script`` with ``python`` (a path or :data:`OWN_PLACEHOLDER`)."""
+    import shlex
+
+    return f"{shlex.quote(python)} {shlex.quote(str(script))} --image {{image}}"
+
+
+def _interpreter(python: str, *, progress: bool):
+    """The :class:`~arenabench.eval.competition_env.Interpreter` that ``--python`` names (the
+    competition's environment is made here when it is missing)."""
+    from .competition_env import Interpreter, competition_python
+
+    if python == PLACEHOLDER:
+        return competition_python(progress=progress, prog=PROG)
+    if python == OWN_PLACEHOLDER:
+        return Interpreter(sys.executable, "own")
+    return Interpreter(shutil.which(python) or python, "given")
+
+
+def _probe(interpreter, template: str, script: Path, make_pipeline, settings, *, mode: str):
+    """``interpreter`` with the versions the preflight's probe saw, run as ``template`` runs
+    the script (same sandbox, limits and working directory; one cold run on a stand-in image).
+
+    Raises
+    ------
+    PreflightError
+        One line: the interpreter cannot run, or lacks numpy, OpenCV or aruco.
+    """
+    import shlex
+    import tempfile
+
+    import cv2
+    import numpy as np
+
+    from .preflight import PreflightRecord, probe_interpreter
+
+    argv = shlex.split(template)
+    probe_template = shlex.join([argv[0], "{submission}/" + script.name, *argv[2:]])
+    with tempfile.TemporaryDirectory(prefix="arenabench-check-") as tmp:
+        image = Path(tmp, "image.png")  # a stand-in: the probe does not read it
+        image.write_bytes(cv2.imencode(".png", np.zeros((1, 1), np.uint8))[1].tobytes())
+        record = probe_interpreter(
+            probe_template, image=image, make_pipeline=make_pipeline, mode=mode,
+            record=PreflightRecord(mode=mode, limits=settings.to_dict()), option="--python",
+            command_name="the command running the script")
+    return interpreter.with_versions(record.versions)
 
 
 def _cores() -> int:

@@ -41,11 +41,15 @@ examples:
   arenabench eval DATASET --pipeline reference --out out/
   arenabench eval DATASET --pipeline mypkg.module:function
   arenabench eval DATASET --cmd "python3 map.py --image {image}" --timeout 30
+  arenabench eval DATASET --cmd "{competition_python} map.py --image {image}"
   arenabench eval DATASET --pipeline seed --fail-under pass_rate=0.95,area_rel_err.p95=0.05
   arenabench eval --compare OLD/report.json NEW/report.json
 
 --cmd: split into arguments without a shell; {image} is the path of a private copy of the
-image (named image.png etc., --image-name) and {python} the Python running arenabench. Each
+image (named image.png etc., --image-name), {python} the Python running arenabench and
+{competition_python} the competition's environment (numpy and OpenCV at the competition's
+versions, made once into the cache from the package index; arenabench's own Python, with one
+line saying so, where it cannot be made). Each
 image runs in its own private directory holding only that copy; the command writes
 obstacles.txt there (or prints a JSON line with --output json). Exit status 3 means "markers
 not found". Under bubblewrap (--sandbox auto|bwrap) the command sees only the system, Python
@@ -208,6 +212,12 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     if args.out is not None and (problem := output_problem(args.out)):
         return _usage_error(parser, problem)
 
+    from .competition_env import (
+        OWN_PLACEHOLDER,
+        resolve_placeholder,
+        substitute,
+        uses_placeholder,
+    )
     from .dataset_reader import DatasetError, load_dataset
     from .evaluation import EvaluationInterrupted, evaluate
     from .external import CommandPipeline
@@ -224,16 +234,26 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                                     f"{', '.join(FORMATS)})")
     if bad:
         return _usage_error(parser, f"--formats: unknown {bad} (known: {', '.join(FORMATS)})")
+    interpreter = None
     try:
         thresholds = parse_thresholds(args.fail_under)
-        pipeline = (
-            CommandPipeline(args.cmd, settings=run_settings_from_args(args), output=args.output,
-                            name=args.name or "")
-            if args.cmd
-            else make_pipeline(args.pipeline)
-        )
+        if args.cmd and uses_placeholder(args.cmd):  # the rest of the command first
+            CommandPipeline(substitute(args.cmd, OWN_PLACEHOLDER),
+                            settings=run_settings_from_args(args), output=args.output)
+        else:
+            pipeline = (
+                CommandPipeline(args.cmd, settings=run_settings_from_args(args),
+                                output=args.output, name=args.name or "")
+                if args.cmd
+                else make_pipeline(args.pipeline)
+            )
         dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
                                skip_damaged=args.skip_damaged)
+        if args.cmd and uses_placeholder(args.cmd):  # made once, then reused
+            (command,), interpreter = resolve_placeholder(
+                [args.cmd], progress=not args.no_progress, prog="arenabench eval")
+            pipeline = CommandPipeline(command, settings=run_settings_from_args(args),
+                                       output=args.output, name=args.name or args.cmd)
     except (DatasetError, ValueError) as exc:
         return _usage_error(parser, str(exc))
     from arenabench.fileio import FolderLockedError
@@ -266,6 +286,10 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         return _usage_error(parser, str(exc))
     except EvaluationInterrupted as exc:
         interrupted, report = exc, exc.report
+    if interpreter is not None:  # what ran the command, with the reports
+        from dataclasses import replace
+
+        report = replace(report, interpreter=interpreter.to_dict())
     if interrupted is not None:
         print(
             f"arenabench eval: interrupted by signal {interrupted.signum} after "

@@ -47,7 +47,9 @@ examples:
 SUBMISSIONS holds one folder per team; the folder's name is the team. Each team's command
 (default: python3 {submission}/map.py --image {image}) runs once per image as for
 'arenabench eval --cmd': {submission} is the team folder's absolute path, {image} the image,
-{python} the Python running arenabench; relative paths are resolved from the team folder.
+{python} the Python running arenabench, {competition_python} the competition's environment
+(numpy and OpenCV at the competition's versions, made once into the cache: see 'arenabench
+check --help'); relative paths are resolved from the team folder.
 Submissions are only read.
 
 outputs in --out: teams/TEAM/ (report.json, results.csv, report.md, report.html, junit.xml,
@@ -156,12 +158,18 @@ def main(argv: list[str] | None = None) -> int:
                 msg = f"{option}{msg[len(param):]}"
         return _error(msg)
     from contextlib import ExitStack
+    from dataclasses import replace
 
     from arenabench.fileio import FolderLockedError
     from arenabench.interrupts import Interrupted, stop_on_signals
 
+    from .competition_env import resolve_placeholder
+
     with stop_on_signals(), ExitStack() as held:
         try:
+            (command,), _ = resolve_placeholder([options.command], prog=PROG,
+                                                progress=not args.no_progress)
+            options = replace(options, command=command)
             held.enter_context(lock_out(args.out))  # generate's lock: one run per --out
             result = grade(dataset, args.submissions, args.out, options=options,
                            workers=args.workers, scheduler=args.scheduler,

@@ -302,6 +302,99 @@ def builtin_reference(folder: Path, template: str, *, output: str) -> bool:
     return True
 
 
+def relative_interpreter_problem(template: str, option: str = "--cmd") -> str | None:
+    """Why a relative interpreter in a grading command cannot be checked here, as one line
+    (``None``: the interpreter is absolute, a placeholder or looked up on ``PATH``).
+
+    Relative paths in the command resolve from each team's folder, so ``venv/bin/python`` is
+    each team's own interpreter; the preflight's known-good submission has none there."""
+    try:
+        exe = shlex.split(template)[0]
+    except (ValueError, IndexError):
+        return None  # the run machinery names that problem
+    if "/" not in exe or os.path.isabs(exe) or "{" in exe:
+        return None
+    return (f"{option}: executable {exe!r} is a relative path, and relative paths resolve from "
+            f"each team's folder (SUBMISSIONS/TEAM/{exe}), so the preflight's known-good "
+            "submission has no interpreter there to check: name the interpreter by its "
+            "absolute path")
+
+
+def probe_interpreter(
+    template: str,
+    *,
+    image: str | os.PathLike[str],
+    make_pipeline: Callable[..., Any],
+    mode: str,
+    record: PreflightRecord,
+    option: str = "--cmd",
+    command_name: str = "the grading command",
+) -> PreflightRecord:
+    """Run the probe script in the place of the command's script, plainly (no warm server,
+    so a broken interpreter is named by its own error), with the command's settings.
+
+    Parameters
+    ----------
+    template : str
+        The command, its script named ``{submission}/NAME.py``.
+    image : path-like
+        Any file: the run's copy of the image (the probe does not read it).
+    make_pipeline : callable
+        ``(command, submission_dir, *, warm=True) -> CommandPipeline``.
+    mode : str
+        The sandbox mode (for messages).
+    record : PreflightRecord
+        What is known so far; the probe adds ``executable``, ``kind``, ``versions`` and
+        ``arenabench_importable``.
+    option : str
+        The option that names the interpreter (for messages).
+    command_name : str
+        What the command is called in messages.
+
+    Returns
+    -------
+    PreflightRecord
+        Unchanged when the template names no Python script (nothing to probe).
+
+    Raises
+    ------
+    PreflightError
+        One line naming the cause: the interpreter cannot run or lacks numpy, OpenCV or aruco.
+    """
+    from .grade.grading import team_command
+    from .interpreter import interpreter_folders
+
+    with tempfile.TemporaryDirectory(prefix="arenabench-preflight-") as tmp:
+        probe_dir = Path(tmp, "probe")
+        probe_dir.mkdir()
+        if not _write_as(probe_dir, template, PROBE):
+            return record
+        try:
+            pipe = make_pipeline(team_command(template, probe_dir), str(probe_dir), warm=False)
+        except ValueError as exc:  # names the probe's folder: say where paths resolve from
+            raise PreflightError(relative_interpreter_problem(template, option)
+                                 or str(exc)) from None
+        record = replace(record, executable=getattr(pipe, "_executable", None))
+        if record.executable:
+            record = replace(record, kind=interpreter_folders(record.executable).kind)
+        pred = pipe.run(Path(image))
+    info = _probe_info(pred.stdout)
+    if info is None or pred.status in ("crash", "timeout", "limit"):
+        why = (pred.stderr.strip().splitlines() or [pred.message])[-1]
+        if why.startswith("missing: "):
+            raise PreflightError(
+                f"preflight: {record.executable or template.split()[0]} in the "
+                f"sandbox lacks {why[len('missing: '):]}: competition scripts need "
+                "numpy and OpenCV with aruco (install them into that interpreter, or "
+                f"name another with {option})")
+        raise PreflightError(
+            f"preflight: {command_name} cannot run a Python script in the "
+            f"sandbox ({mode}): {pred.status}: {why[:300]}")
+    return replace(
+        record, versions={k: info.get(k) for k in ("python", "numpy", "cv2", "aruco")},
+        arenabench_importable=bool(info.get("arenabench_importable")))
+
+
 def preflight(
     template: str,
     *,
@@ -340,35 +433,11 @@ def preflight(
     """
     from .grade.grading import team_command
 
-    record = PreflightRecord(mode=mode, limits=dict(limits))
+    if problem := relative_interpreter_problem(template):
+        raise PreflightError(problem)
+    record = probe_interpreter(template, image=image, make_pipeline=make_pipeline, mode=mode,
+                               record=PreflightRecord(mode=mode, limits=dict(limits)))
     with tempfile.TemporaryDirectory(prefix="arenabench-preflight-") as tmp:
-        probe_dir = Path(tmp, "probe")
-        probe_dir.mkdir()
-        if _write_as(probe_dir, template, PROBE):
-            # the probe starts the interpreter plainly (not through a warm server), so a
-            # broken one is named by its own error
-            pipe = make_pipeline(team_command(template, probe_dir), str(probe_dir), warm=False)
-            record = replace(record, executable=getattr(pipe, "_executable", None))
-            from .interpreter import interpreter_folders
-
-            if record.executable:
-                record = replace(record, kind=interpreter_folders(record.executable).kind)
-            pred = pipe.run(Path(image))
-            info = _probe_info(pred.stdout)
-            if info is None or pred.status in ("crash", "timeout", "limit"):
-                why = (pred.stderr.strip().splitlines() or [pred.message])[-1]
-                if why.startswith("missing: "):
-                    raise PreflightError(
-                        f"preflight: {record.executable or template.split()[0]} in the "
-                        f"sandbox lacks {why[len('missing: '):]}: the teams' scripts need "
-                        "numpy and OpenCV with aruco (install them into that interpreter, or "
-                        "name another in --cmd)")
-                raise PreflightError(
-                    f"preflight: the grading command cannot run a Python script in the "
-                    f"sandbox ({mode}): {pred.status}: {why[:300]}")
-            record = replace(
-                record, versions={k: info.get(k) for k in ("python", "numpy", "cv2", "aruco")},
-                arenabench_importable=bool(info.get("arenabench_importable")))
         if reference is not None:
             ref_dir, source = Path(reference).resolve(), str(Path(reference).resolve())
         else:

@@ -350,6 +350,10 @@ class Report:
     complete: bool = True
     n_done: int | None = None
     n_total: int | None = None
+    #: The interpreter that ran a command's script, where it was probed (``arenabench check``):
+    #: ``executable``, ``source``, ``python``, ``numpy``, ``cv2``
+    #: (:meth:`arenabench.eval.competition_env.Interpreter.to_dict`).
+    interpreter: dict[str, Any] | None = None
 
     @property
     def images_done(self) -> int:
@@ -367,6 +371,7 @@ class Report:
             "complete": self.complete,
             "n_done": self.images_done,
             **({} if self.n_total is None else {"n_total": self.n_total}),
+            **({} if self.interpreter is None else {"interpreter": dict(self.interpreter)}),
             "summary": self.summary.to_dict(),
             "breakdown": self.breakdown,
             "causes": [dict(c) for c in self.causes],
@@ -396,4 +401,6 @@ class Report:
             complete=bool(d.get("complete", True)),
             n_done=None if d.get("n_done") is None else int(d["n_done"]),
             n_total=None if d.get("n_total") is None else int(d["n_total"]),
+            interpreter=(dict(d["interpreter"]) if isinstance(d.get("interpreter"), dict)
+                         else None),
         )

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from dataclasses import replace
 
 from arenabench.cliopts import (
     CommandParser,
@@ -26,6 +27,7 @@ from arenabench.cliopts import (
 )
 from arenabench.interrupts import Interrupted, stop_on_signals
 
+from .competition_env import OWN_PLACEHOLDER, resolve_placeholder, substitute
 from .phase_check import add_phase_check_argument, resolve_phases
 from .pipelines import BUILTIN_PIPELINES
 from .predictions import OUTPUT_MODES
@@ -51,8 +53,11 @@ parameters unless --breakdown-mode axis). Scene i is the same base scene at ever
 (common random numbers) unless --independent-scenes.
 
 Several --vary make a grid (first varies slowest); --random N draws N points instead.
-Pipelines (--pipeline and --cmd, repeatable) run on the same images. Nothing is written to
-disk per image unless --keep-images or --keep-failures (--cmd pipelines read a temporary file).
+Pipelines (--pipeline and --cmd, repeatable) run on the same images. In --cmd, {python} is the
+Python running arenabench and {competition_python} the competition's environment (numpy and
+OpenCV at the competition's versions, made once into the cache; see 'arenabench check
+--help'). Nothing is written to disk per image unless --keep-images or --keep-failures (--cmd
+pipelines read a temporary file).
 
 outputs in --out: sweep.json (schema arenabench.sweep/1), sweep.csv, results.jsonl,
 plots/*.png, sweep.html.
@@ -157,7 +162,9 @@ def main(argv: list[str] | None = None) -> int:
         )
         for p in pipelines:
             if p.kind == "cmd" or ":" in p.value:
-                p.build()  # import errors, missing executables now, as one line
+                # import errors, missing executables now, as one line ({competition_python}
+                # is made after every other check: {python} stands in for it here)
+                replace(p, value=substitute(p.value, OWN_PLACEHOLDER)).build()
         spec = SweepSpec(
             preset=args.preset, axes=axes, pipelines=pipelines, per_point=args.per_point,
             seed=args.seed, random=args.random, overrides=overrides,
@@ -183,6 +190,12 @@ def main(argv: list[str] | None = None) -> int:
     writer = KeptImageWriter(args.out)
     with stop_on_signals() as stop, ExitStack() as held:
         try:
+            templates, _ = resolve_placeholder(
+                [p.value if p.kind == "cmd" else "" for p in pipelines],
+                progress=not args.no_progress, prog="arenabench sweep")
+            spec = replace(spec, pipelines=tuple(
+                replace(p, value=t) if p.kind == "cmd" else p
+                for p, t in zip(pipelines, templates, strict=True)))
             held.enter_context(lock_out(args.out))  # generate's lock: one run per --out
             result = run_sweep(spec, workers=args.workers, scheduler=args.scheduler,
                                progress=not args.no_progress, on_output=writer)

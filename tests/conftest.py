@@ -21,3 +21,17 @@ def run_tmp(tmp_path, monkeypatch):
     yield d
     close_all()
     assert list(d.iterdir()) == [], "a server's or run's directory was left behind"
+
+
+@pytest.fixture(scope="session")
+def competition_cache(tmp_path_factory):
+    """A cache folder (``ARENABENCH_CACHE_DIR``) holding the competition's Python environment,
+    made once per test session from the package index exactly as ``arenabench check`` makes it
+    (a real second virtual environment with the competition's numpy and OpenCV)."""
+    from arenabench.eval.competition_env import competition_python
+
+    cache = tmp_path_factory.mktemp("competition-cache")
+    made = competition_python(cache=cache, progress=False, prog="tests")
+    if made.source != "competition":
+        pytest.fail(f"the competition environment could not be made: {made.problem}")
+    return cache

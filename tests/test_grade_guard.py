@@ -363,25 +363,19 @@ def test_symlinked_team_grades_like_its_target(seed3_set, tmp_path):
 
 
 @pytest.fixture(scope="session")
-def teams_venv(tmp_path_factory):
-    """A second, real virtual environment with its own numpy 1.26 and OpenCV 4.10 (as the
-    competition used), made once per session from the base Python of this one."""
-    venv = tmp_path_factory.mktemp("teams-venv") / "venv"
-    base = Path(sys.base_prefix) / "bin" / "python3"
-    subprocess.run([str(base), "-m", "venv", "--without-pip", str(venv)], check=True,
-                   timeout=120)
-    pip = subprocess.run(
-        [sys.executable, "-m", "pip", "--python", str(venv / "bin" / "python"), "install", "-q",
-         "--no-deps", "numpy==1.26.4", "opencv-contrib-python-headless==4.10.0.84"],
-        capture_output=True, text=True, timeout=600)
-    if pip.returncode != 0:
-        pytest.skip(f"cannot install numpy and OpenCV into a new venv: {pip.stderr[-300:]}")
-    return venv
+def teams_venv(competition_cache):
+    """A second, real virtual environment with its own numpy and OpenCV at the competition's
+    versions: the competition's environment, made once per session from the package index."""
+    from arenabench.eval.competition_env import env_folder
+
+    return env_folder(competition_cache)
 
 
 @pytest.mark.slow
 @needs_bwrap
-def test_a_second_venv_grades_a_correct_team_100(seed3_set, teams_venv, tmp_path):
+@pytest.mark.parametrize("named", ["by its path", "{competition_python}"])
+def test_a_second_venv_grades_a_correct_team_100(seed3_set, teams_venv, competition_cache,
+                                                 tmp_path, named):
     subs = tmp_path / "subs"
     shutil.copytree(HERE / "grade_teams" / "correct", subs / "correct")
     # the team's script is the reference detector with its source alongside (the teams'
@@ -393,18 +387,29 @@ def test_a_second_venv_grades_a_correct_team_100(seed3_set, teams_venv, tmp_path
     builtin_reference(subs / "correct", "python {submission}/map.py", output="obstacles")
     out = tmp_path / "out"
     python = teams_venv / "bin" / "python"
+    shown = python if named == "by its path" else named
     proc = _grade(str(seed3_set), str(subs), "--out", str(out), "--allow-guessable-seed",
-                  "--cmd", f"{python} {{submission}}/map.py --image {{image}}")
+                  "--cmd", f"{shown} {{submission}}/map.py --image {{image}}",
+                  env=_env(ARENABENCH_CACHE_DIR=str(competition_cache)))
     assert proc.returncode == 0, proc.stderr[-3000:]
+    assert doc_executable(out) == str(python)
     assert "importable" not in proc.stderr  # the teams' venv has no arenabench
     doc = json.loads((out / "leaderboard.json").read_text())
     assert doc["teams"][0]["pass_rate"] == 1.0
     box = doc["sandbox"]
     assert box["mode"] == "bwrap" and box["kind"] == "venv"
-    assert box["versions"]["cv2"] == "4.10.0" and box["versions"]["numpy"] == "1.26.4"
+    from arenabench.eval.competition_env import COMPETITION_PINS
+
+    for pin in COMPETITION_PINS:
+        assert pin.matches(box["versions"][pin.module])
     assert box["arenabench_importable"] is False
     rep = json.loads((out / "teams" / "correct" / "report.json").read_text())
     assert rep["sandbox"]["versions"] == box["versions"]
+
+
+def doc_executable(out: Path) -> str:
+    """The interpreter the preflight saw (``leaderboard.json``)."""
+    return json.loads((out / "leaderboard.json").read_text())["sandbox"]["executable"]
 
 
 def _no_team_graded(out: Path) -> bool:
@@ -439,6 +444,20 @@ def test_a_broken_interpreter_stops_at_the_preflight(seed3_set, tmp_path):
                   "--cmd", f"{broken} {{submission}}/map.py --image {{image}}")
     err = _one_line_error(proc, "preflight")
     assert "Fatal Python error" in err
+    assert _no_team_graded(out)
+
+
+def test_a_relative_interpreter_is_named_as_relative_to_each_team_folder(seed3_set, tmp_path):
+    """Relative paths in --cmd resolve from each team's folder: the preflight says so, and
+    never names its own temporary folder."""
+    subs = tmp_path / "subs"
+    _team(subs, "a", ANSWER.format(count=1))
+    out = tmp_path / "out"
+    proc = _grade(str(seed3_set), str(subs), "--out", str(out), "--allow-guessable-seed",
+                  "--cmd", "venv/bin/python {submission}/map.py --image {image}")
+    err = _one_line_error(proc, "venv/bin/python")
+    assert "relative paths resolve from each team's folder" in err
+    assert "arenabench-preflight" not in err
     assert _no_team_graded(out)
 
 

@@ -25,7 +25,13 @@ from ..dataset_reader import Dataset, DatasetError, load_dataset
 from ..results import ImageResult, Prediction, Report
 from .incomplete import banner_html, partial
 from .markdown_report import TOP_CAUSES, phase_cell
-from .summary_rows import BREAKDOWN_COLUMNS, breakdown_cells, fmt, summary_rows
+from .summary_rows import (
+    BREAKDOWN_COLUMNS,
+    breakdown_cells,
+    fmt,
+    interpreter_text,
+    summary_rows,
+)
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#222}
@@ -360,6 +366,8 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
         f"<code>{e(report.area_reference)}</code>; tolerance {report.tolerance:g}; "
         f'<span class="{"pass" if s.pass_rate == 1 else "fail"}">'
         f"{partial('pass rate', report.complete)} {fmt(s.pass_rate, pct=True)}</span></p>",
+        "" if report.interpreter is None
+        else f"<p>interpreter: {e(interpreter_text(report.interpreter))}</p>",
         f"<h2>{partial('Summary', report.complete)}</h2>"
         "<table><tr><th>metric</th><th>value</th></tr>",
     ]

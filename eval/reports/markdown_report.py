@@ -12,7 +12,13 @@ from arenabench.fileio import atomic_write_text
 from ..breakdown import shown_breakdown, strongest_cause_text
 from ..results import Report
 from .incomplete import banner_markdown, partial
-from .summary_rows import BREAKDOWN_COLUMNS, breakdown_cells, fmt, summary_rows
+from .summary_rows import (
+    BREAKDOWN_COLUMNS,
+    breakdown_cells,
+    fmt,
+    interpreter_text,
+    summary_rows,
+)
 
 #: Ranked causes a report lists.
 TOP_CAUSES = 5
@@ -37,6 +43,8 @@ def markdown(report: Report, *, max_failures: int = 30) -> str:
         *([] if report.complete else banner_markdown(report.images_done, report.n_total)),
         f"- dataset: `{report.dataset}`",
         f"- area reference: `{report.area_reference}`, tolerance {report.tolerance:g}",
+        *([] if report.interpreter is None
+          else [f"- interpreter: {_esc(interpreter_text(report.interpreter))}"]),
         "",
         f"## {partial('Summary', report.complete)}",
         "",

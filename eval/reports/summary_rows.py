@@ -76,3 +76,10 @@ def headline(report: Report) -> str:
         f"{report.pipeline}: pass rate {fmt(s.pass_rate, pct=True)} ({s.n_passed}/{s.n}, "
         f"95 % CI {fmt(lo, pct=True)}-{fmt(hi, pct=True)}){phase}; failures: {fails}"
     )
+
+
+def interpreter_text(interpreter: dict) -> str:
+    """A report's ``interpreter`` record in words: the versions, then what it is."""
+    from ..competition_env import Interpreter
+
+    return Interpreter.from_dict(interpreter).describe()

@@ -417,6 +417,9 @@ def add_count(parser: argparse.ArgumentParser, flag: str = "--count", *,
 
 #: What a ``--cmd`` template must hold: where the image's path goes.
 IMAGE_PLACEHOLDER = "{image}"
+#: The competition's Python environment in a ``--cmd`` template (and ``check --python``):
+#: made and substituted by :mod:`arenabench.eval.competition_env`.
+COMPETITION_PYTHON_PLACEHOLDER = "{competition_python}"
 
 
 def _cmd_templates(ns: argparse.Namespace) -> list[str]:

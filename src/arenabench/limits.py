@@ -97,3 +97,7 @@ MAX_WORKDIR_COPY_FILES = 2000
 
 #: Most SSIM refinement rounds of ``fit`` (``--refine-rounds``).
 MAX_REFINE_ROUNDS = 100
+
+#: Longest time one step of making the competition's Python environment may take (``python -m
+#: venv``, ``pip install`` of its numpy and OpenCV: about 80 MB from the package index), seconds.
+COMPETITION_ENV_BUILD_TIMEOUT_S = 1200.0
