@@ -19,7 +19,7 @@ import numpy as np
 from arenabench.fileio import atomic_write_text
 from arenabench.gtrecord import AREA_REFERENCE_FIELDS, DEFAULT_AREA_REFERENCE
 
-from ..breakdown import shown_breakdown, strongest_cause_text
+from ..breakdown import shown_breakdown, strongest_cause_text, systematic_text
 from ..dataset_reader import Dataset, DatasetError, load_dataset
 from ..results import ImageResult, Prediction, Report
 from .incomplete import banner_html, partial
@@ -144,6 +144,12 @@ def _figures(report: Report) -> list[tuple[str, str]]:
         fig.tight_layout()
         out.append(("Pass rate by scene parameter", _png_data_uri(fig)))
     return out
+
+
+def _latency(pred: Prediction) -> str:
+    """The latency cell: ``-`` for an image without one (timed out, never ran)."""
+    ms = pred.measured_latency_ms
+    return "-" if ms is None else f"{ms:.1f}"
 
 
 def worst_cases(images: Sequence[ImageResult], *, limit: int = 12) -> list[ImageResult]:
@@ -298,6 +304,31 @@ def frame_thumbnail(image_path: str, gt: dict[str, Any] | None, *, width: int = 
     return _encode(small)
 
 
+def _causes_html(report: Report) -> list[str]:
+    """The "Likely causes" section (right after the summary: what the failures have in
+    common): systematic errors, then the ranked scene facts."""
+    e = html.escape
+    if not report.causes and not report.systematic:
+        return []
+    parts = ["<h2>Likely causes</h2>"]
+    if (text := systematic_text(report.systematic)) is not None:
+        parts.append(f'<p class="fail"><b>{e(text)}</b>.</p>')
+    if report.causes:
+        parts.append(
+            "<p>Scene parameters and derived facts that best separate "
+            "failing from passing images (strength = |2 AUC - 1|: 0 none, 1 every failure "
+            f"beyond every pass). {e(strongest_cause_text(report.causes))}.</p>"
+            "<table><tr><th>parameter</th><th>strength</th><th>failures have</th>"
+            "<th>median in failures</th><th>median in passes</th><th>p</th></tr>")
+        for c in report.causes[:TOP_CAUSES]:
+            parts.append(
+                f"<tr><td>{e(c['param'])}</td><td>{c['strength']:.2f}</td>"
+                f"<td>{e(c['direction'])} values</td><td>{e(fmt(c['fail_median']))}</td>"
+                f"<td>{e(fmt(c['pass_median']))}</td><td>{c['p_value']:.2g}</td></tr>")
+        parts.append("</table>")
+    return parts
+
+
 def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int = 12) -> str:
     """The whole page as text."""
     e = html.escape
@@ -325,7 +356,9 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
         "<table><tr><th>metric</th><th>value</th></tr>",
     ]
     parts += [f"<tr><td>{e(k)}</td><td>{e(v)}</td></tr>" for k, v in summary_rows(s)]
-    parts.append('</table><h2>Plots</h2><div class="plots">')
+    parts.append("</table>")
+    parts += _causes_html(report)
+    parts.append('<h2>Plots</h2><div class="plots">')
     parts += [
         f'<img{" class=wide" if "parameter" in t else ""} alt="{e(t)}" title="{e(t)}" src="{uri}">'
         for t, uri in _figures(report)
@@ -373,7 +406,7 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
                 f"<tr><td>marker ids</td><td>{e(str(list(r.truth.marker_ids)))}</td><td>"
                 f"{e(str(None if p.marker_ids is None else list(p.marker_ids)))}</td></tr>"
                 f"<tr><td>area rel err</td><td colspan=2>{e(fmt(r.score.area_rel_err))}</td></tr>"
-                f"<tr><td>latency ms</td><td colspan=2>{p.latency_ms:.1f}</td></tr></table>"
+                f"<tr><td>latency ms</td><td colspan=2>{_latency(p)}</td></tr></table>"
             )
             if p.message:
                 parts.append(f"<div>{e(p.message)}</div>")
@@ -382,19 +415,6 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
                     parts.append(f"<div>{label} (tail):</div><pre>{e(text[-1500:])}</pre>")
             parts.append("</div>")
         parts.append("</div>")
-    if report.causes:
-        parts.append(
-            "<h2>Likely causes</h2><p>Scene parameters and derived facts that best separate "
-            "failing from passing images (strength = |2 AUC - 1|: 0 none, 1 every failure "
-            f"beyond every pass). {e(strongest_cause_text(report.causes))}.</p>"
-            "<table><tr><th>parameter</th><th>strength</th><th>failures have</th>"
-            "<th>median in failures</th><th>median in passes</th><th>p</th></tr>")
-        for c in report.causes[:TOP_CAUSES]:
-            parts.append(
-                f"<tr><td>{e(c['param'])}</td><td>{c['strength']:.2f}</td>"
-                f"<td>{e(c['direction'])} values</td><td>{e(fmt(c['fail_median']))}</td>"
-                f"<td>{e(fmt(c['pass_median']))}</td><td>{c['p_value']:.2g}</td></tr>")
-        parts.append("</table>")
     keys = shown_breakdown(report)
     if keys:
         parts.append("<h2>Breakdown by scene parameter</h2><p>The parameters that best "
@@ -422,7 +442,7 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
             f"<td>{r.truth.count}</td>"
             f"<td>{e(fmt(p.count))}</td><td>{r.truth.area:.1f}</td>"
             f"<td>{e(fmt(p.area, digits=8))}</td><td>{e(fmt(r.score.area_rel_err))}</td>"
-            f"<td>{p.latency_ms:.1f}</td></tr>"
+            f"<td>{_latency(p)}</td></tr>"
         )
     parts.append("</table></body></html>")
     return "\n".join(parts) + "\n"
