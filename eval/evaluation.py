@@ -19,7 +19,7 @@ from concurrent.futures import (
     ThreadPoolExecutor,
     wait,
 )
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -95,12 +95,15 @@ def score_sample(
     :class:`~arenabench.eval.results.ImageResult` (its ``params``: the item's, and the facts
     :func:`~arenabench.eval.gt_facts.gt_facts` reads from its GT)."""
     truth = sample.truth(area_reference=area_reference)
+    score = score_image(truth, pred, tolerance=tolerance)
+    if score.passed and pred.run_images:  # only a failure card shows them
+        pred = replace(pred, run_images=())
     return ImageResult(
         id=sample.id,
         image=str(sample.image_path),
         truth=truth,
         prediction=pred,
-        score=score_image(truth, pred, tolerance=tolerance),
+        score=score,
         gt_area_visible=float(sample.gt.area.visible_px),
         gt_area_footprint=float(sample.gt.area.footprint_px),
         params={**sample.params, **gt_facts(sample.gt)},
@@ -125,8 +128,6 @@ def build_report(
     phase keys. ``images``: the full per-image results when ``results`` are compact ones
     (:func:`arenabench.eval.result_store.compact_result`, same order). ``manifest_sha256``:
     the dataset's (:meth:`~arenabench.eval.dataset_reader.Dataset.manifest_sha256`)."""
-    from dataclasses import replace
-
     from .phase_check import phase_summary
 
     summary = summarize([r.score for r in results], [r.prediction for r in results])

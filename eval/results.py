@@ -11,6 +11,8 @@ from typing import Any
 
 from arenabench.competition import DEFAULT_TOLERANCE
 
+from .run_images import RunImage
+
 REPORT_SCHEMA = "arenabench.report/1"
 
 #: Statuses of a pipeline that answered: ``ok``, or a failure it reported itself.
@@ -90,6 +92,10 @@ class Prediction:
         Whether ``obstacles`` are in rectified frame px or input image px.
     homography : 3 x 3 tuple or None
         The pipeline's input image px -> frame px homography, when it reports one.
+    run_images : tuple of RunImage
+        Thumbnails of the images an external run left in its working directory (its warp...;
+        :mod:`arenabench.eval.run_images`), for the HTML report's failure card; never written
+        into ``report.json``, and dropped from an image that passed.
     """
 
     status: str
@@ -103,6 +109,7 @@ class Prediction:
     obstacles: tuple[tuple[tuple[float, float], ...], ...] | None = None
     obstacles_space: str = "frame"
     homography: tuple[tuple[float, float, float], ...] | None = None
+    run_images: tuple[RunImage, ...] = field(default=(), repr=False)
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:

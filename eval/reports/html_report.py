@@ -35,7 +35,9 @@ text-align:left;font-size:.9em}th{background:#f3f3f3}.pass{color:#176d2c}.fail{c
 .cases{display:flex;flex-wrap:wrap;gap:12px}.case{border:1px solid #ccc;padding:6px;
 width:380px;font-size:.85em}.case img{width:100%}pre{white-space:pre-wrap;max-height:10em;
 overflow:auto;background:#f7f7f7;padding:4px;font-size:.8em}.bar{background:#b00020;height:8px}
-.case.wide{width:780px}.pair{display:flex;gap:6px}.pair img{width:50%}
+.case.wide{width:780px}.strip{display:flex;flex-wrap:wrap;gap:4px}
+.strip figure{margin:0;flex:0 0 calc(50% - 2px)}.strip.three figure{flex-basis:calc(33.3% - 3px)}
+figcaption{font-size:.8em;color:#555;overflow-wrap:anywhere}
 .swatch{display:inline-block;width:1.6em;height:.5em;margin:0 .3em;vertical-align:middle}
 """
 
@@ -304,6 +306,29 @@ def frame_thumbnail(image_path: str, gt: dict[str, Any] | None, *, width: int = 
     return _encode(small)
 
 
+def _card_images(r: ImageResult, uri: str | None, frame_uri: str | None) -> list[str]:
+    """A failure card's images: the input with the outlines, its rectified frame (the
+    pipeline's warp when it reports a homography, else the ground truth's) and, beside them,
+    the images the run left in its working directory (its own warp...), each captioned."""
+    e = html.escape
+    own_warp = r.prediction.homography is not None
+    figures = [(uri, f"image {r.id}", "image"),
+               (frame_uri, f"frame {r.id}",
+                "the pipeline's warp" if own_warp else "the ground truth's warp")]
+    figures += [(i.data_uri(), f"run image {i.name} {r.id}",
+                 f"the run's {i.name} ({i.width} x {i.height})")
+                for i in r.prediction.run_images]
+    shown = [f for f in figures if f[0]]
+    if not shown:
+        return []
+    if len(shown) == 1 and not r.prediction.run_images:
+        return [f'<img alt="{e(shown[0][1])}" src="{shown[0][0]}">']
+    return [f'<div class="strip{" three" if len(shown) >= 3 else ""}">',
+            *(f'<figure><img alt="{e(alt)}" src="{src}"><figcaption>{e(cap)}</figcaption>'
+              "</figure>" for src, alt, cap in shown),
+            "</div>"]
+
+
 def _causes_html(report: Report) -> list[str]:
     """The "Likely causes" section (right after the summary: what the failures have in
     common): systematic errors, then the ranked scene facts."""
@@ -375,8 +400,10 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
             f'Outlines: <span class="swatch" style="background:{GT_HEX}"></span>ground truth, '
             f'<span class="swatch" style="background:{PRED_HEX}"></span>what the pipeline '
             f'found (when it reports polygons), <span class="swatch" '
-            f'style="background:{MARKER_HEX}"></span>markers. Right: the image rectified to '
-            "the frame (the pipeline's homography, else the ground truth's).</p>"
+            f'style="background:{MARKER_HEX}"></span>markers. Beside: the image rectified to '
+            "the frame (the pipeline's homography, else the ground truth's), then the images "
+            "a command's run left in its working directory (its own warp, when it saves "
+            "one).</p>"
             '<div class="cases">'
         )
         ref = AREA_REFERENCE_FIELDS.get(report.area_reference)
@@ -389,15 +416,9 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
             verdict = f"FAIL: {r.category}"
             if r.phase is not None:
                 verdict += f" (passes {phase_cell(r.phase)})"
-            parts.append(f'<div class="case{" wide" if frame_uri else ""}">')
+            parts.append(f'<div class="case{" wide" if frame_uri or p.run_images else ""}">')
             parts.append(f'<b class="fail">{e(r.id)} - {e(verdict)}</b>')
-            if uri and frame_uri:
-                parts.append(
-                    f'<div class="pair"><img alt="image {e(r.id)}" src="{uri}">'
-                    f'<img alt="frame {e(r.id)}" src="{frame_uri}"></div>'
-                )
-            elif uri:
-                parts.append(f'<img alt="image {e(r.id)}" src="{uri}">')
+            parts += _card_images(r, uri, frame_uri)
             parts.append(
                 "<table><tr><th></th><th>GT</th><th>pipeline</th></tr>"
                 f"<tr><td>count</td><td>{r.truth.count}</td><td>{e(fmt(p.count))}</td></tr>"
