@@ -23,7 +23,7 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from arenabench.interrupts import checkpoint
+from arenabench.interrupts import checkpoint, deferred_stops
 from arenabench.workers import process_state, usable_cores
 
 from .breakdown import breakdown, rank_causes, systematic_errors
@@ -360,12 +360,13 @@ def _run_all(samples: Iterable[DatasetItem], submit: Callable[[DatasetItem], Fut
         done, _ = wait(pending, return_when=FIRST_COMPLETED)
         for fut in done:
             i, sample = pending.pop(fut)
-            try:
-                pred = fut.result()
-            except Exception as exc:  # the harness never dies from a bad pipeline
-                pred = Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
-            store.add(i, score_sample(sample, pred, tolerance=tolerance,
-                                      area_reference=area_reference))
+            with deferred_stops():  # a finished image is scored and kept, whatever the signal
+                try:
+                    pred = fut.result()
+                except Exception as exc:  # the harness never dies from a bad pipeline
+                    pred = Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
+                store.add(i, score_sample(sample, pred, tolerance=tolerance,
+                                          area_reference=area_reference))
             on_image()
         refill()
 
