@@ -61,6 +61,11 @@ def test_a_thumbnail_keeps_the_picture_within_the_bound():
     assert small.shape == (round(600 * RUN_IMAGE_THUMB_PX / 1000), RUN_IMAGE_THUMB_PX, 3)
     expect = cv2.resize(img, small.shape[1::-1], interpolation=cv2.INTER_AREA)
     assert np.abs(small.astype(int) - expect).mean() < 4
+    thumb = thumbnail_jpeg(encode_jpeg(img, quality=95))  # decoded at a reduced scale
+    assert thumb is not None and (thumb.width, thumb.height) == (1000, 600)
+    small = _decode(thumb.jpeg)
+    assert small.shape == (round(600 * RUN_IMAGE_THUMB_PX / 1000), RUN_IMAGE_THUMB_PX, 3)
+    assert np.abs(small.astype(int) - expect).mean() < 6
 
 
 def test_only_the_images_the_run_wrote_are_collected(tmp_path):
