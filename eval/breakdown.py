@@ -188,6 +188,67 @@ def rank_causes(results: Sequence[ImageResult], *, top: int | None = None) -> li
     return out[:top] if top is not None else out
 
 
+#: Fewest answered images showing the same error before it is called systematic, and the
+#: share of the answered images they must be.
+MIN_SYSTEMATIC, SYSTEMATIC_SHARE = 3, 0.5
+
+
+def systematic_errors(results: Sequence[ImageResult], *, tolerance: float
+                      ) -> list[dict[str, Any]]:
+    """Errors the answers make the same way on most images (what no scene fact can separate
+    when every image fails alike): a count offset (``answered GT + 4``: the four markers
+    counted as obstacles) and an area factor (``area = GT x 1.21``: another frame or area
+    definition).
+
+    Over the images the pipeline answered (status ``ok`` with a count): the most common
+    non-zero ``count_err`` is systematic when at least :data:`MIN_SYSTEMATIC` images and
+    :data:`SYSTEMATIC_SHARE` of them have it; the median ratio answered / GT area (non-zero GT
+    area) is systematic when it is off by more than ``tolerance`` and as many images lie
+    within ``tolerance`` of it.
+
+    Returns
+    -------
+    list of dict
+        ``{"kind": "count_offset", "offset", "n", "of", "text"}`` and / or ``{"kind":
+        "area_factor", "factor", "n", "of", "text"}``; ``text`` is the sentence reports print
+        (``answered GT + 4 on 50 of 50 answered images``).
+    """
+    from collections import Counter
+
+    answered = [r for r in results
+                if r.prediction.status == "ok" and r.score.count_err is not None]
+    out: list[dict[str, Any]] = []
+    offsets = Counter(r.score.count_err for r in answered if r.score.count_err)
+    if offsets:
+        offset, n = min(offsets.items(), key=lambda kv: (-kv[1], abs(kv[0]), kv[0]))
+        if n >= MIN_SYSTEMATIC and n >= SYSTEMATIC_SHARE * len(answered):
+            sign = "+" if offset > 0 else "-"
+            out.append({"kind": "count_offset", "offset": int(offset), "n": n,
+                        "of": len(answered),
+                        "text": f"answered GT {sign} {abs(offset)} on {n} of {len(answered)} "
+                                "answered images"})
+    ratios = np.array([r.prediction.area / r.truth.area for r in answered
+                       if r.prediction.area is not None and r.truth.area > 0], dtype=np.float64)
+    ratios = ratios[np.isfinite(ratios)]
+    if ratios.size >= MIN_SYSTEMATIC:
+        factor = float(np.median(ratios))
+        n = int(np.sum(np.abs(ratios - factor) <= tolerance * factor))
+        if (abs(factor - 1.0) > tolerance and n >= MIN_SYSTEMATIC
+                and n >= SYSTEMATIC_SHARE * ratios.size):
+            out.append({"kind": "area_factor", "factor": factor, "n": n, "of": int(ratios.size),
+                        "text": f"answered an area of GT x {factor:.3g} on {n} of "
+                                f"{ratios.size} answered images"})
+    return out
+
+
+def systematic_text(systematic: Sequence[dict[str, Any]]) -> str | None:
+    """``Systematic error: answered GT + 4 on 50 of 50 answered images`` (several joined
+    with ``;``), or ``None`` when there is none."""
+    if not systematic:
+        return None
+    return "Systematic error: " + "; ".join(s["text"] for s in systematic)
+
+
 def strongest_cause_text(causes: Sequence[dict[str, Any]]) -> str:
     """``Strongest cause: ...`` when the top cause's p value is below :data:`CAUSE_P_VALUE`,
     else a line saying that no parameter separates the failures clearly (and the closest)."""

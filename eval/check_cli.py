@@ -222,8 +222,9 @@ def _validate(args: argparse.Namespace) -> str | None:
 
 def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
     """The verdict: pass rate, robust and phase-dependent failures, the strongest cause
-    (:func:`arenabench.eval.breakdown.strongest_cause_text`)."""
-    from .breakdown import strongest_cause_text
+    (:func:`arenabench.eval.breakdown.strongest_cause_text`), a systematic error of the
+    answers (:func:`arenabench.eval.breakdown.systematic_text`)."""
+    from .breakdown import strongest_cause_text, systematic_text
     from .phase_check import PHASE_DEPENDENT_MEANING, rate_text
 
     s = report.summary
@@ -244,6 +245,8 @@ def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
         unchecked = pc["unchecked"] if pc is not None else n_fail
         if phases and unchecked:
             lines.append(f"  not phase-checked (crash, timeout, limit): {unchecked}")
+        if (text := systematic_text(report.systematic)) is not None:
+            lines.append(f"  {text[0].lower()}{text[1:]}")
         if report.causes:
             text = strongest_cause_text(report.causes)
             lines.append(f"  {text[0].lower()}{text[1:]}")

@@ -25,6 +25,26 @@ class Comparison:
     only_new: list[str]
 
 
+def dataset_problem(old: Report, new: Report, *, old_name: str = "old",
+                    new_name: str = "new") -> tuple[str | None, str | None]:
+    """Whether two reports can be compared image by image: ``(problem, warning)``.
+
+    ``problem`` (one line) when their ``manifest_sha256`` differ: the same id names unrelated
+    scenes in two datasets. ``warning`` when a report has none (written before the key
+    existed, or of a dataset made in memory): the images are then matched by id unchecked.
+    """
+    a, b = old.manifest_sha256, new.manifest_sha256
+    if a is not None and b is not None and a != b:
+        return (f"--compare: {old_name} and {new_name} are reports on different datasets "
+                f"(manifest sha256 {a[:12]} vs {b[:12]}): the same image id names unrelated "
+                "scenes there; compare two runs on one dataset"), None
+    missing = [n for n, r in ((old_name, old), (new_name, new)) if r.manifest_sha256 is None]
+    if missing:
+        return None, (f"{' and '.join(missing)} record no manifest_sha256: images are matched "
+                      "by id without checking that both reports scored the same dataset")
+    return None, None
+
+
 def compare(old: Report, new: Report) -> Comparison:
     """Compare ``old`` with ``new`` (images matched by id)."""
     so, sn = old.summary.to_dict(), new.summary.to_dict()
@@ -94,6 +114,22 @@ def parse_regression_limits(specs: list[str]) -> dict[str, float]:
                              f"got {raw!r}")
         out[name] = value
     return out
+
+
+def regression_gate_lines(cmp: Comparison, limits: dict[str, float]) -> list[str]:
+    """One line per ``--fail-on-regression`` gate, passing or not, for the log:
+    ``gate pass_rate worsens by at most 0.02: 0.95 -> 0.94: pass`` (``FAILED``; ``not judged``
+    when a report lacks the metric)."""
+    lines = []
+    failed = {r.split(" ", 1)[0] for r in regressions(cmp, limits)}
+    for name, old, new, _ in cmp.metrics:
+        if name not in limits:
+            continue
+        judged = all(isinstance(v, (int, float)) for v in (old, new))
+        outcome = "not judged" if not judged else "FAILED" if name in failed else "pass"
+        lines.append(f"gate {name} worsens by at most {limits[name]:g}: {fmt(old)} -> "
+                     f"{fmt(new)}: {outcome}")
+    return lines
 
 
 def regressions(cmp: Comparison, limits: dict[str, float]) -> list[str]:

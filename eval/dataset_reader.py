@@ -122,6 +122,20 @@ class Dataset:
         if first is not None and (limit is None or first < limit):
             self.samples[first].truth(area_reference=area_reference)
 
+    def manifest_sha256(self) -> str | None:
+        """SHA-256 of the dataset's ``manifest.jsonl`` (it names every image and GT file with
+        its SHA-256, so equal digests mean the same set); ``None`` when the dataset has no
+        manifest file (one made in memory)."""
+        import stat
+
+        path = self.root / "manifest.jsonl"
+        try:
+            if not stat.S_ISREG(os.stat(path).st_mode):
+                return None
+        except OSError:
+            return None
+        return sha256_file(path)
+
     def image_paths(self) -> list[Path]:
         """The image files in order (no GT file read)."""
         if isinstance(self.samples, DatasetSamples):

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import sys
 from contextlib import ExitStack
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from arenabench.cliopts import (
@@ -43,7 +44,7 @@ examples:
   arenabench eval DATASET --cmd "python3 map.py --image {image}" --timeout 30
   arenabench eval DATASET --cmd "{competition_python} map.py --image {image}"
   arenabench eval DATASET --pipeline seed --fail-under pass_rate=0.95,area_rel_err.p95=0.05
-  arenabench eval --compare OLD/report.json NEW/report.json
+  arenabench eval --compare OLD/ NEW/     # two --out folders (or their report.json files)
 
 --cmd: split into arguments without a shell; {image} is the path of a private copy of the
 image (named image.png etc., --image-name), {python} the Python running arenabench and
@@ -81,7 +82,9 @@ def build_parser() -> CommandParser:
         "--cmd", help="external command template, e.g. 'python3 map.py --image {image}'"
     )
     src.add_argument(
-        "--compare", nargs=2, metavar=("OLD", "NEW"), help="compare two report.json files"
+        "--compare", nargs=2, metavar=("OLD", "NEW"),
+        help="compare two reports of the same dataset: report.json files or the --out "
+        "folders holding them (reports of different datasets are refused)"
     )
     p.add_argument(
         "--fail-on-regression", action="append", default=[], metavar="METRIC=DELTA",
@@ -158,18 +161,47 @@ def _usage_error(parser: CommandParser, message: str) -> int:
     return parser.fail(message)
 
 
+def _compare_input(arg: str) -> Path:
+    """The report a ``--compare`` argument names: a ``report.json`` file, or an ``--out``
+    folder holding one."""
+    from .reports import FORMATS
+
+    path = Path(arg)
+    if path.is_dir():
+        inside = path / FORMATS["json"]
+        if not inside.exists():
+            raise ValueError(f"{arg}: a folder without {FORMATS['json']} (give a report.json "
+                             "file or the --out folder of an eval that wrote one)")
+        return inside
+    return path
+
+
 def _run_compare(old: str, new: str, gate: list[str]) -> int:
-    from .compare import compare, format_comparison, parse_regression_limits, regressions
+    from .compare import (
+        compare,
+        dataset_problem,
+        format_comparison,
+        parse_regression_limits,
+        regression_gate_lines,
+        regressions,
+    )
     from .reports.json_report import read_json
 
     try:
         limits = parse_regression_limits(gate)
-        a, b = read_json(old), read_json(new)
+        a, b = read_json(_compare_input(old)), read_json(_compare_input(new))
+        problem, warning = dataset_problem(a, b, old_name=old, new_name=new)
+        if problem:
+            raise ValueError(problem)
     except ValueError as exc:
         print(f"arenabench eval: error: {exc}", file=sys.stderr)
         return 2
+    if warning:
+        print(f"arenabench eval: warning: {warning}", file=sys.stderr)
     cmp = compare(a, b)
     print(format_comparison(cmp, old_name=old, new_name=new), end="")
+    for line in regression_gate_lines(cmp, limits):
+        print(line)
     reasons = regressions(cmp, limits)
     if reasons:
         print(f"arenabench eval: FAILED: regression: {'; '.join(reasons)}", file=sys.stderr)
@@ -313,6 +345,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             return EXIT_FAILED
         for fmt, path in written.items():
             print(f"  {fmt:<5} {path}")
+    for threshold in thresholds:  # every gate applied, passing or not: the CI log shows them
+        print(threshold.gate_line(report.summary))
     reasons = check_thresholds(report.summary, thresholds)
     if reasons:
         print(f"arenabench eval: FAILED: {'; '.join(reasons)}", file=sys.stderr)

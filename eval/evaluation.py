@@ -19,15 +19,16 @@ from concurrent.futures import (
     ThreadPoolExecutor,
     wait,
 )
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from arenabench.interrupts import checkpoint
+from arenabench.interrupts import checkpoint, deferred_stops
 from arenabench.workers import process_state, usable_cores
 
-from .breakdown import breakdown, rank_causes
+from .breakdown import breakdown, rank_causes, systematic_errors
 from .dataset_reader import AREA_REFERENCES, Dataset, DatasetItem, load_dataset
+from .gt_facts import gt_facts
 from .metrics import DEFAULT_TOLERANCE, score_image, summarize
 from .pipelines import Pipeline, make_pipeline
 from .result_store import ResultStore
@@ -91,17 +92,21 @@ def score_sample(
     sample: DatasetItem, pred: Prediction, *, tolerance: float, area_reference: str
 ) -> ImageResult:
     """Score one prediction against a dataset item's ground truth, as an
-    :class:`~arenabench.eval.results.ImageResult`."""
+    :class:`~arenabench.eval.results.ImageResult` (its ``params``: the item's, and the facts
+    :func:`~arenabench.eval.gt_facts.gt_facts` reads from its GT)."""
     truth = sample.truth(area_reference=area_reference)
+    score = score_image(truth, pred, tolerance=tolerance)
+    if score.passed and pred.run_images:  # only a failure card shows them
+        pred = replace(pred, run_images=())
     return ImageResult(
         id=sample.id,
         image=str(sample.image_path),
         truth=truth,
         prediction=pred,
-        score=score_image(truth, pred, tolerance=tolerance),
+        score=score,
         gt_area_visible=float(sample.gt.area.visible_px),
         gt_area_footprint=float(sample.gt.area.footprint_px),
-        params=dict(sample.params),
+        params={**sample.params, **gt_facts(sample.gt)},
     )
 
 
@@ -115,14 +120,14 @@ def build_report(
     complete: bool = True,
     n_total: int | None = None,
     images: Sequence[ImageResult] | None = None,
+    manifest_sha256: str | None = None,
 ) -> Report:
     """Summary, breakdown and ranked causes of scored images, as a :class:`Report`
     (``complete=False``: a run stopped early, ``n_done`` is then the number of images given, of
     ``n_total``). Phase-check results on the images (``ImageResult.phase``) fill the summary's
     phase keys. ``images``: the full per-image results when ``results`` are compact ones
-    (:func:`arenabench.eval.result_store.compact_result`, same order)."""
-    from dataclasses import replace
-
+    (:func:`arenabench.eval.result_store.compact_result`, same order). ``manifest_sha256``:
+    the dataset's (:meth:`~arenabench.eval.dataset_reader.Dataset.manifest_sha256`)."""
     from .phase_check import phase_summary
 
     summary = summarize([r.score for r in results], [r.prediction for r in results])
@@ -138,6 +143,8 @@ def build_report(
         images=tuple(results) if images is None else images,
         breakdown=breakdown(results),
         causes=tuple(rank_causes(results)),
+        systematic=tuple(systematic_errors(results, tolerance=tolerance)),
+        manifest_sha256=manifest_sha256,
     )
 
 
@@ -307,6 +314,7 @@ def evaluate(
         tolerance=tolerance,
         complete=interrupted is None,
         n_total=len(samples),
+        manifest_sha256=data.manifest_sha256(),
     )
     if interrupted is not None:
         raise EvaluationInterrupted(report, interrupted.signum)
@@ -352,12 +360,13 @@ def _run_all(samples: Iterable[DatasetItem], submit: Callable[[DatasetItem], Fut
         done, _ = wait(pending, return_when=FIRST_COMPLETED)
         for fut in done:
             i, sample = pending.pop(fut)
-            try:
-                pred = fut.result()
-            except Exception as exc:  # the harness never dies from a bad pipeline
-                pred = Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
-            store.add(i, score_sample(sample, pred, tolerance=tolerance,
-                                      area_reference=area_reference))
+            with deferred_stops():  # a finished image is scored and kept, whatever the signal
+                try:
+                    pred = fut.result()
+                except Exception as exc:  # the harness never dies from a bad pipeline
+                    pred = Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
+                store.add(i, score_sample(sample, pred, tolerance=tolerance,
+                                          area_reference=area_reference))
             on_image()
         refill()
 

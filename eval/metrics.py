@@ -212,6 +212,6 @@ def summarize(
         marker_id_accuracy=(sum(ids) / len(ids)) if ids else None,
         failures=failures,
         # a timed-out image has no latency (nor one that never ran): undefined, not 0
-        latency_ms=_stats([p.latency_ms for p in predictions
-                           if p.status != "timeout" and p.latency_ms > 0], ("median", "p95")),
+        latency_ms=_stats([ms for p in predictions if (ms := p.measured_latency_ms) is not None],
+                          ("median", "p95")),
     )

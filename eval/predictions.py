@@ -8,7 +8,8 @@ command runner (:mod:`arenabench.eval.external`, cold and warm runs alike); it r
   ``marker_ids`` and ``status``, and the drawing fields (:func:`drawing_from_result`).
 - :func:`last_json_line`: a command's answer in ``--output json`` mode.
 - :func:`prediction_from_run`: what one finished external run (its launcher's result, stdout,
-  stderr and working directory) comes to.
+  stderr and working directory) comes to, with thumbnails of the images the run left in its
+  working directory (:mod:`arenabench.eval.run_images`; cold and warm runs alike).
 
 Outcome of an external run (:func:`prediction_from_run`)
 --------------------------------------------------------
@@ -46,6 +47,7 @@ from arenabench.competition import (
 from arenabench.limits import MAX_MARKER_ID
 
 from .results import Prediction, tail
+from .run_images import collect_run_images
 from .run_limits import RunLimits
 
 #: How a command answers: ``obstacles.txt`` in its working directory, or a JSON line on stdout.
@@ -239,27 +241,28 @@ def last_json_line(stdout: str) -> Any:
     raise OutputFormatError(f"no JSON object line on stdout: {stdout.strip()[-200:]!r}")
 
 
-def read_small(path: Path, limit: int) -> bytes:
+def read_small(path: Path, limit: int, *, name: str = OBSTACLES_FILE) -> bytes:
     """Read a regular file of at most ``limit`` bytes without following links or blocking.
 
     Raises
     ------
     OutputFormatError
-        When it is not a regular file or is larger than ``limit``.
+        When it is not a regular file or is larger than ``limit`` (the message names the file
+        as ``name``).
     """
     try:
         fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
     except OSError as exc:
-        raise OutputFormatError(f"{OBSTACLES_FILE} cannot be read: {exc.strerror}") from None
+        raise OutputFormatError(f"{name} cannot be read: {exc.strerror}") from None
     st = os.fstat(fd)  # before fdopen, which refuses a directory with IsADirectoryError
     if not stat.S_ISREG(st.st_mode):
         os.close(fd)
         kind = "a directory" if stat.S_ISDIR(st.st_mode) else "not a regular file"
-        raise OutputFormatError(f"{OBSTACLES_FILE} is {kind}")
+        raise OutputFormatError(f"{name} is {kind}")
     with os.fdopen(fd, "rb") as fh:
         if st.st_size > limit:
             raise OutputFormatError(
-                f"{OBSTACLES_FILE} is {st.st_size} bytes, more than the {limit} allowed"
+                f"{name} is {st.st_size} bytes, more than the {limit} allowed"
             )
         return fh.read(limit + 1)[:limit]
 
@@ -294,7 +297,8 @@ def prediction_from_run(result: dict, stdout: str, stderr: str, workdir: str, *,
     stdout, stderr : str
         What the command printed (the kept tails).
     workdir : str
-        The run's working directory (where ``obstacles.txt`` is read).
+        The run's working directory (where ``obstacles.txt`` is read, and the images the run
+        left there: :func:`~arenabench.eval.run_images.collect_run_images`).
     output : {"obstacles", "json"}, keyword-only
         How the command answers (:data:`OUTPUT_MODES`).
     limits : RunLimits, keyword-only
@@ -303,7 +307,8 @@ def prediction_from_run(result: dict, stdout: str, stderr: str, workdir: str, *,
         Whether the run had a pids cgroup (:func:`limit_hit`).
     """
     rc, latency = result["rc"], float(result["latency_ms"])
-    keep = {"stdout": tail(stdout), "stderr": tail(stderr), "latency_ms": latency}
+    keep = {"stdout": tail(stdout), "stderr": tail(stderr), "latency_ms": latency,
+            "run_images": collect_run_images(workdir)}
     if result.get("error"):
         return Prediction(status="crash", message=result["error"][:500], **keep)
     failed = result["timed_out"] or rc not in (0, EXIT_MARKERS_NOT_FOUND)
@@ -326,7 +331,8 @@ def prediction_from_run(result: dict, stdout: str, stderr: str, workdir: str, *,
             if rc == EXIT_MARKERS_NOT_FOUND and isinstance(parsed_json, dict):
                 parsed_json.setdefault("status", "markers_not_found")
             pred = prediction_from_result(parsed_json, latency_ms=latency, stdout=stdout)
-            return Prediction(**{**pred.__dict__, "stderr": tail(stderr)})
+            return Prediction(**{**pred.__dict__, "stderr": tail(stderr),
+                                 "run_images": keep["run_images"]})
         path = Path(workdir) / OBSTACLES_FILE
         if not os.path.lexists(path):
             if rc == EXIT_MARKERS_NOT_FOUND:

@@ -9,7 +9,8 @@ Usage in a team's test suite::
 
 ``arenabench_dataset`` (session scope) is the path of a small generated dataset, cached under
 pytest's cache folder (``.pytest_cache/d/arenabench/``) and keyed by preset, count, seed and
-arenabench version, so it is rendered once and reused by later runs (under
+the generator's version (``GENERATOR_VERSION``: an update that changes the images or the ground
+truth renders a new set), so it is rendered once and reused by later runs (under
 ``-p no:cacheprovider``: in a temporary folder, rendered again each session). Options:
 ``--arenabench-preset`` (default ``eyrc``), ``--arenabench-count`` (default 12),
 ``--arenabench-seed`` (default 0), or ``--arenabench-dataset DIR`` to use an existing dataset.
@@ -37,9 +38,12 @@ def pytest_addoption(parser: pytest.Parser) -> None:
     )
 
 
-def dataset_key(preset: str, count: int, seed: int, version: str) -> str:
-    """Cache folder name of a generated dataset."""
-    return f"{preset}-n{count}-s{seed}-v{version}"
+def dataset_key(preset: str, count: int, seed: int) -> str:
+    """Cache folder name of a generated dataset: ``<preset>-n<count>-s<seed>-v<generator
+    version>`` (imports the generator)."""
+    from arenabench.generator.make import GENERATOR_VERSION
+
+    return f"{preset}-n{count}-s{seed}-v{GENERATOR_VERSION}"
 
 
 def _generate(out: Path, *, preset: str, count: int, seed: int) -> None:
@@ -61,8 +65,6 @@ def arenabench_dataset(request: pytest.FixtureRequest) -> Path:
         if not (path / "manifest.jsonl").is_file():
             raise pytest.UsageError(f"--arenabench-dataset {path}: no manifest.jsonl there")
         return path
-    from arenabench import __version__
-
     preset = config.getoption("--arenabench-preset")
     count = config.getoption("--arenabench-count")
     seed = config.getoption("--arenabench-seed")
@@ -71,7 +73,7 @@ def arenabench_dataset(request: pytest.FixtureRequest) -> Path:
         root = cache.mkdir("arenabench")
     else:  # no cache: a temporary folder of this session (generated again next time)
         root = request.getfixturevalue("tmp_path_factory").mktemp("arenabench")
-    final = Path(root) / dataset_key(preset, count, seed, __version__)
+    final = Path(root) / dataset_key(preset, count, seed)
     if (final / "manifest.jsonl").is_file():
         return final
     tmp = Path(root) / f".{final.name}.tmp-{os.getpid()}"

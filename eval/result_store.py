@@ -29,9 +29,24 @@ from typing import Any, overload
 from arenabench.jsonstream import dumps_exact_line
 
 from .results import ImageResult, Prediction
+from .run_images import RunImage
 
 #: Runs of more images than this keep their results in a temporary file.
 SPILL_ABOVE = 2000
+#: Key of a stored entry holding its run images' thumbnails (``Prediction.run_images``),
+#: which ``report.json`` never holds: :meth:`StoredResults.dicts` leaves it out.
+RUN_IMAGES_KEY = "_run_images"
+
+
+def _result(d: dict[str, Any]) -> ImageResult:
+    """The :class:`ImageResult` of a stored entry, its run images included."""
+    stored = d.get(RUN_IMAGES_KEY)
+    result = ImageResult.from_dict(d)
+    if not stored:
+        return result
+    pred = replace(result.prediction,
+                   run_images=tuple(RunImage.from_json(i) for i in stored))
+    return replace(result, prediction=pred)
 
 
 #: Parameter names -> their positions, shared by every :class:`ParamRow` with those names.
@@ -105,7 +120,10 @@ class ResultStore:
             self._full[index] = result
             return
         assert self._file is not None
-        line = dumps_exact_line(result.to_dict()).encode("utf-8")
+        entry = result.to_dict()
+        if result.prediction.run_images:  # kept beside the entry, never in report.json
+            entry[RUN_IMAGES_KEY] = [i.to_json() for i in result.prediction.run_images]
+        line = dumps_exact_line(entry).encode("utf-8")
         os.pwrite(self._file.fileno(), line, self._end)
         self._offsets[index], self._lengths[index] = self._end, len(line)
         self._end += len(line)
@@ -148,17 +166,19 @@ class StoredResults(Sequence[ImageResult]):
 
     def __getitem__(self, index: int | slice) -> ImageResult | tuple[ImageResult, ...]:
         if isinstance(index, slice):
-            return tuple(ImageResult.from_dict(self._dict(i)) for i in self._order[index])
-        return ImageResult.from_dict(self._dict(self._order[index]))
+            return tuple(_result(self._dict(i)) for i in self._order[index])
+        return _result(self._dict(self._order[index]))
 
     def __iter__(self) -> Iterator[ImageResult]:
-        for d in self.dicts():
-            yield ImageResult.from_dict(d)
+        for i in self._order:
+            yield _result(self._dict(i))
 
     def dicts(self) -> Iterator[dict[str, Any]]:
         """The results' ``report.json`` entries, in order."""
         for i in self._order:
-            yield self._dict(i)
+            d = self._dict(i)
+            d.pop(RUN_IMAGES_KEY, None)
+            yield d
 
     def __eq__(self, other: object) -> bool:
         if not isinstance(other, Sequence) or len(other) != len(self):

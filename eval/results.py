@@ -11,6 +11,8 @@ from typing import Any
 
 from arenabench.competition import DEFAULT_TOLERANCE
 
+from .run_images import RunImage
+
 REPORT_SCHEMA = "arenabench.report/1"
 
 #: Statuses of a pipeline that answered: ``ok``, or a failure it reported itself.
@@ -81,7 +83,8 @@ class Prediction:
     stdout, stderr : str
         Tails of the pipeline's output streams (external commands; tracebacks in-process).
     latency_ms : float
-        Wall time of the pipeline call in milliseconds.
+        Wall time of the pipeline call in milliseconds (what reports write is
+        :attr:`measured_latency_ms`).
     obstacles : tuple of polygons or None
         What the pipeline found, for drawing: one polygon (tuple of (x, y)) per obstacle, in
         ``obstacles_space`` px, simplified to within about 2 px; ``None`` when not reported.
@@ -89,6 +92,10 @@ class Prediction:
         Whether ``obstacles`` are in rectified frame px or input image px.
     homography : 3 x 3 tuple or None
         The pipeline's input image px -> frame px homography, when it reports one.
+    run_images : tuple of RunImage
+        Thumbnails of the images an external run left in its working directory (its warp...;
+        :mod:`arenabench.eval.run_images`), for the HTML report's failure card; never written
+        into ``report.json``, and dropped from an image that passed.
     """
 
     status: str
@@ -102,6 +109,7 @@ class Prediction:
     obstacles: tuple[tuple[tuple[float, float], ...], ...] | None = None
     obstacles_space: str = "frame"
     homography: tuple[tuple[float, float, float], ...] | None = None
+    run_images: tuple[RunImage, ...] = field(default=(), repr=False)
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
@@ -110,6 +118,15 @@ class Prediction:
             raise ValueError(
                 f"obstacles_space must be one of {OBSTACLE_SPACES}, got {self.obstacles_space!r}"
             )
+
+    @property
+    def measured_latency_ms(self) -> float | None:
+        """The latency reports write and latency statistics use: ``None`` for a timed-out
+        image (its run was cut short, not timed) and for one whose pipeline never ran
+        (latency 0), else :attr:`latency_ms`."""
+        if self.status == "timeout" or not self.latency_ms > 0:
+            return None
+        return self.latency_ms
 
     def drawing_dict(self) -> dict[str, Any]:
         """The drawing fields as JSON (empty when the pipeline reported no polygons)."""
@@ -211,7 +228,7 @@ class ImageResult:
             "area_err_kind": s.area_err_kind,
             "count_err": s.count_err,
             "marker_ids_ok": s.marker_ids_ok,
-            "latency_ms": p.latency_ms,
+            "latency_ms": p.measured_latency_ms,
             "stdout_tail": p.stdout,
             "stderr_tail": p.stderr,
             "params": dict(self.params),
@@ -354,6 +371,12 @@ class Report:
     #: ``executable``, ``source``, ``python``, ``numpy``, ``cv2``
     #: (:meth:`arenabench.eval.competition_env.Interpreter.to_dict`).
     interpreter: dict[str, Any] | None = None
+    #: SHA-256 of the dataset's ``manifest.jsonl`` (which set was scored: ``--compare``
+    #: refuses reports of different sets); ``None`` for a dataset without one.
+    manifest_sha256: str | None = None
+    #: Systematic errors of the answers (:func:`arenabench.eval.breakdown.systematic_errors`):
+    #: the same count offset or area factor on most answered images.
+    systematic: tuple[dict[str, Any], ...] = ()
 
     @property
     def images_done(self) -> int:
@@ -366,6 +389,7 @@ class Report:
             "schema": self.schema,
             "pipeline": self.pipeline,
             "dataset": self.dataset,
+            "manifest_sha256": self.manifest_sha256,
             "area_reference": self.area_reference,
             "tolerance": self.tolerance,
             "complete": self.complete,
@@ -375,6 +399,7 @@ class Report:
             "summary": self.summary.to_dict(),
             "breakdown": self.breakdown,
             "causes": [dict(c) for c in self.causes],
+            "systematic": [dict(c) for c in self.systematic],
             "images": [r.to_dict() for r in self.images],
         }
 
@@ -398,6 +423,9 @@ class Report:
             images=tuple(ImageResult.from_dict(i) for i in d.get("images", [])),
             breakdown=dict(d.get("breakdown", {})),
             causes=tuple(dict(c) for c in d.get("causes", [])),
+            systematic=tuple(dict(c) for c in d.get("systematic") or []),
+            manifest_sha256=(None if d.get("manifest_sha256") is None
+                             else str(d["manifest_sha256"])),
             complete=bool(d.get("complete", True)),
             n_done=None if d.get("n_done") is None else int(d["n_done"]),
             n_total=None if d.get("n_total") is None else int(d["n_total"]),

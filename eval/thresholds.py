@@ -38,6 +38,19 @@ class Threshold:
             return f"{self.metric} {actual:.4g} > {self.value:g} (maximum)"
         return None
 
+    def gate_line(self, summary: Summary) -> str:
+        """One line saying the gate, the value found and the outcome, for the log:
+        ``gate pass_rate >= 0.95: 0.9667: pass`` (or ``FAILED``)."""
+        actual = lookup(summary.to_dict(), self.metric)
+        nearer = METRIC[self.metric].direction == "nearer_zero"
+        name = f"|{self.metric}|" if nearer else self.metric
+        if actual is None or not math.isfinite(actual):
+            found = "no data"
+        else:
+            found = f"{abs(actual) if nearer else actual:.4g}"
+        outcome = "pass" if self.check(summary) is None else "FAILED"
+        return f"gate {name} {'>=' if self.minimum else '<='} {self.value:g}: {found}: {outcome}"
+
 
 def parse_thresholds(specs: Iterable[str]) -> list[Threshold]:
     """Parse ``"pass_rate=0.95"`` specs (each may hold several, comma-separated).

@@ -82,7 +82,8 @@ def test_report_json_has_the_documented_keys(run_dir, toy):
     }
     gt0 = json.loads((toy / "gt" / "000000.json").read_text())
     assert img["gt"]["area"] == gt0["area"]["visible_px"]
-    assert set(rep["breakdown"]) == {"light.gain", "obstacles.count"}
+    # the toy GT's markers have no corners: no gt.min_marker_gap_px
+    assert set(rep["breakdown"]) == {"light.gain", "obstacles.count", "gt.min_box_visible_px"}
     assert [row["bin"] for row in rep["breakdown"]["obstacles.count"]] == ["0", "1", "2", "3"]
 
 

@@ -11,6 +11,7 @@ not run again. Out folder layout::
 
     OUT/leaderboard.json  leaderboard.csv  leaderboard.html
     OUT/teams/TEAM/report.json  results.csv  report.md  report.html  junit.xml
+    OUT/teams/TEAM/feedback.md  feedback.html  (for the team: no hidden image, no GT)
     OUT/teams/TEAM/grade-state.json          (written last, atomically)
 
 A submission's crash, hang, garbage or trickery only ever fails its own images; an error of
@@ -51,6 +52,7 @@ from ..external import CommandPipeline
 from ..metrics import DEFAULT_TOLERANCE
 from ..predictions import OUTPUT_MODES
 from ..reports import FORMATS, write_reports
+from ..reports.feedback_report import FEEDBACK_FILES, write_feedback
 from ..results import Prediction, Summary
 from ..run_limits import RunSettings
 from ..run_slots import RunSlots, extra_thread
@@ -225,6 +227,8 @@ def _state_valid(state: dict[str, Any] | None, expect: dict[str, str], team_dir:
     if state is None or any(state.get(k) != v for k, v in expect.items()):
         return False
     if not all((team_dir / FORMATS[f]).is_file() for f in formats):
+        return False
+    if not all((team_dir / name).is_file() for name in FEEDBACK_FILES.values()):
         return False
     try:
         Summary.from_dict(state["summary"])
@@ -645,9 +649,11 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
                                phases=opts.phases, tolerance=opts.tolerance,
                                area_reference=opts.area_reference, workers=2)
     report = build_report(results, pipeline=team.name, dataset=str(data.root),
-                          area_reference=opts.area_reference, tolerance=opts.tolerance)
+                          area_reference=opts.area_reference, tolerance=opts.tolerance,
+                          manifest_sha256=job.expect_common["dataset_manifest_sha256"])
     team_dir = Path(job.root) / TEAMS_DIR / team.name
     write_reports(report, team_dir, formats=opts.formats, dataset=data)
+    write_feedback(report, team_dir, team=team.name)  # what may be handed back to the team
     if "json" in opts.formats:  # what the preflight saw inside the sandbox, with the report
         path = team_dir / FORMATS["json"]
         doc = json.loads(path.read_text(encoding="utf-8"))

@@ -73,7 +73,7 @@ def _write_rows(report: Report, fh: IO[str]) -> None:
             "" if s.marker_ids_ok is None else int(s.marker_ids_ok),
             list(r.truth.marker_ids),
             None if p.marker_ids is None else list(p.marker_ids),
-            round(p.latency_ms, 3),
+            None if (ms := p.measured_latency_ms) is None else round(ms, 3),
             p.message,
             r.image,
             *((None, None, None) if r.phase is None

@@ -20,7 +20,7 @@ from arenabench.fileio import atomic_write_text
 from arenabench.gtrecord import AREA_REFERENCE_FIELDS, DEFAULT_AREA_REFERENCE
 from arenabench.limits import MAX_IMAGE_SIDE_PX
 
-from ..breakdown import shown_breakdown, strongest_cause_text
+from ..breakdown import shown_breakdown, strongest_cause_text, systematic_text
 from ..dataset_reader import Dataset, DatasetError, load_dataset
 from ..results import ImageResult, Prediction, Report
 from .incomplete import banner_html, partial
@@ -42,7 +42,9 @@ text-align:left;font-size:.9em}th{background:#f3f3f3}.pass{color:#176d2c}.fail{c
 .cases{display:flex;flex-wrap:wrap;gap:12px}.case{border:1px solid #ccc;padding:6px;
 width:380px;font-size:.85em}.case img{width:100%}pre{white-space:pre-wrap;max-height:10em;
 overflow:auto;background:#f7f7f7;padding:4px;font-size:.8em}.bar{background:#b00020;height:8px}
-.case.wide{width:780px}.pair{display:flex;gap:6px}.pair img{width:50%}
+.case.wide{width:780px}.strip{display:flex;flex-wrap:wrap;gap:4px}
+.strip figure{margin:0;flex:0 0 calc(50% - 2px)}.strip.three figure{flex-basis:calc(33.3% - 3px)}
+figcaption{font-size:.8em;color:#555;overflow-wrap:anywhere}
 .swatch{display:inline-block;width:1.6em;height:.5em;margin:0 .3em;vertical-align:middle}
 """
 
@@ -176,6 +178,12 @@ def _figures(report: Report) -> list[tuple[str, str]]:
         fig.tight_layout()
         out.append(("Pass rate by scene parameter", _png_data_uri(fig)))
     return out
+
+
+def _latency(pred: Prediction) -> str:
+    """The latency cell: ``-`` for an image without one (timed out, never ran)."""
+    ms = pred.measured_latency_ms
+    return "-" if ms is None else f"{ms:.1f}"
 
 
 def worst_cases(images: Sequence[ImageResult], *, limit: int = 12) -> list[ImageResult]:
@@ -343,6 +351,54 @@ def frame_thumbnail(image_path: str, gt: dict[str, Any] | None, *, width: int = 
     return _encode(small)
 
 
+def _card_images(r: ImageResult, uri: str | None, frame_uri: str | None) -> list[str]:
+    """A failure card's images: the input with the outlines, its rectified frame (the
+    pipeline's warp when it reports a homography, else the ground truth's) and, beside them,
+    the images the run left in its working directory (its own warp...), each captioned."""
+    e = html.escape
+    own_warp = r.prediction.homography is not None
+    figures = [(uri, f"image {r.id}", "image"),
+               (frame_uri, f"frame {r.id}",
+                "the pipeline's warp" if own_warp else "the ground truth's warp")]
+    figures += [(i.data_uri(), f"run image {i.name} {r.id}",
+                 f"the run's {i.name} ({i.width} x {i.height})")
+                for i in r.prediction.run_images]
+    shown = [f for f in figures if f[0]]
+    if not shown:
+        return []
+    if len(shown) == 1 and not r.prediction.run_images:
+        return [f'<img alt="{e(shown[0][1])}" src="{shown[0][0]}">']
+    return [f'<div class="strip{" three" if len(shown) >= 3 else ""}">',
+            *(f'<figure><img alt="{e(alt)}" src="{src}"><figcaption>{e(cap)}</figcaption>'
+              "</figure>" for src, alt, cap in shown),
+            "</div>"]
+
+
+def _causes_html(report: Report) -> list[str]:
+    """The "Likely causes" section (right after the summary: what the failures have in
+    common): systematic errors, then the ranked scene facts."""
+    e = html.escape
+    if not report.causes and not report.systematic:
+        return []
+    parts = ["<h2>Likely causes</h2>"]
+    if (text := systematic_text(report.systematic)) is not None:
+        parts.append(f'<p class="fail"><b>{e(text)}</b>.</p>')
+    if report.causes:
+        parts.append(
+            "<p>Scene parameters and derived facts that best separate "
+            "failing from passing images (strength = |2 AUC - 1|: 0 none, 1 every failure "
+            f"beyond every pass). {e(strongest_cause_text(report.causes))}.</p>"
+            "<table><tr><th>parameter</th><th>strength</th><th>failures have</th>"
+            "<th>median in failures</th><th>median in passes</th><th>p</th></tr>")
+        for c in report.causes[:TOP_CAUSES]:
+            parts.append(
+                f"<tr><td>{e(c['param'])}</td><td>{c['strength']:.2f}</td>"
+                f"<td>{e(c['direction'])} values</td><td>{e(fmt(c['fail_median']))}</td>"
+                f"<td>{e(fmt(c['pass_median']))}</td><td>{c['p_value']:.2g}</td></tr>")
+        parts.append("</table>")
+    return parts
+
+
 def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int = 12) -> str:
     """The whole page as text."""
     e = html.escape
@@ -372,7 +428,9 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
         "<table><tr><th>metric</th><th>value</th></tr>",
     ]
     parts += [f"<tr><td>{e(k)}</td><td>{e(v)}</td></tr>" for k, v in summary_rows(s)]
-    parts.append('</table><h2>Plots</h2><div class="plots">')
+    parts.append("</table>")
+    parts += _causes_html(report)
+    parts.append('<h2>Plots</h2><div class="plots">')
     parts += [
         f'<img{" class=wide" if "parameter" in t else ""} alt="{e(t)}" title="{e(t)}" src="{uri}">'
         for t, uri in _figures(report)
@@ -389,8 +447,10 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
             f'Outlines: <span class="swatch" style="background:{GT_HEX}"></span>ground truth, '
             f'<span class="swatch" style="background:{PRED_HEX}"></span>what the pipeline '
             f'found (when it reports polygons), <span class="swatch" '
-            f'style="background:{MARKER_HEX}"></span>markers. Right: the image rectified to '
-            "the frame (the pipeline's homography, else the ground truth's).</p>"
+            f'style="background:{MARKER_HEX}"></span>markers. Beside: the image rectified to '
+            "the frame (the pipeline's homography, else the ground truth's), then the images "
+            "a command's run left in its working directory (its own warp, when it saves "
+            "one).</p>"
             '<div class="cases">'
         )
         ref = AREA_REFERENCE_FIELDS.get(report.area_reference)
@@ -403,15 +463,9 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
             verdict = f"FAIL: {r.category}"
             if r.phase is not None:
                 verdict += f" (passes {phase_cell(r.phase)})"
-            parts.append(f'<div class="case{" wide" if frame_uri else ""}">')
+            parts.append(f'<div class="case{" wide" if frame_uri or p.run_images else ""}">')
             parts.append(f'<b class="fail">{e(r.id)} - {e(verdict)}</b>')
-            if uri and frame_uri:
-                parts.append(
-                    f'<div class="pair"><img alt="image {e(r.id)}" src="{uri}">'
-                    f'<img alt="frame {e(r.id)}" src="{frame_uri}"></div>'
-                )
-            elif uri:
-                parts.append(f'<img alt="image {e(r.id)}" src="{uri}">')
+            parts += _card_images(r, uri, frame_uri)
             parts.append(
                 "<table><tr><th></th><th>GT</th><th>pipeline</th></tr>"
                 f"<tr><td>count</td><td>{r.truth.count}</td><td>{e(fmt(p.count))}</td></tr>"
@@ -420,7 +474,7 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
                 f"<tr><td>marker ids</td><td>{e(str(list(r.truth.marker_ids)))}</td><td>"
                 f"{e(str(None if p.marker_ids is None else list(p.marker_ids)))}</td></tr>"
                 f"<tr><td>area rel err</td><td colspan=2>{e(fmt(r.score.area_rel_err))}</td></tr>"
-                f"<tr><td>latency ms</td><td colspan=2>{p.latency_ms:.1f}</td></tr></table>"
+                f"<tr><td>latency ms</td><td colspan=2>{_latency(p)}</td></tr></table>"
             )
             if p.message:
                 parts.append(f"<div>{e(p.message)}</div>")
@@ -429,19 +483,6 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
                     parts.append(f"<div>{label} (tail):</div><pre>{e(text[-1500:])}</pre>")
             parts.append("</div>")
         parts.append("</div>")
-    if report.causes:
-        parts.append(
-            "<h2>Likely causes</h2><p>Scene parameters and derived facts that best separate "
-            "failing from passing images (strength = |2 AUC - 1|: 0 none, 1 every failure "
-            f"beyond every pass). {e(strongest_cause_text(report.causes))}.</p>"
-            "<table><tr><th>parameter</th><th>strength</th><th>failures have</th>"
-            "<th>median in failures</th><th>median in passes</th><th>p</th></tr>")
-        for c in report.causes[:TOP_CAUSES]:
-            parts.append(
-                f"<tr><td>{e(c['param'])}</td><td>{c['strength']:.2f}</td>"
-                f"<td>{e(c['direction'])} values</td><td>{e(fmt(c['fail_median']))}</td>"
-                f"<td>{e(fmt(c['pass_median']))}</td><td>{c['p_value']:.2g}</td></tr>")
-        parts.append("</table>")
     keys = shown_breakdown(report)
     if keys:
         parts.append("<h2>Breakdown by scene parameter</h2><p>The parameters that best "
@@ -469,7 +510,7 @@ def html_page(report: Report, *, dataset: Dataset | None = None, max_cases: int 
             f"<td>{r.truth.count}</td>"
             f"<td>{e(fmt(p.count))}</td><td>{r.truth.area:.1f}</td>"
             f"<td>{e(fmt(p.area, digits=8))}</td><td>{e(fmt(r.score.area_rel_err))}</td>"
-            f"<td>{p.latency_ms:.1f}</td></tr>"
+            f"<td>{_latency(p)}</td></tr>"
         )
     parts.append("</table></body></html>")
     return "\n".join(parts) + "\n"

@@ -9,7 +9,7 @@ from pathlib import Path
 
 from arenabench.fileio import atomic_write_text
 
-from ..breakdown import shown_breakdown, strongest_cause_text
+from ..breakdown import shown_breakdown, strongest_cause_text, systematic_text
 from ..results import Report
 from .incomplete import banner_markdown, partial
 from .summary_rows import (
@@ -52,6 +52,7 @@ def markdown(report: Report, *, max_failures: int = 30) -> str:
         "|---|---|",
     ]
     lines += [f"| {_esc(k)} | {_esc(v)} |" for k, v in summary_rows(report.summary)]
+    lines += _causes_lines(report)
     failing, n_failing = [], 0  # the first max_failures kept: a big run fails 10^5 times
     for r in report.images:
         if not r.passed:
@@ -76,23 +77,6 @@ def markdown(report: Report, *, max_failures: int = 30) -> str:
             )
         if n_failing > max_failures:
             lines.append(f"\n... and {n_failing - max_failures} more (see results.csv)")
-    if report.causes:
-        lines += [
-            "",
-            "## Likely causes",
-            "",
-            "Scene parameters and derived facts that best separate failing from passing images "
-            "(strength = |2 AUC - 1|: 0 none, 1 every failure beyond every pass).",
-            "",
-            "| parameter | strength | failures have | median in failures | median in passes "
-            "| p |",
-            "|---|---|---|---|---|---|",
-        ]
-        for c in report.causes[:TOP_CAUSES]:
-            lines.append(
-                f"| {c['param']} | {c['strength']:.2f} | {c['direction']} values | "
-                f"{fmt(c['fail_median'])} | {fmt(c['pass_median'])} | {c['p_value']:.2g} |")
-        lines += ["", f"{_esc(strongest_cause_text(report.causes))}."]
     keys = shown_breakdown(report)
     if keys:
         lines += [
@@ -113,6 +97,30 @@ def markdown(report: Report, *, max_failures: int = 30) -> str:
             lines += [_md_row(breakdown_cells(row)) for row in report.breakdown[key]]
             lines.append("")
     return "\n".join(lines).rstrip() + "\n"
+
+
+def _causes_lines(report: Report) -> list[str]:
+    """The "Likely causes" section: systematic errors, then the ranked scene facts."""
+    if not report.causes and not report.systematic:
+        return []
+    lines = ["", "## Likely causes", ""]
+    if (text := systematic_text(report.systematic)) is not None:
+        lines += [f"{_esc(text)}.", ""]
+    if report.causes:
+        lines += [
+            "Scene parameters and derived facts that best separate failing from passing images "
+            "(strength = |2 AUC - 1|: 0 none, 1 every failure beyond every pass).",
+            "",
+            "| parameter | strength | failures have | median in failures | median in passes "
+            "| p |",
+            "|---|---|---|---|---|---|",
+        ]
+        for c in report.causes[:TOP_CAUSES]:
+            lines.append(
+                f"| {c['param']} | {c['strength']:.2f} | {c['direction']} values | "
+                f"{fmt(c['fail_median'])} | {fmt(c['pass_median'])} | {c['p_value']:.2g} |")
+        lines += ["", f"{_esc(strongest_cause_text(report.causes))}."]
+    return lines
 
 
 def _md_row(cells: Iterable[str]) -> str:

@@ -95,6 +95,16 @@ MAX_RUN_PROCS = 65536
 MAX_WORKDIR_COPY_BYTES = 64 * 1024**2
 MAX_WORKDIR_COPY_FILES = 2000
 
+#: Images an external run leaves in its working directory (its warp, ...) that the HTML
+#: report shows on the image's failure card (:mod:`arenabench.eval.run_images`): most
+#: directory entries looked at, most images kept per run, largest file read (bytes), largest
+#: image decoded (px, from its header), longest side of the thumbnail kept (px).
+MAX_RUN_IMAGE_ENTRIES = 256
+MAX_RUN_IMAGES = 3
+MAX_RUN_IMAGE_BYTES = 16 * 1024**2
+MAX_RUN_IMAGE_PIXELS = 2**23
+RUN_IMAGE_THUMB_PX = 250
+
 #: Most SSIM refinement rounds of ``fit`` (``--refine-rounds``).
 MAX_REFINE_ROUNDS = 100
 
