@@ -288,7 +288,10 @@ def preflight(
     from .grade.grading import team_command
 
     record = PreflightRecord(mode=mode, limits=dict(limits))
-    with tempfile.TemporaryDirectory(prefix="arenabench-preflight-") as tmp:
+    from .stale_runs import owned_dir_prefix
+
+    # named by this process: a later command removes it if this one is killed meanwhile
+    with tempfile.TemporaryDirectory(prefix=owned_dir_prefix("arenabench-preflight-")) as tmp:
         probe_dir = Path(tmp, "probe")
         probe_dir.mkdir()
         if _write_as(probe_dir, template, PROBE):

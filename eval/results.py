@@ -33,6 +33,12 @@ CATEGORIES: tuple[str, ...] = (
 #: Pixel spaces a pipeline's obstacle polygons may be given in.
 OBSTACLE_SPACES: tuple[str, ...] = ("frame", "image")
 
+class HarnessError(RuntimeError):
+    """The harness itself could not run an image (no space for the run's folder, the image
+    cannot be copied, the run cannot be prepared): never scored as the pipeline's failure.
+    :func:`arenabench.eval.evaluation.evaluate` and ``grade`` stop with it (one line)."""
+
+
 #: Longest stdout/stderr tail kept per image (characters).
 TAIL_CHARS = 2000
 
@@ -89,6 +95,10 @@ class Prediction:
         Whether ``obstacles`` are in rectified frame px or input image px.
     homography : 3 x 3 tuple or None
         The pipeline's input image px -> frame px homography, when it reports one.
+    starved : bool
+        A ``timeout`` of a run that spent much of its time waiting for a CPU (the machine was
+        busy, :data:`arenabench.eval.predictions.STARVED_SHARE`): what it says of the pipeline
+        is nothing.
     """
 
     status: str
@@ -102,6 +112,7 @@ class Prediction:
     obstacles: tuple[tuple[tuple[float, float], ...], ...] | None = None
     obstacles_space: str = "frame"
     homography: tuple[tuple[float, float, float], ...] | None = None
+    starved: bool = False
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
