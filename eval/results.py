@@ -227,6 +227,7 @@ class ImageResult:
             "stderr_tail": p.stderr,
             "params": dict(self.params),
             **({} if self.phase is None else {"phase": self.phase.to_dict()}),
+            **({"starved": True} if p.starved else {}),
         }
 
     @classmethod
@@ -243,6 +244,7 @@ class ImageResult:
             stdout=d.get("stdout_tail", ""),
             stderr=d.get("stderr_tail", ""),
             latency_ms=float(d.get("latency_ms") or 0.0),
+            starved=bool(d.get("starved", False)),
             **drawing_from_json(pred),
         )
         truth = Truth(

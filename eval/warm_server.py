@@ -462,7 +462,10 @@ def _python_signal_defaults():
 
 
 def _strip_own_frames(tb):
-    own = {"<arenabench launcher>", "<string>", getattr(sys.modules.get("runpy"), "__file__", "")}
+    """``tb`` without its leading frames of the server, the launcher and runpy (frozen in
+    Python 3.11+): a cold run's traceback starts at the script."""
+    runpy_file = getattr(sys.modules.get("runpy"), "__file__", "")
+    own = {"<arenabench launcher>", "<string>", "<frozen runpy>", runpy_file}
     while tb is not None and tb.tb_frame.f_code.co_filename in own:
         tb = tb.tb_next
     return tb
@@ -515,7 +518,9 @@ def become_script(cfg):
     except SystemExit as exc:
         code = _exit_code(exc)
     except BaseException as exc:
-        sys.excepthook(type(exc), exc, _strip_own_frames(exc.__traceback__))
+        # the exception's own traceback is what gets printed: cut there, not only passed
+        exc.__traceback__ = _strip_own_frames(exc.__traceback__)
+        sys.excepthook(type(exc), exc, exc.__traceback__)
         code = 1
     # interpreter exit: non-daemon threads, atexit, flushed streams
     try:
