@@ -56,8 +56,9 @@ from pathlib import Path
 from arenabench.competition import OBSTACLES_FILE
 
 from .dir_remover import remove_later, wait_removed
-from .predictions import OUTPUT_MODES, prediction_from_run
-from .results import Prediction, tail
+from .launcher import BOX, BOX_DIRS
+from .predictions import OUTPUT_MODES, STARVED_RETRIES, prediction_from_run
+from .results import HarnessError, Prediction
 from .run_limits import RunLimits, RunSettings
 from .run_slots import RunSlots, hold
 from .sandbox import (
@@ -227,8 +228,11 @@ class CommandPipeline:
         return visible_paths(self._executable, self._resolved_args(),
                              python=any("{python}" in a for a in self._argv))
 
-    def _bwrap_argv(self, work: str, tmp: str, image_path: Path) -> list[str]:
-        return bwrap_argv(work, tmp, image_path, self._visible_paths())
+    def _bwrap_argv(self, folder: str, image_path: Path) -> list[str]:
+        """bubblewrap's arguments for a run (or a warm server) whose folders ``work``, ``tmp``
+        and ``shm`` are in ``folder``."""
+        work, tmp, shm = (os.path.join(folder, name) for name in BOX_DIRS)
+        return bwrap_argv(work, tmp, shm, image_path, self._visible_paths())
 
     def fill_workdir(self, work: str, image_path: Path) -> str | None:
         """Fill a run's private working directory ``work`` (cold and warm runs alike): the files
@@ -290,31 +294,56 @@ class CommandPipeline:
 
     def run(self, image_path: Path) -> Prediction:
         """Run the command on one image in a fresh private directory (never raises for the
-        command's own failures)."""
+        command's own failures). A run that timed out starved (it waited for a CPU most of
+        the time: :data:`.predictions.STARVED_SHARE`) is run again, up to
+        :data:`.predictions.STARVED_RETRIES` times.
+
+        Raises
+        ------
+        HarnessError
+            When the harness cannot run the image (no space for the run's folder, the image
+            cannot be copied, the launcher fails): the harness's failure, never scored.
+        """
+        pred = self._run_once(Path(image_path))
+        for _ in range(STARVED_RETRIES):
+            if not pred.starved or self._stopped:
+                break
+            pred = self._run_once(Path(image_path))
+        return pred
+
+    def _run_once(self, image_path: Path) -> Prediction:
         if self._stopped:
             return Prediction(status="crash", message="interrupted")
         if self._warm is not None:  # a Python script: through its warm server (warm_client)
             from .warm_client import run_warm
 
-            warm = run_warm(self, self._warm, Path(image_path))
+            warm = run_warm(self, self._warm, image_path)
             if warm is not None:
                 return warm
-        rundir = tempfile.mkdtemp(prefix=run_dir_prefix())  # names its owner: stale_runs
         try:
-            return self._run_in(Path(image_path), rundir)
+            rundir = tempfile.mkdtemp(prefix=run_dir_prefix())  # names its owner: stale_runs
+        except OSError as exc:
+            raise HarnessError(f"cannot make a run's folder in {tempfile.gettempdir()}: "
+                               f"{exc.strerror or exc}") from None
+        try:
+            return self._run_in(image_path, rundir)
         finally:
             remove_later(rundir)  # the worker goes on with its next image meanwhile
 
     def _run_in(self, image_path: Path, rundir: str) -> Prediction:
         work, tmp = os.path.join(rundir, "work"), os.path.join(rundir, "tmp")
-        os.mkdir(work)
-        os.mkdir(tmp)
+        try:
+            os.mkdir(work)
+            os.mkdir(tmp)
+        except OSError as exc:
+            raise HarnessError(f"cannot make a run's folder in {rundir}: "
+                               f"{exc.strerror or exc}") from None
         problem = self.fill_workdir(work, image_path)
         if problem:
-            return Prediction(status="crash", message=problem)
+            raise HarnessError(problem)
         lim = self.limits
-        if self.sandbox == "bwrap":
-            argv = self._bwrap_argv(work, tmp, image_path) + self.argv(image_path)
+        if self.sandbox == "bwrap":  # the launcher makes the run's box (a tmpfs) at rundir/box
+            argv = self._bwrap_argv(os.path.join(rundir, BOX), image_path) + self.argv(image_path)
             env = self._env(SANDBOX_DIR, "/tmp")
             pids_max = lim.max_procs + 1  # bubblewrap's own process (the command is pid 1)
         else:
@@ -326,11 +355,16 @@ class CommandPipeline:
             "argv": argv, "env": env, "cwd": work, "rundir": rundir,
             **launch_limits(lim, cgroup_parent=self._cgroup, sandboxed=self.sandbox == "bwrap",
                             pids_max=pids_max),
+            "box_bytes": lim.disk_bytes if self.sandbox == "bwrap" else None,
+            "image_name": self.image_name(image_path),
             "parent_pid": os.getpid(),
         }  # fmt: skip
         cfg_path = os.path.join(rundir, "launch.bin")
-        with open(cfg_path, "wb") as fh:
-            marshal.dump(cfg, fh)
+        try:
+            with open(cfg_path, "wb") as fh:
+                marshal.dump(cfg, fh)
+        except OSError as exc:
+            raise HarnessError(f"cannot write {cfg_path}: {exc.strerror or exc}") from None
         slot = hold(self.slots, lambda: self._stopped)
         if slot is None:
             return Prediction(status="crash", message="interrupted")
@@ -338,13 +372,17 @@ class CommandPipeline:
             with self._lock:
                 if self._stopped:
                     return Prediction(status="crash", message="interrupted")
-                with open(os.path.join(rundir, "launcher.log"), "wb") as log:
-                    # close_fds=False lets Python use posix_spawn (no fork of the harness);
-                    # the harness's own descriptors are non-inheritable (PEP 446)
-                    proc = subprocess.Popen(
-                        [sys.executable, "-I", "-S", LAUNCHER, cfg_path],
-                        stdin=subprocess.DEVNULL, stdout=log, stderr=log, close_fds=False,
-                    )
+                try:
+                    with open(os.path.join(rundir, "launcher.log"), "wb") as log:
+                        # close_fds=False lets Python use posix_spawn (no fork of the
+                        # harness); its own descriptors are non-inheritable (PEP 446)
+                        proc = subprocess.Popen(
+                            [sys.executable, "-I", "-S", LAUNCHER, cfg_path],
+                            stdin=subprocess.DEVNULL, stdout=log, stderr=log, close_fds=False,
+                        )
+                except OSError as exc:
+                    raise HarnessError(f"cannot start a run's launcher: "
+                                       f"{exc.strerror or exc}") from None
                 self._live.add(proc)
             launcher_hung = self._wait_launcher(proc)
         finally:
@@ -358,10 +396,13 @@ class CommandPipeline:
                 return Prediction(status="timeout", message=(
                     f"timed out after {lim.timeout_s:g} s; its launcher stopped answering and "
                     "was killed"), latency_ms=(lim.timeout_s + LAUNCHER_GRACE_S) * 1e3)
-            log_text = tail(_decode(Path(rundir, "launcher.log").read_bytes()[-4000:]))
-            return Prediction(status="crash",
-                              message=f"the launcher failed (status {proc.returncode})",
-                              stderr=log_text)
+            try:
+                log_text = _decode(Path(rundir, "launcher.log").read_bytes()[-4000:])
+            except OSError:
+                log_text = ""
+            last = (log_text.strip().splitlines() or [""])[-1][:300]
+            raise HarnessError(
+                f"a run's launcher failed (status {proc.returncode}): {last}") from None
         out = _decode(Path(rundir, "stdout").read_bytes())
         err = _decode(Path(rundir, "stderr").read_bytes())
         return self._interpret(result, out, err, work)

@@ -26,11 +26,16 @@ from .results import Prediction
 START_TIMEOUT_S = 120.0
 
 
-def _serve(conn: Any, spec: str, parent_pid: int) -> None:
-    """The child: import ``spec`` once, then answer each image path with a Prediction."""
+def _serve(conn: Any, spec: str, parent_pid: int, cgroup_parent: str | None) -> None:
+    """The child: import ``spec`` once, then answer each image path with a Prediction.
+
+    It is a child subreaper, in a pids cgroup of its own where one can be made
+    (:func:`_hold_descendants`): whatever process the function starts (``setsid``, a double
+    fork) stays where :meth:`IsolatedCallablePipeline.close` finds and kills it."""
     from arenabench.workers import init_worker
 
     init_worker(parent_pid=parent_pid)
+    _hold_descendants(cgroup_parent)
     from .pipelines import CallablePipeline
 
     try:
@@ -54,6 +59,47 @@ def _serve(conn: Any, spec: str, parent_pid: int) -> None:
             pred = Prediction(status="crash", latency_ms=(time.perf_counter() - start) * 1e3,
                               message="the pipeline raised KeyboardInterrupt")
         conn.send(pred)
+
+
+def _hold_descendants(cgroup_parent: str | None) -> None:
+    """Make this process a child subreaper and, under ``cgroup_parent``, move it into a pids
+    cgroup of its own (:func:`arenabench.eval.launcher.cgroup_path` of its pid: named as a
+    run's, so a later command's sweep removes it if this harness is killed)."""
+    from . import launcher
+
+    launcher._LIBC.prctl(launcher.PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+    if cgroup_parent:
+        launcher.enter_cgroup(cgroup_parent)
+
+
+def _end_tree(pid: int, cgroup_parent: str | None) -> None:
+    """SIGKILL what child ``pid`` started (its descendants, and its cgroup's processes) and
+    remove its cgroup; the child itself is ended by its caller."""
+    import signal
+
+    from . import launcher
+
+    for other in launcher.descendants(pid):
+        try:
+            os.kill(other, signal.SIGKILL)
+        except OSError:
+            pass
+    if cgroup_parent:
+        group = launcher.cgroup_path(cgroup_parent, pid)
+        if os.path.isdir(group):
+            for other in launcher._cgroup_pids(group):
+                if other != pid:
+                    try:
+                        os.kill(other, signal.SIGKILL)
+                    except OSError:
+                        pass
+
+
+def _remove_group(pid: int, cgroup_parent: str | None) -> None:
+    if cgroup_parent:
+        from . import launcher
+
+        launcher.kill_cgroup_tree(launcher.cgroup_path(cgroup_parent, pid))
 
 
 @dataclass(eq=False)
@@ -86,6 +132,9 @@ class IsolatedCallablePipeline:
         self._lock = threading.Lock()
         self._children: set[_Child] = set()
         self._stopped = False
+        from .sandbox import pids_cgroup_parent
+
+        self._cgroup = pids_cgroup_parent()
 
     def _start(self) -> _Child:
         from arenabench.interrupts import children_ignore_sigint
@@ -95,7 +144,8 @@ class IsolatedCallablePipeline:
         with children_ignore_sigint():
             # not a daemon, so the function may start processes of its own; it dies with
             # this process (init_worker) and close() ends it
-            process = ctx.Process(target=_serve, args=(theirs, self.spec, os.getpid()),
+            process = ctx.Process(target=_serve,
+                                  args=(theirs, self.spec, os.getpid(), self._cgroup),
                                   daemon=False, name=f"arenabench-pipeline {self.spec}")
             process.start()
         theirs.close()
@@ -118,9 +168,13 @@ class IsolatedCallablePipeline:
     def _kill(self, child: _Child) -> None:
         with self._lock:
             self._children.discard(child)
+        pid = child.process.pid
         if child.process.is_alive():
+            _end_tree(pid, self._cgroup)  # what it started, while it still holds them
             child.process.kill()
         child.process.join(5)
+        _end_tree(pid, self._cgroup)  # orphans of a child that ended by itself: its cgroup
+        _remove_group(pid, self._cgroup)
         child.conn.close()
         if getattr(self._local, "child", None) is child:
             self._local.child = None

@@ -17,10 +17,23 @@ it starts fast and imports nothing of the project; its configuration and result 
    keep the run going), or the timeout, then SIGKILLs and reaps every remaining descendant;
 5. writes ``RUNDIR/stdout``, ``RUNDIR/stderr`` (the tails) and ``RUNDIR/result.bin``.
 
+Under bubblewrap (``box_bytes`` in the launch file) the launcher first enters a user and mount
+namespace of its own and mounts the run's *box* there: a tmpfs of ``box_bytes`` at
+``RUNDIR/box`` holding ``work`` (bound at ``/sandbox``: a copy of ``RUNDIR/work``, the image and
+the files the harness put there), ``tmp`` (``/tmp``) and ``shm`` (``/dev/shm``), so that
+everything a run may write is bounded in total and never lands on the machine's disk
+(:func:`mount_box`). Once the command has ended, ``obstacles.txt`` and the image files it left
+come back into ``RUNDIR/work`` (bounded: :func:`copy_back`); the box goes with the launcher's
+namespace.
+
 ``result.bin``: ``rc`` (exit status, negative for a signal, ``null`` when not started),
 ``timed_out``, ``latency_ms`` (start of the command to the exit of its main process),
 ``stdout_bytes``/``stderr_bytes`` (total printed), ``pids_limit_hit`` (the cgroup refused a
-fork), ``error`` (the command could not be started).
+fork), ``error`` (the command could not be started), ``harness_error`` (the launcher could not
+prepare the run: not the command's failure), ``cpu_ms`` and ``wait_ms`` (of a timed-out run:
+the CPU time its processes used and the time they waited for a CPU, from
+``/proc/PID/schedstat``: :func:`schedstat`), ``box`` (``"tmpfs"``, ``"folder"`` where no
+namespace could be made, or ``""`` without one).
 """
 
 from __future__ import annotations
@@ -39,6 +52,21 @@ PR_SET_DUMPABLE = 4
 PR_CAPBSET_DROP = 24
 CAP_SYS_PTRACE = 19
 PR_SET_CHILD_SUBREAPER = 36
+CLONE_NEWNS = 0x00020000
+CLONE_NEWUSER = 0x10000000
+MS_NOSUID, MS_NODEV, MS_REC, MS_PRIVATE = 2, 4, 16384, 1 << 18
+
+#: The run's box in its folder, and the folders in it: the working directory (``/sandbox``),
+#: ``/tmp`` and ``/dev/shm`` (:func:`mount_box`).
+BOX, BOX_DIRS = "box", ("work", "tmp", "shm")
+#: What comes back out of a run's box (:func:`copy_back`): the answer file, and image files the
+#: run left (reports show them); at most this many files and bytes in all.
+ANSWER_FILE = "obstacles.txt"
+RESULT_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
+RESULT_FILES_MAX, RESULT_BYTES_MAX = 16, 16 << 20
+#: Bytes of ``obstacles.txt`` brought back (the harness reads at most
+#: :data:`arenabench.eval.predictions.OBSTACLES_MAX_BYTES` of it, and judges its size).
+ANSWER_COPY_BYTES = 1 << 20
 
 _stop_signal: int | None = None
 
@@ -219,6 +247,204 @@ def _remove_cgroup(cgroup: str | None) -> None:
             time.sleep(0.005)
 
 
+def kill_cgroup_tree(cgroup: str, *, remove: bool = True, tries: int = 200) -> bool:
+    """SIGKILL every process in ``cgroup`` and in the cgroups under it (from outside: the
+    processes are not this one's children, so nothing is reaped here) and, with ``remove``,
+    remove them, deepest first; whether none is left."""
+    for _ in range(tries):
+        try:
+            entries = list(os.scandir(cgroup))
+        except FileNotFoundError:
+            return True
+        except OSError:
+            return False
+        for entry in entries:
+            if entry.is_dir(follow_symlinks=False):
+                kill_cgroup_tree(entry.path, remove=remove, tries=1)
+        pids = _cgroup_pids(cgroup)
+        for pid in pids:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+        if not remove:
+            if not pids:
+                return True
+        else:
+            try:
+                os.rmdir(cgroup)
+                return True
+            except FileNotFoundError:
+                return True
+            except OSError:
+                pass
+        if tries > 1:
+            time.sleep(0.005)
+    return False
+
+
+def schedstat(pids: list[int]) -> tuple[float, float]:
+    """CPU time and time spent waiting for a CPU (run queue), in ms, of the threads of
+    ``pids`` summed (``/proc/PID/task/TID/schedstat``; a process gone counts nothing)."""
+    cpu = wait = 0
+    for pid in pids:
+        try:
+            tids = os.listdir(f"/proc/{pid}/task")
+        except OSError:
+            continue
+        for tid in tids:
+            try:
+                with open(f"/proc/{pid}/task/{tid}/schedstat", "rb") as fh:
+                    fields = fh.read().split()
+                cpu += int(fields[0])
+                wait += int(fields[1])
+            except (OSError, ValueError, IndexError):
+                continue
+    return cpu / 1e6, wait / 1e6
+
+
+def _check(result: int, what: str) -> None:
+    if result != 0:
+        err = ctypes.get_errno()
+        raise OSError(err, f"{what}: {os.strerror(err)}")
+
+
+def enter_private_mounts() -> None:
+    """Enter a user and mount namespace of this process's own (its uid and gid mapped to
+    themselves, every mount private), where :func:`mount_box` can mount the run's tmpfs.
+
+    Raises
+    ------
+    OSError
+        Where user namespaces cannot be made (the box is then a plain folder).
+    """
+    uid, gid = os.getuid(), os.getgid()
+    _check(_LIBC.unshare(CLONE_NEWUSER | CLONE_NEWNS), "unshare")
+    for name, text in (("setgroups", "deny"), ("uid_map", f"{uid} {uid} 1"),
+                       ("gid_map", f"{gid} {gid} 1")):
+        with open(f"/proc/self/{name}", "w") as fh:
+            fh.write(text)
+    _check(_LIBC.mount(None, b"/", None, MS_REC | MS_PRIVATE, None), "mount --make-rprivate /")
+
+
+def mount_box(rundir: str, size: int | None) -> str:
+    """Make the run's box at ``RUNDIR/box``: a tmpfs of ``size`` bytes in this process's mount
+    namespace (``None``: a plain folder, where no namespace could be made), its folders
+    :data:`BOX_DIRS`, and a copy of ``RUNDIR/work`` (the image and the harness's files) in
+    ``box/work``. Returns the box's path.
+
+    Raises
+    ------
+    OSError
+        When it cannot be made, or the files do not fit (``ENOSPC``).
+    """
+    box = os.path.join(rundir, BOX)
+    os.makedirs(box, exist_ok=True)
+    if size is not None:
+        _check(_LIBC.mount(b"tmpfs", box.encode(), b"tmpfs", MS_NOSUID | MS_NODEV,
+                           f"size={int(size)},mode=0700".encode()), "mount tmpfs")
+    for name in BOX_DIRS:
+        os.mkdir(os.path.join(box, name), 0o700)
+    import shutil
+
+    shutil.copytree(os.path.join(rundir, "work"), os.path.join(box, "work"), symlinks=True,
+                    dirs_exist_ok=True)
+    return box
+
+
+def _result_names(src_fd: int, skip: str) -> list[str]:
+    """The answer file first, then the image files, of the folder ``src_fd`` (top level; at
+    most a few thousand entries looked at: a run may leave millions)."""
+    names = [ANSWER_FILE]
+    with os.scandir(src_fd) as entries:
+        for n, entry in enumerate(entries):
+            if n >= 4096 or len(names) > RESULT_FILES_MAX:
+                break
+            if entry.name != skip and entry.name.lower().endswith(RESULT_SUFFIXES):
+                names.append(entry.name)
+    return names[:RESULT_FILES_MAX]
+
+
+def _copy_answer(src_fd: int, dst_fd: int) -> None:
+    """Bring ``obstacles.txt`` back as the harness must judge it: a regular file's first
+    :data:`ANSWER_COPY_BYTES` bytes, at its full size (the rest a hole); a folder, a link
+    (same target) or any other kind of file as one of that kind (the harness says which)."""
+    import stat
+
+    try:
+        st = os.stat(ANSWER_FILE, dir_fd=src_fd, follow_symlinks=False)
+    except OSError:
+        return
+    try:
+        os.unlink(ANSWER_FILE, dir_fd=dst_fd)
+    except OSError:
+        pass
+    try:
+        if stat.S_ISDIR(st.st_mode):
+            os.mkdir(ANSWER_FILE, 0o700, dir_fd=dst_fd)
+        elif stat.S_ISLNK(st.st_mode):
+            os.symlink(os.readlink(ANSWER_FILE, dir_fd=src_fd), ANSWER_FILE, dir_fd=dst_fd)
+        elif not stat.S_ISREG(st.st_mode):
+            os.mkfifo(ANSWER_FILE, 0o600, dir_fd=dst_fd)
+        else:
+            fd = os.open(ANSWER_FILE, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK, dir_fd=src_fd)
+            try:
+                data = os.read(fd, ANSWER_COPY_BYTES)
+            finally:
+                os.close(fd)
+            out = os.open(ANSWER_FILE, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW,
+                          0o600, dir_fd=dst_fd)
+            try:
+                os.write(out, data)
+                os.ftruncate(out, st.st_size)  # its size, as the harness checks it
+            finally:
+                os.close(out)
+    except OSError:
+        pass
+
+
+def copy_back(src_fd: int, dst_fd: int, *, skip: str) -> None:
+    """Copy ``obstacles.txt`` (:func:`_copy_answer`) and the image files a run left in its
+    working folder (``src_fd``: its box's ``work``) into ``dst_fd`` (the run folder's ``work``
+    on the machine): regular files only, links not followed, at most
+    :data:`RESULT_FILES_MAX` files and :data:`RESULT_BYTES_MAX` bytes in all; ``skip`` (the
+    input image's name) stays."""
+    import stat
+
+    _copy_answer(src_fd, dst_fd)
+    budget = RESULT_BYTES_MAX
+    for name in _result_names(src_fd, skip)[1:]:
+        try:
+            fd = os.open(name, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK, dir_fd=src_fd)
+        except OSError:
+            continue
+        try:
+            st = os.fstat(fd)
+            if not stat.S_ISREG(st.st_mode) or st.st_size > budget:
+                continue
+            data = os.read(fd, st.st_size + 1) if st.st_size else b""
+            if len(data) > budget:
+                continue
+            budget -= len(data)
+        finally:
+            os.close(fd)
+        try:
+            os.unlink(name, dir_fd=dst_fd)
+        except OSError:
+            pass
+        try:
+            out = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600,
+                          dir_fd=dst_fd)
+        except OSError:
+            continue
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(out, view):]
+        finally:
+            os.close(out)
+
+
 class _Tail:
     """The last ``limit`` bytes of a stream, and how many were seen."""
 
@@ -342,6 +568,51 @@ def _rmtree(path: str) -> None:
     shutil.rmtree(path, ignore_errors=True)
 
 
+def _prepare_box(cfg: dict, result: dict) -> int:
+    """The cold launcher's box (:func:`mount_box`) in a namespace of its own, seen by the
+    bubblewrap it starts; returns a descriptor of ``box/work``."""
+    try:
+        enter_private_mounts()
+        size, result["box"] = cfg["box_bytes"], "tmpfs"
+    except OSError:  # no user namespace here: a plain folder (no bound on what is written)
+        size, result["box"] = None, "folder"
+    box = mount_box(cfg["rundir"], size)
+    return os.open(os.path.join(box, "work"), os.O_RDONLY | os.O_DIRECTORY)
+
+
+def _read_note(path: str) -> str:
+    """The text of a small file the run's own side left (``""`` when there is none)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError:
+        return ""
+    try:
+        return os.read(fd, 4000).decode(errors="replace")
+    finally:
+        os.close(fd)
+
+
+def _box_problem(cfg: dict, exc: OSError) -> str:
+    import errno
+
+    if exc.errno in (errno.ENOSPC, errno.EDQUOT):
+        return (f"the files copied into the run's folder do not fit in its {cfg['box_bytes']} "
+                "bytes (--max-disk)")
+    return f"cannot prepare the run's folder: {exc}"
+
+
+def _copy_back_to(rundir: str, box_fd: int, cfg: dict) -> None:
+    try:
+        dst = os.open(os.path.join(rundir, "work"), os.O_RDONLY | os.O_DIRECTORY)
+    except OSError:
+        return
+    try:
+        copy_back(box_fd, dst, skip=cfg.get("image_name", ""))
+    finally:
+        os.close(dst)
+        os.close(box_fd)
+
+
 def run(cfg: dict, *, become=None, own_cgroup: str | None = None) -> int:
     """Run one command as described by ``cfg`` (the launch file); returns the exit status.
 
@@ -352,7 +623,7 @@ def run(cfg: dict, *, become=None, own_cgroup: str | None = None) -> int:
     rundir = cfg["rundir"]
     tails = {"stdout": _Tail(cfg["max_output"]), "stderr": _Tail(cfg["max_output"])}
     result: dict = {"rc": None, "timed_out": False, "latency_ms": 0.0, "error": "",
-                    "pids_limit_hit": False}
+                    "harness_error": "", "pids_limit_hit": False, "box": ""}
     # --max-procs 0: no process limit (the cgroup still holds the run's processes for cleanup)
     pids_max = cfg["pids_max"] if cfg["max_procs"] else "max"
     if own_cgroup:
@@ -365,11 +636,19 @@ def run(cfg: dict, *, become=None, own_cgroup: str | None = None) -> int:
         if cgroup is None and cfg.get("cgroup_parent") and cfg["max_procs"]:
             # the parent took a probe's pids cgroup: failing now, run nothing rather than run
             # without the process limit (fail closed)
-            result["error"] = (f"cannot create the run's pids cgroup under "
-                               f"{cfg['cgroup_parent']}: --max-procs {cfg['max_procs']} cannot "
-                               "be enforced, so the command was not run")
+            result["harness_error"] = (
+                f"cannot create the run's pids cgroup under {cfg['cgroup_parent']}: "
+                f"--max-procs {cfg['max_procs']} cannot be enforced, so the command was not run")
             cleaned = True
             return 0
+        box_fd = None
+        if cfg.get("box_bytes") and become is None:  # a cold run under bubblewrap
+            try:
+                box_fd = _prepare_box(cfg, result)
+            except OSError as exc:
+                result["harness_error"] = _box_problem(cfg, exc)
+                cleaned = True
+                return 0
         r_out, w_out = os.pipe()
         r_err, w_err = os.pipe()
         start = time.perf_counter()
@@ -413,6 +692,8 @@ def run(cfg: dict, *, become=None, own_cgroup: str | None = None) -> int:
         # without one a process could move itself out, so /proc is scanned too
         scan = not cfg.get("sandboxed")
         if not exited:
+            alive = (_cgroup_pids(cgroup) if cgroup else []) + descendants(os.getpid())
+            result["cpu_ms"], result["wait_ms"] = schedstat(alive)
             kill_descendants(cgroup, scan=scan)
         result["rc"] = _exit_status(os.waitpid(pid, 0)[1])
         result["latency_ms"] = (time.perf_counter() - start) * 1000.0
@@ -426,6 +707,10 @@ def run(cfg: dict, *, become=None, own_cgroup: str | None = None) -> int:
             for fd, _ in poller.poll(100):
                 pump(fd)
         result["pids_limit_hit"] = _pids_limit_hit(cgroup)
+        if become is not None:  # a warm run that could not be prepared says why in its folder
+            result["harness_error"] = _read_note(os.path.join(rundir, "harness_error"))
+        if box_fd is not None:
+            _copy_back_to(rundir, box_fd, cfg)
         return 0
     except _Stop:
         kill_descendants(cgroup)

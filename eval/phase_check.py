@@ -337,7 +337,9 @@ def check_phases(
     out = list(results)
     if phases < 1 or not failing:
         return out
-    tmp = tempfile.mkdtemp(prefix="arenabench-phase-")
+    from .stale_runs import owned_dir_prefix
+
+    tmp = tempfile.mkdtemp(prefix=owned_dir_prefix("arenabench-phase-"))
     try:
         with ThreadPoolExecutor(max_workers=max(1, workers),
                                 thread_name_prefix="arenabench-phase") as pool:

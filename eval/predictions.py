@@ -46,9 +46,16 @@ from arenabench.competition import (
 )
 from arenabench.limits import MAX_MARKER_ID
 
-from .results import Prediction, tail
+from .results import HarnessError, Prediction, tail
 from .run_images import collect_run_images
 from .run_limits import RunLimits
+
+#: A timed-out run that waited for a CPU (runnable, not running) for at least this share of
+#: its timeout was *starved*: the machine, not the pipeline, made it late. Measured from the
+#: scheduler's own account of the run's threads (``/proc/PID/task/TID/schedstat``).
+STARVED_SHARE = 0.25
+#: Times a starved run is run again before its timeout is kept (marked ``starved``).
+STARVED_RETRIES = 2
 
 #: How a command answers: ``obstacles.txt`` in its working directory, or a JSON line on stdout.
 OUTPUT_MODES: tuple[str, ...] = ("obstacles", "json")
@@ -293,7 +300,7 @@ def prediction_from_run(result: dict, stdout: str, stderr: str, workdir: str, *,
     ----------
     result : dict
         The launcher's (or warm server's) result: ``rc``, ``latency_ms``, ``timed_out``,
-        optional ``error`` and ``pids_limit_hit``.
+        optional ``error``, ``harness_error``, ``pids_limit_hit`` and ``wait_ms``.
     stdout, stderr : str
         What the command printed (the kept tails).
     workdir : str
@@ -305,7 +312,15 @@ def prediction_from_run(result: dict, stdout: str, stderr: str, workdir: str, *,
         The run's limits (named in ``limit`` and ``timeout`` messages).
     pids_cgroup : bool, keyword-only
         Whether the run had a pids cgroup (:func:`limit_hit`).
+
+    Raises
+    ------
+    HarnessError
+        When the launcher could not prepare the run (``harness_error``): not the command's
+        failure.
     """
+    if result.get("harness_error"):
+        raise HarnessError(result["harness_error"][:500])
     rc, latency = result["rc"], float(result["latency_ms"])
     keep = {"stdout": tail(stdout), "stderr": tail(stderr), "latency_ms": latency,
             "run_images": collect_run_images(workdir)}
@@ -319,6 +334,11 @@ def prediction_from_run(result: dict, stdout: str, stderr: str, workdir: str, *,
                           **keep)
     if result["timed_out"]:
         msg = f"timed out after {limits.timeout_s:g} s (all its processes killed)"
+        wait_s = float(result.get("wait_ms") or 0.0) / 1e3
+        if wait_s >= STARVED_SHARE * limits.timeout_s:
+            return Prediction(status="timeout", starved=True, message=(
+                f"{msg}; starved: it waited {wait_s:.1f} s for a CPU (the machine was busy)"),
+                **keep)
         return Prediction(status="timeout", message=msg, **keep)
     if rc not in (0, EXIT_MARKERS_NOT_FOUND):
         why = f"killed by signal {-rc}" if rc < 0 else f"exit status {rc}"

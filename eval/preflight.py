@@ -40,6 +40,8 @@ from typing import TYPE_CHECKING, Any
 
 from arenabench.generator.seeds import GUESSABLE_BELOW, is_guessable, seed_problem
 
+from .stale_runs import owned_dir_prefix
+
 if TYPE_CHECKING:
     from .dataset_reader import Dataset
 
@@ -364,7 +366,7 @@ def probe_interpreter(
     from .grade.grading import team_command
     from .interpreter import interpreter_folders
 
-    with tempfile.TemporaryDirectory(prefix="arenabench-preflight-") as tmp:
+    with tempfile.TemporaryDirectory(prefix=owned_dir_prefix("arenabench-preflight-")) as tmp:
         probe_dir = Path(tmp, "probe")
         probe_dir.mkdir()
         if not _write_as(probe_dir, template, PROBE):
@@ -437,7 +439,7 @@ def preflight(
         raise PreflightError(problem)
     record = probe_interpreter(template, image=image, make_pipeline=make_pipeline, mode=mode,
                                record=PreflightRecord(mode=mode, limits=dict(limits)))
-    with tempfile.TemporaryDirectory(prefix="arenabench-preflight-") as tmp:
+    with tempfile.TemporaryDirectory(prefix=owned_dir_prefix("arenabench-preflight-")) as tmp:
         if reference is not None:
             ref_dir, source = Path(reference).resolve(), str(Path(reference).resolve())
         else:

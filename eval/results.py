@@ -35,6 +35,12 @@ CATEGORIES: tuple[str, ...] = (
 #: Pixel spaces a pipeline's obstacle polygons may be given in.
 OBSTACLE_SPACES: tuple[str, ...] = ("frame", "image")
 
+class HarnessError(RuntimeError):
+    """The harness itself could not run an image (no space for the run's folder, the image
+    cannot be copied, the run cannot be prepared): never scored as the pipeline's failure.
+    :func:`arenabench.eval.evaluation.evaluate` and ``grade`` stop with it (one line)."""
+
+
 #: Longest stdout/stderr tail kept per image (characters).
 TAIL_CHARS = 2000
 
@@ -96,6 +102,10 @@ class Prediction:
         Thumbnails of the images an external run left in its working directory (its warp...;
         :mod:`arenabench.eval.run_images`), for the HTML report's failure card; never written
         into ``report.json``, and dropped from an image that passed.
+    starved : bool
+        A ``timeout`` of a run that spent much of its time waiting for a CPU (the machine was
+        busy, :data:`arenabench.eval.predictions.STARVED_SHARE`): what it says of the pipeline
+        is nothing.
     """
 
     status: str
@@ -110,6 +120,7 @@ class Prediction:
     obstacles_space: str = "frame"
     homography: tuple[tuple[float, float, float], ...] | None = None
     run_images: tuple[RunImage, ...] = field(default=(), repr=False)
+    starved: bool = False
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
@@ -233,6 +244,7 @@ class ImageResult:
             "stderr_tail": p.stderr,
             "params": dict(self.params),
             **({} if self.phase is None else {"phase": self.phase.to_dict()}),
+            **({"starved": True} if p.starved else {}),
         }
 
     @classmethod
@@ -249,6 +261,7 @@ class ImageResult:
             stdout=d.get("stdout_tail", ""),
             stderr=d.get("stderr_tail", ""),
             latency_ms=float(d.get("latency_ms") or 0.0),
+            starved=bool(d.get("starved", False)),
             **drawing_from_json(pred),
         )
         truth = Truth(

@@ -27,6 +27,7 @@ from arenabench.cliopts import (
     parse_size,
 )
 from arenabench.limits import (
+    DEFAULT_MAX_DISK,
     DEFAULT_MAX_FILE_SIZE,
     DEFAULT_MAX_OUTPUT,
     DEFAULT_MAX_PROCS,
@@ -58,6 +59,9 @@ class RunLimits:
         Largest file the run may write (``RLIMIT_FSIZE``).
     max_output : int
         Bytes of stdout and of stderr kept (the tail); more is discarded, not held in memory.
+    disk_bytes : int
+        What a run may write in all (its working folder, ``/tmp`` and ``/dev/shm``: one tmpfs
+        of this size, under bubblewrap; :func:`arenabench.eval.launcher.mount_box`).
     """
 
     timeout_s: float = DEFAULT_TIMEOUT_S
@@ -65,11 +69,12 @@ class RunLimits:
     max_procs: int = DEFAULT_MAX_PROCS
     max_file_size: int = DEFAULT_MAX_FILE_SIZE
     max_output: int = DEFAULT_MAX_OUTPUT
+    disk_bytes: int = DEFAULT_MAX_DISK
 
     def __post_init__(self) -> None:  # the rules of the command-line options
         TIMEOUT_RULE.check(self.timeout_s, name="timeout_s")
         MAX_PROCS_RULE.check(self.max_procs, name="max_procs")
-        for name in ("memory_bytes", "max_file_size", "max_output", "max_procs"):
+        for name in ("memory_bytes", "max_file_size", "max_output", "disk_bytes", "max_procs"):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, int):
                 raise ValueError(f"{name} must be a positive integer, got {value!r}")
@@ -123,6 +128,7 @@ class RunSettings:
             "max_procs": self.limits.max_procs,
             "max_file_size": self.limits.max_file_size,
             "max_output": self.limits.max_output,
+            "disk_bytes": self.limits.disk_bytes,
             "sandbox": self.sandbox,
             "image_name": self.image_name,
             "env": dict(self.env),
@@ -131,7 +137,8 @@ class RunSettings:
     @classmethod
     def from_dict(cls, d: Mapping[str, object]) -> RunSettings:
         """Inverse of :meth:`to_dict` (missing keys take their defaults)."""
-        names = ("timeout_s", "memory_bytes", "max_procs", "max_file_size", "max_output")
+        names = ("timeout_s", "memory_bytes", "max_procs", "max_file_size", "max_output",
+                 "disk_bytes")
         limits = RunLimits(**{k: d[k] for k in names if k in d})  # type: ignore[arg-type]
         return cls(
             limits=limits,
@@ -201,6 +208,7 @@ def run_settings_from_args(args: argparse.Namespace) -> RunSettings:
         max_procs=args.max_procs,
         max_file_size=parse_size(args.max_file_size, name="--max-file-size"),
         max_output=parse_size(args.max_output, name="--max-output"),
+        disk_bytes=parse_size(args.max_disk, name="--max-disk"),
     )
     return RunSettings(limits=limits, sandbox=args.sandbox, image_name=args.image_name, env=env,
                        warm=getattr(args, "warm", True))

@@ -239,14 +239,15 @@ def visible_paths(executable: str | None, args: list[str], *, python: bool) -> l
     return [p for p in outermost(paths) if p not in _TOP_FOLDERS]
 
 
-def bwrap_argv(work: str, tmp: str, image_path: Path, visible: list[str]) -> list[str]:
+def bwrap_argv(work: str, tmp: str, shm: str, image_path: Path, visible: list[str]) -> list[str]:
     """The bubblewrap prefix of one run's command line.
 
     Parameters
     ----------
-    work, tmp : str
-        The run's private directory (bound at :data:`SANDBOX_DIR`, the command's cwd) and its
-        ``/tmp``.
+    work, tmp, shm : str
+        The run's private directory (bound at :data:`SANDBOX_DIR`, the command's cwd), its
+        ``/tmp`` and its ``/dev/shm`` (the rest of ``/dev`` is read-only): the folders of its
+        box (:func:`arenabench.eval.launcher.mount_box`), the only places it can write.
     image_path : Path
         The dataset image: its folder and every folder up to the dataset's root are hidden
         under an empty tmpfs where they lie inside a visible folder.
@@ -278,7 +279,8 @@ def bwrap_argv(work: str, tmp: str, image_path: Path, visible: list[str]) -> lis
     # --as-pid-1: the command is pid 1 of the sandbox's PID namespace, so no process there
     # (bubblewrap's own init before) shows this argument list, bind paths included, in
     # /proc/*/cmdline
-    args += ["--proc", "/proc", "--dev", "/dev", "--remount-ro", "/", "--chdir", SANDBOX_DIR,
+    args += ["--proc", "/proc", "--dev", "/dev", "--bind", shm, "/dev/shm",
+             "--remount-ro", "/dev", "--remount-ro", "/", "--chdir", SANDBOX_DIR,
              "--as-pid-1", "--"]
     return [shutil.which("bwrap") or "bwrap", *args[1:]]
 

@@ -3,11 +3,13 @@
 A run's private directory is ``$TMPDIR/arenabench-run-<harness pid>-XXXX`` and its pids cgroup
 ``<parent>/arenabench-run-<launcher pid>``; a warm server's folder is
 ``$TMPDIR/arenabench-warm-<harness pid>-XXXX`` and its cgroup
-``<parent>/arenabench-warm-<harness pid>-<n>``; all are removed when the run or the server
-ends. When the whole
+``<parent>/arenabench-warm-<harness pid>-<n>`` (its runs' cgroups inside it); the preflight's,
+the phase check's and a sweep worker's folders are ``$TMPDIR/<prefix><owner pid>-XXXX``
+(:data:`OWNED_PREFIXES`); all are removed when the run, the server or the step ends. When the whole
 process group is killed with SIGKILL (harness and launchers together) nothing is left to
 remove them, so the next run that starts external commands removes those whose owner process
-is gone (:func:`sweep_stale_runs`, once per process). A folder whose pid is alive is never
+is gone (:func:`sweep_stale_runs`, once per process; a cgroup with the processes and cgroups
+left in it). A folder whose pid is alive is never
 touched (even if the pid was reused: then it stays until the next sweep).
 """
 
@@ -24,8 +26,12 @@ from pathlib import Path
 RUN_PREFIX = "arenabench-run-"
 #: Name prefix of warm servers' folders and cgroups (:mod:`arenabench.eval.warm_client`).
 WARM_PREFIX = "arenabench-warm-"
+#: Name prefixes of the other temporary folders a command owns while it runs untrusted code
+#: (the preflight's submissions, the phase check's images, a sweep worker's runs).
+OWNED_PREFIXES = ("arenabench-preflight-", "arenabench-phase-", "arenabench-sweep-")
 
-_RUN_DIR = re.compile(rf"^(?:{RUN_PREFIX}|{WARM_PREFIX})(\d+)-")
+_RUN_DIR = re.compile("^(?:" + "|".join(map(re.escape, (RUN_PREFIX, WARM_PREFIX,
+                                                          *OWNED_PREFIXES))) + r")(\d+)-")
 _RUN_CGROUP = re.compile(rf"^(?:{RUN_PREFIX}(\d+)|{WARM_PREFIX}(\d+)-\d+)$")
 _SWEPT = threading.Event()
 _LOCK = threading.Lock()
@@ -39,6 +45,15 @@ def run_dir_prefix() -> str:
 def warm_dir_prefix() -> str:
     """``mkdtemp`` prefix of this process's warm servers' folders (names the owner pid)."""
     return f"{WARM_PREFIX}{os.getpid()}-"
+
+
+def owned_dir_prefix(prefix: str) -> str:
+    """``mkdtemp`` prefix of one of this process's other folders (``prefix`` one of
+    :data:`OWNED_PREFIXES`; names the owner pid, so that a later sweep removes it once this
+    process is gone)."""
+    if prefix not in OWNED_PREFIXES:
+        raise ValueError(f"prefix must be one of {OWNED_PREFIXES}, got {prefix!r}")
+    return f"{prefix}{os.getpid()}-"
 
 
 def _alive(pid: int) -> bool:
@@ -104,27 +119,9 @@ def sweep_stale_runs(*, tmpdir: str | None = None, cgroup_parent: str | None = N
 
 
 def _remove_cgroup(group: Path) -> bool:
-    """SIGKILL what is left in ``group`` (orphans of a dead launcher; not our children, so
-    never reaped here) and remove it; ``False`` when it stays."""
-    import signal
-    import time
+    """SIGKILL what is left in ``group`` and in the cgroups under it (orphans of a dead
+    launcher or warm server; not our children, so never reaped here) and remove them, deepest
+    first; ``False`` when one stays."""
+    from .launcher import kill_cgroup_tree
 
-    for _ in range(100):
-        try:
-            os.rmdir(group)
-            return True
-        except FileNotFoundError:
-            return False
-        except OSError:
-            pass
-        try:
-            pids = [int(p) for p in (group / "cgroup.procs").read_text().split()]
-        except (OSError, ValueError):
-            return False
-        for pid in pids:
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except OSError:
-                pass
-        time.sleep(0.01)
-    return False
+    return group.exists() and kill_cgroup_tree(str(group))

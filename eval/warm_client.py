@@ -43,7 +43,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from .dir_remover import remove_later, wait_removed
-from .results import Prediction, tail
+from .launcher import BOX_DIRS
+from .results import HarnessError, Prediction
 from .run_slots import Held, hold
 from .stale_runs import WARM_PREFIX, warm_dir_prefix
 from .warm_server import recv_message, send_message
@@ -140,8 +141,8 @@ class WarmServer:
 
     def _start(self, pipe: CommandPipeline, image_path: Path) -> None:
         base_work, base_tmp = os.path.join(self.home, "work"), os.path.join(self.home, "tmp")
-        os.mkdir(base_work)
-        os.mkdir(base_tmp)
+        for name in BOX_DIRS:  # the server's own folders (each run mounts its box over them)
+            os.mkdir(os.path.join(self.home, name))
         python = pipe._executable or sys.executable
         ours, theirs = socket.socketpair()
         self.sock = ours
@@ -152,7 +153,7 @@ class WarmServer:
                 cg = os.path.join(pipe._cgroup, f"{WARM_PREFIX}{os.getpid()}-{next(_counter)}")
                 os.mkdir(cg)
                 self.cgroup = cg
-            argv = pipe._bwrap_argv(base_work, base_tmp, image_path)
+            argv = pipe._bwrap_argv(self.home, image_path)
             extra = ["--bind", self.home, WARM_DIR]
             # read by the server's glibc at its start only; hidden from the runs again
             extra += ["--ro-bind-try", THP_SETTINGS, THP_SETTINGS]
@@ -200,6 +201,8 @@ class WarmServer:
         if hello.get("isolation"):
             raise RuntimeError(f"warm runs cannot get private namespaces here: "
                                f"{hello['isolation']}")
+        if hello.get("cold"):
+            raise RuntimeError(hello["cold"])
         threading.Thread(target=self._read, name="arenabench-warm", daemon=True).start()
 
     def _read(self) -> None:
@@ -227,25 +230,40 @@ class WarmServer:
         with self._lock:
             return bool(self._waiting)
 
-    def run(self, pipe: CommandPipeline, image_path: Path) -> Prediction:
+    def run(self, pipe: CommandPipeline, image_path: Path) -> Prediction | None:
         """Run ``pipe``'s command on one image as a warm run (never raises for the
-        command's own failures)."""
+        command's own failures); ``None`` when the server failed it (the server is then
+        ended, and the image runs cold).
+
+        Raises
+        ------
+        HarnessError
+            When the run's folder cannot be made or filled.
+        """
         token = secrets.token_hex(12)
         rundir = os.path.join(self.home, token)
         work, tmp = os.path.join(rundir, "work"), os.path.join(rundir, "tmp")
-        os.mkdir(rundir, 0o700)
         try:
-            os.mkdir(work)
-            os.mkdir(tmp)
+            os.mkdir(rundir, 0o700)
+        except OSError as exc:
+            raise HarnessError(f"cannot make a run's folder in {self.home}: "
+                               f"{exc.strerror or exc}") from None
+        try:
+            try:
+                os.mkdir(work)
+                os.mkdir(tmp)
+            except OSError as exc:
+                raise HarnessError(f"cannot make a run's folder in {rundir}: "
+                                   f"{exc.strerror or exc}") from None
             problem = pipe.fill_workdir(work, Path(image_path))
             if problem:
-                return Prediction(status="crash", message=problem)
+                raise HarnessError(problem)
             return self._run_in(pipe, image_path, token, rundir, work, tmp)
         finally:
             remove_later(rundir)  # the worker goes on with its next image meanwhile
 
     def _run_in(self, pipe: CommandPipeline, image_path: Path, token: str, rundir: str,
-                work: str, tmp: str) -> Prediction:
+                work: str, tmp: str) -> Prediction | None:
         from .sandbox import SANDBOX_DIR
 
         lim = pipe.limits
@@ -269,8 +287,11 @@ class WarmServer:
             "exe": cmd[0], "argv": cmd, "env": env, "cwd": f"{view}/work", "rundir": view,
             "timeout_s": lim.timeout_s, "memory_bytes": lim.memory_bytes,
             "max_file_size": lim.max_file_size, "max_output": lim.max_output,
-            "max_procs": lim.max_procs, "pids_max": lim.max_procs,
+            # the run's keeper (outside its PID namespace) is one more process of the cgroup
+            "max_procs": lim.max_procs, "pids_max": lim.max_procs + int(self.isolate),
             "cgroup_parent": cgroup_parent, "sandboxed": self.isolate,
+            "box_bytes": lim.disk_bytes if self.isolate else None,
+            "image_name": pipe.image_name(image_path),
             "nproc_rlimit": cgroup_parent is None and os.getuid() != 0, "parent_pid": 0,
             "warm_isolate": self.isolate,
             "warm_hide": [WARM_DIR] + ([CGROUP_DIR] if self.cgroup else []),
@@ -280,7 +301,7 @@ class WarmServer:
         waiter = _Waiter(pipe)
         with self._lock:
             if self.dead:
-                return Prediction(status="crash", message="the warm server has ended")
+                return None
             self._waiting[token] = waiter
         try:
             if pipe._stopped:  # stopped before its waiter was there for stop() to find
@@ -291,8 +312,8 @@ class WarmServer:
             assert self.sock is not None
             try:
                 send_message(self.sock, {"op": "run", "id": token, "cfg": cfg, "target": target})
-            except OSError as exc:
-                return Prediction(status="crash", message=f"the warm server has ended: {exc}")
+            except OSError:  # the server has ended: the image runs cold
+                return None
             if not waiter.done.wait(lim.timeout_s + RUN_GRACE_S):
                 self.kill(token)
                 waiter.done.wait(10.0)
@@ -306,11 +327,11 @@ class WarmServer:
         except (OSError, ValueError, EOFError, TypeError):
             if pipe._stopped:
                 return Prediction(status="crash", message="interrupted")
-            log = Path(self.home, "server.log")
-            text = log.read_bytes()[-4000:].decode(errors="replace") if log.exists() else ""
-            return Prediction(status="crash",
-                              message=f"the warm run failed (status {waiter.rc})",
-                              stderr=tail(text))
+            # the server or the run's manager failed (the harness's code, out of the run's
+            # reach): never the script's verdict; this server ends, the image runs cold
+            with self._lock:
+                self.dead = True
+            return None
         out = Path(rundir, "stdout").read_bytes().decode("utf-8", errors="replace")
         err = Path(rundir, "stderr").read_bytes().decode("utf-8", errors="replace")
         return pipe._interpret(result, out, err, work)
@@ -436,7 +457,8 @@ def _server_for(pipe: CommandPipeline, target: WarmTarget, image_path: Path) -> 
 
 
 def run_warm(pipe: CommandPipeline, target: WarmTarget, image_path: Path) -> Prediction | None:
-    """Run one image through the command's warm server; ``None`` when it must run cold."""
+    """Run one image through the command's warm server; ``None`` when it must run cold (no
+    server, or the server failed the run: its next run starts a new one)."""
     server = _server_for(pipe, target, image_path)
     return None if server is None else server.run(pipe, image_path)
 

@@ -6,7 +6,8 @@ It asks for SIGTERM when the harness dies (``PR_SET_PDEATHSIG``, even after SIGK
 harness), becomes a child subreaper, starts ``COMMAND`` (bubblewrap with the server inside,
 or the server itself with ``--sandbox none``) with ``PR_SET_PDEATHSIG`` = SIGKILL, and when
 the command ends or the harness dies: kills it and every process left under it, then removes
-the server's folder ``HOME`` and its pids cgroup ``CGROUP`` (``-`` for none).
+the server's folder ``HOME`` and its pids cgroup ``CGROUP`` (``-`` for none) with the runs'
+cgroups in it, killing any process still in one (:func:`launcher.kill_cgroup_tree`).
 
 ``PR_SET_PDEATHSIG`` is sent when the *thread* that started the keeper ends, and again for
 every thread it is handed to after that (a harness killed with SIGKILL ends its threads one
@@ -31,6 +32,7 @@ class _Stop(Exception):
 
 _harness = 0
 _stopping = False
+_LAUNCHER = None
 
 
 def _on_signal(signum, frame):
@@ -43,24 +45,16 @@ def _on_signal(signum, frame):
     raise _Stop()
 
 
-def _descendants():
-    me, children = os.getpid(), {}
-    for entry in os.scandir("/proc"):
-        if entry.name.isdigit():
-            try:
-                with open(f"/proc/{entry.name}/stat", "rb") as fh:
-                    stat = fh.read()
-            except OSError:
-                continue
-            fields = stat[stat.rindex(b")") + 2:].split()
-            if fields[0] not in (b"Z", b"X"):
-                children.setdefault(int(fields[1]), []).append(int(entry.name))
-    out, stack = [], [me]
-    while stack:
-        for child in children.get(stack.pop(), ()):
-            out.append(child)
-            stack.append(child)
-    return out
+def _launcher():
+    """The launcher module beside this file (standard library only): its process walk and its
+    cgroup removal are the keeper's too."""
+    import importlib.util
+
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "launcher.py")
+    spec = importlib.util.spec_from_file_location("_arenabench_launcher", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def _reap_all(deadline_s):
@@ -74,7 +68,7 @@ def _reap_all(deadline_s):
         if pid:
             continue
         if time.monotonic() > deadline:
-            for p in _descendants():
+            for p in _LAUNCHER.descendants(os.getpid()):
                 try:
                     os.kill(p, signal.SIGKILL)
                 except OSError:
@@ -92,27 +86,10 @@ def _rmtree(path):
         time.sleep(0.02)
 
 
-def _remove_cgroup(cgroup):
-    """Remove the server's cgroup and the runs' cgroups left in it (all empty by now)."""
-    for _ in range(100):
-        try:
-            for entry in os.scandir(cgroup):
-                if entry.is_dir(follow_symlinks=False):
-                    try:
-                        os.rmdir(entry.path)
-                    except OSError:
-                        pass
-            os.rmdir(cgroup)
-            return
-        except FileNotFoundError:
-            return
-        except OSError:
-            time.sleep(0.02)
-
-
 def main(argv):
     """Entry point (see the module docstring); returns the command's exit status."""
-    global _harness
+    global _harness, _LAUNCHER
+    _LAUNCHER = _launcher()
     parent, home, cgroup, fd, cmd = int(argv[1]), argv[2], argv[3], int(argv[4]), argv[6:]
     _harness = parent
     for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
@@ -140,8 +117,8 @@ def main(argv):
             _, status = os.waitpid(pid, 0)
     _reap_all(5.0)  # a command forked but not yet known here is among these
     _rmtree(home)
-    if cgroup != "-":
-        _remove_cgroup(cgroup)
+    if cgroup != "-":  # the runs' cgroups, and whatever a run left in them, go too
+        _LAUNCHER.kill_cgroup_tree(cgroup)
     return os.waitstatus_to_exitcode(status) if status else 0
 
 

@@ -10,8 +10,9 @@ with ``--sandbox none`` without one). Standard library only, besides the modules
 Protocol (a socketpair passed as the inherited fd ``FD``): each message is a 4-byte big-endian
 length followed by that many bytes of JSON. Harness to server first: the configuration
 (``parent_pid``, ``isolate``, ``launcher_source``, ``script``, ``private_dirs``). Server to
-harness: ``{"ready": true, "isolation": ""}``
-once (``isolation`` names a problem with the per-run namespaces, ``""`` when they work), then
+harness: ``{"ready": true, "isolation": "", "cold": ""}``
+once (``isolation`` names a problem with the per-run namespaces, ``cold`` why the command must
+run cold after all (:func:`_shadowed`); ``""`` when all is well), then
 ``{"id": ID, "rc": N}`` when run ``ID`` has ended. Harness to server: ``{"op": "run", "id":
 ID, "cfg": {...}, "target": {...}}`` (``cfg`` is a launch configuration of
 :mod:`arenabench.eval.launcher`) and ``{"op": "kill", "id": ID}``. End of file on the socket:
@@ -32,18 +33,24 @@ interpreter has them, the script run as ``__main__`` with :mod:`runpy`, interpre
 script's code itself.
 """
 
-import ast
-import ctypes
-import fcntl
-import json
-import os
-import select
-import signal
-import socket
-import struct
 import sys
-import time
-import types
+
+#: What a fresh interpreter has imported before a script's first line (this source's first
+#: statement sees just that): a cold run finds these, not a submission's modules of the same name.
+_STARTUP_MODULES = frozenset(sys.modules)
+
+import ast  # noqa: E402
+import ctypes  # noqa: E402
+import errno  # noqa: E402
+import fcntl  # noqa: E402
+import json  # noqa: E402
+import os  # noqa: E402
+import select  # noqa: E402
+import signal  # noqa: E402
+import socket  # noqa: E402
+import struct  # noqa: E402
+import time  # noqa: E402
+import types  # noqa: E402
 
 PR_SET_PDEATHSIG = 1
 PR_SET_DUMPABLE = 4
@@ -54,9 +61,15 @@ CLONE_NEWUTS = 0x04000000
 CLONE_NEWIPC = 0x08000000
 CLONE_NEWUSER = 0x10000000
 CLONE_NEWNET = 0x40000000
-MS_RDONLY, MS_NOSUID, MS_NODEV, MS_REMOUNT, MS_BIND, MS_REC = 1, 2, 4, 32, 4096, 16384
+CLONE_NEWPID = 0x20000000
+MS_RDONLY, MS_NOSUID, MS_NODEV, MS_NOEXEC, MS_REMOUNT, MS_BIND, MS_REC = 1, 2, 4, 8, 32, 4096, 16384
 MS_PRIVATE = 1 << 18
 SANDBOX_DIR = "/sandbox"
+#: Exit status of a run that ended before its script because the harness could not prepare it
+#: (its ``harness_error`` file says why).
+HARNESS_ERROR_STATUS = 125
+#: The launcher module (sent as source by the harness; :func:`main` loads it).
+_LAUNCHER = None
 _LIBC = ctypes.CDLL(None, use_errno=True)
 
 
@@ -230,6 +243,29 @@ def _preload(names, private_dirs):
     return changes
 
 
+def _shadowed(private_dirs):
+    """Why this server cannot run the submission as a cold run would (``""`` when it can): a
+    module the server has loaded since its start (numpy, cv2, what they import, its own
+    helpers) that the submission's folders hold a module of the same name for. A cold run
+    imports the submission's module; a warm run would find the installed one loaded."""
+    import importlib.machinery
+
+    startup = {name.partition(".")[0] for name in _STARTUP_MODULES}
+    loaded = sorted({name.partition(".")[0] for name in list(sys.modules)} - startup)
+    theirs = []
+    for name in loaded:
+        try:
+            spec = importlib.machinery.PathFinder.find_spec(name, list(private_dirs))
+        except (ImportError, ValueError):
+            continue
+        if spec is not None and spec.origin not in (None, "namespace"):
+            theirs.append(name)
+    if not theirs:
+        return ""
+    return (f"the submission's own {', '.join(theirs[:8])} would be imported by a cold run, "
+            "but the warm interpreter has the installed one loaded")
+
+
 def _threads():
     try:
         return len(os.listdir("/proc/self/task"))
@@ -263,19 +299,34 @@ def stop_library_threads():
 
 
 def _enter_private_namespaces(cfg):
-    """In the run (single-threaded, just forked): new user, mount, IPC, network and UTS
-    namespaces; the private directory at /sandbox, its tmp/ at /tmp, a fresh /dev/shm, the
-    server's folders hidden, loopback up, every capability dropped."""
+    """In the run (single-threaded, just forked): new user, mount, IPC, network, UTS and PID
+    namespaces; the run's box (a tmpfs of ``box_bytes``: :func:`launcher.mount_box`) at
+    /sandbox, /tmp and /dev/shm, the server's folders hidden, loopback up. Then a fork: the
+    child, pid 1 of the new PID namespace (as a cold run's command under ``--as-pid-1``), drops
+    every capability and returns to become the script; this process stays outside the run's
+    reach as its *keeper* (:func:`_keep_run`) and never returns. The run sees and can signal
+    only its own processes, not its run manager, the standbys or the server; when it ends,
+    every process it started dies with its PID namespace."""
+    launcher = _LAUNCHER
     uid, gid = os.getuid(), os.getgid()
+    rundir = cfg["rundir"]
     _LIBC.prctl(PR_SET_DUMPABLE, 1, 0, 0, 0)  # its own /proc/self/*_map stay writable
+    home = os.open(rundir, os.O_RDONLY | os.O_DIRECTORY)  # before the server's folders go
     _check(_LIBC.unshare(CLONE_NEWUSER | CLONE_NEWNS | CLONE_NEWIPC | CLONE_NEWNET
-                         | CLONE_NEWUTS), "unshare")
+                         | CLONE_NEWUTS | CLONE_NEWPID), "unshare")
     for name, text in (("setgroups", "deny"), ("uid_map", f"{uid} {uid} 1"),
                        ("gid_map", f"{gid} {gid} 1")):
         with open(f"/proc/self/{name}", "w") as fh:
             fh.write(text)
     _check(_LIBC.mount(None, b"/", None, MS_REC | MS_PRIVATE, None), "mount --make-rprivate")
-    rundir = cfg["rundir"]
+    try:
+        box = launcher.mount_box(rundir, cfg["box_bytes"])
+    except OSError as exc:  # the harness's failure, not the run's: said in its folder
+        _harness_error(home, f"cannot prepare the run's folder: {exc}" if exc.errno not in
+                       (errno.ENOSPC, errno.EDQUOT) else
+                       f"the files copied into the run's folder do not fit in its "
+                       f"{cfg['box_bytes']} bytes (--max-disk)")
+    work = os.open(os.path.join(box, "work"), os.O_RDONLY | os.O_DIRECTORY)
     # read-only folders of the sandbox under /tmp (a submission there) stay visible on top
     # of the run's own /tmp: kept at a mount point in the run's folder meanwhile
     keep = []
@@ -285,7 +336,8 @@ def _enter_private_namespaces(cfg):
         _check(_LIBC.mount(path.encode(), spare.encode(), None, MS_BIND | MS_REC, None),
                f"keep {path}")
         keep.append((spare, path))
-    for src, dst in ((f"{rundir}/work", SANDBOX_DIR), (f"{rundir}/tmp", "/tmp")):
+    for src, dst in ((f"{box}/work", SANDBOX_DIR), (f"{box}/tmp", "/tmp"),
+                     (f"{box}/shm", "/dev/shm")):
         _check(_LIBC.mount(src.encode(), dst.encode(), None, MS_BIND | MS_REC, None),
                f"bind {dst}")
     for spare, path in keep:
@@ -295,9 +347,6 @@ def _enter_private_namespaces(cfg):
         _check(_LIBC.mount(None, path.encode(), None,
                            MS_REMOUNT | MS_BIND | MS_RDONLY | MS_NOSUID | MS_NODEV, None),
                f"read-only {path}")
-    if os.path.isdir("/dev/shm"):
-        _check(_LIBC.mount(b"tmpfs", b"/dev/shm", b"tmpfs", MS_NOSUID | MS_NODEV, None),
-               "tmpfs /dev/shm")
     # the server's folders always; a folder bound for the server only where it was bound
     hide = [*cfg["warm_hide"], *filter(os.path.isdir, cfg.get("warm_hide_if_there", ()))]
     for hidden in hide:
@@ -309,9 +358,50 @@ def _enter_private_namespaces(cfg):
             fcntl.ioctl(s.fileno(), 0x8914, struct.pack("16sH14x", b"lo", 0x1 | 0x8 | 0x40))
     except OSError:
         pass
+    pid = os.fork()
+    if pid:
+        _keep_run(pid, work, home, cfg.get("image_name", ""))
+    os.close(work)
+    os.close(home)
+    _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    os.setsid()  # a session of its own, as bubblewrap's --new-session gives a cold run
+    # a /proc of its own PID namespace where the kernel lets one be mounted (not inside a
+    # bubblewrap that covered parts of its /proc: then the server's stays, read-only to it)
+    _LIBC.mount(b"proc", b"/proc", b"proc", MS_NOSUID | MS_NODEV | MS_NOEXEC, None)
     _drop_capabilities()
     _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)  # other runs cannot read its memory or fds
     os.chdir(SANDBOX_DIR)
+
+
+def _harness_error(home, message):
+    """End the run before its script starts, saying why in its folder (the run manager reads
+    ``harness_error``: a failure of the harness, never scored as the script's)."""
+    try:
+        fd = os.open("harness_error", os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o600, dir_fd=home)
+        os.write(fd, message.encode(errors="replace")[:4000])
+        os.close(fd)
+    finally:
+        os._exit(HARNESS_ERROR_STATUS)
+
+
+def _keep_run(pid, work, home, image_name):
+    """The run's keeper: wait for the run (pid 1 of its PID namespace), bring its answer and
+    the images it left out of its box (:func:`launcher.copy_back`), and exit as it did. Outside
+    the run's PID namespace, so the run can neither see nor signal it. Never returns."""
+    null = os.open(os.devnull, os.O_RDWR)
+    for fd in (0, 1, 2):  # the run's output pipes stay the run's
+        os.dup2(null, fd)
+    status = os.waitpid(pid, 0)[1]
+    try:
+        dst = os.open("work", os.O_RDONLY | os.O_DIRECTORY, dir_fd=home)
+        _LAUNCHER.copy_back(work, dst, skip=image_name)
+    except OSError:
+        pass
+    if os.WIFSIGNALED(status):
+        sig = os.WTERMSIG(status)
+        signal.signal(sig, signal.SIG_DFL)
+        os.kill(os.getpid(), sig)
+    os._exit(os.waitstatus_to_exitcode(status) & 0xFF)
 
 
 def _mount_point(path, is_dir):
@@ -372,7 +462,10 @@ def _python_signal_defaults():
 
 
 def _strip_own_frames(tb):
-    own = {"<arenabench launcher>", "<string>", getattr(sys.modules.get("runpy"), "__file__", "")}
+    """``tb`` without its leading frames of the server, the launcher and runpy (frozen in
+    Python 3.11+): a cold run's traceback starts at the script."""
+    runpy_file = getattr(sys.modules.get("runpy"), "__file__", "")
+    own = {"<arenabench launcher>", "<string>", "<frozen runpy>", runpy_file}
     while tb is not None and tb.tb_frame.f_code.co_filename in own:
         tb = tb.tb_next
     return tb
@@ -425,7 +518,9 @@ def become_script(cfg):
     except SystemExit as exc:
         code = _exit_code(exc)
     except BaseException as exc:
-        sys.excepthook(type(exc), exc, _strip_own_frames(exc.__traceback__))
+        # the exception's own traceback is what gets printed: cut there, not only passed
+        exc.__traceback__ = _strip_own_frames(exc.__traceback__)
+        sys.excepthook(type(exc), exc, exc.__traceback__)
         code = 1
     # interpreter exit: non-daemon threads, atexit, flushed streams
     try:
@@ -652,7 +747,8 @@ def main():
     del sys.argv[1:]
     if config["isolate"]:
         _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
-    launcher = _load_source(config["launcher_source"], "launcher")
+    global _LAUNCHER
+    launcher = _LAUNCHER = _load_source(config["launcher_source"], "launcher")
     private_dirs = config.get("private_dirs", [])
     imported = _script_imports(config["script"], private_dirs) if config.get("script") else []
     changes = _preload(["numpy", "cv2", *imported], private_dirs)
@@ -670,30 +766,38 @@ def main():
     # itself (top level; a cold run would have it from that import)
     env_changes = {k: v for name in imported for k, v in changes.get(name, {}).items()}
     isolation = _probe_isolation() if config["isolate"] else ""
+    cold = _shadowed(private_dirs)
     # the preloaded objects stay out of the runs' garbage collections: a collection would
     # write to every tracked object and copy the pages a run shares with the server
     import gc
 
     gc.collect()
     gc.freeze()
-    send_message(sock, {"ready": True, "isolation": isolation, "pid": os.getpid()})
+    send_message(sock, {"ready": True, "isolation": isolation, "cold": cold,
+                        "pid": os.getpid()})
     runs = _Runs(launcher)
     me = os.getpid()
+    become = None
     try:
         _serve(sock, runs)
-    except _BecomeRunManager as become:
-        code = 1
-        try:
-            sock.close()
-            for fd in runs.inherited_fds():
-                try:
-                    os.close(fd)
-                except OSError:
-                    pass
-            code = _run_manager(launcher, become, me, env_changes)
-        finally:
-            os._exit(code)  # a manager never returns into the server's code
-    return 0
+    except _BecomeRunManager as exc:
+        become = exc
+    if become is None:
+        return 0
+    # a freshly forked run manager, out of the except block: the script's exceptions have no
+    # context from the server's loop (its traceback holds only the script's own frames)
+    become.__traceback__ = None
+    code = 1
+    try:
+        sock.close()
+        for fd in runs.inherited_fds():
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        code = _run_manager(launcher, become, me, env_changes)
+    finally:
+        os._exit(code)  # a manager never returns into the server's code
 
 
 if __name__ == "__main__":

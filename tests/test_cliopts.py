@@ -22,6 +22,7 @@ from arenabench.cliopts import (
 from arenabench.competition import DEFAULT_TOLERANCE
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 from arenabench.limits import (
+    DEFAULT_MAX_DISK,
     DEFAULT_MAX_FILE_SIZE,
     DEFAULT_MAX_OUTPUT,
     DEFAULT_MAX_PROCS,
@@ -44,6 +45,7 @@ DECLARED = {
     "--max-procs": DEFAULT_MAX_PROCS,
     "--max-file-size": format_size(DEFAULT_MAX_FILE_SIZE),
     "--max-output": format_size(DEFAULT_MAX_OUTPUT),
+    "--max-disk": format_size(DEFAULT_MAX_DISK),
     "--sandbox": DEFAULT_SANDBOX,
     "--no-progress": False,
     "--scheduler": None,

@@ -23,6 +23,7 @@ from arenabench.interrupts import worker_task
 from ..dataset_reader import DatasetItem
 from ..evaluation import score_sample
 from ..results import Prediction
+from ..stale_runs import owned_dir_prefix
 from .records import PipelineSpec, SweepTask
 
 
@@ -52,7 +53,7 @@ def _predict(spec: PipelineSpec, bgr: Any, image: list[bytes], tmp: list[str],
     # external commands read a file: write the image once per sample, only now
     name = f"image.{IMAGE_EXTENSIONS[output['image_format']]}"
     if not tmp:
-        tmp.append(tempfile.mkdtemp(prefix="arenabench-sweep-"))
+        tmp.append(tempfile.mkdtemp(prefix=owned_dir_prefix("arenabench-sweep-")))
         if not image:
             image.append(encode_image(bgr, **output))
         Path(tmp[0], name).write_bytes(image[0])

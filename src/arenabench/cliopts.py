@@ -38,6 +38,7 @@ from typing import Any
 from arenabench.clihelp import HelpFormatter
 from arenabench.competition import DEFAULT_TOLERANCE
 from arenabench.limits import (
+    DEFAULT_MAX_DISK,
     DEFAULT_MAX_FILE_SIZE,
     DEFAULT_MAX_OUTPUT,
     DEFAULT_MAX_PROCS,
@@ -60,8 +61,8 @@ EXIT_USAGE = 2
 #: Options that more than one command has; each is added by the builder of the same name.
 SHARED_OPTIONS: tuple[str, ...] = (
     "--out", "--workers", "--scheduler", "--no-progress", "--tolerance", "--area-reference",
-    "--timeout", "--memory-limit", "--max-file-size", "--max-output", "--max-procs",
-    "--sandbox", "--count",
+    "--timeout", "--memory-limit", "--max-file-size", "--max-output", "--max-disk",
+    "--max-procs", "--sandbox", "--count",
 )
 
 
@@ -473,6 +474,11 @@ def add_run_options(parser: CommandParser) -> None:
                         default=format_size(DEFAULT_MAX_OUTPUT),
                         help="bytes of stdout and of stderr kept per run, the tail "
                         "(default: %(default)s)"), "add_run_options")
+    _tag(g.add_argument("--max-disk", type=_size_type("--max-disk"),
+                        default=format_size(DEFAULT_MAX_DISK),
+                        help="what a run may write in all, in its folder, /tmp and /dev/shm "
+                        "(a tmpfs of this size under bubblewrap; default: %(default)s)"),
+         "add_run_options")
     _tag(g.add_argument("--sandbox", choices=SANDBOX_MODES, default=DEFAULT_SANDBOX,
                         help="auto: bubblewrap when it works here (else a warning and none); "
                         "bwrap: require it; none: no namespaces (default: %(default)s)"),

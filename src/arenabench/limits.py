@@ -80,6 +80,10 @@ DEFAULT_MEMORY_BYTES = 2 * 1024**3
 DEFAULT_MAX_PROCS = 64
 DEFAULT_MAX_FILE_SIZE = 64 * 1024**2
 DEFAULT_MAX_OUTPUT = 1024**2
+#: Default of ``--max-disk``: what one run (under bubblewrap) may write in all, in its working
+#: folder, ``/tmp`` and ``/dev/shm`` together (a tmpfs of this size: memory, never the machine's
+#: disk). A competition script writes ``obstacles.txt`` and a few images of a few MiB.
+DEFAULT_MAX_DISK = 256 * 1024**2
 
 #: Longest wall-clock time one external run may be given (``--timeout``, seconds): a day.
 MAX_TIMEOUT_S = 86400.0
