@@ -28,6 +28,7 @@ from arenabench.cliopts import (
     output_problem,
     usage_error,
 )
+from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, escape, template_problem
 
 from .phase_check import add_phase_check_argument
 
@@ -123,6 +124,9 @@ def _validate(args: argparse.Namespace) -> str | None:
         return f"{args.script}: not a file"
     if not os.access(script, os.R_OK):
         return f"{args.script}: not readable"
+    problem = template_problem(args.python, RUN_PLACEHOLDERS)
+    if problem:
+        return f"--python {args.python!r}: {problem}"
     if args.seed < 0:
         return f"--seed must be >= 0, got {args.seed}"
     if not (math.isfinite(args.fail_under) and 0.0 <= args.fail_under <= 1.0):
@@ -196,9 +200,20 @@ def _main(argv: list[str] | None) -> int:
 
     script = Path(args.script).resolve()
     out = args.out if args.out is not None else _report_dir(script)
-    if problem := output_problem(out):
+    from arenabench.generator.dataset_writer import GenerateError, generate_dataset
+
+    from .dataset_reader import DatasetError, load_dataset
+    from .evaluation import EvaluationInterrupted, evaluate
+    from .phase_check import resolve_phases
+    from .reports import FORMATS, write_reports
+
+    twin = twin_set_dir(preset=args.preset, seed=args.seed, count=args.count)
+    if problem := output_problem(out, own=FORMATS.values(), what="'arenabench check' report",
+                                 inputs=[("the twin set", twin)]):
         return _error(problem)
-    template = f"{shlex.quote(args.python)} {shlex.quote(str(script))} --image {{image}}"
+    # the script's path is literal text in the template (a folder may be named 'x{image}y')
+    template = (f"{shlex.quote(args.python)} {shlex.quote(escape(str(script)))} "
+                f"--image {{{IMAGE}}}")
     from dataclasses import replace
 
     try:
@@ -212,14 +227,6 @@ def _main(argv: list[str] | None) -> int:
     except ValueError as exc:
         return _error(str(exc))
 
-    from arenabench.generator.dataset_writer import GenerateError, generate_dataset
-
-    from .dataset_reader import DatasetError, load_dataset
-    from .evaluation import EvaluationInterrupted, evaluate
-    from .phase_check import resolve_phases
-    from .reports import write_reports
-
-    twin = twin_set_dir(preset=args.preset, seed=args.seed, count=args.count)
     progress = not args.no_progress
     try:
         made = generate_dataset(twin, preset=args.preset, count=args.count, seed=args.seed,

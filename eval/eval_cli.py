@@ -203,15 +203,21 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         return _usage_error(parser, "--name must not be empty")
     if not args.pipeline and not args.cmd:
         return _usage_error(parser, "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE")
-    if args.out is not None and (problem := output_problem(args.out)):
+    from .reports import FORMATS, write_reports
+
+    if args.out is not None and (problem := output_problem(
+            args.out, own=FORMATS.values(), what="'arenabench eval' report",
+            inputs=[("DATASET", args.dataset)])):
         return _usage_error(parser, problem)
 
+    import os
+
+    from .cmd_script import missing_script_problem
     from .dataset_reader import DatasetError, load_dataset
     from .evaluation import EvaluationInterrupted, evaluate
     from .external import CommandPipeline
     from .phase_check import resolve_phases
     from .pipelines import make_pipeline
-    from .reports import FORMATS, write_reports
     from .reports.summary_rows import headline
     from .thresholds import check_thresholds, parse_thresholds
 
@@ -224,6 +230,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         return _usage_error(parser, f"--formats: unknown {bad} (known: {', '.join(FORMATS)})")
     try:
         thresholds = parse_thresholds(args.fail_under)
+        if args.cmd and (problem := missing_script_problem(args.cmd, base_dir=os.getcwd())):
+            raise ValueError(f"--cmd {args.cmd!r}: {problem}")
         pipeline = (
             CommandPipeline(args.cmd, settings=run_settings_from_args(args), output=args.output,
                             name=args.name or "")

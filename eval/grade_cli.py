@@ -29,6 +29,7 @@ from arenabench.cliopts import (
     output_problem,
     usage_error,
 )
+from arenabench.cmdtemplate import GRADE_PLACEHOLDERS, GRADE_REFUSED
 
 from .phase_check import add_phase_check_argument
 from .predictions import OUTPUT_MODES
@@ -109,7 +110,7 @@ def build_parser() -> CommandParser:
                    help="a known-good submission for the preflight (default: the built-in "
                         "reference detector as a competition script)")
     add_phase_check_argument(p)
-    add_run_options(p)
+    add_run_options(p, placeholders=GRADE_PLACEHOLDERS, refused=GRADE_REFUSED)
     return p
 
 
@@ -148,7 +149,7 @@ def main(argv: list[str] | None = None) -> int:
                                settings=run_settings_from_args(args), formats=formats,
                                phases=phases)
         find_teams(args.submissions)
-        check_out_dir(args.out, Path(args.submissions))
+        check_out_dir(args.out, Path(args.submissions), dataset.root)
     except (DatasetError, SubmissionsError, ValueError) as exc:
         msg = str(exc)
         for param, option in _OPTION_NAMES.items():  # GradeOptions names its parameters

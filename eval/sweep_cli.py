@@ -132,12 +132,13 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
 
+    from .cmd_script import missing_script_problem
     from .sweep.execution import run_sweep
     from .sweep.grid import parse_varies
-    from .sweep.outputs import KeptImageWriter, write_sweep
+    from .sweep.outputs import FILES, KeptImageWriter, write_sweep
     from .sweep.records import PipelineSpec, SweepSpec
 
-    if problem := output_problem(args.out):
+    if problem := output_problem(args.out, own=FILES.values(), what="'arenabench sweep' output"):
         return _error(problem)
     if not args.vary:
         return _error("give at least one --vary KEY=SPEC")
@@ -156,6 +157,9 @@ def main(argv: list[str] | None = None) -> int:
             for kind, value in args.pipes
         )
         for p in pipelines:
+            if p.kind == "cmd" and (problem := missing_script_problem(p.value,
+                                                                      base_dir=p.base_dir)):
+                raise ValueError(f"--cmd {p.value!r}: {problem}")
             if p.kind == "cmd" or ":" in p.value:
                 p.build()  # import errors, missing executables now, as one line
         spec = SweepSpec(

@@ -145,7 +145,9 @@ def test_a_callable_that_exits_or_hangs_fails_its_images_only(toy, tmp_path, exe
 )
 def test_impossible_answer_of_a_command_is_bad_output(toy, tmp_path, args, needle):
     output = ("--output", "json") if args[0] == "--output" else ()
-    script_args = " ".join(f"'{a}'" for a in args[len(output):])
+    from arenabench.cmdtemplate import escape
+
+    script_args = " ".join(f"'{escape(a)}'" for a in args[len(output):])  # braces doubled
     cmd = f"{{python}} {PIPES / 'liar.py'} --image {{image}} {script_args}"
     proc = run("eval", str(toy), "--cmd", cmd, *output, "--out", str(tmp_path),
                "--no-progress", "--formats", "json", "--fail-under", "pass_rate=0.01")
@@ -855,3 +857,162 @@ def test_disk_full_while_writing_reports_is_one_line(toy, small_disk):
 def test_presets_show_of_an_empty_name_is_refused():
     proc = run("presets", "--show", "")
     assert_clean_error(proc, "unknown preset ''", prog="presets")
+
+
+# --------------------------------------------------- --out: system folders, inputs, others' files
+
+
+def _eval_argv(toy: Path) -> tuple[str, ...]:
+    return ("eval", str(toy), "--pipeline", "toy_arena:detect", "--no-progress", "--formats",
+            "json,csv,md,html,junit")
+
+
+def test_eval_out_root_is_refused_and_writes_nothing_there(toy):
+    from arenabench.eval.reports import FORMATS
+
+    before = {name for name in FORMATS.values() if (Path("/") / name).exists()}
+    try:
+        proc = run(*_eval_argv(toy), "--out", "/")
+        assert_clean_error(proc, "--out /: is a system folder (/ or a folder directly in it)",
+                           prog="eval")
+    finally:  # the unfixed command wrote its five reports into /
+        for name in set(FORMATS.values()) - before:
+            (Path("/") / name).unlink(missing_ok=True)
+    assert {name for name in FORMATS.values() if (Path("/") / name).exists()} == before
+
+
+@pytest.fixture()
+def top_folder():
+    """A new empty folder directly in / (removed afterwards, whatever was written in it)."""
+    import shutil
+    import uuid
+
+    folder = Path("/") / f"arenabench-test-{uuid.uuid4().hex[:12]}"
+    folder.mkdir()
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.mark.parametrize("command", ["eval", "sweep", "grade", "generate"])
+def test_out_leading_to_a_system_folder_is_refused(toy, tmp_path, top_folder, command):
+    link = tmp_path / "top-link"
+    link.symlink_to(top_folder)
+    (tmp_path / "teams" / "a").mkdir(parents=True)
+    argv = {"eval": _eval_argv(toy),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+                      "--per-point", "1"),
+            "grade": ("grade", str(toy), str(tmp_path / "teams")),
+            "generate": ("generate", "--count", "1")}[command]
+    proc = run(*argv, "--out", str(link), "--no-progress", cwd=tmp_path)
+    assert_clean_error(proc, f"--out {link}: leads to {top_folder}, a system folder",
+                       prog=command)
+    assert list(top_folder.iterdir()) == []
+
+
+@pytest.mark.parametrize("where", ["same", "inside", "images"])
+@pytest.mark.parametrize("command", ["eval", "grade"])
+def test_out_equal_to_or_inside_the_dataset_is_refused(toy, tmp_path, command, where):
+    from procs_limit import GRADE_ARGS
+
+    out = {"same": toy, "inside": toy / "reports", "images": toy / "images"}[where]
+    (tmp_path / "teams" / "a").mkdir(parents=True)
+    argv = {"eval": _eval_argv(toy),
+            "grade": ("grade", str(toy), str(tmp_path / "teams"), *GRADE_ARGS)}[command]
+    before = sorted(p.relative_to(toy) for p in toy.rglob("*"))
+    proc = run(*argv, "--out", str(out), "--no-progress", cwd=tmp_path)
+    assert_clean_error(proc, f"--out {out}: is {'' if where == 'same' else 'inside '}DATASET "
+                       f"{toy} (inputs are only read)", prog=command)
+    assert sorted(p.relative_to(toy) for p in toy.rglob("*")) == before
+
+
+def test_check_out_inside_its_twin_set_is_refused(tmp_path, monkeypatch):
+    from arenabench.eval.check_cli import CACHE_ENV, twin_set_dir
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv(CACHE_ENV, str(cache))
+    out = twin_set_dir(preset="eyrc", seed=0, count=2) / "reports"
+    proc = run_cli("check", str(PIPES / "crash.py"), "--count", "2", "--out", str(out),
+                   "--no-progress")
+    assert_clean_error(proc, f"--out {out}: is inside the twin set", prog="check")
+    assert not cache.exists()
+
+
+@pytest.mark.parametrize("command", ["eval", "sweep", "check"])
+def test_out_holding_other_files_is_refused_and_an_earlier_report_is_not(toy, tmp_path,
+                                                                         command):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep me\n")
+    argv = {"eval": _eval_argv(toy),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+                      "--per-point", "1", "--no-progress"),
+            "check": ("check", str(PIPES / "crash.py"), "--count", "2", "--no-progress")}[command]
+    env = {"PYTHONPATH": _pythonpath(), "ARENABENCH_CACHE_DIR": str(tmp_path / "cache")}
+    proc = run_cli(*argv, "--out", str(out), cwd=tmp_path, env=env)
+    own = {"eval": "'arenabench eval' report", "sweep": "'arenabench sweep' output",
+           "check": "'arenabench check' report"}[command]
+    assert_clean_error(proc, f"--out {out}: not empty ('notes.txt') and holds no earlier {own}",
+                       prog=command)
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+    if command == "eval":  # a folder holding an earlier report is written again
+        (out / "report.json").write_text("{}")
+        proc = run_cli(*argv, "--out", str(out), cwd=tmp_path, env=env)
+        assert proc.returncode == 0, proc.stderr
+        assert json.loads((out / "report.json").read_text())["summary"]["n"] == 3
+
+
+# --------------------------------------------------------------- --cmd placeholders, scripts
+
+
+@pytest.mark.parametrize(("cmd", "needle"), [
+    ("python3 map.py --image {imgae}", "unknown placeholder {imgae} (did you mean '{image}'?)"),
+    ("python3 map.py --image {image} {nosuch}", "unknown placeholder {nosuch} in '{nosuch}'"),
+    ("python3 map.py --image {image} --n={}", "empty placeholder {}"),
+    ("python3 map.py --image {image!r}", "placeholder {image!r} takes no format spec"),
+    ("python3 map.py --image {image} x}", "Single '}' encountered"),
+])
+@pytest.mark.parametrize("command", ["eval", "sweep"])
+def test_cmd_with_an_unknown_placeholder_is_refused(toy, tmp_path, command, cmd, needle):
+    (tmp_path / "map.py").write_text("print('hi')\n")
+    argv = {"eval": ("eval", str(toy), "--cmd", cmd),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--cmd", cmd)}[command]
+    proc = run(*argv, "--out", str(tmp_path / "o"), "--no-progress", cwd=tmp_path)
+    assert_clean_error(proc, f"--cmd {cmd!r}: ", needle, prog=command)
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(("cmd", "needle"), [
+    ("python3 {submision}/map.py --image {image}",
+     "unknown placeholder {submision} (did you mean '{submission}'?)"),
+    ("python3 {submission}/map.py --image {imgae}",
+     "unknown placeholder {imgae} (did you mean '{image}'?)"),
+    ("{python} {submission}/map.py --image {image}", "{python} is arenabench's own Python"),
+])
+def test_grade_cmd_with_a_placeholder_it_does_not_take_is_refused(toy, tmp_path, cmd, needle):
+    from procs_limit import GRADE_ARGS
+
+    (tmp_path / "teams" / "a").mkdir(parents=True)
+    proc = run("grade", str(toy), str(tmp_path / "teams"), "--cmd", cmd, *GRADE_ARGS,
+               "--out", str(tmp_path / "o"), "--no-progress", cwd=tmp_path)
+    assert_clean_error(proc, f"--cmd {cmd!r}: ", needle, prog="grade")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("command", ["eval", "sweep"])
+@pytest.mark.parametrize(("cmd", "needle"), [
+    ("python3 mapp.py --image {image}",
+     "script 'mapp.py' does not exist (relative to {tmp}) (did you mean 'map.py'?)"),
+    ("python3 -u src/mapp.py --image {image}", "script 'src/mapp.py' does not exist"),
+    ("{python} nosuch --image {image}", "script 'nosuch' does not exist"),
+])
+def test_cmd_naming_a_script_that_does_not_exist_is_refused(toy, tmp_path, command, cmd,
+                                                            needle):
+    (tmp_path / "map.py").write_text("print('hi')\n")
+    (tmp_path / "src").mkdir()
+    argv = {"eval": ("eval", str(toy), "--cmd", cmd),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--cmd", cmd)}[command]
+    proc = run(*argv, "--out", str(tmp_path / "o"), "--no-progress", cwd=tmp_path)
+    err = assert_clean_error(proc, f"--cmd {cmd!r}: ", needle.format(tmp=tmp_path),
+                             prog=command)
+    assert "/sandbox" not in err
+    assert not (tmp_path / "o").exists()

@@ -29,7 +29,7 @@ import argparse
 import math
 import re
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -415,39 +415,51 @@ def add_count(parser: argparse.ArgumentParser, flag: str = "--count", *,
                                     metavar="N", help=help, **kwargs), "add_count")
 
 
-#: What a ``--cmd`` template must hold: where the image's path goes.
-IMAGE_PLACEHOLDER = "{image}"
-
-
 def _cmd_templates(ns: argparse.Namespace) -> list[str]:
     cmd = getattr(ns, "cmd", None)
     pipes = getattr(ns, "pipes", None) or ()  # sweep: (kind, value) in the order given
     return ([cmd] if isinstance(cmd, str) else []) + [v for k, v in pipes if k == "cmd"]
 
 
-def cmd_template_problem(ns: argparse.Namespace) -> str | None:
-    """A ``--cmd`` template without ``{image}`` (every image would fail the same way) is a
-    usage error, unless ``--image-name`` names the file the command opens by itself."""
-    if getattr(ns, "image_name", None):
-        return None
+def cmd_template_problem(ns: argparse.Namespace, *,
+                         placeholders: Collection[str] | None = None,
+                         refused: Mapping[str, str] | None = None) -> str | None:
+    """A ``--cmd`` template with a placeholder the command does not accept (``placeholders``,
+    default :data:`arenabench.cmdtemplate.RUN_PLACEHOLDERS`; ``refused``: name -> why) or
+    without ``{image}`` (every image would fail the same way) is a usage error; ``{image}``
+    may be left out when ``--image-name`` names the file the command opens by itself
+    (:mod:`arenabench.cmdtemplate`)."""
     import shlex
 
+    from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, template_problem
+    from arenabench.cmdtemplate import placeholders as names_in
+
     for template in _cmd_templates(ns):
+        problem = template_problem(template, placeholders or RUN_PLACEHOLDERS,
+                                   refused=refused)
+        if problem:
+            return f"--cmd {template!r}: {problem}"
+        if getattr(ns, "image_name", None):
+            continue
         try:
-            shlex.split(template)
+            args = shlex.split(template)
         except ValueError:  # unbalanced quotes: the runner's own one-line error says so
             continue
-        if IMAGE_PLACEHOLDER not in template:
-            return (f"--cmd {template!r}: the template has no {IMAGE_PLACEHOLDER} (the "
-                    "image's path; or give --image-name for a command that opens a fixed name)")
+        if not any(IMAGE in names_in(a) for a in args):
+            return (f"--cmd {template!r}: the template has no {{{IMAGE}}} (the image's path; "
+                    "or give --image-name for a command that opens a fixed name)")
     return None
 
 
-def add_run_options(parser: CommandParser) -> None:
+def add_run_options(parser: CommandParser, *, placeholders: Collection[str] | None = None,
+                    refused: Mapping[str, str] | None = None) -> None:
     """The options of external runs (``--timeout``, the limits, ``--sandbox``, ``--env``);
     :func:`arenabench.eval.run_limits.run_settings_from_args` reads them. A ``--cmd``
-    template must hold ``{image}`` (:func:`cmd_template_problem`)."""
-    parser.add_check(cmd_template_problem)
+    template may hold only the command's ``placeholders`` (default
+    :data:`arenabench.cmdtemplate.RUN_PLACEHOLDERS`) and must hold ``{image}``
+    (:func:`cmd_template_problem`)."""
+    parser.add_check(lambda ns: cmd_template_problem(ns, placeholders=placeholders,
+                                                     refused=refused))
     g = parser.add_argument_group("external command runs (--cmd)")
     _tag(g.add_argument("--timeout", type=TIMEOUT_RULE.argtype("--timeout"),
                         default=DEFAULT_TIMEOUT_S,
@@ -498,16 +510,28 @@ def usage_error(prog: str, message: str) -> int:
 
 
 def output_problem(path: str | Path, *, option: str = "--out", file: bool = False,
-                   allow_special: bool = False) -> str | None:
+                   allow_special: bool = False, own: Collection[str] | None = None,
+                   what: str = "", inputs: Sequence[tuple[str, str | Path]] = ()) -> str | None:
     """Why ``path`` cannot be written, as the usage error's message (``--out OUT: why``), or
-    ``None`` when it can: a folder (:func:`arenabench.fileio.check_output_dir`) or, with
-    ``file``, a file (:func:`arenabench.fileio.check_output_file`, ``allow_special`` for
-    ``/dev/stdout`` and the like)."""
-    from arenabench.fileio import OutputPathError, check_output_dir, check_output_file
+    ``None`` when it can: a folder (:func:`arenabench.fileio.check_output_dir`: never ``/``
+    nor a folder directly in it) or, with ``file``, a file
+    (:func:`arenabench.fileio.check_output_file`, ``allow_special`` for ``/dev/stdout`` and
+    the like). With ``own`` (the names a command writes into its folder, ``what`` them in
+    words) and ``inputs`` (``("DATASET", path)``: folders the command reads), the folder of a
+    command's reports (:func:`arenabench.fileio.check_report_dir`): not an input nor inside
+    one, and new, empty or holding an earlier output of the command."""
+    from arenabench.fileio import (
+        OutputPathError,
+        check_output_dir,
+        check_output_file,
+        check_report_dir,
+    )
 
     try:
         if file:
             check_output_file(path, allow_special=allow_special)
+        elif own is not None:
+            check_report_dir(path, own=own, what=what, inputs=inputs)
         else:
             check_output_dir(path)
     except OutputPathError as exc:
