@@ -133,6 +133,7 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.generator.sampler import SamplingError
 
     from .cmd_script import missing_script_problem
+    from .isolated import trial_pipeline
     from .sweep.execution import run_sweep
     from .sweep.grid import parse_varies
     from .sweep.outputs import FILES, KeptImageWriter, write_sweep
@@ -162,6 +163,8 @@ def main(argv: list[str] | None = None) -> int:
                 raise ValueError(f"--cmd {p.value!r}: {problem}")
             if p.kind == "cmd" or ":" in p.value:
                 p.build()  # import errors, missing executables now, as one line
+            if p.kind == "pipeline" and ":" in p.value:
+                trial_pipeline(p.value, timeout_s=settings.limits.timeout_s)
         spec = SweepSpec(
             preset=args.preset, axes=axes, pipelines=pipelines, per_point=args.per_point,
             seed=args.seed, random=args.random, overrides=overrides,

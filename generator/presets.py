@@ -14,6 +14,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from arenabench.frame import COMPETITION_DICTIONARY
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.params import DEFAULTS, NEUTRAL, PARAMETERS, Param, Range, Value
 from arenabench.suggest import did_you_mean
@@ -32,7 +33,7 @@ _EYRC_JITTER: dict[str, Value] = {
     "arena.grid_rgb": (200, 200, 200),
     "arena.logo_text": "eyantra",
     "arena.logo_rgb": (220, 50, 50),
-    "markers.dictionary": "DICT_4X4_100",
+    "markers.dictionary": COMPETITION_DICTIONARY,
     "markers.ids": (80, 85, 90, 95),
     "markers.side_m": Range(0.50, 0.56),
     "markers.rotation_deg": 180.0,

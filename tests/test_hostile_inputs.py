@@ -1016,3 +1016,29 @@ def test_cmd_naming_a_script_that_does_not_exist_is_refused(toy, tmp_path, comma
                              prog=command)
     assert "/sandbox" not in err
     assert not (tmp_path / "o").exists()
+
+
+# ----------------------------------------------------------- --pipeline that is no pipeline
+
+
+@pytest.mark.parametrize(("spec", "needle"), [
+    ("../ci/mypipe.py:detect", "the part before ':' is a module name, not a file: name it "
+                               "'mypipe:detect' and run from ../ci (or put ../ci on PYTHONPATH)"),
+    ("refernce", "got 'refernce' (did you mean 'reference'?)"),
+    ("os:system", "pipeline 'os:system': cannot take an image (TypeError: "),
+    ("json:loads", "pipeline 'json:loads': cannot take an image (TypeError: the JSON object"),
+    ("os:getcwd", "pipeline 'os:getcwd': getcwd() cannot be called with one image"),
+    ("hostile_callables:two_arguments", "two_arguments(image, config) cannot be called with "
+                                        "one image"),
+    ("hostile_callables:tuple_answer", "returned tuple (2, 72000.0) for an image, not a result "
+                                       "(a mapping, or an object with count and area"),
+])
+@pytest.mark.parametrize("command", ["eval", "sweep"])
+def test_pipeline_that_is_no_pipeline_is_refused_before_any_image(toy, tmp_path, command, spec,
+                                                                   needle):
+    argv = {"eval": ("eval", str(toy)),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--per-point", "1")}[command]
+    proc = run(*argv, "--pipeline", spec, "--out", str(tmp_path / "o"), "--no-progress",
+               cwd=tmp_path)
+    assert_clean_error(proc, needle, prog=command)
+    assert not (tmp_path / "o").exists()

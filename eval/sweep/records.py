@@ -14,7 +14,7 @@ from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 from ..dataset_reader import AREA_REFERENCES
 from ..external import CommandPipeline
 from ..metrics import DEFAULT_TOLERANCE
-from ..pipelines import BUILTIN_PIPELINES, Pipeline, make_pipeline
+from ..pipelines import Pipeline, make_pipeline, pipeline_name_problem
 from ..predictions import OUTPUT_MODES
 from ..results import ImageResult, Summary
 from ..run_limits import RunSettings
@@ -63,13 +63,8 @@ class PipelineSpec:
             raise ValueError(f"output must be one of {OUTPUT_MODES}, got {self.output!r}")
         if not self.value:
             raise ValueError("pipeline value must not be empty")
-        if self.kind == "pipeline" and self.value not in BUILTIN_PIPELINES and ":" not in (
-            self.value
-        ):
-            raise ValueError(
-                f"pipeline must be one of {BUILTIN_PIPELINES} or 'pkg.module:function', "
-                f"got {self.value!r}"
-            )
+        if self.kind == "pipeline" and (problem := pipeline_name_problem(self.value)):
+            raise ValueError(problem)
 
     @property
     def name(self) -> str:
