@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import math
 import os
 import sys
 from pathlib import Path
@@ -29,7 +28,9 @@ from arenabench.cliopts import (
     usage_error,
 )
 from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, escape, template_problem
+from arenabench.generator.seeds import seed_argument
 
+from .metric_registry import METRIC
 from .phase_check import add_phase_check_argument
 
 PROG = "arenabench check"
@@ -73,11 +74,13 @@ def build_parser() -> CommandParser:
     p.add_argument("script", help="the competition script (map.py)")
     add_count(p, maximum=MAX_COUNT, default=DEFAULT_COUNT,
               help=f"twin scenes (default: {DEFAULT_COUNT})")
-    p.add_argument("--seed", type=int, default=0, help="scene seed (default: %(default)s)")
+    p.add_argument("--seed", type=seed_argument, default=0,
+                   help="scene seed (default: %(default)s)")
     p.add_argument("--preset", default=DEFAULT_PRESET,
                    help="scene preset (default: %(default)s, the hidden-test twin)")
-    p.add_argument("--fail-under", type=float, default=DEFAULT_FAIL_UNDER, metavar="RATE",
-                   help="pass rate needed for exit status 0 (default: %(default)s)")
+    p.add_argument("--fail-under", default=str(DEFAULT_FAIL_UNDER), metavar="RATE",
+                   help="pass rate needed for exit status 0, a fraction in [0, 1] "
+                   "(default: %(default)s)")
     p.add_argument("--python", default="{python}",
                    help="interpreter that runs the script (default: the one running "
                    "arenabench)")
@@ -127,10 +130,11 @@ def _validate(args: argparse.Namespace) -> str | None:
     problem = template_problem(args.python, RUN_PLACEHOLDERS)
     if problem:
         return f"--python {args.python!r}: {problem}"
-    if args.seed < 0:
-        return f"--seed must be >= 0, got {args.seed}"
-    if not (math.isfinite(args.fail_under) and 0.0 <= args.fail_under <= 1.0):
-        return f"--fail-under must be a pass rate in [0, 1], got {args.fail_under}"
+    try:  # the pass rate's range, as eval's --fail-under pass_rate=RATE
+        args.fail_under = METRIC["pass_rate"].check_limit(args.fail_under,
+                                                          option="--fail-under")
+    except ValueError as exc:
+        return str(exc)
     try:
         get_preset(args.preset)
     except ValueError as exc:

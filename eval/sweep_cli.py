@@ -24,6 +24,7 @@ from arenabench.cliopts import (
     usage_error,
     write_failure,
 )
+from arenabench.generator.seeds import seed_argument
 from arenabench.interrupts import Interrupted, stop_on_signals
 
 from .phase_check import add_phase_check_argument, resolve_phases
@@ -87,7 +88,7 @@ def build_parser() -> CommandParser:
     p.add_argument("--random", type=int, default=None, metavar="N",
                    help="draw N random points from the ranges instead of the grid")
     p.add_argument("--per-point", type=int, default=50, help="scenes per point (default 50)")
-    p.add_argument("--seed", type=int, default=0, help="sweep seed (default 0)")
+    p.add_argument("--seed", type=seed_argument, default=0, help="sweep seed (default 0)")
     p.add_argument("--independent-scenes", action="store_true",
                    help="different scenes at every point (default: the same base scenes)")
     p.add_argument("--pipeline", dest="pipes", action=_PipelineAction, metavar="NAME",

@@ -14,6 +14,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from arenabench.cliopts import plain_number
 from arenabench.frame import COMPETITION_DICTIONARY
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.params import DEFAULTS, NEUTRAL, PARAMETERS, Param, Range, Value
@@ -208,13 +209,13 @@ def get_preset(name: str) -> dict[str, Value]:
 
 def _number(key: str, text: str, kind: str) -> float | int:
     try:
+        value = plain_number(text.strip(" "))  # plain ASCII decimal, as every number typed
         if kind == "int":
-            value = float(text)
             if value != int(value):
                 raise ValueError
             return int(value)
-        return float(text)
-    except ValueError:
+        return value
+    except (ValueError, OverflowError):
         raise ValueError(f"--set {key}: invalid {kind} value {text!r}") from None
 
 
@@ -291,7 +292,7 @@ def validate_value(key: str, value: Value) -> Value:
         parts = value.split(",") if isinstance(value, str) else list(value)
         want = 3 if spec.kind == "rgb" else 4
         try:
-            nums = tuple(int(str(p).strip()) for p in parts)
+            nums = tuple(int(plain_number(str(p).strip(" "), "int")) for p in parts)
         except ValueError:
             raise ValueError(f"--set {key}: invalid value {value!r}") from None
         if len(nums) != want:
@@ -301,6 +302,9 @@ def validate_value(key: str, value: Value) -> Value:
             raise ValueError(f"--set {key}: colour values must be 0..255, got {value!r}")
         if spec.kind == "ids" and not all(n >= 0 for n in nums):
             raise ValueError(f"--set {key}: ids must be >= 0, got {value!r}")
+        if spec.kind == "ids" and len(set(nums)) != len(nums):
+            raise ValueError(f"--set {key}: the four corners' ids must differ (a pipeline tells "
+                             f"the corners apart by them), got {value!r}")
         return nums
     text = str(value)
     if spec.choices and text not in spec.choices:

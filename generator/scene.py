@@ -173,6 +173,9 @@ class MarkerSpec:
         ids = tuple(int(i) for i in self.ids)
         if len(ids) != 4:
             raise ValueError(f"markers.ids must be 4 ids (nw, ne, se, sw), got {self.ids!r}")
+        if len(set(ids)) != 4:
+            raise ValueError(f"markers.ids must be 4 different ids (a pipeline tells the "
+                             f"corners apart by them), got {self.ids!r}")
         object.__setattr__(self, "ids", ids)
         if not isinstance(self.dictionary, str):
             raise ValueError(f"markers.dictionary must be a name, got {self.dictionary!r}")

@@ -375,7 +375,7 @@ def test_leaderboard_csv_escapes_formulas_and_rounds_floats():
     ("extra", "needle"),
     [
         (["--workers", "0"], "argument --workers: must be an integer in [1, 256], got '0'"),
-        (["--timeout", "0"], "argument --timeout: must be a finite number in (0, 86400], got '0'"),
+        (["--timeout", "0"], "argument --timeout: must be a finite number in [1, 86400], got '0'"),
         (["--tolerance", "inf"], "--tolerance"),
         (["--tolerance", "1e309"], "--tolerance"),
         (["--reference", "/nonexistent/ref"], "--reference /nonexistent/ref: not a folder"),

@@ -9,6 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from arenabench.generator.presets import Value, format_value
+from arenabench.generator.seeds import check_seed
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 
 from ..dataset_reader import AREA_REFERENCES
@@ -141,8 +142,7 @@ class SweepSpec:
     def __post_init__(self) -> None:
         if int(self.per_point) != self.per_point or self.per_point < 1:
             raise ValueError(f"per_point must be an integer >= 1, got {self.per_point!r}")
-        if int(self.seed) != self.seed or self.seed < 0:
-            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        check_seed(self.seed)
         if self.random is not None and (int(self.random) != self.random or self.random < 1):
             raise ValueError(f"random must be an integer >= 1, got {self.random!r}")
         check_at_most(int(self.per_point), MAX_SWEEP_SCENES, "per_point")

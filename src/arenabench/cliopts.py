@@ -48,6 +48,7 @@ from arenabench.limits import (
     MAX_RUN_PROCS,
     MAX_TIMEOUT_S,
     MAX_WORKERS,
+    MIN_TIMEOUT_S,
 )
 from arenabench.suggest import did_you_mean
 
@@ -66,6 +67,28 @@ SHARED_OPTIONS: tuple[str, ...] = (
 
 
 # ------------------------------------------------------------------------------------ rules
+
+#: How a number is written on the command line: plain ASCII decimal digits, a sign, a point
+#: and an exponent; no underscores (``1_0``), no other scripts' digits (``٣``), no spaces.
+_INT_TEXT = re.compile(r"[+-]?[0-9]+")
+_FLOAT_TEXT = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
+def plain_number(text: str, kind: str = "float") -> int | float:
+    """``text`` as a number when it is written as plain ASCII decimal (:data:`_FLOAT_TEXT`;
+    ``kind="int"``: digits only). Python's ``int()`` and ``float()`` also read ``1_0``,
+    ``٣`` (an Arabic-Indic three), surrounding white space, ``inf`` and ``nan``; a command line
+    does not.
+
+    Raises
+    ------
+    ValueError
+        When ``text`` is not such a number.
+    """
+    pattern = _INT_TEXT if kind == "int" else _FLOAT_TEXT
+    if not isinstance(text, str) or not pattern.fullmatch(text):
+        raise ValueError(f"not a plain decimal number: {text!r}")
+    return int(text) if kind == "int" else float(text)
 
 
 @dataclass(frozen=True)
@@ -105,8 +128,10 @@ class Rule:
         try:
             if isinstance(value, bool):
                 raise ValueError
-            if self.kind == "int":
-                number: int | float = int(value) if isinstance(value, int) else int(str(value))
+            if isinstance(value, str):  # as typed: plain ASCII decimal only
+                number: int | float = plain_number(value, self.kind)
+            elif self.kind == "int":
+                number = int(value) if isinstance(value, int) else int(str(value))
             else:
                 number = float(value)
         except (TypeError, ValueError, OverflowError):
@@ -136,7 +161,7 @@ WORKERS_RULE = Rule("int", 1, MAX_WORKERS)
 #: ``--tolerance``: the largest passing ``|area_rel_err|``, a fraction.
 TOLERANCE_RULE = Rule("float", 0.0, 1.0)
 #: ``--timeout``: seconds per image of an external run.
-TIMEOUT_RULE = Rule("float", 0.0, MAX_TIMEOUT_S, lo_open=True)
+TIMEOUT_RULE = Rule("float", MIN_TIMEOUT_S, MAX_TIMEOUT_S)
 #: ``--max-procs``: processes one external run may have at once (0: no process limit).
 MAX_PROCS_RULE = Rule("int", 0, MAX_RUN_PROCS)
 #: Byte sizes of run limits (``--memory-limit``, ``--max-file-size``, ``--max-output``).
@@ -148,7 +173,7 @@ BYTES_RULE = Rule("int", 1, MAX_RUN_BYTES)
 SANDBOX_MODES: tuple[str, ...] = ("auto", "bwrap", "none")
 DEFAULT_SANDBOX = "auto"
 
-_SIZE_RE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgGtTpP]?)(?:i?[bB])?\s*$")
+_SIZE_RE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgGtTpP]?)(?:i?[bB])?\s*$", re.ASCII)
 _SIZE_UNITS = {"": 1, "k": 1024, "m": 1024**2, "g": 1024**3, "t": 1024**4, "p": 1024**5}
 
 
@@ -203,6 +228,17 @@ def _size_type(name: str) -> Callable[[str], int]:
 # ----------------------------------------------------------------------------------- parser
 
 
+def _plain_int(text: str) -> int:
+    return int(plain_number(text, "int"))
+
+
+def _plain_float(text: str) -> float:
+    return float(plain_number(text, "float"))
+
+
+_plain_int.__name__, _plain_float.__name__ = "int", "float"  # argparse: "invalid int value"
+
+
 class CommandParser(argparse.ArgumentParser):
     """The argument parser of every ``arenabench`` command.
 
@@ -218,6 +254,9 @@ class CommandParser(argparse.ArgumentParser):
         kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(*args, **kwargs)
         self._checks: list[Callable[[argparse.Namespace], str | None]] = []
+        # ``type=int`` / ``type=float`` read plain ASCII decimal only (:func:`plain_number`)
+        self.register("type", int, _plain_int)
+        self.register("type", float, _plain_float)
 
     def add_check(self, check: Callable[[argparse.Namespace], str | None]) -> None:
         """Run ``check(namespace)`` after parsing; a string it returns is a usage error."""
