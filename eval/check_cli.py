@@ -18,6 +18,7 @@ import sys
 from pathlib import Path
 
 from arenabench.cliopts import (
+    EXIT_FAILED,
     CommandParser,
     add_count,
     add_no_progress,
@@ -26,6 +27,7 @@ from arenabench.cliopts import (
     add_workers,
     output_problem,
     usage_error,
+    write_failure,
 )
 from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, escape, template_problem
 from arenabench.generator.seeds import seed_argument
@@ -254,13 +256,20 @@ def _main(argv: list[str] | None) -> int:
                 report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
                                   phases=phases)
             except EvaluationInterrupted as exc:  # partial reports, marked INCOMPLETE
-                write_reports(exc.report, out, dataset=dataset)
+                try:
+                    write_reports(exc.report, out, dataset=dataset)
+                except OSError as err:
+                    print(f"{PROG}: error: {write_failure(err, out)}", file=sys.stderr)
+                    return exc.exit_code
                 print(f"{PROG}: interrupted after {exc.report.images_done} images; running "
                       f"scripts killed; partial report in {out}", file=sys.stderr)
                 return exc.exit_code
             written = write_reports(report, out, dataset=dataset)
     except FolderLockedError as exc:
         return _error(str(exc))
+    except OSError as exc:  # ENOSPC: one line, no traceback (as eval and grade)
+        print(f"{PROG}: error: {write_failure(exc, out)}", file=sys.stderr)
+        return EXIT_FAILED
     for line in verdict_lines(report, fail_under=args.fail_under, phases=phases):
         print(line)
     print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")

@@ -339,7 +339,7 @@ def test_unwritable_out_is_refused_before_any_work(toy, tmp_path, command, where
         (("eval", ".", "--pipeline", "reference", "--workers", str(10**12)), "in [1, 256]"),
         (("eval", ".", "--pipeline", "reference", "--tolerance", "nan"), "finite number in [0, 1]"),
         (("eval", ".", "--pipeline", "reference", "--fail-under", "pass_rate=nan"),
-         "not finite"),
+         "--fail-under pass_rate=nan: not a number"),
     ],
 )
 def test_absurd_sizes_are_refused_at_once(tmp_path, argv, needle):
@@ -769,7 +769,9 @@ def test_render_of_a_hostile_scene_file_is_one_line_and_writes_nothing(tmp_path,
 def test_fit_arena_side_that_is_not_a_finite_positive_length_is_refused(tmp_path, side):
     out = tmp_path / "scene.json"
     proc = run("fit", str(EXAMPLE), "--arena-side", side, "--out", str(out))
-    assert_clean_error(proc, "--arena-side must be", prog="fit")
+    needle = ("argument --arena-side: invalid float value" if side in ("inf", "nan")
+              else "--arena-side must be")  # typed numbers are plain decimal
+    assert_clean_error(proc, needle, prog="fit")
     assert not out.exists()
 
 
@@ -1042,3 +1044,116 @@ def test_pipeline_that_is_no_pipeline_is_refused_before_any_image(toy, tmp_path,
                cwd=tmp_path)
     assert_clean_error(proc, needle, prog=command)
     assert not (tmp_path / "o").exists()
+
+
+# ------------------------------------------------------- tracebacks: links, permissions, disk
+
+
+def _png_declaring(width: int, height: int) -> bytes:
+    """A PNG whose header promises ``width`` x ``height`` px, holding a few bytes of pixels
+    (complete otherwise: IHDR, IDAT, IEND)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2,
+                                                                0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"\x00" * 64)) + chunk(b"IEND", b""))
+
+
+@pytest.mark.parametrize(("width", "height"), [(20000, 20000), (1000, 0), (8193, 10)])
+def test_image_header_promising_an_impossible_size_is_a_damaged_dataset(toy, tmp_path, width,
+                                                                         height):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    img = bad / "images" / "000001.png"
+    img.write_bytes(_png_declaring(width, height))
+    rehash(bad)
+    out = tmp_path / "out"
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+               "--out", str(out))
+    assert_clean_error(proc, f"dataset damaged: {img}: its header declares {width} x {height} "
+                       "px (a side is 1 to 8192 px)", prog="eval")
+    assert not out.exists()
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+               "--out", str(out), "--skip-damaged", "--formats", "json")
+    assert proc.returncode == 0, proc.stderr
+    assert "1 damaged image(s) left out" in proc.stderr
+    assert [i["id"] for i in strict_json((out / "report.json").read_text())["images"]] == [
+        "000000", "000002"]
+
+
+@pytest.mark.parametrize("command", ["eval", "grade"])
+def test_dataset_path_that_is_a_symbolic_link_loop_is_one_line(tmp_path, command):
+    from procs_limit import GRADE_ARGS
+
+    (tmp_path / "a").symlink_to(tmp_path / "b")
+    (tmp_path / "b").symlink_to(tmp_path / "a")
+    (tmp_path / "teams" / "t").mkdir(parents=True)
+    argv = {"eval": ("eval", str(tmp_path / "a"), "--pipeline", "reference"),
+            "grade": ("grade", str(tmp_path / "a"), str(tmp_path / "teams"), *GRADE_ARGS)
+            }[command]
+    proc = run(*argv, "--out", str(tmp_path / "o"), "--no-progress")
+    assert_clean_error(proc, f"{tmp_path / 'a'}: a symbolic link loop", prog=command)
+    assert not (tmp_path / "o").exists()
+    if command == "grade":  # the submissions folder too
+        proc = run("grade", str(tmp_path / "teams"), str(tmp_path / "a"), *GRADE_ARGS,
+                   "--out", str(tmp_path / "o"))
+        assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+
+
+def _without_read_permission() -> list[str]:
+    """The prefix that runs a command whose file permissions apply: root drops the
+    capabilities that bypass them (setpriv), others need none."""
+    import shutil
+
+    if os.geteuid() != 0:
+        return []
+    setpriv = shutil.which("setpriv")
+    if setpriv is None:
+        pytest.skip("root, and no setpriv to drop CAP_DAC_OVERRIDE (util-linux)")
+    return [setpriv, "--bounding-set=-dac_override,-dac_read_search", "--"]
+
+
+@pytest.mark.parametrize("what", ["manifest.jsonl", "images"])
+@pytest.mark.parametrize("command", ["eval", "grade"])
+def test_unreadable_dataset_file_or_folder_is_one_line(toy, tmp_path, command, what):
+    import shutil
+
+    from procs_limit import GRADE_ARGS
+
+    prefix = _without_read_permission()
+    data = tmp_path / "data"
+    shutil.copytree(toy, data)
+    (tmp_path / "teams" / "t").mkdir(parents=True)
+    argv = {"eval": ("eval", str(data), "--pipeline", "toy_arena:detect"),
+            "grade": ("grade", str(data), str(tmp_path / "teams"), *GRADE_ARGS)}[command]
+    os.chmod(data / what, 0)
+    try:  # a real process: the capabilities it drops are its own
+        proc = subprocess.run([*prefix, sys.executable, "-m", "arenabench", *argv, "--out",
+                               str(tmp_path / "o"), "--no-progress"], capture_output=True,
+                              text=True, timeout=TIMEOUT_S,
+                              env={**os.environ, "PYTHONPATH": _pythonpath()})
+    finally:
+        os.chmod(data / what, 0o755 if what == "images" else 0o644)
+    shown = data / what if what == "manifest.jsonl" else data / "images" / "000000.png"
+    assert_clean_error(proc, f"{shown}: cannot read (Permission denied)", prog=command)
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow  # renders the two scenes of check's twin set
+def test_check_out_on_a_full_disk_is_one_line(small_disk, tmp_path):
+    out = small_disk / "out"
+    proc = run_cli("check", str(PIPES / "crash.py"), "--count", "2", "--out", str(out),
+                   "--no-progress", "--phase-check", "off",
+                   env={"ARENABENCH_CACHE_DIR": str(tmp_path / "cache")})
+    err = proc.stderr.strip()
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert err.splitlines()[-1] == (f"arenabench check: error: disk full: {out}: No space "
+                                    "left on device (free some space or use another --out)"), err
+    assert not [p.name for p in out.iterdir() if p.name.startswith(".")]  # no temp, no lock
