@@ -42,7 +42,9 @@ examples:
   arenabench eval --compare OLD/report.json NEW/report.json
 
 --cmd: split into arguments without a shell; {image} is the path of a private copy of the
-image (named image.png etc., --image-name) and {python} the Python running arenabench. Each
+image (named image.png etc., --image-name) and {python} the Python running arenabench; {{ and
+}} are literal braces, any other placeholder is refused, and so is a script (an argument
+ending in .py, or the one after a Python interpreter) that does not exist. Each
 image runs in its own private directory holding only that copy; the command writes
 obstacles.txt there (or prints a JSON line with --output json). Exit status 3 means "markers
 not found". Under bubblewrap (--sandbox auto|bwrap) the command sees only the system, Python

@@ -47,9 +47,9 @@ examples:
 
 SUBMISSIONS holds one folder per team; the folder's name is the team. Each team's command
 (default: python3 {submission}/map.py --image {image}) runs once per image as for
-'arenabench eval --cmd': {submission} is the team folder's absolute path, {image} the image,
-{python} the Python running arenabench; relative paths are resolved from the team folder.
-Submissions are only read.
+'arenabench eval --cmd': {submission} is the team folder's absolute path, {image} the image
+({{ and }} are literal braces); relative paths are resolved from the team folder. {python}
+(arenabench's own Python) is refused: name the teams' interpreter. Submissions are only read.
 
 outputs in --out: teams/TEAM/ (report.json, results.csv, report.md, report.html, junit.xml,
 grade-state.json), leaderboard.json (schema arenabench.leaderboard/1), leaderboard.csv,
