@@ -206,12 +206,7 @@ def _main(argv: list[str] | None) -> int:
 
     script = Path(args.script).resolve()
     out = args.out if args.out is not None else _report_dir(script)
-    from arenabench.generator.dataset_writer import GenerateError, generate_dataset
-
-    from .dataset_reader import DatasetError, load_dataset
-    from .evaluation import EvaluationInterrupted, evaluate
-    from .phase_check import resolve_phases
-    from .reports import FORMATS, write_reports
+    from .reports import FORMATS
 
     twin = twin_set_dir(preset=args.preset, seed=args.seed, count=args.count)
     if problem := output_problem(out, own=FORMATS.values(), what="'arenabench check' report",
@@ -232,6 +227,13 @@ def _main(argv: list[str] | None) -> int:
                                    name=script.name, base_dir=str(script.parent))
     except ValueError as exc:
         return _error(str(exc))
+
+    from arenabench.generator.dataset_writer import GenerateError, generate_dataset
+
+    from .dataset_reader import DatasetError, load_dataset
+    from .evaluation import EvaluationInterrupted, evaluate
+    from .phase_check import resolve_phases
+    from .reports import write_reports
 
     progress = not args.no_progress
     try:
