@@ -16,13 +16,13 @@ from __future__ import annotations
 
 import argparse
 import hashlib
-import math
 import os
 import shutil
 import sys
 from pathlib import Path
 
 from arenabench.cliopts import (
+    EXIT_FAILED,
     CommandParser,
     add_count,
     add_no_progress,
@@ -31,9 +31,13 @@ from arenabench.cliopts import (
     add_workers,
     output_problem,
     usage_error,
+    write_failure,
 )
+from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, escape, template_problem
+from arenabench.generator.seeds import seed_argument
 
 from .competition_env import OWN_PLACEHOLDER, PLACEHOLDER
+from .metric_registry import METRIC
 from .phase_check import add_phase_check_argument
 
 PROG = "arenabench check"
@@ -91,11 +95,13 @@ def build_parser() -> CommandParser:
     p.add_argument("script", help="the competition script (map.py)")
     add_count(p, maximum=MAX_COUNT, default=DEFAULT_COUNT,
               help=f"twin scenes (default: {DEFAULT_COUNT})")
-    p.add_argument("--seed", type=int, default=0, help="scene seed (default: %(default)s)")
+    p.add_argument("--seed", type=seed_argument, default=0,
+                   help="scene seed (default: %(default)s)")
     p.add_argument("--preset", default=DEFAULT_PRESET,
                    help="scene preset (default: %(default)s, the hidden-test twin)")
-    p.add_argument("--fail-under", type=float, default=DEFAULT_FAIL_UNDER, metavar="RATE",
-                   help="pass rate needed for exit status 0 (default: %(default)s)")
+    p.add_argument("--fail-under", default=str(DEFAULT_FAIL_UNDER), metavar="RATE",
+                   help="pass rate needed for exit status 0, a fraction in [0, 1] "
+                   "(default: %(default)s)")
     p.add_argument("--python", default=PLACEHOLDER, metavar="PYTHON",
                    help=f"interpreter that runs the script: {PLACEHOLDER} (the competition's "
                    f"numpy and OpenCV, made once into the cache), {OWN_PLACEHOLDER} (the one "
@@ -209,10 +215,14 @@ def _validate(args: argparse.Namespace) -> str | None:
         return f"{args.script}: not a file"
     if not os.access(script, os.R_OK):
         return f"{args.script}: not readable"
-    if args.seed < 0:
-        return f"--seed must be >= 0, got {args.seed}"
-    if not (math.isfinite(args.fail_under) and 0.0 <= args.fail_under <= 1.0):
-        return f"--fail-under must be a pass rate in [0, 1], got {args.fail_under}"
+    problem = template_problem(args.python, RUN_PLACEHOLDERS)
+    if problem:
+        return f"--python {args.python!r}: {problem}"
+    try:  # the pass rate's range, as eval's --fail-under pass_rate=RATE
+        args.fail_under = METRIC["pass_rate"].check_limit(args.fail_under,
+                                                          option="--fail-under")
+    except ValueError as exc:
+        return str(exc)
     try:
         get_preset(args.preset)
     except ValueError as exc:
@@ -285,7 +295,15 @@ def _main(argv: list[str] | None) -> int:
     from .run_limits import run_settings_from_args
 
     script = Path(args.script).resolve()
-    if args.out is not None and (problem := output_problem(args.out)):
+    from .reports import FORMATS
+
+    twin = twin_set_dir(preset=args.preset, seed=args.seed, count=args.count)
+
+    def out_problem(out: Path) -> str | None:
+        return output_problem(out, own=FORMATS.values(), what="'arenabench check' report",
+                              inputs=[("the twin set", twin)])
+
+    if args.out is not None and (problem := out_problem(args.out)):
         return _error(problem)
     python = args.python
     if python not in (PLACEHOLDER, OWN_PLACEHOLDER) and "/" in python:
@@ -318,7 +336,7 @@ def _main(argv: list[str] | None) -> int:
     out = args.out if args.out is not None else report_dir(
         script, preset=args.preset, seed=args.seed, count=args.count,
         interpreter=interpreter.executable, settings=settings.to_dict(), phases=phases)
-    if problem := output_problem(out):
+    if problem := out_problem(out):
         return _error(problem)
     print(f"interpreter: {interpreter.describe()}")
 
@@ -328,7 +346,6 @@ def _main(argv: list[str] | None) -> int:
     from .evaluation import EvaluationInterrupted, evaluate
     from .reports import write_reports
 
-    twin = twin_set_dir(preset=args.preset, seed=args.seed, count=args.count)
     larger = None if twin.exists() else larger_twin_set(preset=args.preset, seed=args.seed,
                                                          count=args.count)
     try:
@@ -358,8 +375,12 @@ def _main(argv: list[str] | None) -> int:
                 report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
                                   phases=phases)
             except EvaluationInterrupted as exc:  # partial reports, marked INCOMPLETE
-                write_reports(replace(exc.report, interpreter=interpreter.to_dict()), out,
-                              dataset=dataset)
+                try:
+                    write_reports(replace(exc.report, interpreter=interpreter.to_dict()), out,
+                                  dataset=dataset)
+                except OSError as err:
+                    print(f"{PROG}: error: {write_failure(err, out)}", file=sys.stderr)
+                    return exc.exit_code
                 print(f"{PROG}: interrupted after {exc.report.images_done} images; running "
                       f"scripts killed; partial report in {out}", file=sys.stderr)
                 return exc.exit_code
@@ -367,6 +388,9 @@ def _main(argv: list[str] | None) -> int:
             written = write_reports(report, out, dataset=dataset)
     except FolderLockedError as exc:
         return _error(str(exc))
+    except OSError as exc:  # ENOSPC: one line, no traceback (as eval and grade)
+        print(f"{PROG}: error: {write_failure(exc, out)}", file=sys.stderr)
+        return EXIT_FAILED
     for line in verdict_lines(report, fail_under=args.fail_under, phases=phases):
         print(line)
     print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
@@ -374,10 +398,12 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _template(python: str, script: Path) -> str:
-    """The command that runs ``script`` with ``python`` (a path or :data:`OWN_PLACEHOLDER`)."""
+    """The command that runs ``script`` with ``python`` (a path or :data:`OWN_PLACEHOLDER`);
+    paths are literal text in the template (a folder may be named ``x{image}y``)."""
     import shlex
 
-    return f"{shlex.quote(python)} {shlex.quote(str(script))} --image {{image}}"
+    py = python if python == OWN_PLACEHOLDER else escape(python)
+    return f"{shlex.quote(py)} {shlex.quote(escape(str(script)))} --image {{{IMAGE}}}"
 
 
 def _interpreter(python: str, *, progress: bool):

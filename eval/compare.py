@@ -100,19 +100,10 @@ def parse_regression_limits(specs: list[str]) -> dict[str, float]:
     ValueError
         Naming the bad spec, metric (with a "did you mean" hint) or value.
     """
-    import math
-
     out: dict[str, float] = {}
     for name, raw in split_metric_specs(specs, option="--fail-on-regression",
                                         known=[m.name for m in COMPARED_METRICS], what="delta"):
-        try:
-            value = float(raw)
-        except ValueError:
-            value = math.nan
-        if not (math.isfinite(value) and value >= 0):
-            raise ValueError(f"--fail-on-regression: {name} must be a finite number >= 0, "
-                             f"got {raw!r}")
-        out[name] = value
+        out[name] = METRIC[name].check_limit(raw, option="--fail-on-regression")
     return out
 
 

@@ -48,7 +48,13 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from arenabench.cliopts import COMPETITION_PYTHON_PLACEHOLDER
+from arenabench.cmdtemplate import (
+    COMPETITION_PYTHON,
+    TemplateError,
+    escape,
+    placeholders,
+    replace_placeholder,
+)
 from arenabench.limits import COMPETITION_ENV_BUILD_TIMEOUT_S
 
 
@@ -92,7 +98,7 @@ COMPETITION_PINS: tuple[Pin, ...] = (
 )
 #: Stands for the competition environment's interpreter in ``check --python`` and in the
 #: ``--cmd`` templates of ``eval`` and ``sweep``.
-PLACEHOLDER = COMPETITION_PYTHON_PLACEHOLDER
+PLACEHOLDER = "{" + COMPETITION_PYTHON + "}"
 #: Stands for the Python running arenabench (the same commands; resolved by the run machinery).
 OWN_PLACEHOLDER = "{python}"
 #: The record of what was made, in the environment's folder.
@@ -221,19 +227,25 @@ def own_versions() -> dict[str, str]:
 
 
 def uses_placeholder(template: str) -> bool:
-    """Whether a ``--cmd`` template names :data:`PLACEHOLDER`."""
-    return PLACEHOLDER in template
+    """Whether a ``--cmd`` template names :data:`PLACEHOLDER` (an escaped ``{{...}}`` does
+    not)."""
+    try:
+        return any(COMPETITION_PYTHON in placeholders(a) for a in shlex.split(template))
+    except (ValueError, TemplateError):  # the command's own check names the problem
+        return False
 
 
 def substitute(template: str, executable: str) -> str:
-    """``template`` with :data:`PLACEHOLDER` replaced by ``executable``, argument by argument
-    (a path with spaces stays one argument). A template that cannot be split is returned as
-    it is (the run machinery names that problem)."""
+    """``template`` with :data:`PLACEHOLDER` replaced by ``executable`` (a path, literal text;
+    or :data:`OWN_PLACEHOLDER`, which stays a placeholder), argument by argument (a path with
+    spaces stays one argument; the other placeholders stay for the runs). A template that
+    cannot be split is returned as it is (the run machinery names that problem)."""
+    text = executable if executable == OWN_PLACEHOLDER else escape(executable)
     try:
         argv = shlex.split(template)
-    except ValueError:
+        return shlex.join(replace_placeholder(a, COMPETITION_PYTHON, text) for a in argv)
+    except (ValueError, TemplateError):
         return template
-    return shlex.join(a.replace(PLACEHOLDER, executable) for a in argv)
 
 
 def resolve_placeholder(templates: list[str], *, progress: bool,

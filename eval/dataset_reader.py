@@ -363,6 +363,30 @@ def load_dataset(
     root: str | Path, *, limit: int | None = None, verify: bool = True,
     skip_damaged: bool = False, workers: int | None = None,
 ) -> Dataset:
+    """Read and validate a dataset folder (:func:`_load_dataset`); a file or folder of it that
+    cannot be read, or a symbolic link loop, is a :class:`DatasetError` naming it."""
+    try:
+        return _load_dataset(root, limit=limit, verify=verify, skip_damaged=skip_damaged,
+                             workers=workers)
+    except (OSError, RuntimeError) as exc:  # RuntimeError: Path.resolve of a link loop
+        where = getattr(exc, "filename", None) or root
+        raise DatasetError(f"{where}: {_os_problem(exc)}") from None
+
+
+def _os_problem(exc: OSError | RuntimeError) -> str:
+    """A file system error in words: ``cannot read (Permission denied)``, ``a symbolic link
+    loop``."""
+    import errno
+
+    if isinstance(exc, RuntimeError) or exc.errno == errno.ELOOP:
+        return "a symbolic link loop"
+    return f"cannot read ({exc.strerror or exc})"
+
+
+def _load_dataset(
+    root: str | Path, *, limit: int | None = None, verify: bool = True,
+    skip_damaged: bool = False, workers: int | None = None,
+) -> Dataset:
     """Read and validate a dataset folder.
 
     Parameters
@@ -562,6 +586,17 @@ def _inside(base: Path, rel: str, dirs: dict[str, Path]) -> bool:
 
 
 def _checked_entry(entry: dict[str, Any], where: str, *, base: Path, shown: Path,
+                   verify: bool, dirs: dict[str, Path]) -> dict[str, Any] | str:
+    """:func:`_checked_files`; a file of the entry that cannot be read (a folder without
+    permission, a symbolic link loop) is a :class:`DatasetError` naming the manifest line."""
+    try:
+        return _checked_files(entry, where, base=base, shown=shown, verify=verify, dirs=dirs)
+    except (OSError, RuntimeError) as exc:  # RuntimeError: Path.resolve of a link loop
+        what = getattr(exc, "filename", None)
+        raise DatasetError(f"{where}: {f'{what}: ' if what else ''}{_os_problem(exc)}") from None
+
+
+def _checked_files(entry: dict[str, Any], where: str, *, base: Path, shown: Path,
                    verify: bool, dirs: dict[str, Path]) -> dict[str, Any] | str:
     """Check one manifest entry's files (closed folder, hashes, damage, GT schema): the
     parsed GT, or why the image is damaged.

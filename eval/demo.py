@@ -22,6 +22,7 @@ from arenabench.cliopts import (
     output_problem,
     usage_error,
 )
+from arenabench.generator.seeds import seed_argument
 
 
 def build_parser() -> CommandParser:
@@ -34,7 +35,7 @@ def build_parser() -> CommandParser:
     )
     add_out(p, default="demo-out")
     add_count(p, default=24, help="images")
-    p.add_argument("--seed", type=int, default=0, help="generator seed (default 0)")
+    p.add_argument("--seed", type=seed_argument, default=0, help="generator seed (default 0)")
     p.add_argument("--pipeline", default="reference", help="pipeline to score (default reference)")
     add_workers(p)
     p.add_argument("--example", type=Path, default=None, metavar="IMAGE",

@@ -50,7 +50,9 @@ examples:
 image (named image.png etc., --image-name), {python} the Python running arenabench and
 {competition_python} the competition's environment (numpy and OpenCV at the competition's
 versions, made once into the cache from the package index; arenabench's own Python, with one
-line saying so, where it cannot be made). Each
+line saying so, where it cannot be made); {{ and }} are literal braces, any other placeholder is
+refused, and so is a script (an argument ending in .py, or the one after a Python interpreter)
+that does not exist. Each
 image runs in its own private directory holding only that copy; the command writes
 obstacles.txt there (or prints a JSON line with --output json). Exit status 3 means "markers
 not found". Under bubblewrap (--sandbox auto|bwrap) the command sees only the system, Python
@@ -241,9 +243,16 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         return _usage_error(parser, "--name must not be empty")
     if not args.pipeline and not args.cmd:
         return _usage_error(parser, "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE")
-    if args.out is not None and (problem := output_problem(args.out)):
+    from .reports import FORMATS, write_reports
+
+    if args.out is not None and (problem := output_problem(
+            args.out, own=FORMATS.values(), what="'arenabench eval' report",
+            inputs=[("DATASET", args.dataset)])):
         return _usage_error(parser, problem)
 
+    import os
+
+    from .cmd_script import missing_script_problem
     from .competition_env import (
         OWN_PLACEHOLDER,
         resolve_placeholder,
@@ -255,7 +264,6 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     from .external import CommandPipeline
     from .phase_check import resolve_phases
     from .pipelines import make_pipeline
-    from .reports import FORMATS, write_reports
     from .reports.summary_rows import headline
     from .thresholds import check_thresholds, parse_thresholds
 
@@ -269,6 +277,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     interpreter = None
     try:
         thresholds = parse_thresholds(args.fail_under)
+        if args.cmd and (problem := missing_script_problem(args.cmd, base_dir=os.getcwd())):
+            raise ValueError(f"--cmd {args.cmd!r}: {problem}")
         if args.cmd and uses_placeholder(args.cmd):  # the rest of the command first
             CommandPipeline(substitute(args.cmd, OWN_PLACEHOLDER),
                             settings=run_settings_from_args(args), output=args.output)

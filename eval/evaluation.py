@@ -238,8 +238,13 @@ def evaluate(
 
         from .isolated import IsolatedCallablePipeline
 
-        pipe: Pipeline = IsolatedCallablePipeline(
+        isolated_pipe = IsolatedCallablePipeline(
             pipeline, timeout_s=DEFAULT_TIMEOUT_S if timeout_s is None else timeout_s)
+        problem = isolated_pipe.trial()  # no pipeline at all (os:system): refused before
+        if problem:
+            isolated_pipe.close()
+            raise ValueError(problem)
+        pipe: Pipeline = isolated_pipe
     else:
         pipe = make_pipeline(pipeline)
     n_workers = min(workers or usable_cores(), max(1, len(samples)))

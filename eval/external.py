@@ -53,6 +53,7 @@ import threading
 from dataclasses import KW_ONLY, dataclass, field
 from pathlib import Path
 
+from arenabench.cmdtemplate import fill, placeholders
 from arenabench.competition import OBSTACLES_FILE
 
 from .dir_remover import remove_later, wait_removed
@@ -196,7 +197,11 @@ class CommandPipeline:
     def _resolved_args(self) -> list[str]:
         out = []
         for arg in self._argv:
-            if arg and "{" not in arg and not arg.startswith("-") and not os.path.isabs(arg):
+            if placeholders(arg):  # filled per run (argv)
+                out.append(arg)
+                continue
+            arg = fill(arg, {})  # literal text: '{{' is a brace
+            if arg and not arg.startswith("-") and not os.path.isabs(arg):
                 candidate = Path(self.base_dir, arg)  # '' is an argument, never the folder
                 try:
                     exists = candidate.exists()
@@ -220,8 +225,11 @@ class CommandPipeline:
         if image_dir is None:
             image_dir = SANDBOX_DIR if self.sandbox == "bwrap" else str(Path(image_path).parent)
         image = os.path.join(image_dir, self.image_name(image_path))
-        return [a.replace("{image}", image).replace("{python}", sys.executable)
-                for a in self._resolved_args()]
+        values = {"image": image, "python": sys.executable}
+        # one pass per template argument (arenabench.cmdtemplate.fill): a value, or a path
+        # resolved from a literal argument, is never searched for placeholders
+        return [fill(t, values) if placeholders(t) else a
+                for t, a in zip(self._argv, self._resolved_args(), strict=True)]
 
     def _visible_paths(self) -> list[str]:
         """Read-only folders of the sandbox besides /usr (:func:`.sandbox.visible_paths`)."""

@@ -29,6 +29,7 @@ from arenabench.cliopts import (
     output_problem,
     usage_error,
 )
+from arenabench.cmdtemplate import GRADE_PLACEHOLDERS, GRADE_REFUSED
 
 from .phase_check import add_phase_check_argument
 from .predictions import OUTPUT_MODES
@@ -47,10 +48,10 @@ examples:
 SUBMISSIONS holds one folder per team; the folder's name is the team. Each team's command
 (default: python3 {submission}/map.py --image {image}) runs once per image as for
 'arenabench eval --cmd': {submission} is the team folder's absolute path, {image} the image,
-{python} the Python running arenabench, {competition_python} the competition's environment
-(numpy and OpenCV at the competition's versions, made once into the cache: see 'arenabench
-check --help'); relative paths are resolved from the team folder.
-Submissions are only read.
+{competition_python} the competition's environment (numpy and OpenCV at the competition's
+versions, made once into the cache: see 'arenabench check --help'); {{ and }} are literal
+braces; relative paths are resolved from the team folder. {python} (arenabench's own Python)
+is refused: name the teams' interpreter. Submissions are only read.
 
 outputs in --out: teams/TEAM/ (report.json, results.csv, report.md, report.html, junit.xml,
 grade-state.json), leaderboard.json (schema arenabench.leaderboard/1), leaderboard.csv,
@@ -111,7 +112,7 @@ def build_parser() -> CommandParser:
                    help="a known-good submission for the preflight (default: the built-in "
                         "reference detector as a competition script)")
     add_phase_check_argument(p)
-    add_run_options(p)
+    add_run_options(p, placeholders=GRADE_PLACEHOLDERS, refused=GRADE_REFUSED)
     return p
 
 
@@ -150,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
                                settings=run_settings_from_args(args), formats=formats,
                                phases=phases)
         find_teams(args.submissions)
-        check_out_dir(args.out, Path(args.submissions))
+        check_out_dir(args.out, Path(args.submissions), dataset.root)
     except (DatasetError, SubmissionsError, ValueError) as exc:
         msg = str(exc)
         for param, option in _OPTION_NAMES.items():  # GradeOptions names its parameters

@@ -24,6 +24,54 @@ from .results import Prediction
 
 #: Seconds a child may take to start and import the pipeline's module.
 START_TIMEOUT_S = 120.0
+#: The message that asks a child for its trial call (:func:`trial_call`).
+TRIAL = ("trial",)
+#: Side of the trial image in px, and of its markers.
+TRIAL_SIDE_PX, TRIAL_MARKER_PX = 400, 64
+
+
+def trial_image() -> Any:
+    """A small synthetic arena (BGR uint8): a grey floor, the competition's four markers in
+    its corners (NW, NE, SE, SW) with white quiet zones, and one dark box in the middle: what
+    any pipeline can be called on."""
+    import cv2
+    import numpy as np
+
+    from arenabench.frame import COMPETITION_DICTIONARY, COMPETITION_MARKER_IDS, CORNER_ORDER
+
+    side, m, pad = TRIAL_SIDE_PX, TRIAL_MARKER_PX, 8
+    image = np.full((side, side, 3), 170, np.uint8)
+    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, COMPETITION_DICTIONARY))
+    far = side - m - 2 * pad
+    corners = {"nw": (0, 0), "ne": (far, 0), "se": (far, far), "sw": (0, far)}
+    for corner in CORNER_ORDER:
+        x, y = corners[corner]
+        marker = cv2.aruco.generateImageMarker(dictionary, COMPETITION_MARKER_IDS[corner], m)
+        sheet = cv2.copyMakeBorder(marker, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=255)
+        image[y:y + m + 2 * pad, x:x + m + 2 * pad] = sheet[:, :, None]
+    cv2.rectangle(image, (side // 2 - 30, side // 2 - 20), (side // 2 + 30, side // 2 + 20),
+                  (40, 40, 40), -1)
+    return image
+
+
+def trial_call(func: Any) -> tuple[str, str]:
+    """Call ``func`` on :func:`trial_image` (in an isolated child): ``("refused", why)`` when
+    it cannot be a pipeline (it refuses an image with a ``TypeError``, or returns what no
+    pipeline returns: :func:`~arenabench.eval.predictions.not_a_mapping`), else
+    ``("ok", "")`` (its other failures are scored per image)."""
+    from .predictions import _short, not_a_mapping
+
+    try:
+        result = func(trial_image())
+    except TypeError as exc:
+        return "refused", f"cannot take an image (TypeError: {exc})"[:300]
+    except BaseException:  # its own failure on this image: scored per image
+        return "ok", ""
+    if not_a_mapping(result):
+        return "refused", (f"returned {type(result).__name__} {_short(result)} for an image, "
+                           "not a result (a mapping, or an object with count and area "
+                           "attributes)")
+    return "ok", ""
 
 
 def _serve(conn: Any, spec: str, parent_pid: int, cgroup_parent: str | None) -> None:
@@ -49,6 +97,9 @@ def _serve(conn: Any, spec: str, parent_pid: int, cgroup_parent: str | None) -> 
             path = conn.recv()
         except (EOFError, OSError):
             return
+        if path == TRIAL:
+            conn.send(trial_call(pipe.func))
+            continue
         start = time.perf_counter()
         try:
             pred = pipe.run(Path(path))
@@ -135,6 +186,30 @@ class IsolatedCallablePipeline:
         from .sandbox import pids_cgroup_parent
 
         self._cgroup = pids_cgroup_parent()
+        self._spare: _Child | None = None  # the trial's child, for the first image
+
+    def trial(self) -> str | None:
+        """Call the function once on a small synthetic arena in a child (:func:`trial_call`)
+        before any image: why it is no pipeline (one line), or ``None``. A child that cannot
+        start, exits or overruns ``timeout_s`` proves nothing here (its images will say)."""
+        try:
+            child = self._start()
+        except RuntimeError:
+            return None
+        try:
+            child.conn.send(TRIAL)
+            if not child.conn.poll(self.timeout_s):
+                self._kill(child)
+                return None
+            kind, why = child.conn.recv()
+        except (EOFError, OSError):
+            self._kill(child)
+            return None
+        if kind != "ok":
+            self._kill(child)
+            return f"pipeline {self.spec!r}: {why}"
+        self._spare = child
+        return None
 
     def _start(self) -> _Child:
         from arenabench.interrupts import children_ignore_sigint
@@ -185,6 +260,11 @@ class IsolatedCallablePipeline:
             return Prediction(status="crash", message="interrupted")
         child = getattr(self._local, "child", None)
         if child is None or not child.process.is_alive():
+            with self._lock:
+                spare, self._spare = self._spare, None
+            if spare is not None and spare.process.is_alive():
+                child = self._local.child = spare
+        if child is None or not child.process.is_alive():
             try:
                 child = self._local.child = self._start()
             except RuntimeError as exc:
@@ -219,3 +299,21 @@ class IsolatedCallablePipeline:
     def close(self) -> None:
         """End the children (the run is over)."""
         self.stop()
+
+
+def trial_pipeline(spec: str, *, timeout_s: float) -> None:
+    """Refuse a ``"pkg.module:function"`` that is no pipeline before any image
+    (:meth:`IsolatedCallablePipeline.trial`, in a child that is then ended).
+
+    Raises
+    ------
+    ValueError
+        One line naming the spec and what the function did.
+    """
+    pipe = IsolatedCallablePipeline(spec, timeout_s=timeout_s)
+    try:
+        problem = pipe.trial()
+    finally:
+        pipe.close()
+    if problem:
+        raise ValueError(problem)

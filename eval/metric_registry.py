@@ -16,6 +16,7 @@ To add a metric: compute it into :class:`~arenabench.eval.results.Summary` (and 
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
@@ -28,6 +29,14 @@ DIRECTIONS: tuple[str, ...] = ("higher", "lower", "nearer_zero")
 KINDS: tuple[str, ...] = ("rate", "count", "px", "ms", "ratio")
 #: Where the summary shows a metric: the main rows, the phase check's rows, the failure rows.
 GROUPS: tuple[str, ...] = ("summary", "phase", "failures")
+#: The values a metric of each kind can take, and so the ``--fail-under`` limits and
+#: ``--fail-on-regression`` deltas it accepts: a rate is a fraction in [0, 1] (``0.95``, not
+#: ``95``); counts, pixels, milliseconds and error ratios are >= 0 (the limit of a signed
+#: error is on its magnitude).
+KIND_RANGES: dict[str, tuple[float, float]] = {
+    "rate": (0.0, 1.0), "count": (0.0, math.inf), "px": (0.0, math.inf),
+    "ms": (0.0, math.inf), "ratio": (0.0, math.inf),
+}
 
 
 @dataclass(frozen=True)
@@ -80,6 +89,35 @@ class Metric:
         """Whether a ``--fail-under`` limit is a minimum (else a maximum; of ``|value|`` for
         a signed metric)."""
         return self.direction == "higher"
+
+    @property
+    def limits(self) -> tuple[float, float]:
+        """The range of a limit (or a delta) on this metric: :data:`KIND_RANGES` of its kind."""
+        return KIND_RANGES[self.kind]
+
+    def check_limit(self, raw: str, *, option: str) -> float:
+        """``raw`` (what follows ``metric=`` in ``option``) as a limit this metric can reach.
+
+        Raises
+        ------
+        ValueError
+            One line naming ``option``, the metric and the value: not a plain decimal number
+            (:func:`arenabench.cliopts.plain_number`), or outside :attr:`limits` (a rate given
+            as a percentage gets its fraction as a hint).
+        """
+        from arenabench.cliopts import plain_number
+
+        lo, hi = self.limits
+        what = "a fraction in [0, 1]" if self.kind == "rate" else "a finite number >= 0"
+        try:
+            value = plain_number(raw.strip(" "))
+        except ValueError:
+            raise ValueError(f"{option} {self.name}={raw}: not a number ({what})") from None
+        if not (math.isfinite(value) and lo <= value <= hi):
+            hint = (f"; {value:g} % is {value / 100:g}"
+                    if self.kind == "rate" and 1 < value <= 100 else "")
+            raise ValueError(f"{option} {self.name}={raw}: must be {what}{hint}")
+        return value
 
     def format(self, value: Any) -> str:
         """Human form of ``value`` (``-`` for missing; rates as ``12.3 %``)."""
@@ -228,17 +266,18 @@ def split_metric_specs(specs: Iterable[str], *, option: str, known: Sequence[str
                        what: str = "value") -> list[tuple[str, str]]:
     """``metric=VALUE`` specs (each may hold several, comma-separated) as (metric, raw value)
     pairs, for ``--fail-under`` and ``--fail-on-regression`` alike; the value's own rule is the
-    caller's.
+    caller's (:meth:`Metric.check_limit`).
 
     Raises
     ------
     ValueError
-        Naming ``option`` and the part without ``=``, or the unknown metric (with a "did you
-        mean" hint).
+        Naming ``option`` and the part without ``=``, the unknown metric (with a "did you
+        mean" hint), or a metric given twice.
     """
     from arenabench.suggest import did_you_mean
 
     out = []
+    seen: dict[str, str] = {}
     for spec in specs:
         for part in filter(None, (p.strip() for p in spec.split(","))):
             name, sep, raw = part.partition("=")
@@ -248,5 +287,9 @@ def split_metric_specs(specs: Iterable[str], *, option: str, known: Sequence[str
             if name not in known:
                 hint = did_you_mean(name, known) or f" (known: {', '.join(known)})"
                 raise ValueError(f"{option}: unknown metric {name!r}{hint}")
+            if name in seen:
+                raise ValueError(f"{option}: {name} given twice ({seen[name]!r} and {part!r}): "
+                                 "give each metric once")
+            seen[name] = part
             out.append((name, raw))
     return out

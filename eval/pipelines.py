@@ -35,7 +35,7 @@ from .results import Prediction, tail
 
 __all__ = [
     "BUILTIN_PIPELINES", "BuiltinPipeline", "CallablePipeline", "Pipeline", "call_on_image",
-    "load_callable", "make_pipeline",
+    "load_callable", "make_pipeline", "pipeline_name_problem", "signature_problem",
 ]  # fmt: skip
 
 #: The built-in pipelines are the detection profiles.
@@ -136,21 +136,60 @@ class BuiltinPipeline:
         return call_on_image(self._load(), image)
 
 
+def _dotted(name: str) -> bool:
+    return bool(name) and all(part.isidentifier() for part in name.split("."))
+
+
+def _spec_hint(module_name: str, attr: str) -> str:
+    """How to name a pipeline given as a file path (``../ci/mypipe.py:detect``)."""
+    path = Path(module_name)
+    module = path.stem if path.suffix == ".py" else path.name
+    where = ("" if str(path.parent) == "." else
+             f" and run from {path.parent} (or put {path.parent} on PYTHONPATH)")
+    return (f": the part before ':' is a module name, not a file: name it "
+            f"'{module}:{attr}'{where}")
+
+
+def signature_problem(func: Callable[..., Any]) -> str | None:
+    """Why ``func`` cannot be called with one image, from its signature (``None`` when it can,
+    or when Python cannot tell: a built-in without a signature)."""
+    import inspect
+
+    try:
+        sig = inspect.signature(func)
+    except (TypeError, ValueError):
+        return None
+    try:
+        sig.bind(object())
+    except TypeError:
+        name = getattr(func, "__qualname__", None) or type(func).__name__
+        return f"{name}{sig} cannot be called with one image"
+    return None
+
+
 def load_callable(spec: str) -> Callable[[Any], Any]:
     """Import ``"pkg.module:function"`` (dotted attribute paths allowed after the colon).
 
     The module is looked for in the current folder first, then on ``sys.path`` (as
-    ``python -m`` does), so ``mymod:fn`` finds ``./mymod.py``.
+    ``python -m`` does), so ``mymod:fn`` finds ``./mymod.py``. A file path before the colon
+    (``../ci/mypipe.py:detect``) is refused with the spec to use instead.
 
     Raises
     ------
     ValueError
-        When ``spec`` is malformed, the module cannot be imported or the attribute is missing
-        or not callable.
+        When ``spec`` is malformed, the module cannot be imported (or fails while it is), or
+        the attribute is missing, not callable, or cannot take one argument (its signature).
     """
     module_name, sep, attr = spec.partition(":")
     if not sep or not module_name or not attr:
         raise ValueError(f"pipeline spec must look like 'pkg.module:function', got {spec!r}")
+    if "/" in module_name or module_name.endswith(".py"):  # a file, not a module
+        raise ValueError(f"pipeline {spec!r}{_spec_hint(module_name, attr)}")
+    if not _dotted(module_name):
+        raise ValueError(f"pipeline {spec!r}: {module_name!r} is not a module name (dotted "
+                         "Python identifiers)")
+    if not _dotted(attr):
+        raise ValueError(f"pipeline {spec!r}: {attr!r} is not a (dotted) Python name")
     saved_path = list(sys.path)
     sys.path.insert(0, os.getcwd())
     try:
@@ -160,6 +199,9 @@ def load_callable(spec: str) -> Callable[[Any], Any]:
             f"pipeline {spec!r}: cannot import {module_name!r} (looked in the current folder "
             f"{os.getcwd()} and on sys.path): {exc}"
         ) from None
+    except (Exception, SystemExit) as exc:  # the module itself fails while it is imported
+        raise ValueError(f"pipeline {spec!r}: importing {module_name!r} failed: "
+                         f"{type(exc).__name__}: {exc}"[:500]) from None
     finally:
         sys.path[:] = saved_path
     for part in attr.split("."):
@@ -168,7 +210,21 @@ def load_callable(spec: str) -> Callable[[Any], Any]:
         obj = getattr(obj, part)
     if not callable(obj):
         raise ValueError(f"pipeline {spec!r}: {attr!r} is not callable")
+    problem = signature_problem(obj)
+    if problem:
+        raise ValueError(f"pipeline {spec!r}: {problem}")
     return obj
+
+
+def pipeline_name_problem(spec: str) -> str | None:
+    """Why ``spec`` names no pipeline (not a built-in and no ``pkg.module:function``), with a
+    "did you mean", or ``None``."""
+    if spec in BUILTIN_PIPELINES or ":" in spec:
+        return None
+    from arenabench.suggest import did_you_mean
+
+    return (f"pipeline must be one of {BUILTIN_PIPELINES} or 'pkg.module:function', got "
+            f"{spec!r}{did_you_mean(spec, BUILTIN_PIPELINES)}")
 
 
 @dataclass
@@ -224,12 +280,7 @@ def make_pipeline(
             return BuiltinPipeline(spec)
         if ":" in spec:
             return CallablePipeline(spec)
-        from arenabench.suggest import did_you_mean
-
-        raise ValueError(
-            f"pipeline must be one of {BUILTIN_PIPELINES} or 'pkg.module:function', got "
-            f"{spec!r}{did_you_mean(spec, BUILTIN_PIPELINES)}"
-        )
+        raise ValueError(pipeline_name_problem(spec))
     if hasattr(spec, "run") and hasattr(spec, "name"):
         return spec  # type: ignore[return-value]
     if callable(spec):

@@ -105,6 +105,18 @@ def _as_list(ids: Any) -> list[Any]:
     return out
 
 
+#: What a pipeline's result can never be: it is a mapping, or an object with attributes.
+_NOT_MAPPINGS = (str, bytes, bytearray, int, float, complex, list, tuple, set, frozenset,
+                 range, type(None))
+
+
+def not_a_mapping(result: Any) -> bool:
+    """Whether ``result`` cannot be a pipeline's result: a number, a string, a sequence or
+    set, ``None``, or a NumPy array or scalar (``(2, 72000.0)`` has a ``count`` method, not a
+    count)."""
+    return isinstance(result, _NOT_MAPPINGS) or type(result).__module__ == "numpy"
+
+
 def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") -> Prediction:
     """Normalise what an in-process pipeline (or a JSON line) returned.
 
@@ -133,6 +145,9 @@ def prediction_from_result(result: Any, *, latency_ms: float, stdout: str = "") 
             status="bad_output", message=msg, stdout=tail(stdout), latency_ms=latency_ms
         )
 
+    if not_a_mapping(result):
+        return bad("the result is not a mapping (a dict, or an object with count and area "
+                   f"attributes): {type(result).__name__} {_short(result)}")
     try:  # a hostile result may raise from attribute access, comparison or repr
         status = _get(result, "status")
         status = "ok" if status is None else status

@@ -230,7 +230,9 @@ def visible_paths(executable: str | None, args: list[str], *, python: bool) -> l
     if python:
         paths.update(interpreter_folders(sys.executable).folders)
     for arg in args:
-        if "{" in arg or not os.path.isabs(arg) or not os.path.exists(arg):
+        # a path that exists, as written (a template's placeholders are relative:
+        # '{image}', or absent from the disk; a team folder may be named 'x{image}y')
+        if not os.path.isabs(arg) or not os.path.exists(arg):
             continue
         real = os.path.realpath(arg)
         folder = real if os.path.isdir(real) else os.path.dirname(real)

@@ -25,6 +25,7 @@ from arenabench.cliopts import (
     usage_error,
     write_failure,
 )
+from arenabench.generator.seeds import seed_argument
 from arenabench.interrupts import Interrupted, stop_on_signals
 
 from .competition_env import OWN_PLACEHOLDER, resolve_placeholder, substitute
@@ -92,7 +93,7 @@ def build_parser() -> CommandParser:
     p.add_argument("--random", type=int, default=None, metavar="N",
                    help="draw N random points from the ranges instead of the grid")
     p.add_argument("--per-point", type=int, default=50, help="scenes per point (default 50)")
-    p.add_argument("--seed", type=int, default=0, help="sweep seed (default 0)")
+    p.add_argument("--seed", type=seed_argument, default=0, help="sweep seed (default 0)")
     p.add_argument("--independent-scenes", action="store_true",
                    help="different scenes at every point (default: the same base scenes)")
     p.add_argument("--pipeline", dest="pipes", action=_PipelineAction, metavar="NAME",
@@ -137,12 +138,14 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.generator.presets import get_preset, parse_overrides
     from arenabench.generator.sampler import SamplingError
 
+    from .cmd_script import missing_script_problem
+    from .isolated import trial_pipeline
     from .sweep.execution import run_sweep
     from .sweep.grid import parse_varies
-    from .sweep.outputs import KeptImageWriter, write_sweep
+    from .sweep.outputs import FILES, KeptImageWriter, write_sweep
     from .sweep.records import PipelineSpec, SweepSpec
 
-    if problem := output_problem(args.out):
+    if problem := output_problem(args.out, own=FILES.values(), what="'arenabench sweep' output"):
         return _error(problem)
     if not args.vary:
         return _error("give at least one --vary KEY=SPEC")
@@ -161,10 +164,15 @@ def main(argv: list[str] | None = None) -> int:
             for kind, value in args.pipes
         )
         for p in pipelines:
+            if p.kind == "cmd" and (problem := missing_script_problem(p.value,
+                                                                      base_dir=p.base_dir)):
+                raise ValueError(f"--cmd {p.value!r}: {problem}")
             if p.kind == "cmd" or ":" in p.value:
                 # import errors, missing executables now, as one line ({competition_python}
                 # is made after every other check: {python} stands in for it here)
                 replace(p, value=substitute(p.value, OWN_PLACEHOLDER)).build()
+            if p.kind == "pipeline" and ":" in p.value:
+                trial_pipeline(p.value, timeout_s=settings.limits.timeout_s)
         spec = SweepSpec(
             preset=args.preset, axes=axes, pipelines=pipelines, per_point=args.per_point,
             seed=args.seed, random=args.random, overrides=overrides,

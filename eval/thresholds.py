@@ -58,19 +58,13 @@ def parse_thresholds(specs: Iterable[str]) -> list[Threshold]:
     Raises
     ------
     ValueError
-        Naming the bad spec, metric or value.
+        Naming the bad spec, metric or value (a metric twice, a value it cannot reach:
+        :meth:`~arenabench.eval.metric_registry.Metric.check_limit`).
     """
     out: list[Threshold] = []
     for name, raw in split_metric_specs(specs, option="--fail-under",
                                         known=[m.name for m in GATED]):
-        try:
-            value = float(raw)
-        except ValueError:
-            raise ValueError(
-                f"--fail-under: value of {name!r} is not a number: {raw!r}"
-            ) from None
-        if not math.isfinite(value):
-            raise ValueError(f"--fail-under: value of {name!r} is not finite: {raw!r}")
+        value = METRIC[name].check_limit(raw, option="--fail-under")
         out.append(Threshold(metric=name, value=value, minimum=METRIC[name].minimum))
     return out
 

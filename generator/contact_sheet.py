@@ -21,6 +21,7 @@ from arenabench.cliopts import (
     usage_error,
 )
 from arenabench.fileio import atomic_write_bytes
+from arenabench.generator.seeds import seed_argument
 from arenabench.limits import MAX_IMAGE_SIDE_PX, check_at_most
 
 #: Padding around a tile and height of its caption strip, in px.
@@ -151,7 +152,7 @@ def build_parser() -> CommandParser:
     )
     p.add_argument("--preset", default="eyrc", help="scene preset (default eyrc)")
     add_count(p, default=16, help="scenes")
-    p.add_argument("--seed", type=int, default=0, help="run seed (default 0)")
+    p.add_argument("--seed", type=seed_argument, default=0, help="run seed (default 0)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a preset parameter (repeatable)")
     p.add_argument("--columns", type=int, default=4, help="tiles per row (default 4)")

@@ -67,6 +67,7 @@ from arenabench.generator.make import (
     worker_renderer,
 )
 from arenabench.generator.presets import Value, format_value, get_preset, resolve
+from arenabench.generator.seeds import check_seed
 from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import IMAGE_EXTENSIONS, PNG_COMPRESSION, encode_image
 from arenabench.interrupts import (
@@ -101,8 +102,7 @@ class DatasetArgs:
         if int(self.count) != self.count or self.count < 0:
             raise ValueError(f"count must be an integer >= 0, got {self.count!r}")
         check_at_most(int(self.count), MAX_DATASET_SCENES, "count")
-        if int(self.seed) != self.seed or self.seed < 0:
-            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        check_seed(self.seed)
         resolve(self.preset, self.overrides)
 
     @property

@@ -32,10 +32,10 @@ def build_parser() -> CommandParser:
                    help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
     add_count(p, required=True, help="number of scenes")
     p.add_argument("--seed", default="0",
-                   help="run seed: an integer >= 0 (default 0), or 'random': 128 bits from "
-                        "the operating system, printed and recorded in dataset.json (use it "
-                        "for a hidden grading set: a small seed lets a submission re-render "
-                        "the set and read its answers)")
+                   help="run seed: an integer in [0, 2**128 - 1] (default 0), or 'random': "
+                        "128 bits from the operating system, printed and recorded in "
+                        "dataset.json (use it for a hidden grading set: a small seed lets a "
+                        "submission re-render the set and read its answers)")
     add_out(p, required=True, help="output directory")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a preset parameter, e.g. camera.tilt_deg=10:30 or "
@@ -62,10 +62,8 @@ def main(argv: list[str] | None = None) -> int:
         return usage_error("arenabench generate", problem)
     try:
         seed = parse_seed(args.seed)
-    except ValueError:
-        print(f"arenabench generate: error: --seed: not an integer >= 0 nor 'random': "
-              f"{args.seed!r}", file=sys.stderr)
-        return 2
+    except ValueError as exc:
+        return usage_error("arenabench generate", str(exc))
     if args.seed.strip().lower() == "random":
         print(f"arenabench generate: seed {seed} (random; recorded in "
               f"{os.path.join(args.out, 'dataset.json')}, which no submission may see)",

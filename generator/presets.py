@@ -14,6 +14,8 @@ import math
 from pathlib import Path
 from typing import Any
 
+from arenabench.cliopts import plain_number
+from arenabench.frame import COMPETITION_DICTIONARY
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.params import DEFAULTS, NEUTRAL, PARAMETERS, Param, Range, Value
 from arenabench.suggest import did_you_mean
@@ -32,7 +34,7 @@ _EYRC_JITTER: dict[str, Value] = {
     "arena.grid_rgb": (200, 200, 200),
     "arena.logo_text": "eyantra",
     "arena.logo_rgb": (220, 50, 50),
-    "markers.dictionary": "DICT_4X4_100",
+    "markers.dictionary": COMPETITION_DICTIONARY,
     "markers.ids": (80, 85, 90, 95),
     "markers.side_m": Range(0.50, 0.56),
     "markers.rotation_deg": 180.0,
@@ -207,13 +209,13 @@ def get_preset(name: str) -> dict[str, Value]:
 
 def _number(key: str, text: str, kind: str) -> float | int:
     try:
+        value = plain_number(text.strip(" "))  # plain ASCII decimal, as every number typed
         if kind == "int":
-            value = float(text)
             if value != int(value):
                 raise ValueError
             return int(value)
-        return float(text)
-    except ValueError:
+        return value
+    except (ValueError, OverflowError):
         raise ValueError(f"--set {key}: invalid {kind} value {text!r}") from None
 
 
@@ -290,7 +292,7 @@ def validate_value(key: str, value: Value) -> Value:
         parts = value.split(",") if isinstance(value, str) else list(value)
         want = 3 if spec.kind == "rgb" else 4
         try:
-            nums = tuple(int(str(p).strip()) for p in parts)
+            nums = tuple(int(plain_number(str(p).strip(" "), "int")) for p in parts)
         except ValueError:
             raise ValueError(f"--set {key}: invalid value {value!r}") from None
         if len(nums) != want:
@@ -300,6 +302,9 @@ def validate_value(key: str, value: Value) -> Value:
             raise ValueError(f"--set {key}: colour values must be 0..255, got {value!r}")
         if spec.kind == "ids" and not all(n >= 0 for n in nums):
             raise ValueError(f"--set {key}: ids must be >= 0, got {value!r}")
+        if spec.kind == "ids" and len(set(nums)) != len(nums):
+            raise ValueError(f"--set {key}: the four corners' ids must differ (a pipeline tells "
+                             f"the corners apart by them), got {value!r}")
         return nums
     text = str(value)
     if spec.choices and text not in spec.choices:

@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from arenabench.frame import COMPETITION_DICTIONARY
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.params import PARAMETERS
 from arenabench.limits import (
@@ -161,7 +162,7 @@ class MarkerSpec:
         Width of the white quiet zone drawn around each marker.
     """
 
-    dictionary: str = "DICT_4X4_100"
+    dictionary: str = COMPETITION_DICTIONARY
     ids: tuple[int, int, int, int] = (80, 85, 90, 95)
     side_m: float = 0.48
     rotation_deg: float = 180.0
@@ -172,6 +173,9 @@ class MarkerSpec:
         ids = tuple(int(i) for i in self.ids)
         if len(ids) != 4:
             raise ValueError(f"markers.ids must be 4 ids (nw, ne, se, sw), got {self.ids!r}")
+        if len(set(ids)) != 4:
+            raise ValueError(f"markers.ids must be 4 different ids (a pipeline tells the "
+                             f"corners apart by them), got {self.ids!r}")
         object.__setattr__(self, "ids", ids)
         if not isinstance(self.dictionary, str):
             raise ValueError(f"markers.dictionary must be a name, got {self.dictionary!r}")

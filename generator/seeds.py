@@ -17,6 +17,8 @@ from typing import Any
 RANDOM_SEED_BITS = 128
 #: Seeds below this are guessable (enumerable); ``grade`` refuses sets generated with them.
 GUESSABLE_BELOW = 2**64
+#: The largest seed any command takes: every seed fits in the bits of a random one.
+MAX_SEED = 2**RANDOM_SEED_BITS - 1
 
 
 def random_seed() -> int:
@@ -28,20 +30,56 @@ def random_seed() -> int:
             return seed
 
 
-def parse_seed(text: str) -> int:
-    """``--seed``: an integer >= 0, or ``random`` (:func:`random_seed`).
+def check_seed(seed: object, *, name: str = "seed") -> int:
+    """``seed`` as an int when it is an integer in [0, :data:`MAX_SEED`].
 
     Raises
     ------
     ValueError
-        For anything else (argparse turns it into one usage line).
+        ``"<name> must be an integer in [0, 2**128 - 1], got <seed>"`` (the value shortened).
     """
-    if text.strip().lower() == "random":
+    import numbers
+
+    if (isinstance(seed, bool) or not isinstance(seed, numbers.Integral)
+            or not 0 <= int(seed) <= MAX_SEED):
+        shown = repr(seed) if len(repr(seed)) <= 50 else repr(seed)[:40] + "..."
+        raise ValueError(f"{name} must be an integer in [0, 2**{RANDOM_SEED_BITS} - 1], got "
+                         f"{shown}")
+    return int(seed)
+
+
+def parse_seed(text: str, *, allow_random: bool = True, name: str = "--seed") -> int:
+    """``--seed``: an integer in [0, :data:`MAX_SEED`] written in plain ASCII decimal, or
+    (``allow_random``) ``random`` (:func:`random_seed`).
+
+    Raises
+    ------
+    ValueError
+        For anything else, one line naming ``name`` (argparse turns it into one usage line).
+    """
+    from arenabench.cliopts import plain_number
+
+    if allow_random and text.strip().lower() == "random":
         return random_seed()
-    value = int(text, 10)
-    if value < 0:
-        raise ValueError(f"seed must be >= 0, got {text!r}")
-    return value
+    try:
+        value = plain_number(text, "int")
+    except ValueError:
+        either = "'random' nor " if allow_random else ""
+        raise ValueError(f"{name}: not {either}an integer in [0, 2**{RANDOM_SEED_BITS} - 1]: "
+                         f"{text[:50]!r}") from None
+    return check_seed(value, name=name)
+
+
+def seed_argument(text: str) -> int:
+    """The ``type=`` of an integer ``--seed`` option (``sweep``, ``check``): :func:`parse_seed`
+    without ``random``."""
+    import argparse
+
+    try:
+        return parse_seed(text, allow_random=False)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(
+            str(exc).removeprefix("--seed: ").removeprefix("--seed ")) from None
 
 
 def seed_problem(seed: Any) -> str | None:

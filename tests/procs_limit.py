@@ -10,6 +10,8 @@ itself.
 
 from __future__ import annotations
 
+import shlex
+import sys
 from typing import Any
 
 from arenabench.eval.preflight import PreflightError, process_limit
@@ -31,6 +33,11 @@ PROBLEM = _problem()
 GRADE_MAX_PROCS = DEFAULT_MAX_PROCS if PROBLEM is None else 0
 #: Arguments every ``arenabench grade`` command line of the tests adds.
 GRADE_ARGS: tuple[str, ...] = () if PROBLEM is None else ("--max-procs", "0")
+#: The tests' Python: it has OpenCV (``python3`` on PATH may not). ``grade --cmd`` refuses
+#: ``{python}``, so the tests' grading commands name it.
+PYTHON = shlex.quote(sys.executable)
+#: The competition's grading command run by :data:`PYTHON`.
+PY_CMD = f"{PYTHON} {{submission}}/map.py --image {{image}}"
 
 
 def grade_settings(*, limits: dict[str, Any] | None = None, **settings: Any) -> RunSettings:

@@ -89,7 +89,9 @@ def test_a_crashing_script_fails_with_its_message(cache, tmp_path):
     (["{pipelines}/crash.py", "--count", "0"], "argument --count: must be an integer in [1, "),
     (["{pipelines}/crash.py", "--workers", "0"], "argument --workers: must be an integer in [1, "),
     (["{pipelines}/crash.py", "--preset", "nope"], "--preset: unknown preset 'nope'"),
-    (["{pipelines}/crash.py", "--fail-under", "1.5"], "--fail-under must be a pass rate"),
+    (["{pipelines}/crash.py", "--fail-under", "1.5"],
+     "--fail-under pass_rate=1.5: must be a fraction in [0, 1]"),
+    (["{pipelines}/crash.py", "--fail-under", "95"], "must be a fraction in [0, 1]; 95 % is 0.95"),
     (["{pipelines}/crash.py", "--phase-check", "zero"], "--phase-check"),
 ])
 def test_bad_input_exits_2_before_any_work(args, needle, tmp_path):

@@ -106,7 +106,7 @@ def test_size_rule():
     ("argv", "needle"),
     [
         (("eval", ".", "--pipeline", "reference", "--timeout", "inf"),
-         "argument --timeout: must be a finite number in (0, 86400], got 'inf'"),
+         "argument --timeout: must be a finite number in [1, 86400], got 'inf'"),
         (("grade", ".", ".", "--out", "o", "--timeout", "1e309"), "got '1e309'"),
         (("sweep", "--out", "o", "--timeout", "1e12"), "got '1e12'"),
         (("eval", ".", "--pipeline", "reference", "--memory-limit", "99999999T"),
@@ -137,3 +137,69 @@ def test_one_rule_per_option_one_line(argv, needle, tmp_path):
     assert len(err.splitlines()) == 1 and "Traceback" not in err, err
     assert err.startswith(f"arenabench {argv[0]}: error: ") and needle in err, err
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("value", ["1e-320", "0.5", "1_0", "٣", " 5", "5 ", "0x10", "nan",
+                                   "+inf"])
+@pytest.mark.parametrize("command", ["eval", "sweep", "grade"])
+def test_timeout_is_plain_decimal_and_at_least_the_minimum(command, value, tmp_path):
+    from arenabench.limits import MIN_TIMEOUT_S
+
+    argv = {"eval": ("eval", ".", "--pipeline", "reference"),
+            "sweep": ("sweep", "--out", "o", "--vary", "camera.tilt_deg=0:10"),
+            "grade": ("grade", ".", ".", "--out", "o")}[command]
+    proc = run_cli(*argv, "--timeout", value, cwd=tmp_path)
+    err = proc.stderr.strip()
+    assert proc.returncode == 2 and len(err.splitlines()) == 1, err
+    assert (f"argument --timeout: must be a finite number in [{MIN_TIMEOUT_S:g}, 86400], got "
+            f"{value!r}") in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize(("argv", "needle"), [
+    (("sweep", "--out", "o", "--vary", "camera.tilt_deg=0:10", "--per-point", "1_0"),
+     "argument --per-point: invalid int value: '1_0'"),
+    (("sweep", "--out", "o", "--vary", "camera.tilt_deg=0:10", "--threshold", "٠.٥"),
+     "argument --threshold: invalid float value: '٠.٥'"),
+    (("sweep", "--out", "o", "--vary", "camera.tilt_deg=0:1_0", "--pipeline", "reference"),
+     "'1_0' is not a number"),
+    (("eval", ".", "--pipeline", "reference", "--workers", "٢"),
+     "argument --workers: must be an integer in [1, "),
+    (("eval", ".", "--pipeline", "reference", "--memory-limit", "٢G"),
+     "argument --memory-limit: not a size: '٢G'"),
+    (("generate", "--count", "1", "--out", "o", "--set", "obstacles.count=٣"),
+     "--set obstacles.count: invalid int value '٣'"),
+    (("generate", "--count", "1", "--out", "o", "--seed", "1_0"),
+     "--seed: not 'random' nor an integer in [0, 2**128 - 1]: '1_0'"),
+    (("generate", "--count", "1", "--out", "o", "--seed", "9" * 200),
+     "--seed must be an integer in [0, 2**128 - 1], got 99999"),
+    (("generate", "--count", "1", "--out", "o", "--seed", str(2**128)),
+     "--seed must be an integer in [0, 2**128 - 1]"),
+    (("sweep", "--out", "o", "--vary", "camera.tilt_deg=0:10", "--seed", str(2**128)),
+     "argument --seed: must be an integer in [0, 2**128 - 1]"),
+    (("check", "map.py", "--seed", "٣"), "argument --seed: not an integer in [0, 2**128 - 1]"),
+    (("generate", "--count", "1", "--out", "o", "--set", "markers.ids=80,80,80,80"),
+     "--set markers.ids: the four corners' ids must differ"),
+])
+def test_numbers_on_the_command_line_are_plain_ascii_decimal(argv, needle, tmp_path):
+    proc = run_cli(*argv, cwd=tmp_path)
+    err = proc.stderr.strip()
+    assert proc.returncode == 2 and len(err.splitlines()) == 1, err
+    assert needle in err and "Traceback" not in err, err
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_a_random_seed_is_a_valid_seed():
+    from arenabench.generator.seeds import (
+        GUESSABLE_BELOW,
+        MAX_SEED,
+        check_seed,
+        parse_seed,
+        random_seed,
+    )
+
+    for _ in range(100):
+        seed = random_seed()
+        assert GUESSABLE_BELOW <= seed <= MAX_SEED and check_seed(seed) == seed
+    assert parse_seed(str(MAX_SEED)) == MAX_SEED
+    assert GUESSABLE_BELOW <= parse_seed("random") <= MAX_SEED

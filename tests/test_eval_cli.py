@@ -142,6 +142,25 @@ def test_usage_errors_exit_2(argv, fragment, toy, tmp_path, capsys):
     assert fragment in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(("gate", "needle"), [
+    (("--fail-under", "pass_rate=95"), "--fail-under pass_rate=95: must be a fraction in [0, 1]; "
+                                       "95 % is 0.95"),
+    (("--fail-under", "pass_rate=-1"), "must be a fraction in [0, 1]"),
+    (("--fail-under", "area_rel_err.p95=-1"), "area_rel_err.p95=-1: must be a finite number >= 0"),
+    (("--fail-under", "pass_rate=0.9", "--fail-under", "pass_rate=0.5"), "pass_rate given twice"),
+])
+def test_an_impossible_gate_is_refused_before_any_image(gate, needle, toy, tmp_path, capsys):
+    out = tmp_path / "out"
+    argv = ["eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(out),
+            "--no-progress", *gate]
+    assert arenabench_main(argv) == 2
+    captured = capsys.readouterr()
+    err = captured.err.strip()
+    assert len(err.splitlines()) == 1 and err.startswith("arenabench eval: error: --fail-under")
+    assert needle in err and captured.out == "", err
+    assert not out.exists()
+
+
 def test_malformed_ground_truth_names_file_and_field(toy, tmp_path, capsys):
     import shutil
 

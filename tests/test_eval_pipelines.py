@@ -185,6 +185,23 @@ def test_in_process_failures_never_escape(toy):
     )
 
 
+@pytest.mark.parametrize(("result", "shown"), [
+    ((2, 72000.0), "tuple (2, 72000.0)"),
+    ([2, 72000.0], "list [2, 72000.0]"),
+    ("Obstacles: 2", "str 'Obstacles: 2'"),
+    (2, "int 2"),
+    (None, "NoneType None"),
+    (np.array([2.0, 7.0]), "ndarray"),
+])
+def test_a_result_that_is_not_a_mapping_says_so(result, shown):
+    from arenabench.eval.predictions import prediction_from_result
+
+    pred = prediction_from_result(result, latency_ms=1.0)
+    assert pred.status == "bad_output"
+    assert pred.message.startswith("the result is not a mapping (a dict, or an object with "
+                                   f"count and area attributes): {shown}"), pred.message
+
+
 def test_adapter_arguments_are_validated():
     with pytest.raises(ValueError, match="timeout_s"):
         RunLimits(timeout_s=0)

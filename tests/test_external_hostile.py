@@ -309,7 +309,7 @@ def test_sandbox_bwrap_where_it_does_not_work_is_a_usage_error(toy, capsys, monk
     monkeypatch.setenv("PATH", str(Path(PY).parent))  # no bwrap on this PATH
     sandbox.bwrap_problem.cache_clear()
     try:
-        rc = main([str(toy), "--cmd", f"{PY} x.py {{image}}", "--sandbox", "bwrap"])
+        rc = main([str(toy), "--cmd", f"{PY} {__file__} {{image}}", "--sandbox", "bwrap"])
     finally:
         sandbox.bwrap_problem.cache_clear()
     assert rc == 2

@@ -14,7 +14,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from procs_limit import GRADE_ARGS, grade_settings
+from procs_limit import GRADE_ARGS, PY_CMD, grade_settings
 
 from arenabench.cli import main as arenabench_main
 from arenabench.eval.external import CommandPipeline
@@ -223,7 +223,7 @@ def _fast_teams(root: Path, counts: dict[str, int]) -> Path:
 
 
 def _opts(**kw) -> GradeOptions:
-    return GradeOptions(command="{python} {submission}/map.py --image {image}",
+    return GradeOptions(command=PY_CMD,
                         formats=("json",), settings=grade_settings(), **kw)
 
 
@@ -286,6 +286,19 @@ def test_odd_team_names_are_escaped_and_linked(dataset, tmp_path):
         assert (out / unquote(html.unescape(href))).is_file(), href
     rows = list(csv.DictReader((out / "leaderboard.csv").read_text().splitlines()))
     assert {r["team"] for r in rows} == {name, "plain"}
+
+
+def test_team_folders_named_like_placeholders_are_graded_as_any_other(dataset, tmp_path):
+    names = ("x{image}y", "x{submission}y", "plain")
+    subs = _fast_teams(tmp_path / "subs", dict.fromkeys(names, 1))
+    out = tmp_path / "out"
+    result = grade(dataset, subs, out, options=_opts(), workers=2, allow_guessable_seed=True)
+    assert sorted(result.graded) == sorted(names) and not result.errors
+    reports = {n: json.loads((out / "teams" / n / "report.json").read_text()) for n in names}
+    for name in names:  # every image answered (count 1), as the plain team's
+        assert [i["category"] for i in reports[name]["images"]] == \
+            [i["category"] for i in reports["plain"]["images"]], reports[name]["images"]
+        assert {i["pred"]["count"] for i in reports[name]["images"]} == {1}
 
 
 def test_team_command_substitutes_the_team_folder(tmp_path):
@@ -362,7 +375,7 @@ def test_leaderboard_csv_escapes_formulas_and_rounds_floats():
     ("extra", "needle"),
     [
         (["--workers", "0"], "argument --workers: must be an integer in [1, 256], got '0'"),
-        (["--timeout", "0"], "argument --timeout: must be a finite number in (0, 86400], got '0'"),
+        (["--timeout", "0"], "argument --timeout: must be a finite number in [1, 86400], got '0'"),
         (["--tolerance", "inf"], "--tolerance"),
         (["--tolerance", "1e309"], "--tolerance"),
         (["--reference", "/nonexistent/ref"], "--reference /nonexistent/ref: not a folder"),
@@ -458,7 +471,7 @@ def test_signal_stops_running_commands_and_keeps_finished_teams(sig, dataset, tm
     (subs / "zz_slow" / "map.py").write_text("import time\ntime.sleep(300)\n")
     out = tmp_path / "out"
     argv = [sys.executable, "-m", "arenabench", "grade", str(dataset), str(subs), "--out",
-            str(out), "--cmd", "{python} {submission}/map.py --image {image}", "--workers", "1",
+            str(out), "--cmd", PY_CMD, "--workers", "1",
             "--report-workers", "1", "--formats", "json", "--timeout", "300", "--no-progress",
             "--allow-guessable-seed", *GRADE_ARGS]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 from clirun import CliResult, env_changes, run_cli
-from procs_limit import GRADE_ARGS, grade_settings
+from procs_limit import GRADE_ARGS, PY_CMD, grade_settings
 
 from arenabench.eval import warm_client
 from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade
@@ -27,7 +27,6 @@ ANSWER = """\
 from pathlib import Path
 Path("obstacles.txt").write_text("Aruco ID: [80, 85, 90, 95]\\nObstacles: {count}\\nArea: 1.0\\n")
 """
-PY_CMD = "{python} {submission}/map.py --image {image}"
 
 
 def _env(**extra: str) -> dict[str, str]:
@@ -305,7 +304,7 @@ def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp
     subs = tmp_path / "subs"
     _team(subs, "snoop", SNOOP)
     out = tmp_path / "out"
-    cmd = "{python} {submission}/map.py --image {image} " + str(shared / "config.txt")
+    cmd = f"{PY_CMD} {shared / 'config.txt'}"
     opts = GradeOptions(command=cmd, formats=("json",), settings=grade_settings(warm=warm))
     grade(data, subs, out, options=opts, workers=1, allow_guessable_seed=True)
     rep = json.loads((out / "teams" / "snoop" / "report.json").read_text())

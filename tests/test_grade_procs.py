@@ -16,12 +16,11 @@ import sys
 from pathlib import Path
 
 import pytest
-from procs_limit import GRADE_ARGS
+from procs_limit import GRADE_ARGS, PY_CMD
 
 from arenabench.eval.preflight import NO_PROCESS_LIMIT, PreflightError, process_limit
 from arenabench.eval.run_limits import RunLimits
 
-PY_CMD = "{python} {submission}/map.py --image {image}"
 ANSWER = """\
 from pathlib import Path
 Path("obstacles.txt").write_text("Aruco ID: [80, 85, 90, 95]\\nObstacles: 1\\nArea: 1.0\\n")

@@ -153,7 +153,9 @@ def test_a_callable_that_exits_or_hangs_fails_its_images_only(toy, tmp_path, exe
 )
 def test_impossible_answer_of_a_command_is_bad_output(toy, tmp_path, args, needle):
     output = ("--output", "json") if args[0] == "--output" else ()
-    script_args = " ".join(f"'{a}'" for a in args[len(output):])
+    from arenabench.cmdtemplate import escape
+
+    script_args = " ".join(f"'{escape(a)}'" for a in args[len(output):])  # braces doubled
     cmd = f"{{python}} {PIPES / 'liar.py'} --image {{image}} {script_args}"
     proc = run("eval", str(toy), "--cmd", cmd, *output, "--out", str(tmp_path),
                "--no-progress", "--formats", "json", "--fail-under", "pass_rate=0.01")
@@ -407,7 +409,7 @@ def test_unwritable_out_is_refused_before_any_work(toy, tmp_path, command, where
         (("eval", ".", "--pipeline", "reference", "--workers", str(10**12)), "in [1, 256]"),
         (("eval", ".", "--pipeline", "reference", "--tolerance", "nan"), "finite number in [0, 1]"),
         (("eval", ".", "--pipeline", "reference", "--fail-under", "pass_rate=nan"),
-         "not finite"),
+         "--fail-under pass_rate=nan: not a number"),
     ],
 )
 def test_absurd_sizes_are_refused_at_once(tmp_path, argv, needle):
@@ -880,7 +882,9 @@ def test_render_of_a_hostile_scene_file_is_one_line_and_writes_nothing(tmp_path,
 def test_fit_arena_side_that_is_not_a_finite_positive_length_is_refused(tmp_path, side):
     out = tmp_path / "scene.json"
     proc = run("fit", str(EXAMPLE), "--arena-side", side, "--out", str(out))
-    assert_clean_error(proc, "--arena-side must be", prog="fit")
+    needle = ("argument --arena-side: invalid float value" if side in ("inf", "nan")
+              else "--arena-side must be")  # typed numbers are plain decimal
+    assert_clean_error(proc, needle, prog="fit")
     assert not out.exists()
 
 
@@ -968,3 +972,301 @@ def test_disk_full_while_writing_reports_is_one_line(toy, small_disk):
 def test_presets_show_of_an_empty_name_is_refused():
     proc = run("presets", "--show", "")
     assert_clean_error(proc, "unknown preset ''", prog="presets")
+
+
+# --------------------------------------------------- --out: system folders, inputs, others' files
+
+
+def _eval_argv(toy: Path) -> tuple[str, ...]:
+    return ("eval", str(toy), "--pipeline", "toy_arena:detect", "--no-progress", "--formats",
+            "json,csv,md,html,junit")
+
+
+def test_eval_out_root_is_refused_and_writes_nothing_there(toy):
+    from arenabench.eval.reports import FORMATS
+
+    before = {name for name in FORMATS.values() if (Path("/") / name).exists()}
+    try:
+        proc = run(*_eval_argv(toy), "--out", "/")
+        assert_clean_error(proc, "--out /: is a system folder (/ or a folder directly in it)",
+                           prog="eval")
+    finally:  # the unfixed command wrote its five reports into /
+        for name in set(FORMATS.values()) - before:
+            (Path("/") / name).unlink(missing_ok=True)
+    assert {name for name in FORMATS.values() if (Path("/") / name).exists()} == before
+
+
+@pytest.fixture()
+def top_folder():
+    """A new empty folder directly in / (removed afterwards, whatever was written in it)."""
+    import shutil
+    import uuid
+
+    folder = Path("/") / f"arenabench-test-{uuid.uuid4().hex[:12]}"
+    folder.mkdir()
+    yield folder
+    shutil.rmtree(folder, ignore_errors=True)
+
+
+@pytest.mark.parametrize("command", ["eval", "sweep", "grade", "generate"])
+def test_out_leading_to_a_system_folder_is_refused(toy, tmp_path, top_folder, command):
+    link = tmp_path / "top-link"
+    link.symlink_to(top_folder)
+    (tmp_path / "teams" / "a").mkdir(parents=True)
+    argv = {"eval": _eval_argv(toy),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+                      "--per-point", "1"),
+            "grade": ("grade", str(toy), str(tmp_path / "teams")),
+            "generate": ("generate", "--count", "1")}[command]
+    proc = run(*argv, "--out", str(link), "--no-progress", cwd=tmp_path)
+    assert_clean_error(proc, f"--out {link}: leads to {top_folder}, a system folder",
+                       prog=command)
+    assert list(top_folder.iterdir()) == []
+
+
+@pytest.mark.parametrize("where", ["same", "inside", "images"])
+@pytest.mark.parametrize("command", ["eval", "grade"])
+def test_out_equal_to_or_inside_the_dataset_is_refused(toy, tmp_path, command, where):
+    from procs_limit import GRADE_ARGS
+
+    out = {"same": toy, "inside": toy / "reports", "images": toy / "images"}[where]
+    (tmp_path / "teams" / "a").mkdir(parents=True)
+    argv = {"eval": _eval_argv(toy),
+            "grade": ("grade", str(toy), str(tmp_path / "teams"), *GRADE_ARGS)}[command]
+    before = sorted(p.relative_to(toy) for p in toy.rglob("*"))
+    proc = run(*argv, "--out", str(out), "--no-progress", cwd=tmp_path)
+    assert_clean_error(proc, f"--out {out}: is {'' if where == 'same' else 'inside '}DATASET "
+                       f"{toy} (inputs are only read)", prog=command)
+    assert sorted(p.relative_to(toy) for p in toy.rglob("*")) == before
+
+
+def test_check_out_inside_its_twin_set_is_refused(tmp_path, monkeypatch):
+    from arenabench.eval.check_cli import CACHE_ENV, twin_set_dir
+
+    cache = tmp_path / "cache"
+    monkeypatch.setenv(CACHE_ENV, str(cache))
+    out = twin_set_dir(preset="eyrc", seed=0, count=2) / "reports"
+    proc = run_cli("check", str(PIPES / "crash.py"), "--count", "2", "--out", str(out),
+                   "--no-progress")
+    assert_clean_error(proc, f"--out {out}: is inside the twin set", prog="check")
+    assert not cache.exists()
+
+
+@pytest.mark.parametrize("command", ["eval", "sweep", "check"])
+def test_out_holding_other_files_is_refused_and_an_earlier_report_is_not(toy, tmp_path,
+                                                                         command):
+    out = tmp_path / "mine"
+    out.mkdir()
+    (out / "notes.txt").write_text("keep me\n")
+    argv = {"eval": _eval_argv(toy),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--pipeline", "reference",
+                      "--per-point", "1", "--no-progress"),
+            "check": ("check", str(PIPES / "crash.py"), "--count", "2", "--no-progress")}[command]
+    env = {"PYTHONPATH": _pythonpath(), "ARENABENCH_CACHE_DIR": str(tmp_path / "cache")}
+    proc = run_cli(*argv, "--out", str(out), cwd=tmp_path, env=env)
+    own = {"eval": "'arenabench eval' report", "sweep": "'arenabench sweep' output",
+           "check": "'arenabench check' report"}[command]
+    assert_clean_error(proc, f"--out {out}: not empty ('notes.txt') and holds no earlier {own}",
+                       prog=command)
+    assert sorted(p.name for p in out.iterdir()) == ["notes.txt"]
+    if command == "eval":  # a folder holding an earlier report is written again
+        (out / "report.json").write_text("{}")
+        proc = run_cli(*argv, "--out", str(out), cwd=tmp_path, env=env)
+        assert proc.returncode == 0, proc.stderr
+        assert json.loads((out / "report.json").read_text())["summary"]["n"] == 3
+
+
+# --------------------------------------------------------------- --cmd placeholders, scripts
+
+
+@pytest.mark.parametrize(("cmd", "needle"), [
+    ("python3 map.py --image {imgae}", "unknown placeholder {imgae} (did you mean '{image}'?)"),
+    ("python3 map.py --image {image} {nosuch}", "unknown placeholder {nosuch} in '{nosuch}'"),
+    ("python3 map.py --image {image} --n={}", "empty placeholder {}"),
+    ("python3 map.py --image {image!r}", "placeholder {image!r} takes no format spec"),
+    ("python3 map.py --image {image} x}", "Single '}' encountered"),
+])
+@pytest.mark.parametrize("command", ["eval", "sweep"])
+def test_cmd_with_an_unknown_placeholder_is_refused(toy, tmp_path, command, cmd, needle):
+    (tmp_path / "map.py").write_text("print('hi')\n")
+    argv = {"eval": ("eval", str(toy), "--cmd", cmd),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--cmd", cmd)}[command]
+    proc = run(*argv, "--out", str(tmp_path / "o"), "--no-progress", cwd=tmp_path)
+    assert_clean_error(proc, f"--cmd {cmd!r}: ", needle, prog=command)
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize(("cmd", "needle"), [
+    ("python3 {submision}/map.py --image {image}",
+     "unknown placeholder {submision} (did you mean '{submission}'?)"),
+    ("python3 {submission}/map.py --image {imgae}",
+     "unknown placeholder {imgae} (did you mean '{image}'?)"),
+    ("{python} {submission}/map.py --image {image}", "{python} is arenabench's own Python"),
+])
+def test_grade_cmd_with_a_placeholder_it_does_not_take_is_refused(toy, tmp_path, cmd, needle):
+    from procs_limit import GRADE_ARGS
+
+    (tmp_path / "teams" / "a").mkdir(parents=True)
+    proc = run("grade", str(toy), str(tmp_path / "teams"), "--cmd", cmd, *GRADE_ARGS,
+               "--out", str(tmp_path / "o"), "--no-progress", cwd=tmp_path)
+    assert_clean_error(proc, f"--cmd {cmd!r}: ", needle, prog="grade")
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.parametrize("command", ["eval", "sweep"])
+@pytest.mark.parametrize(("cmd", "needle"), [
+    ("python3 mapp.py --image {image}",
+     "script 'mapp.py' does not exist (relative to {tmp}) (did you mean 'map.py'?)"),
+    ("python3 -u src/mapp.py --image {image}", "script 'src/mapp.py' does not exist"),
+    ("{python} nosuch --image {image}", "script 'nosuch' does not exist"),
+])
+def test_cmd_naming_a_script_that_does_not_exist_is_refused(toy, tmp_path, command, cmd,
+                                                            needle):
+    (tmp_path / "map.py").write_text("print('hi')\n")
+    (tmp_path / "src").mkdir()
+    argv = {"eval": ("eval", str(toy), "--cmd", cmd),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--cmd", cmd)}[command]
+    proc = run(*argv, "--out", str(tmp_path / "o"), "--no-progress", cwd=tmp_path)
+    err = assert_clean_error(proc, f"--cmd {cmd!r}: ", needle.format(tmp=tmp_path),
+                             prog=command)
+    assert "/sandbox" not in err
+    assert not (tmp_path / "o").exists()
+
+
+# ----------------------------------------------------------- --pipeline that is no pipeline
+
+
+@pytest.mark.parametrize(("spec", "needle"), [
+    ("../ci/mypipe.py:detect", "the part before ':' is a module name, not a file: name it "
+                               "'mypipe:detect' and run from ../ci (or put ../ci on PYTHONPATH)"),
+    ("refernce", "got 'refernce' (did you mean 'reference'?)"),
+    ("os:system", "pipeline 'os:system': cannot take an image (TypeError: "),
+    ("json:loads", "pipeline 'json:loads': cannot take an image (TypeError: the JSON object"),
+    ("os:getcwd", "pipeline 'os:getcwd': getcwd() cannot be called with one image"),
+    ("hostile_callables:two_arguments", "two_arguments(image, config) cannot be called with "
+                                        "one image"),
+    ("hostile_callables:tuple_answer", "returned tuple (2, 72000.0) for an image, not a result "
+                                       "(a mapping, or an object with count and area"),
+])
+@pytest.mark.parametrize("command", ["eval", "sweep"])
+def test_pipeline_that_is_no_pipeline_is_refused_before_any_image(toy, tmp_path, command, spec,
+                                                                   needle):
+    argv = {"eval": ("eval", str(toy)),
+            "sweep": ("sweep", "--vary", "camera.tilt_deg=0:10", "--per-point", "1")}[command]
+    proc = run(*argv, "--pipeline", spec, "--out", str(tmp_path / "o"), "--no-progress",
+               cwd=tmp_path)
+    assert_clean_error(proc, needle, prog=command)
+    assert not (tmp_path / "o").exists()
+
+
+# ------------------------------------------------------- tracebacks: links, permissions, disk
+
+
+def _png_declaring(width: int, height: int) -> bytes:
+    """A PNG whose header promises ``width`` x ``height`` px, holding a few bytes of pixels
+    (complete otherwise: IHDR, IDAT, IEND)."""
+    import struct
+    import zlib
+
+    def chunk(kind: bytes, data: bytes) -> bytes:
+        return (struct.pack(">I", len(data)) + kind + data
+                + struct.pack(">I", zlib.crc32(kind + data) & 0xFFFFFFFF))
+
+    return (b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", struct.pack(">IIBBBBB", width, height, 8, 2,
+                                                                0, 0, 0))
+            + chunk(b"IDAT", zlib.compress(b"\x00" * 64)) + chunk(b"IEND", b""))
+
+
+@pytest.mark.parametrize(("width", "height"), [(20000, 20000), (1000, 0), (8193, 10)])
+def test_image_header_promising_an_impossible_size_is_a_damaged_dataset(toy, tmp_path, width,
+                                                                         height):
+    import shutil
+
+    bad = tmp_path / "bad"
+    shutil.copytree(toy, bad)
+    img = bad / "images" / "000001.png"
+    img.write_bytes(_png_declaring(width, height))
+    rehash(bad)
+    out = tmp_path / "out"
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+               "--out", str(out))
+    assert_clean_error(proc, f"dataset damaged: {img}: its header declares {width} x {height} "
+                       "px (a side is 1 to 8192 px)", prog="eval")
+    assert not out.exists()
+    proc = run("eval", str(bad), "--pipeline", "toy_arena:detect", "--no-progress",
+               "--out", str(out), "--skip-damaged", "--formats", "json")
+    assert proc.returncode == 0, proc.stderr
+    assert "1 damaged image(s) left out" in proc.stderr
+    assert [i["id"] for i in strict_json((out / "report.json").read_text())["images"]] == [
+        "000000", "000002"]
+
+
+@pytest.mark.parametrize("command", ["eval", "grade"])
+def test_dataset_path_that_is_a_symbolic_link_loop_is_one_line(tmp_path, command):
+    from procs_limit import GRADE_ARGS
+
+    (tmp_path / "a").symlink_to(tmp_path / "b")
+    (tmp_path / "b").symlink_to(tmp_path / "a")
+    (tmp_path / "teams" / "t").mkdir(parents=True)
+    argv = {"eval": ("eval", str(tmp_path / "a"), "--pipeline", "reference"),
+            "grade": ("grade", str(tmp_path / "a"), str(tmp_path / "teams"), *GRADE_ARGS)
+            }[command]
+    proc = run(*argv, "--out", str(tmp_path / "o"), "--no-progress")
+    assert_clean_error(proc, f"{tmp_path / 'a'}: a symbolic link loop", prog=command)
+    assert not (tmp_path / "o").exists()
+    if command == "grade":  # the submissions folder too
+        proc = run("grade", str(tmp_path / "teams"), str(tmp_path / "a"), *GRADE_ARGS,
+                   "--out", str(tmp_path / "o"))
+        assert proc.returncode == 2 and "Traceback" not in proc.stderr, proc.stderr
+
+
+def _without_read_permission() -> list[str]:
+    """The prefix that runs a command whose file permissions apply: root drops the
+    capabilities that bypass them (setpriv), others need none."""
+    import shutil
+
+    if os.geteuid() != 0:
+        return []
+    setpriv = shutil.which("setpriv")
+    if setpriv is None:
+        pytest.skip("root, and no setpriv to drop CAP_DAC_OVERRIDE (util-linux)")
+    return [setpriv, "--bounding-set=-dac_override,-dac_read_search", "--"]
+
+
+@pytest.mark.parametrize("what", ["manifest.jsonl", "images"])
+@pytest.mark.parametrize("command", ["eval", "grade"])
+def test_unreadable_dataset_file_or_folder_is_one_line(toy, tmp_path, command, what):
+    import shutil
+
+    from procs_limit import GRADE_ARGS
+
+    prefix = _without_read_permission()
+    data = tmp_path / "data"
+    shutil.copytree(toy, data)
+    (tmp_path / "teams" / "t").mkdir(parents=True)
+    argv = {"eval": ("eval", str(data), "--pipeline", "toy_arena:detect"),
+            "grade": ("grade", str(data), str(tmp_path / "teams"), *GRADE_ARGS)}[command]
+    os.chmod(data / what, 0)
+    try:  # a real process: the capabilities it drops are its own
+        proc = subprocess.run([*prefix, sys.executable, "-m", "arenabench", *argv, "--out",
+                               str(tmp_path / "o"), "--no-progress"], capture_output=True,
+                              text=True, timeout=TIMEOUT_S,
+                              env={**os.environ, "PYTHONPATH": _pythonpath()})
+    finally:
+        os.chmod(data / what, 0o755 if what == "images" else 0o644)
+    shown = data / what if what == "manifest.jsonl" else data / "images" / "000000.png"
+    assert_clean_error(proc, f"{shown}: cannot read (Permission denied)", prog=command)
+    assert not (tmp_path / "o").exists()
+
+
+@pytest.mark.slow  # renders the two scenes of check's twin set
+def test_check_out_on_a_full_disk_is_one_line(small_disk, tmp_path):
+    out = small_disk / "out"
+    proc = run_cli("check", str(PIPES / "crash.py"), "--count", "2", "--out", str(out),
+                   "--no-progress", "--phase-check", "off",
+                   env={"ARENABENCH_CACHE_DIR": str(tmp_path / "cache")})
+    err = proc.stderr.strip()
+    assert proc.returncode == 1 and "Traceback" not in proc.stderr, proc.stderr
+    assert err.splitlines()[-1] == (f"arenabench check: error: disk full: {out}: No space "
+                                    "left on device (free some space or use another --out)"), err
+    assert not [p.name for p in out.iterdir() if p.name.startswith(".")]  # no temp, no lock

@@ -392,12 +392,12 @@ def test_second_sigint_grade_exits_130(toy3, tmp_path, delay):
         (teams / team).mkdir(parents=True)
         (teams / team / "map.py").write_text("import time\ntime.sleep(1.5)\n")
     out = tmp_path / "out"
-    from procs_limit import GRADE_ARGS
+    from procs_limit import GRADE_ARGS, PY_CMD
 
     proc = _arenabench("grade", *GRADE_ARGS, str(toy3), str(teams), "--out", str(out),
                        "--workers", "2",
                        "--sandbox", "none", "--no-progress", "--allow-guessable-seed",
-                       "--cmd", "{python} {submission}/map.py --image {image}")
+                       "--cmd", PY_CMD)
     time.sleep(3.0)
     rc, err = _double_sigint(proc, delay)
     assert rc == 130, err

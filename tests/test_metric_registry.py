@@ -80,6 +80,51 @@ def test_categories_derive_from_statuses():
         f"failures.{c}" for c in CATEGORIES}
 
 
+@pytest.mark.parametrize(("spec", "needle"), [
+    ("pass_rate=95", "--fail-under pass_rate=95: must be a fraction in [0, 1]; 95 % is 0.95"),
+    ("pass_rate=2", "--fail-under pass_rate=2: must be a fraction in [0, 1]; 2 % is 0.02"),
+    ("pass_rate=-1", "--fail-under pass_rate=-1: must be a fraction in [0, 1]"),
+    ("count_exact_rate=1.5", "must be a fraction in [0, 1]"),
+    ("area_rel_err.p95=-1", "--fail-under area_rel_err.p95=-1: must be a finite number >= 0"),
+    ("failures.crash=-1", "--fail-under failures.crash=-1: must be a finite number >= 0"),
+    ("latency_ms.p95=inf", "latency_ms.p95=inf: not a number"),
+    ("pass_rate=0.9,pass_rate=0.95", "pass_rate given twice ('pass_rate=0.9' and "
+                                     "'pass_rate=0.95')"),
+    ("pass_rate=٠.٩", "not a number"),
+    ("pass_rate=0_9", "not a number"),
+])
+def test_fail_under_refuses_a_limit_no_metric_can_reach(spec, needle):
+    with pytest.raises(ValueError) as err:
+        parse_thresholds([spec])
+    assert needle in str(err.value) and "\n" not in str(err.value), str(err.value)
+
+
+def test_every_metric_declares_the_range_of_its_limits():
+    from arenabench.eval.metric_registry import KIND_RANGES
+
+    assert set(KIND_RANGES) == set(KINDS)
+    for m in GATED:  # a limit at either end of the range is accepted
+        lo, hi = m.limits
+        assert parse_thresholds([f"{m.name}={lo}"])[0].value == lo
+        if hi != float("inf"):
+            assert parse_thresholds([f"{m.name}={hi}"])[0].value == hi
+    assert parse_thresholds(["pass_rate=0.95", "area_rel_err.p95=0.05"])[1].value == 0.05
+    with pytest.raises(ValueError, match=r"area_rel_err\.p95 given twice"):
+        parse_thresholds(["area_rel_err.p95=0.05", "area_rel_err.p95=0.1"])
+
+
+def test_fail_on_regression_deltas_keep_the_same_ranges():
+    from arenabench.eval.compare import parse_regression_limits
+
+    assert parse_regression_limits(["pass_rate=0.02,area_rel_err.p95=3"]) == {
+        "pass_rate": 0.02, "area_rel_err.p95": 3.0}
+    for spec, needle in (("pass_rate=2", "must be a fraction in [0, 1]; 2 % is 0.02"),
+                         ("count_mae=-1", "must be a finite number >= 0"),
+                         ("pass_rate=0.1,pass_rate=0.2", "pass_rate given twice")):
+        with pytest.raises(ValueError, match=re.escape(needle)):
+            parse_regression_limits([spec])
+
+
 def test_fail_under_takes_names_and_directions_from_the_registry():
     gated = [m.name for m in GATED]
     parsed = parse_thresholds([",".join(f"{n}=0.5" for n in gated)])

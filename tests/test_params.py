@@ -96,3 +96,14 @@ def test_draws_are_keyed_by_name():
     assert moved.scene.obstacles == s.scene.obstacles
     with pytest.raises(ValueError, match="seed"):
         stream_rng(-1, 0, "x")
+
+
+@pytest.mark.parametrize("ids", ["80,80,80,80", "80,85,80,95", (1, 2, 3, 1)])
+def test_marker_ids_of_the_four_corners_must_differ(ids):
+    from arenabench.generator.scene import MarkerSpec
+
+    with pytest.raises(ValueError, match="the four corners' ids must differ"):
+        validate_value("markers.ids", ids)
+    with pytest.raises(ValueError, match=r"markers\.ids must be 4 different ids"):
+        MarkerSpec(ids=tuple(int(i) for i in (ids.split(",") if isinstance(ids, str) else ids)))
+    assert validate_value("markers.ids", "80,85,90,95") == (80, 85, 90, 95)

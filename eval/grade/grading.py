@@ -35,9 +35,16 @@ from pathlib import Path
 from typing import Any
 
 from arenabench import __version__
+from arenabench.cmdtemplate import (
+    GRADE_PLACEHOLDERS,
+    GRADE_REFUSED,
+    fill,
+    template_problem,
+)
 from arenabench.fileio import (
-    LOCK_FILE,
+    OutputPathError,
     atomic_write_json,
+    check_report_dir,
     dumps_json,
     sha256_bytes,
     sha256_file,
@@ -121,6 +128,9 @@ class GradeOptions:
             raise ValueError(f"command cannot be split into arguments: {exc}") from None
         if not argv:
             raise ValueError(f"command must not be empty, got {self.command!r}")
+        problem = template_problem(self.command, GRADE_PLACEHOLDERS, refused=GRADE_REFUSED)
+        if problem:
+            raise ValueError(f"command {self.command!r}: {problem}")
 
     def to_dict(self) -> dict[str, Any]:
         """What is fingerprinted and written into ``leaderboard.json["options"]``."""
@@ -180,9 +190,11 @@ class GradeResult:
 
 def team_command(template: str, submission: str | os.PathLike[str]) -> str:
     """``template`` with ``{submission}`` replaced by the folder's absolute path, argument by
-    argument (paths with spaces or quotes stay one argument)."""
-    path = str(Path(submission).absolute())
-    return shlex.join(arg.replace("{submission}", path) for arg in shlex.split(template))
+    argument (paths with spaces or quotes stay one argument); the other placeholders stay,
+    and the path is put in as literal text (:func:`arenabench.cmdtemplate.escape`): a team
+    folder named ``x{image}y`` keeps its name when the image is filled in."""
+    values = {"submission": str(Path(submission).absolute())}
+    return shlex.join(fill(arg, values, partial=True) for arg in shlex.split(template))
 
 
 def _team_pipeline(
@@ -313,24 +325,25 @@ def _execute(units: list[GradeUnit], *, workers: int | None,
     return _threads(units, n)
 
 
-def check_out_dir(out: Path, submissions: Path) -> None:
-    """Refuse an output folder inside the submissions, or one holding something else.
+def check_out_dir(out: Path, submissions: Path,
+                  dataset: str | os.PathLike[str] | None = None) -> None:
+    """Refuse an output folder inside the submissions or the dataset, a system folder, or
+    one holding something else than an earlier grade
+    (:func:`arenabench.fileio.check_report_dir`).
 
     Raises
     ------
     ValueError
         Naming ``--out`` and the problem.
     """
-    out, submissions = out.resolve(), submissions.resolve()
-    if out == submissions or submissions in out.parents:
-        raise ValueError(f"--out {out}: must not be inside SUBMISSIONS {submissions} "
-                         "(submissions are read-only inputs)")
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {out}: exists and is not a folder")
-    if (out.is_dir() and any(p.name != LOCK_FILE for p in out.iterdir())
-            and not (out / TEAMS_DIR).is_dir()):
-        raise ValueError(f"--out {out}: not empty and not the output of an earlier "
-                         "'arenabench grade' (no teams/ folder): use another folder")
+    inputs: list[tuple[str, str | os.PathLike[str]]] = [("SUBMISSIONS", submissions)]
+    if dataset is not None:
+        inputs.append(("DATASET", dataset))
+    try:
+        check_report_dir(out, own=(TEAMS_DIR, *LEADERBOARD_FILES),
+                         what="'arenabench grade' output (teams/)", inputs=inputs)
+    except OutputPathError as exc:
+        raise ValueError(f"--out {out}: {exc}") from None
 
 
 def grade(
@@ -406,7 +419,7 @@ def grade(
     check_dataset_seed(data, allow_guessable=allow_guessable_seed)
     teams = find_teams(submissions)
     root = Path(out).resolve()
-    check_out_dir(root, Path(submissions))
+    check_out_dir(root, Path(submissions), data.root)
     mode = require_sandbox(opts.settings.sandbox)
     procs = process_limit(opts.settings.limits.max_procs)
     opts = replace(opts, settings=replace(opts.settings, sandbox=mode))

@@ -63,7 +63,10 @@ def find_teams(root: str | os.PathLike[str]) -> tuple[Team, ...]:
     SubmissionsError
         When ``root`` is not a folder or holds no team folder.
     """
-    base = Path(root).resolve()
+    try:
+        base = Path(root).resolve()
+    except RuntimeError:  # Python < 3.13: a symbolic link loop
+        raise SubmissionsError(f"{root}: SUBMISSIONS folder is a symbolic link loop") from None
     if not base.is_dir():
         raise SubmissionsError(f"{base}: SUBMISSIONS folder does not exist or is not a folder")
     teams = [

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from arenabench.cliopts import plain_number
 from arenabench.generator.presets import (
     PARAMETERS,
     Range,
@@ -94,7 +95,7 @@ def _validated(key: str, spec: str, value: Any) -> Any:
 
 def _number(key: str, spec: str, text: str) -> float:
     try:
-        value = float(text)
+        value = plain_number(text.strip(" "))  # plain ASCII decimal, as every number typed
     except ValueError:
         raise _fail(key, spec, f"{text!r} is not a number") from None
     if not math.isfinite(value):

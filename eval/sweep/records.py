@@ -9,12 +9,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from arenabench.generator.presets import Value, format_value
+from arenabench.generator.seeds import check_seed
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 
 from ..dataset_reader import AREA_REFERENCES
 from ..external import CommandPipeline
 from ..metrics import DEFAULT_TOLERANCE
-from ..pipelines import BUILTIN_PIPELINES, Pipeline, make_pipeline
+from ..pipelines import Pipeline, make_pipeline, pipeline_name_problem
 from ..predictions import OUTPUT_MODES
 from ..results import ImageResult, Summary
 from ..run_limits import RunSettings
@@ -63,13 +64,8 @@ class PipelineSpec:
             raise ValueError(f"output must be one of {OUTPUT_MODES}, got {self.output!r}")
         if not self.value:
             raise ValueError("pipeline value must not be empty")
-        if self.kind == "pipeline" and self.value not in BUILTIN_PIPELINES and ":" not in (
-            self.value
-        ):
-            raise ValueError(
-                f"pipeline must be one of {BUILTIN_PIPELINES} or 'pkg.module:function', "
-                f"got {self.value!r}"
-            )
+        if self.kind == "pipeline" and (problem := pipeline_name_problem(self.value)):
+            raise ValueError(problem)
 
     @property
     def name(self) -> str:
@@ -146,8 +142,7 @@ class SweepSpec:
     def __post_init__(self) -> None:
         if int(self.per_point) != self.per_point or self.per_point < 1:
             raise ValueError(f"per_point must be an integer >= 1, got {self.per_point!r}")
-        if int(self.seed) != self.seed or self.seed < 0:
-            raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
+        check_seed(self.seed)
         if self.random is not None and (int(self.random) != self.random or self.random < 1):
             raise ValueError(f"random must be an integer >= 1, got {self.random!r}")
         check_at_most(int(self.per_point), MAX_SWEEP_SCENES, "per_point")

@@ -29,7 +29,7 @@ import argparse
 import math
 import re
 import sys
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Collection, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,6 +49,7 @@ from arenabench.limits import (
     MAX_RUN_PROCS,
     MAX_TIMEOUT_S,
     MAX_WORKERS,
+    MIN_TIMEOUT_S,
 )
 from arenabench.suggest import did_you_mean
 
@@ -67,6 +68,28 @@ SHARED_OPTIONS: tuple[str, ...] = (
 
 
 # ------------------------------------------------------------------------------------ rules
+
+#: How a number is written on the command line: plain ASCII decimal digits, a sign, a point
+#: and an exponent; no underscores (``1_0``), no other scripts' digits (``٣``), no spaces.
+_INT_TEXT = re.compile(r"[+-]?[0-9]+")
+_FLOAT_TEXT = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+
+
+def plain_number(text: str, kind: str = "float") -> int | float:
+    """``text`` as a number when it is written as plain ASCII decimal (:data:`_FLOAT_TEXT`;
+    ``kind="int"``: digits only). Python's ``int()`` and ``float()`` also read ``1_0``,
+    ``٣`` (an Arabic-Indic three), surrounding white space, ``inf`` and ``nan``; a command line
+    does not.
+
+    Raises
+    ------
+    ValueError
+        When ``text`` is not such a number.
+    """
+    pattern = _INT_TEXT if kind == "int" else _FLOAT_TEXT
+    if not isinstance(text, str) or not pattern.fullmatch(text):
+        raise ValueError(f"not a plain decimal number: {text!r}")
+    return int(text) if kind == "int" else float(text)
 
 
 @dataclass(frozen=True)
@@ -106,8 +129,10 @@ class Rule:
         try:
             if isinstance(value, bool):
                 raise ValueError
-            if self.kind == "int":
-                number: int | float = int(value) if isinstance(value, int) else int(str(value))
+            if isinstance(value, str):  # as typed: plain ASCII decimal only
+                number: int | float = plain_number(value, self.kind)
+            elif self.kind == "int":
+                number = int(value) if isinstance(value, int) else int(str(value))
             else:
                 number = float(value)
         except (TypeError, ValueError, OverflowError):
@@ -137,7 +162,7 @@ WORKERS_RULE = Rule("int", 1, MAX_WORKERS)
 #: ``--tolerance``: the largest passing ``|area_rel_err|``, a fraction.
 TOLERANCE_RULE = Rule("float", 0.0, 1.0)
 #: ``--timeout``: seconds per image of an external run.
-TIMEOUT_RULE = Rule("float", 0.0, MAX_TIMEOUT_S, lo_open=True)
+TIMEOUT_RULE = Rule("float", MIN_TIMEOUT_S, MAX_TIMEOUT_S)
 #: ``--max-procs``: processes one external run may have at once (0: no process limit).
 MAX_PROCS_RULE = Rule("int", 0, MAX_RUN_PROCS)
 #: Byte sizes of run limits (``--memory-limit``, ``--max-file-size``, ``--max-output``).
@@ -149,7 +174,7 @@ BYTES_RULE = Rule("int", 1, MAX_RUN_BYTES)
 SANDBOX_MODES: tuple[str, ...] = ("auto", "bwrap", "none")
 DEFAULT_SANDBOX = "auto"
 
-_SIZE_RE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgGtTpP]?)(?:i?[bB])?\s*$")
+_SIZE_RE = re.compile(r"^\s*(\d+(?:\.\d+)?)\s*([kKmMgGtTpP]?)(?:i?[bB])?\s*$", re.ASCII)
 _SIZE_UNITS = {"": 1, "k": 1024, "m": 1024**2, "g": 1024**3, "t": 1024**4, "p": 1024**5}
 
 
@@ -204,6 +229,17 @@ def _size_type(name: str) -> Callable[[str], int]:
 # ----------------------------------------------------------------------------------- parser
 
 
+def _plain_int(text: str) -> int:
+    return int(plain_number(text, "int"))
+
+
+def _plain_float(text: str) -> float:
+    return float(plain_number(text, "float"))
+
+
+_plain_int.__name__, _plain_float.__name__ = "int", "float"  # argparse: "invalid int value"
+
+
 class CommandParser(argparse.ArgumentParser):
     """The argument parser of every ``arenabench`` command.
 
@@ -219,6 +255,9 @@ class CommandParser(argparse.ArgumentParser):
         kwargs.setdefault("formatter_class", HelpFormatter)
         super().__init__(*args, **kwargs)
         self._checks: list[Callable[[argparse.Namespace], str | None]] = []
+        # ``type=int`` / ``type=float`` read plain ASCII decimal only (:func:`plain_number`)
+        self.register("type", int, _plain_int)
+        self.register("type", float, _plain_float)
 
     def add_check(self, check: Callable[[argparse.Namespace], str | None]) -> None:
         """Run ``check(namespace)`` after parsing; a string it returns is a usage error."""
@@ -416,42 +455,51 @@ def add_count(parser: argparse.ArgumentParser, flag: str = "--count", *,
                                     metavar="N", help=help, **kwargs), "add_count")
 
 
-#: What a ``--cmd`` template must hold: where the image's path goes.
-IMAGE_PLACEHOLDER = "{image}"
-#: The competition's Python environment in a ``--cmd`` template (and ``check --python``):
-#: made and substituted by :mod:`arenabench.eval.competition_env`.
-COMPETITION_PYTHON_PLACEHOLDER = "{competition_python}"
-
-
 def _cmd_templates(ns: argparse.Namespace) -> list[str]:
     cmd = getattr(ns, "cmd", None)
     pipes = getattr(ns, "pipes", None) or ()  # sweep: (kind, value) in the order given
     return ([cmd] if isinstance(cmd, str) else []) + [v for k, v in pipes if k == "cmd"]
 
 
-def cmd_template_problem(ns: argparse.Namespace) -> str | None:
-    """A ``--cmd`` template without ``{image}`` (every image would fail the same way) is a
-    usage error, unless ``--image-name`` names the file the command opens by itself."""
-    if getattr(ns, "image_name", None):
-        return None
+def cmd_template_problem(ns: argparse.Namespace, *,
+                         placeholders: Collection[str] | None = None,
+                         refused: Mapping[str, str] | None = None) -> str | None:
+    """A ``--cmd`` template with a placeholder the command does not accept (``placeholders``,
+    default :data:`arenabench.cmdtemplate.RUN_PLACEHOLDERS`; ``refused``: name -> why) or
+    without ``{image}`` (every image would fail the same way) is a usage error; ``{image}``
+    may be left out when ``--image-name`` names the file the command opens by itself
+    (:mod:`arenabench.cmdtemplate`)."""
     import shlex
 
+    from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, template_problem
+    from arenabench.cmdtemplate import placeholders as names_in
+
     for template in _cmd_templates(ns):
+        problem = template_problem(template, placeholders or RUN_PLACEHOLDERS,
+                                   refused=refused)
+        if problem:
+            return f"--cmd {template!r}: {problem}"
+        if getattr(ns, "image_name", None):
+            continue
         try:
-            shlex.split(template)
+            args = shlex.split(template)
         except ValueError:  # unbalanced quotes: the runner's own one-line error says so
             continue
-        if IMAGE_PLACEHOLDER not in template:
-            return (f"--cmd {template!r}: the template has no {IMAGE_PLACEHOLDER} (the "
-                    "image's path; or give --image-name for a command that opens a fixed name)")
+        if not any(IMAGE in names_in(a) for a in args):
+            return (f"--cmd {template!r}: the template has no {{{IMAGE}}} (the image's path; "
+                    "or give --image-name for a command that opens a fixed name)")
     return None
 
 
-def add_run_options(parser: CommandParser) -> None:
+def add_run_options(parser: CommandParser, *, placeholders: Collection[str] | None = None,
+                    refused: Mapping[str, str] | None = None) -> None:
     """The options of external runs (``--timeout``, the limits, ``--sandbox``, ``--env``);
     :func:`arenabench.eval.run_limits.run_settings_from_args` reads them. A ``--cmd``
-    template must hold ``{image}`` (:func:`cmd_template_problem`)."""
-    parser.add_check(cmd_template_problem)
+    template may hold only the command's ``placeholders`` (default
+    :data:`arenabench.cmdtemplate.RUN_PLACEHOLDERS`) and must hold ``{image}``
+    (:func:`cmd_template_problem`)."""
+    parser.add_check(lambda ns: cmd_template_problem(ns, placeholders=placeholders,
+                                                     refused=refused))
     g = parser.add_argument_group("external command runs (--cmd)")
     _tag(g.add_argument("--timeout", type=TIMEOUT_RULE.argtype("--timeout"),
                         default=DEFAULT_TIMEOUT_S,
@@ -507,16 +555,28 @@ def usage_error(prog: str, message: str) -> int:
 
 
 def output_problem(path: str | Path, *, option: str = "--out", file: bool = False,
-                   allow_special: bool = False) -> str | None:
+                   allow_special: bool = False, own: Collection[str] | None = None,
+                   what: str = "", inputs: Sequence[tuple[str, str | Path]] = ()) -> str | None:
     """Why ``path`` cannot be written, as the usage error's message (``--out OUT: why``), or
-    ``None`` when it can: a folder (:func:`arenabench.fileio.check_output_dir`) or, with
-    ``file``, a file (:func:`arenabench.fileio.check_output_file`, ``allow_special`` for
-    ``/dev/stdout`` and the like)."""
-    from arenabench.fileio import OutputPathError, check_output_dir, check_output_file
+    ``None`` when it can: a folder (:func:`arenabench.fileio.check_output_dir`: never ``/``
+    nor a folder directly in it) or, with ``file``, a file
+    (:func:`arenabench.fileio.check_output_file`, ``allow_special`` for ``/dev/stdout`` and
+    the like). With ``own`` (the names a command writes into its folder, ``what`` them in
+    words) and ``inputs`` (``("DATASET", path)``: folders the command reads), the folder of a
+    command's reports (:func:`arenabench.fileio.check_report_dir`): not an input nor inside
+    one, and new, empty or holding an earlier output of the command."""
+    from arenabench.fileio import (
+        OutputPathError,
+        check_output_dir,
+        check_output_file,
+        check_report_dir,
+    )
 
     try:
         if file:
             check_output_file(path, allow_special=allow_special)
+        elif own is not None:
+            check_report_dir(path, own=own, what=what, inputs=inputs)
         else:
             check_output_dir(path)
     except OutputPathError as exc:

@@ -18,7 +18,7 @@ import stat
 import sys
 import tempfile
 import time
-from collections.abc import Iterator
+from collections.abc import Collection, Iterator, Sequence
 from pathlib import Path
 from typing import IO, Any
 
@@ -324,8 +324,63 @@ def check_output_dir(path: str | os.PathLike[str]) -> Path:
     target = Path(path)
     if str(path) == "":
         raise OutputPathError("empty path")
+    if is_system_folder(target):
+        real = os.path.realpath(target)
+        what = "is" if real == os.path.abspath(target) else f"leads to {real},"
+        raise OutputPathError(f"{what} a system folder (/ or a folder directly in it): name a "
+                              "folder of its own")
     _probe_writable(_nearest_existing(target))
     return target
+
+
+def is_system_folder(path: str | os.PathLike[str]) -> bool:
+    """Whether ``path`` (symbolic links followed) is ``/`` or a folder directly in it
+    (``/usr``, ``/etc``, ``/tmp``, ``/root``...): never an output folder of its own."""
+    real = Path(os.path.realpath(path))
+    return len(real.parts) <= 2
+
+
+def check_report_dir(path: str | os.PathLike[str], *, own: Collection[str], what: str,
+                     inputs: Sequence[tuple[str, str | os.PathLike[str]]] = ()) -> None:
+    """Check, before any work, that the folder ``path`` may receive a command's outputs:
+    :func:`check_output_dir`, and the folder is not one of ``inputs`` nor inside one, and it
+    is missing, empty, or holds an earlier output of the same command (one of ``own``).
+
+    Parameters
+    ----------
+    path : path-like
+        The output folder (``--out``).
+    own : collection of str
+        Names of the entries the command writes there (``report.json``, ``teams``...);
+        :data:`LOCK_FILE` and temporary files of :func:`atomic_write_bytes` do not count.
+    what : str
+        The command's outputs in words, for the message (``"'arenabench eval' report"``).
+    inputs : sequence of (str, path-like)
+        Folders the command reads (``("DATASET", "hidden/")``).
+
+    Raises
+    ------
+    OutputPathError
+        One line saying why (without the path).
+    """
+    target = check_output_dir(path)
+    real = Path(os.path.realpath(target))
+    for name, folder in inputs:
+        source = Path(os.path.realpath(folder))
+        if real == source or source in real.parents:
+            where = "is" if real == source else "is inside"
+            raise OutputPathError(f"{where} {name} {folder} (inputs are only read)")
+    if not real.is_dir():
+        return
+    try:
+        names = sorted(e.name for e in os.scandir(real)
+                       if e.name != LOCK_FILE and not is_temp_name(e.name))
+    except OSError as exc:
+        raise OutputPathError(f"cannot list it ({exc.strerror or exc})") from None
+    if names and not set(names) & set(own):
+        shown = ", ".join(repr(n) for n in names[:3]) + (", ..." if len(names) > 3 else "")
+        raise OutputPathError(f"not empty ({shown}) and holds no earlier {what}: use a new "
+                              "or empty folder")
 
 
 _FD_LINK = re.compile(r"^/(?:proc/self|dev)/fd/(\d+)$")

@@ -23,8 +23,9 @@ from arenabench.limits import MAX_IMAGE_SIDE_PX
 #: Corner names in frame order.
 CORNER_ORDER: tuple[str, ...] = ("nw", "ne", "se", "sw")
 
-#: The competition arena's marker ids by corner (DICT_4X4_100 family).
+#: The competition arena's marker ids by corner, and their ArUco dictionary.
 COMPETITION_MARKER_IDS: dict[str, int] = {"nw": 80, "ne": 85, "se": 90, "sw": 95}
+COMPETITION_DICTIONARY = "DICT_4X4_100"
 
 CornerConvention = Literal["inner", "outer"]
 

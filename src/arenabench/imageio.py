@@ -15,11 +15,13 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
 
 from arenabench.fileio import open_regular, read_regular
+from arenabench.limits import MAX_IMAGE_SIDE_PX
 
 #: zlib level of :func:`encode_png` (1 = fast; PNG is lossless whatever the level).
 PNG_COMPRESSION = 1
@@ -52,8 +54,9 @@ def image_file_problem(path: str | os.PathLike[str]) -> str | None:
     """Why the image file at ``path`` cannot be a whole image, from its first and last bytes
     only (cheap: no decoding), or ``None``.
 
-    Finds an empty file, a file that is no known image format (text, say), and a PNG or JPEG
-    cut short (the rules of :func:`decode_image`).
+    Finds an empty file, a file that is no known image format (text, say), a PNG or JPEG
+    cut short (the rules of :func:`decode_image`), and a PNG or JPEG whose header declares a
+    side of 0 or beyond :data:`~arenabench.limits.MAX_IMAGE_SIDE_PX` (:func:`declared_size`).
     """
     p = Path(path)
     try:
@@ -62,6 +65,7 @@ def image_file_problem(path: str | os.PathLike[str]) -> str | None:
             head = fh.read(16)
             fh.seek(max(0, size - 256))
             tail = fh.read(256)
+            sides = _header_size(fh)
     except OSError as exc:
         return f"cannot read ({exc.strerror or exc})"
     if size == 0:
@@ -72,6 +76,59 @@ def image_file_problem(path: str | os.PathLike[str]) -> str | None:
         _check_complete(head + tail if size > 16 else head, "image")
     except ImageLoadError as exc:
         return str(exc).removeprefix("image: ")
+    if sides is not None and (min(sides) < 1 or max(sides) > MAX_IMAGE_SIDE_PX):
+        return (f"its header declares {sides[0]} x {sides[1]} px (a side is 1 to "
+                f"{MAX_IMAGE_SIDE_PX} px)")
+    return None
+
+
+#: JPEG start-of-frame markers (baseline, progressive, lossless...): they hold the size.
+_JPEG_SOF = frozenset({0xC0, 0xC1, 0xC2, 0xC3, 0xC5, 0xC6, 0xC7, 0xC9, 0xCA, 0xCB, 0xCD,
+                       0xCE, 0xCF})
+#: Most JPEG segments looked at before the frame header (EXIF, ICC... come first).
+_JPEG_MAX_SEGMENTS = 64
+
+
+def declared_size(path: str | os.PathLike[str]) -> tuple[int, int] | None:
+    """Width and height a PNG's ``IHDR`` or a JPEG's frame header declares, read from the
+    header alone (no decoding); ``None`` for other formats or a header not found.
+
+    A header may promise more pixels than the file holds (a 20000 x 20000 PNG of a few
+    bytes): :func:`image_file_problem` refuses a side beyond
+    :data:`~arenabench.limits.MAX_IMAGE_SIDE_PX` before any decoder allocates for it.
+    """
+    with open(path, "rb") as fh:
+        return _header_size(fh)
+
+
+def _header_size(fh: Any) -> tuple[int, int] | None:
+    """:func:`declared_size` of the open binary file ``fh`` (read from its start)."""
+    import struct
+
+    fh.seek(0)
+    head = fh.read(24)
+    if head.startswith(_PNG_MAGIC):
+        if len(head) < 24 or head[12:16] != b"IHDR":
+            return None
+        width, height = struct.unpack(">II", head[16:24])
+        return int(width), int(height)
+    if not head.startswith(_JPEG_MAGIC):
+        return None
+    fh.seek(2)
+    for _ in range(_JPEG_MAX_SEGMENTS):
+        marker = fh.read(4)
+        if len(marker) < 4 or marker[0] != 0xFF:
+            return None
+        length = struct.unpack(">H", marker[2:4])[0]
+        if marker[1] in _JPEG_SOF:
+            frame = fh.read(5)
+            if len(frame) < 5:
+                return None
+            height, width = struct.unpack(">HH", frame[1:5])
+            return int(width), int(height)
+        if length < 2:
+            return None
+        fh.seek(length - 2, os.SEEK_CUR)
     return None
 
 

@@ -87,6 +87,11 @@ DEFAULT_MAX_DISK = 256 * 1024**2
 
 #: Longest wall-clock time one external run may be given (``--timeout``, seconds): a day.
 MAX_TIMEOUT_S = 86400.0
+#: Shortest ``--timeout`` (seconds). A run starts a process (or a sandbox), copies the image
+#: and the pipeline decodes it: starting Python and importing numpy and OpenCV alone takes a
+#: few hundred ms, more on a busy machine. Below a second every image of a script would time
+#: out whatever it does (``1e-320`` was once accepted and timed out everything).
+MIN_TIMEOUT_S = 1.0
 
 #: Largest byte size of a run limit (``--memory-limit``, ``--max-file-size``,
 #: ``--max-output``): 1 PiB, well inside ``rlim_t``.

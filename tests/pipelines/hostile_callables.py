@@ -20,3 +20,12 @@ def keyboard_interrupt(image):
 def endless(image):
     while True:
         pass
+
+
+def tuple_answer(image):
+    """What ``map.py`` prints, as a tuple: no pipeline result."""
+    return 2, 72000.0
+
+
+def two_arguments(image, config):
+    return {"count": 0, "area": 0.0}
