@@ -138,7 +138,7 @@ def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
     """The verdict: pass rate, robust and phase-dependent failures, the strongest cause
     (:func:`arenabench.eval.breakdown.strongest_cause_text`)."""
     from .breakdown import strongest_cause_text
-    from .phase_check import PHASE_DEPENDENT_MEANING, rate_text
+    from .phase_check import PHASE_DEPENDENT_MEANING, rate_text, unchecked_text
 
     s = report.summary
     ok = s.pass_rate >= fail_under
@@ -157,7 +157,7 @@ def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
                          f"{PHASE_DEPENDENT_MEANING.split(': ', 1)[1]}")
         unchecked = pc["unchecked"] if pc is not None else n_fail
         if phases and unchecked:
-            lines.append(f"  not phase-checked (crash, timeout, limit): {unchecked}")
+            lines.append(f"  not phase-checked ({unchecked_text()}): {unchecked}")
         if report.causes:
             text = strongest_cause_text(report.causes)
             lines.append(f"  {text[0].lower()}{text[1:]}")

@@ -319,9 +319,9 @@ def _check_phases(results: list[ImageResult], data: Dataset, pipe: Pipeline,
     """The phase check of a run's failing images (docs/phase-check.md)."""
     from arenabench.progress import progress as progress_bar
 
-    from .phase_check import UNCHECKED_CATEGORIES, check_phases
+    from .phase_check import check_phases, checked
 
-    failing = sum(1 for r in results if not r.passed and r.category not in UNCHECKED_CATEGORIES)
+    failing = sum(1 for r in results if checked(r))
     if not failing:
         return results
     by_id = data.items_by_id(r.id for r in results)
