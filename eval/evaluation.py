@@ -328,7 +328,8 @@ def _check_phases(results: list[ImageResult], data: Dataset, pipe: Pipeline,
     with progress_bar(failing, desc=f"phase check {pipe.name}", enabled=progress) as bar:
         return check_phases(results, [by_id[r.id].gt for r in results], pipe.run,
                             phases=phases, tolerance=tolerance, area_reference=area_reference,
-                            workers=workers, on_image=lambda: bar.update(1))
+                            workers=workers, on_image=lambda: bar.update(1),
+                            stop=getattr(pipe, "stop", None))
 
 
 def _run_all(samples: Iterable[DatasetItem], submit: Callable[[DatasetItem], Future],

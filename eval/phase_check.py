@@ -314,6 +314,7 @@ def check_phases(
     workers: int = 1,
     renderer: Any = None,
     on_image: Callable[[], None] | None = None,
+    stop: Callable[[], None] | None = None,
 ) -> list[ImageResult]:
     """``results`` with :class:`PhaseResult` added to each failing image (``phase``).
 
@@ -336,6 +337,10 @@ def check_phases(
         Default: this thread's reused renderer.
     on_image : callable, keyword-only
         Called after each failing image is checked (progress).
+    stop : callable, keyword-only
+        The pipeline's ``stop`` (kills its running runs): called when the check is cut short
+        (a stop signal), before the check waits for its runs, so that it ends at once rather
+        than after the runs' timeouts.
 
     Returns
     -------
@@ -354,9 +359,9 @@ def check_phases(
     if phases < 1 or not failing:
         return out
     tmp = tempfile.mkdtemp(prefix="arenabench-phase-")
+    pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="arenabench-phase")
     try:
-        with ThreadPoolExecutor(max_workers=max(1, workers),
-                                thread_name_prefix="arenabench-phase") as pool:
+        try:
             for i in failing:
                 checkpoint()  # a stop signal a library swallowed
                 folder = Path(tmp, f"{i:06d}")
@@ -386,6 +391,12 @@ def check_phases(
                 shutil.rmtree(folder, ignore_errors=True)
                 if on_image is not None:
                     on_image()
+        except BaseException:  # a stop signal: end the runs, then wait for their threads
+            if stop is not None:
+                stop()
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return out
@@ -415,8 +426,8 @@ def phase_summary(results: Sequence[ImageResult]) -> dict[str, Any]:
         ``robust_failure_rate`` and ``phase_dependent_failure_rate`` (fractions of all
         images; ``None`` when no image was phase-checked) and ``phase_check``: ``phases``
         (N), ``checked``, ``robust``, ``phase_dependent``, ``unchecked`` (failing images not
-        checked: the categories outside :data:`CHECKED_CATEGORIES`) (image counts), ``meaning`` (one sentence); ``None``
-        when no image was phase-checked.
+        checked: the categories outside :data:`CHECKED_CATEGORIES`) (image counts),
+        ``meaning`` (one sentence); ``None`` when no image was phase-checked.
     """
     checked = [r.phase for r in results if r.phase is not None]
     if not checked:

@@ -460,3 +460,86 @@ print(type(trimesh.path).__name__, "gl_renderer" in worker_gl_info())
                           timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["interrupted", "module", "True"], done.stdout + done.stderr
+
+
+# ------------------------------------------------------------- a stop during the phase check
+
+#: A script wrong on every image at once, that hangs once the phase check re-runs it: run
+#: number n (counted in MARKS, a folder it can write to: --sandbox none) past the set's images
+#: writes ``phase-started`` and sleeps.
+PHASE_HANG = """\
+import os, sys, time
+marks, images = {marks!r}, {images}
+n = len([f for f in os.listdir(marks) if f.startswith("run-")])
+open(os.path.join(marks, f"run-{{n}}-{{os.getpid()}}"), "w").close()
+if n >= images:
+    open(os.path.join(marks, "phase-started"), "w").close()
+    time.sleep(300)
+open("obstacles.txt", "w").write("Obstacles: 99\\nArea: 1.0\\n")
+"""
+
+
+@pytest.fixture(scope="module")
+def twin2(tmp_path_factory):
+    """Two eyrc scenes: failures there are phase-checked (--phase-check auto)."""
+    from arenabench.generator.dataset_writer import generate_dataset
+
+    out = tmp_path_factory.mktemp("twin2") / "eyrc"
+    generate_dataset(out, preset="eyrc", count=2, seed=0, workers=1, progress=False)
+    return out
+
+
+def _phase_hang(folder: Path, marks: Path, images: int) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    marks.mkdir(parents=True, exist_ok=True)
+    script = folder / "map.py"
+    script.write_text(PHASE_HANG.format(marks=str(marks), images=images))
+    return script
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_eval_stopped_in_the_phase_check_ends_its_runs_at_once(twin2, tmp_path, sig):
+    marks = tmp_path / "marks"
+    script = _phase_hang(tmp_path / "team", marks, images=2)
+    out = tmp_path / "out"
+    proc = _arenabench("eval", str(twin2), "--cmd", f"{sys.executable} {script} {{image}}",
+                       "--workers", "1", "--timeout", "300", "--sandbox", "none",
+                       "--no-progress", "--out", str(out))
+    _wait_until(proc, lambda: (marks / "phase-started").exists())
+    # before the fix it waited for the re-runs' --timeout (300 s) and _stop killed it
+    rc, err, _, kids = _stop(proc, sig)
+    assert rc == 128 + sig, err
+    assert "Traceback" not in err
+    assert _still_alive(kids) == {}
+    report = json.loads((out / "report.json").read_text())
+    # both images scored; their phase check did not finish
+    assert report["complete"] is False and len(report["images"]) == 2
+    assert all(i["category"] == "wrong_count" and "phase" not in i for i in report["images"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_grade_stopped_in_a_team_phase_check_ends_its_report_workers(twin2, tmp_path, sig):
+    marks = tmp_path / "marks"
+    subs = tmp_path / "subs"
+    _phase_hang(subs / "a_hangs_in_phase_check", marks, images=2)
+    (subs / "b_sleeps").mkdir()
+    (subs / "b_sleeps" / "map.py").write_text("import time\ntime.sleep(300)\n")
+    out = tmp_path / "out"
+    from procs_limit import GRADE_ARGS
+
+    proc = _arenabench("grade", *GRADE_ARGS, str(twin2), str(subs), "--out", str(out),
+                       "--workers", "1", "--report-workers", "2", "--timeout", "300",
+                       "--sandbox", "none", "--no-progress", "--allow-guessable-seed",
+                       "--cmd", "{python} {submission}/map.py --image {image}")
+    _wait_until(proc, lambda: (marks / "phase-started").exists())
+    # before the fix it waited for the re-runs' --timeout (300 s) and _stop killed it
+    rc, err, _, kids = _stop(proc, sig)
+    assert rc == 128 + sig, err
+    assert "Traceback" not in err
+    assert any("multiprocessing" in c for c in kids.values())  # the report workers
+    assert _still_alive(kids) == {}
+    doc = json.loads((out / "leaderboard.json").read_text())
+    assert doc["complete"] is False
+    assert not (out / ".arenabench.lock").exists()

@@ -41,7 +41,7 @@ from arenabench.fileio import (
     sha256_bytes,
     sha256_file,
 )
-from arenabench.interrupts import checkpoint
+from arenabench.interrupts import checkpoint, stop_workers, worker_task
 from arenabench.workers import init_worker, process_state, usable_cores
 
 from ..dataset_reader import AREA_REFERENCES, Dataset, load_dataset
@@ -581,10 +581,13 @@ class _FinishJob:
 
 
 def _finish_in_worker(job: _FinishJob) -> dict[str, Any]:
-    # the grade's images: the first n of the dataset, loaded once per worker process
-    data = process_state(("grade-dataset", job.dataset_root, len(job.preds)),
-                         lambda: load_dataset(job.dataset_root, limit=len(job.preds)))
-    return _finish_team(job, data)
+    # a SIGTERM (the grade stopped) unwinds the job: its phase check's runs are killed,
+    # then the worker exits
+    with worker_task():
+        # the grade's images: the first n of the dataset, loaded once per worker process
+        data = process_state(("grade-dataset", job.dataset_root, len(job.preds)),
+                             lambda: load_dataset(job.dataset_root, limit=len(job.preds)))
+        return _finish_team(job, data)
 
 
 class _Finisher:
@@ -618,8 +621,17 @@ class _Finisher:
         return fut
 
     def close(self, *, wait: bool) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=wait, cancel_futures=True)
+        """``wait``: let the jobs under way finish; otherwise (a stop) cancel the queued jobs
+        and end the pool's processes: SIGTERM unwinds a job (its phase check's runs are
+        killed), SIGKILL after :data:`arenabench.interrupts.WORKER_GRACE_S`."""
+        if self._pool is None:
+            return
+        if wait:
+            self._pool.shutdown(wait=True)
+            return
+        processes = list((getattr(self._pool, "_processes", None) or {}).values())
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        stop_workers(processes=processes)
 
 
 def _passed(state: dict[str, Any]) -> str:
@@ -639,9 +651,13 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
 
         pipe = _team_pipeline(team_command(opts.command, team.path), settings=opts.settings,
                               output=opts.output, team=team.name, base_dir=str(team.path))
-        results = check_phases(results, [s.gt for s in data.samples[:len(results)]], pipe.run,
-                               phases=opts.phases, tolerance=opts.tolerance,
-                               area_reference=opts.area_reference, workers=2)
+        try:
+            results = check_phases(results, [s.gt for s in data.samples[:len(results)]],
+                                   pipe.run, phases=opts.phases, tolerance=opts.tolerance,
+                                   area_reference=opts.area_reference, workers=2,
+                                   stop=pipe.stop)
+        finally:
+            pipe.close()
     report = build_report(results, pipeline=team.name, dataset=str(data.root),
                           area_reference=opts.area_reference, tolerance=opts.tolerance)
     team_dir = Path(job.root) / TEAMS_DIR / team.name
