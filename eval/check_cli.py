@@ -224,27 +224,39 @@ def _main(argv: list[str] | None) -> int:
     try:
         made = generate_dataset(twin, preset=args.preset, count=args.count, seed=args.seed,
                                 workers=min(args.workers or _cores(), 8), progress=progress)
-        dataset = load_dataset(twin)
-    except (GenerateError, DatasetError, ValueError) as exc:
+    except (GenerateError, ValueError) as exc:
         return _error(f"twin set {twin}: {exc}")
     if made.interrupted is not None:
         print(f"{PROG}: {made.summary()}", file=sys.stderr)
         return 128 + made.interrupted
-    what = "reused" if made.rendered == 0 else f"generated {made.rendered} scenes of"
-    print(f"{PROG}: {what} twin set {twin} ({args.count} scenes of {args.preset}, seed "
-          f"{args.seed})")
-    phases = resolve_phases(args.phase_check, [args.preset])
     from arenabench.cliopts import lock_out
     from arenabench.fileio import FolderLockedError
+    from arenabench.interrupts import Interrupted, deferred_stops
 
+    from .evaluation import empty_report
+
+    # the set is made: a stop from now on writes the partial (perhaps empty) reports
+    dataset = None
+    phases = resolve_phases(args.phase_check, [args.preset])
     try:
         with lock_out(out):  # one run at a time writes into the report folder
             try:
+                try:
+                    dataset = load_dataset(twin)
+                except (DatasetError, ValueError) as exc:
+                    return _error(f"twin set {twin}: {exc}")
+                what = "reused" if made.rendered == 0 else f"generated {made.rendered} scenes of"
+                print(f"{PROG}: {what} twin set {twin} ({args.count} scenes of {args.preset}, "
+                      f"seed {args.seed})")
                 report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
                                   phases=phases)
-            except EvaluationInterrupted as exc:  # partial reports, marked INCOMPLETE
-                write_reports(exc.report, out, dataset=dataset)
-                print(f"{PROG}: interrupted after {exc.report.images_done} images; running "
+            except (EvaluationInterrupted, Interrupted) as exc:  # partial reports, INCOMPLETE
+                partial = exc.report if isinstance(exc, EvaluationInterrupted) else empty_report(
+                    pipeline=pipeline.name, dataset=str(twin),
+                    n_total=None if dataset is None else len(dataset.samples))
+                with deferred_stops():  # a second stop does not cut the writing short
+                    write_reports(partial, out, dataset=dataset)
+                print(f"{PROG}: interrupted after {partial.images_done} images; running "
                       f"scripts killed; partial report in {out}", file=sys.stderr)
                 return exc.exit_code
             written = write_reports(report, out, dataset=dataset)

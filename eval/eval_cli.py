@@ -206,14 +206,22 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     if args.out is not None and (problem := output_problem(args.out)):
         return _usage_error(parser, problem)
 
-    from .dataset_reader import DatasetError, load_dataset
-    from .evaluation import EvaluationInterrupted, evaluate
-    from .external import CommandPipeline
-    from .phase_check import resolve_phases
-    from .pipelines import make_pipeline
-    from .reports import FORMATS, write_reports
-    from .reports.summary_rows import headline
-    from .thresholds import check_thresholds, parse_thresholds
+    from arenabench.fileio import FolderLockedError
+    from arenabench.interrupts import Interrupted, deferred_stops
+
+    early: Interrupted | None = None  # a stop while the modules load: raised once they have
+    try:
+        with deferred_stops():
+            from .dataset_reader import DatasetError, load_dataset
+            from .evaluation import EvaluationInterrupted, empty_report, evaluate
+            from .external import CommandPipeline
+            from .phase_check import resolve_phases
+            from .pipelines import make_pipeline
+            from .reports import FORMATS, write_reports
+            from .reports.summary_rows import headline
+            from .thresholds import check_thresholds, parse_thresholds
+    except Interrupted as exc:
+        early = exc
 
     formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
     bad = [f for f in formats if f not in FORMATS]
@@ -222,31 +230,35 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                                     f"{', '.join(FORMATS)})")
     if bad:
         return _usage_error(parser, f"--formats: unknown {bad} (known: {', '.join(FORMATS)})")
-    try:
-        thresholds = parse_thresholds(args.fail_under)
-        pipeline = (
-            CommandPipeline(args.cmd, settings=run_settings_from_args(args), output=args.output,
-                            name=args.name or "")
-            if args.cmd
-            else make_pipeline(args.pipeline)
-        )
-        dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
-                               skip_damaged=args.skip_damaged)
-    except (DatasetError, ValueError) as exc:
-        return _usage_error(parser, str(exc))
-    from arenabench.fileio import FolderLockedError
-
-    try:  # the same lock as generate's: one run at a time writes into --out
-        held.enter_context(lock_out(args.out))
-    except FolderLockedError as exc:
-        return _usage_error(parser, str(exc))
-    _warn_if_incomplete(Path(args.dataset))
-    if dataset.skipped:
-        first, why = dataset.skipped[0]
-        print(f"arenabench eval: warning: {len(dataset.skipped)} damaged image(s) left out "
-              f"(--skip-damaged; {first}: {why})", file=sys.stderr)
+    # the work starts here: a stop from now on writes the partial (perhaps empty) reports
+    dataset = None
+    locked = False
     interrupted: EvaluationInterrupted | None = None
     try:
+        if early is not None:
+            raise early
+        try:
+            thresholds = parse_thresholds(args.fail_under)
+            pipeline = (
+                CommandPipeline(args.cmd, settings=run_settings_from_args(args),
+                                output=args.output, name=args.name or "")
+                if args.cmd
+                else make_pipeline(args.pipeline)
+            )
+            dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
+                                   skip_damaged=args.skip_damaged)
+        except (DatasetError, ValueError) as exc:
+            return _usage_error(parser, str(exc))
+        try:  # the same lock as generate's: one run at a time writes into --out
+            held.enter_context(lock_out(args.out))
+            locked = True
+        except FolderLockedError as exc:
+            return _usage_error(parser, str(exc))
+        _warn_if_incomplete(Path(args.dataset))
+        if dataset.skipped:
+            first, why = dataset.skipped[0]
+            print(f"arenabench eval: warning: {len(dataset.skipped)} damaged image(s) left out "
+                  f"(--skip-damaged; {first}: {why})", file=sys.stderr)
         report = evaluate(
             args.pipeline if args.pipeline else pipeline,
             dataset,
@@ -263,16 +275,30 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     except ValueError as exc:
         return _usage_error(parser, str(exc))
     except EvaluationInterrupted as exc:
-        interrupted, report = exc, exc.report
+        interrupted = exc
+    except Interrupted as exc:  # before evaluate() had a report: an empty one
+        interrupted = EvaluationInterrupted(empty_report(
+            pipeline=args.name or args.cmd or args.pipeline,
+            dataset=str(dataset.root if dataset is not None else args.dataset),
+            area_reference=args.area_reference, tolerance=args.tolerance,
+            n_total=None if dataset is None else len(dataset.samples)), exc.signum)
     if interrupted is not None:
+        report = interrupted.report
+        total = f" of {report.n_total}" if report.n_total is not None else ""
         print(
             f"arenabench eval: interrupted by signal {interrupted.signum} after "
-            f"{report.images_done} of {len(dataset.samples)} images; running commands killed",
+            f"{report.images_done}{total} images; running commands killed",
             file=sys.stderr,
         )
         if args.out is not None:  # even with no image finished: never nothing
             try:
-                write_reports(report, args.out, formats=formats, dataset=dataset)
+                with deferred_stops():  # a second stop does not cut the writing short
+                    if not locked:
+                        held.enter_context(lock_out(args.out))
+                    write_reports(report, args.out, formats=formats, dataset=dataset)
+            except FolderLockedError as exc:
+                parser.fail(str(exc))
+                return interrupted.exit_code
             except OSError as exc:
                 parser.fail(write_failure(exc, args.out))
                 return interrupted.exit_code
