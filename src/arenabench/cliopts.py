@@ -139,6 +139,9 @@ TOLERANCE_RULE = Rule("float", 0.0, 1.0)
 TIMEOUT_RULE = Rule("float", 0.0, MAX_TIMEOUT_S, lo_open=True)
 #: ``--max-procs``: processes one external run may have at once (0: no process limit).
 MAX_PROCS_RULE = Rule("int", 0, MAX_RUN_PROCS)
+#: ``grade --give-up-after N``: timeouts in a row after which a team's later images are not
+#: run (0: never).
+GIVE_UP_AFTER_RULE = Rule("int", 0, MAX_DATASET_SCENES)
 #: Byte sizes of run limits (``--memory-limit``, ``--max-file-size``, ``--max-output``).
 BYTES_RULE = Rule("int", 1, MAX_RUN_BYTES)
 
