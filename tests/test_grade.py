@@ -701,3 +701,23 @@ def test_kept_results_are_reused_only_for_the_same_submission(toy8, tmp_path):
               json.loads((out / "teams" / "a" / "report.json").read_text())["images"]]
     assert counts == [1] * 8  # nothing kept from another submission
     assert not keep.exists()
+
+
+@pytest.mark.slow
+def test_a_team_given_up_on_a_dask_cluster_has_its_pending_units_cancelled(toy8, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    subs = tmp_path / "subs"
+    marks = _marked_team(subs, "hangs", tmp_path / "marks", hang_from=0)
+    opts = GradeOptions(command="{python} {submission}/map.py --image {image}",
+                        formats=("json",), give_up_after=2,
+                        settings=grade_settings(sandbox="none", limits={"timeout_s": 10.0}))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        result = grade(toy8, subs, tmp_path / "out", options=opts,
+                       scheduler=cluster.scheduler_address, allow_guessable_seed=True)
+    assert result.graded == ["hangs"]
+    assert 2 <= _runs(marks) <= 3  # one unit at a time: the others were cancelled
+    report = json.loads((tmp_path / "out" / "teams" / "hangs" / "report.json").read_text())
+    assert report["given_up"]["not_run"] == 6
+    assert [i["message"].startswith("not run:") for i in report["images"]] == [False] * 2 + \
+        [True] * 6
