@@ -721,3 +721,38 @@ def test_a_team_given_up_on_a_dask_cluster_has_its_pending_units_cancelled(toy8,
     assert report["given_up"]["not_run"] == 6
     assert [i["message"].startswith("not run:") for i in report["images"]] == [False] * 2 + \
         [True] * 6
+
+
+def test_partial_results_read_back_exactly_and_only_under_their_own_header(tmp_path):
+    import math
+
+    from arenabench.eval.grade.partial import PartialLog, read_partial
+    from arenabench.eval.results import Prediction
+
+    path = tmp_path / "team" / "partial-results.jsonl"
+    header = {"team": "t", "submission_sha256": "a" * 64}
+    ids = ["000000", "000001", "000002"]
+    odd = Prediction(status="bad_output", count=2, area=float("nan"), marker_ids=(80, 85),
+                     message="area is not a number", latency_ms=12.25,
+                     obstacles=(((1.5, 2.0), (3.0, 4.0), (5.0, 1.0)),), obstacles_space="image",
+                     homography=((1.0, 0.0, 0.5), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)))
+    log = PartialLog(path, header)
+    log.add(2, "000002", odd)
+    log.add(0, "000000", Prediction(status="timeout", message="timed out after 60 s"))
+    log.close()
+    kept = read_partial(path, header, ids)
+    assert sorted(kept) == [0, 2] and kept[0].status == "timeout"
+    assert math.isnan(kept[2].area) and kept[2] == Prediction(**{**odd.__dict__,
+                                                                  "area": kept[2].area})
+    # appended to by the next run, after a line a kill cut short
+    with open(path, "a") as fh:
+        fh.write('{"index": 1, "id": "000')
+    again = PartialLog(path, header, append=True)
+    again.add(1, "000001", Prediction(status="ok", count=1, area=1.0))
+    again.close()
+    assert sorted(read_partial(path, header, ids)) == [0, 1, 2]
+    # a line naming another image than the set's at its index is not used
+    assert sorted(read_partial(path, header, ["000000", "000001", "zzz"])) == [0, 1]
+    # another submission: nothing kept, and the file is gone
+    assert read_partial(path, {**header, "submission_sha256": "b" * 64}, ids) is None
+    assert not path.exists()

@@ -24,6 +24,8 @@ from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any, TextIO
 
+from arenabench.jsonstream import dumps_exact_line
+
 from ..results import Prediction
 
 PARTIAL_FILE = "partial-results.jsonl"
@@ -77,11 +79,12 @@ class PartialLog:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._fh = open(self.path, "a" if self._append else "w", encoding="utf-8")
             if not self._append:
-                self._fh.write(json.dumps(self._header, sort_keys=True) + "\n")
+                self._fh.write(dumps_exact_line(self._header) + "\n")
             elif self._fh.tell() and not _ends_with_newline(self.path):
                 self._fh.write("\n")  # after a line cut short: it stays unreadable alone
         line = {"index": index, "id": image_id, "prediction": prediction_to_json(pred)}
-        self._fh.write(json.dumps(line, sort_keys=True) + "\n")
+        # exact values (NaN kept): the next run scores the same prediction again
+        self._fh.write(dumps_exact_line(line) + "\n")
         self._fh.flush()
 
     def close(self) -> None:
