@@ -582,9 +582,10 @@ def _signal_in(real, sig=signal.SIGINT):
     return hooked
 
 
-@pytest.mark.parametrize("where", ["loading the dataset", "building the pipeline"])
+@pytest.mark.parametrize(("where", "sig"), [("loading the dataset", signal.SIGINT),
+                                             ("building the pipeline", signal.SIGTERM)])
 def test_eval_stopped_before_any_image_ran_writes_an_empty_partial_report(
-        toy3, tmp_path, monkeypatch, where):
+        toy3, tmp_path, monkeypatch, where, sig):
     from clirun import run_cli
 
     import arenabench.eval.dataset_reader as dataset_reader
@@ -592,15 +593,16 @@ def test_eval_stopped_before_any_image_ran_writes_an_empty_partial_report(
 
     if where == "loading the dataset":
         monkeypatch.setattr(dataset_reader, "load_dataset",
-                            _signal_in(dataset_reader.load_dataset))
+                            _signal_in(dataset_reader.load_dataset, sig))
     else:
-        monkeypatch.setattr(evaluation, "make_pipeline", _signal_in(evaluation.make_pipeline))
+        monkeypatch.setattr(evaluation, "make_pipeline",
+                            _signal_in(evaluation.make_pipeline, sig))
     script = tmp_path / "map.py"
     script.write_text(FAST_MAP)
     out = tmp_path / "out"
     proc = run_cli("eval", str(toy3), "--cmd", f"{sys.executable} {script} --image {{image}}",
                    "--sandbox", "none", "--no-progress", "--out", str(out))
-    assert proc.returncode == 130, proc.stderr
+    assert proc.returncode == 128 + sig, proc.stderr
     assert "nothing more written" not in proc.stderr and "Traceback" not in proc.stderr
     assert "after 0 of" in proc.stderr or "after 0 images" in proc.stderr, proc.stderr
     assert sorted(p.name for p in out.iterdir()) == REPORT_FILES
