@@ -259,7 +259,11 @@ def _main(argv: list[str] | None) -> int:
                 print(f"{PROG}: interrupted after {partial.images_done} images; running "
                       f"scripts killed; partial report in {out}", file=sys.stderr)
                 return exc.exit_code
-            written = write_reports(report, out, dataset=dataset)
+            try:
+                with deferred_stops():  # every image ran: a stop cuts no report off
+                    written = write_reports(report, out, dataset=dataset)
+            except Interrupted:  # raised once they are written: the exit status says so
+                pass
     except FolderLockedError as exc:
         return _error(str(exc))
     for line in verdict_lines(report, fail_under=args.fail_under, phases=phases):

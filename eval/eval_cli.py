@@ -304,15 +304,21 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                 return interrupted.exit_code
             print(f"  partial reports (\"complete\": false) in {args.out}", file=sys.stderr)
         return interrupted.exit_code
-    print(headline(report))
-    if args.out is not None:
-        try:
-            written = write_reports(report, args.out, formats=formats, dataset=dataset)
-        except OSError as exc:  # ENOSPC: one line, no traceback
-            parser.fail(write_failure(exc, args.out))
-            return EXIT_FAILED
-        for fmt, path in written.items():
-            print(f"  {fmt:<5} {path}")
+    written: dict = {}
+    try:
+        # every image ran: a stop now cuts no report off; it is raised once they are written
+        # and the exit status says it came (arenabench.cli.run)
+        with deferred_stops():
+            print(headline(report))
+            if args.out is not None:
+                written = write_reports(report, args.out, formats=formats, dataset=dataset)
+    except Interrupted:
+        pass
+    except OSError as exc:  # ENOSPC: one line, no traceback
+        parser.fail(write_failure(exc, args.out))
+        return EXIT_FAILED
+    for fmt, path in written.items():
+        print(f"  {fmt:<5} {path}")
     reasons = check_thresholds(report.summary, thresholds)
     if reasons:
         print(f"arenabench eval: FAILED: {'; '.join(reasons)}", file=sys.stderr)

@@ -42,7 +42,7 @@ from arenabench.fileio import (
     sha256_bytes,
     sha256_file,
 )
-from arenabench.interrupts import checkpoint, stop_workers, worker_task
+from arenabench.interrupts import checkpoint, deferred_stops, stop_workers, worker_task
 from arenabench.limits import DEFAULT_GIVE_UP_AFTER
 from arenabench.workers import init_worker, process_state, usable_cores
 
@@ -761,9 +761,11 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
 
     rows = rank_rows(_row(t.name, states[t.name]) for t in teams if t.name in states)
     done = sum(states[t.name]["summary"].get("n", 0) for t in teams if t.name in states)
-    files = write_leaderboard_files(root, rows, data=data, opts=opts,
-                                    manifest_sha256=expect_common["dataset_manifest_sha256"],
-                                    images_done=done, images_total=n_total, sandbox=sandbox)
+    with deferred_stops():  # every team is graded: a stop now cuts no leaderboard file off
+        files = write_leaderboard_files(
+            root, rows, data=data, opts=opts,
+            manifest_sha256=expect_common["dataset_manifest_sha256"], images_done=done,
+            images_total=n_total, sandbox=sandbox)
     systemic = systemic_failure({t.name: states[t.name] for t in teams if t.name in states})
     return GradeResult(rows=rows, graded=graded, skipped=skipped, errors=errors, files=files,
                        systemic=systemic)
