@@ -7,11 +7,15 @@ reports are written as soon as its last unit is back, followed by a small state 
 later run skips a team whose state file says it was graded on the same dataset (SHA-256 of
 ``manifest.jsonl``), the same submission bytes (:func:`submission_hash`) and the same
 grading options, so an interrupted grade resumes where it stopped and a finished one does
-not run again. Out folder layout::
+not run again; a team stopped half-way keeps its finished images' results
+(:mod:`arenabench.eval.grade.partial`) and runs only the others. A team whose runs time out
+``give_up_after`` times in a row is given up (:mod:`arenabench.eval.grade.give_up`). Out
+folder layout::
 
     OUT/leaderboard.json  leaderboard.csv  leaderboard.html
     OUT/teams/TEAM/report.json  results.csv  report.md  report.html  junit.xml
     OUT/teams/TEAM/grade-state.json          (written last, atomically)
+    OUT/teams/TEAM/partial-results.jsonl     (while the team is not finished)
 
 A submission's crash, hang, garbage or trickery only ever fails its own images; an error of
 the grader itself on one team (say, a report that cannot be written) is reported and the
@@ -46,7 +50,7 @@ from arenabench.interrupts import checkpoint, deferred_stops, stop_workers, work
 from arenabench.limits import DEFAULT_GIVE_UP_AFTER
 from arenabench.workers import init_worker, process_state, usable_cores
 
-from ..dataset_reader import AREA_REFERENCES, Dataset, load_dataset
+from ..dataset_reader import AREA_REFERENCES, Dataset, DatasetSamples, load_dataset
 from ..dir_remover import wait_removed
 from ..evaluation import build_report, score_sample
 from ..external import CommandPipeline
@@ -597,7 +601,8 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
             todo.append((team, digest))
 
     n_images = len(data.samples)
-    ids = [s.id for s in data.samples]
+    ids = (data.samples.ids if isinstance(data.samples, DatasetSamples)  # no GT file read
+           else [s.id for s in data.samples])
     if todo:
         emit(f"grading {len(todo)} of {len(teams)} teams on {n_images} images")
     # each team's results kept by an interrupted grade on the same dataset, submission,
