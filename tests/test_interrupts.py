@@ -613,13 +613,18 @@ def test_eval_stopped_before_any_image_ran_writes_an_empty_partial_report(
     assert "INCOMPLETE: 0" in (out / "report.md").read_text()
 
 
-def test_eval_stopped_while_closing_after_its_last_image_writes_the_whole_report(
-        toy3, tmp_path, monkeypatch):
+@pytest.mark.parametrize("where", ["closing the pipeline", "writing the reports"])
+def test_eval_stopped_after_its_last_image_writes_the_whole_report(toy3, tmp_path, monkeypatch,
+                                                                   where):
     from clirun import run_cli
 
+    import arenabench.eval.reports as reports
     from arenabench.eval.external import CommandPipeline
 
-    monkeypatch.setattr(CommandPipeline, "close", _signal_in(CommandPipeline.close))
+    if where == "closing the pipeline":
+        monkeypatch.setattr(CommandPipeline, "close", _signal_in(CommandPipeline.close))
+    else:  # after report.md, before report.html and junit.xml
+        monkeypatch.setattr(reports, "write_markdown", _signal_in(reports.write_markdown))
     script = tmp_path / "map.py"
     script.write_text(FAST_MAP)
     out = tmp_path / "out"
@@ -627,6 +632,7 @@ def test_eval_stopped_while_closing_after_its_last_image_writes_the_whole_report
                    "--sandbox", "none", "--no-progress", "--out", str(out))
     assert proc.returncode == 130, proc.stderr
     assert "its outputs are complete" in proc.stderr and "Traceback" not in proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == REPORT_FILES  # none cut off
     report = json.loads((out / "report.json").read_text())
     assert report["complete"] is True and len(report["images"]) == 3
 
@@ -653,21 +659,3 @@ def test_check_stopped_while_loading_its_twin_set_writes_an_empty_partial_report
     assert sorted(p.name for p in out.iterdir()) == REPORT_FILES
     report = json.loads((out / "report.json").read_text())
     assert report["complete"] is False and report["images"] == []
-
-
-def test_eval_stopped_while_writing_its_reports_writes_them_all(toy3, tmp_path, monkeypatch):
-    from clirun import run_cli
-
-    import arenabench.eval.reports as reports
-
-    monkeypatch.setattr(reports, "write_markdown", _signal_in(reports.write_markdown))
-    script = tmp_path / "map.py"
-    script.write_text(FAST_MAP)
-    out = tmp_path / "out"
-    proc = run_cli("eval", str(toy3), "--cmd", f"{sys.executable} {script} --image {{image}}",
-                   "--sandbox", "none", "--no-progress", "--out", str(out))
-    assert proc.returncode == 130, proc.stderr
-    assert "its outputs are complete" in proc.stderr and "Traceback" not in proc.stderr
-    assert sorted(p.name for p in out.iterdir()) == REPORT_FILES  # none cut off
-    report = json.loads((out / "report.json").read_text())
-    assert report["complete"] is True and len(report["images"]) == 3
