@@ -23,6 +23,7 @@ from pathlib import Path
 
 from arenabench.cliopts import (
     EXIT_FAILED,
+    EXIT_HARNESS,
     CommandParser,
     add_count,
     add_no_progress,
@@ -235,7 +236,7 @@ def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
     (:func:`arenabench.eval.breakdown.strongest_cause_text`), a systematic error of the
     answers (:func:`arenabench.eval.breakdown.systematic_text`)."""
     from .breakdown import strongest_cause_text, systematic_text
-    from .phase_check import PHASE_DEPENDENT_MEANING, rate_text
+    from .phase_check import PHASE_DEPENDENT_MEANING, rate_text, unchecked_text
 
     s = report.summary
     ok = s.pass_rate >= fail_under
@@ -254,7 +255,7 @@ def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
                          f"{PHASE_DEPENDENT_MEANING.split(': ', 1)[1]}")
         unchecked = pc["unchecked"] if pc is not None else n_fail
         if phases and unchecked:
-            lines.append(f"  not phase-checked (crash, timeout, limit): {unchecked}")
+            lines.append(f"  not phase-checked ({unchecked_text()}): {unchecked}")
         if (text := systematic_text(report.systematic)) is not None:
             lines.append(f"  {text[0].lower()}{text[1:]}")
         if report.causes:
@@ -351,41 +352,64 @@ def _main(argv: list[str] | None) -> int:
     try:
         if larger is not None:  # its first scenes are this set's: nothing to render
             twin = larger[0]
-            dataset = load_dataset(twin, limit=args.count)
+            made = None
             what = f"reused twin set {twin} (its first {args.count} of {larger[1]} scenes"
         else:
             made = generate_dataset(twin, preset=args.preset, count=args.count, seed=args.seed,
                                     workers=min(args.workers or _cores(), 8),
                                     progress=progress)
-            if made.interrupted is not None:
-                print(f"{PROG}: {made.summary()}", file=sys.stderr)
-                return 128 + made.interrupted
-            dataset = load_dataset(twin)
             what = (("reused" if made.rendered == 0 else f"generated {made.rendered} scenes of")
                     + f" twin set {twin} ({args.count} scenes")
-    except (GenerateError, DatasetError, ValueError) as exc:
+    except (GenerateError, ValueError) as exc:
         return _error(f"twin set {twin}: {exc}")
-    print(f"{PROG}: {what} of {args.preset}, seed {args.seed}); report folder {out}")
+    if made is not None and made.interrupted is not None:
+        print(f"{PROG}: {made.summary()}", file=sys.stderr)
+        return 128 + made.interrupted
     from arenabench.cliopts import lock_out
     from arenabench.fileio import FolderLockedError
+    from arenabench.interrupts import Interrupted, deferred_stops
 
+    from .evaluation import EvaluationFailed, empty_report
+
+    # the set is made: a stop from now on writes the partial (perhaps empty) reports
+    dataset = None
     try:
         with lock_out(out):  # one run at a time writes into the report folder
             try:
+                try:
+                    dataset = load_dataset(twin, limit=args.count if larger else None)
+                except (DatasetError, ValueError) as exc:
+                    return _error(f"twin set {twin}: {exc}")
+                print(f"{PROG}: {what} of {args.preset}, seed {args.seed}); report folder {out}")
                 report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
                                   phases=phases)
-            except EvaluationInterrupted as exc:  # partial reports, marked INCOMPLETE
+            except (EvaluationInterrupted, EvaluationFailed, Interrupted) as exc:
+                # partial reports, marked INCOMPLETE
+                partial = (exc.report if isinstance(exc, (EvaluationInterrupted,
+                                                          EvaluationFailed))
+                           else empty_report(pipeline=pipeline.name, dataset=str(twin),
+                                             n_total=None if dataset is None
+                                             else len(dataset.samples)))
+                partial = replace(partial, interpreter=interpreter.to_dict())
                 try:
-                    write_reports(replace(exc.report, interpreter=interpreter.to_dict()), out,
-                                  dataset=dataset)
+                    with deferred_stops():  # a second stop does not cut the writing short
+                        write_reports(partial, out, dataset=dataset)
                 except OSError as err:
                     print(f"{PROG}: error: {write_failure(err, out)}", file=sys.stderr)
-                    return exc.exit_code
-                print(f"{PROG}: interrupted after {exc.report.images_done} images; running "
+                if isinstance(exc, EvaluationFailed):
+                    print(f"{PROG}: error: {exc}; nothing of it scored; partial report in "
+                          f"{out}", file=sys.stderr)
+                    return EXIT_HARNESS
+                print(f"{PROG}: interrupted after {partial.images_done} images; running "
                       f"scripts killed; partial report in {out}", file=sys.stderr)
                 return exc.exit_code
             report = replace(report, interpreter=interpreter.to_dict())
-            written = write_reports(report, out, dataset=dataset)
+            written: dict = {}
+            try:
+                with deferred_stops():  # every image ran: a stop cuts no report off
+                    written = write_reports(report, out, dataset=dataset)
+            except Interrupted:  # raised once they are written: the exit status says so
+                pass
     except FolderLockedError as exc:
         return _error(str(exc))
     except OSError as exc:  # ENOSPC: one line, no traceback (as eval and grade)
@@ -393,7 +417,8 @@ def _main(argv: list[str] | None) -> int:
         return EXIT_FAILED
     for line in verdict_lines(report, fail_under=args.fail_under, phases=phases):
         print(line)
-    print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
+    if written:
+        print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
     return 0 if report.summary.pass_rate >= args.fail_under else 1
 
 

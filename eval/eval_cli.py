@@ -10,11 +10,13 @@ from __future__ import annotations
 
 import sys
 from contextlib import ExitStack
+from dataclasses import replace
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 from arenabench.cliopts import (
     EXIT_FAILED,
+    EXIT_HARNESS,
     CommandParser,
     add_area_reference,
     add_count,
@@ -252,20 +254,33 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
 
     import os
 
-    from .cmd_script import missing_script_problem
-    from .competition_env import (
-        OWN_PLACEHOLDER,
-        resolve_placeholder,
-        substitute,
-        uses_placeholder,
-    )
-    from .dataset_reader import DatasetError, load_dataset
-    from .evaluation import EvaluationInterrupted, evaluate
-    from .external import CommandPipeline
-    from .phase_check import resolve_phases
-    from .pipelines import make_pipeline
-    from .reports.summary_rows import headline
-    from .thresholds import check_thresholds, parse_thresholds
+    from arenabench.fileio import FolderLockedError
+    from arenabench.interrupts import Interrupted, deferred_stops
+
+    early: Interrupted | None = None  # a stop while the modules load: raised once they have
+    try:
+        with deferred_stops():
+            from .cmd_script import missing_script_problem
+            from .competition_env import (
+                OWN_PLACEHOLDER,
+                resolve_placeholder,
+                substitute,
+                uses_placeholder,
+            )
+            from .dataset_reader import DatasetError, load_dataset
+            from .evaluation import (
+                EvaluationFailed,
+                EvaluationInterrupted,
+                empty_report,
+                evaluate,
+            )
+            from .external import CommandPipeline
+            from .phase_check import resolve_phases
+            from .pipelines import make_pipeline
+            from .reports.summary_rows import headline
+            from .thresholds import check_thresholds, parse_thresholds
+    except Interrupted as exc:
+        early = exc
 
     formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
     bad = [f for f in formats if f not in FORMATS]
@@ -274,43 +289,49 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                                     f"{', '.join(FORMATS)})")
     if bad:
         return _usage_error(parser, f"--formats: unknown {bad} (known: {', '.join(FORMATS)})")
+    # the work starts here: a stop from now on writes the partial (perhaps empty) reports
+    dataset = None
+    locked = False
     interpreter = None
-    try:
-        thresholds = parse_thresholds(args.fail_under)
-        if args.cmd and (problem := missing_script_problem(args.cmd, base_dir=os.getcwd())):
-            raise ValueError(f"--cmd {args.cmd!r}: {problem}")
-        if args.cmd and uses_placeholder(args.cmd):  # the rest of the command first
-            CommandPipeline(substitute(args.cmd, OWN_PLACEHOLDER),
-                            settings=run_settings_from_args(args), output=args.output)
-        else:
-            pipeline = (
-                CommandPipeline(args.cmd, settings=run_settings_from_args(args),
-                                output=args.output, name=args.name or "")
-                if args.cmd
-                else make_pipeline(args.pipeline)
-            )
-        dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
-                               skip_damaged=args.skip_damaged)
-        if args.cmd and uses_placeholder(args.cmd):  # made once, then reused
-            (command,), interpreter = resolve_placeholder(
-                [args.cmd], progress=not args.no_progress, prog="arenabench eval")
-            pipeline = CommandPipeline(command, settings=run_settings_from_args(args),
-                                       output=args.output, name=args.name or args.cmd)
-    except (DatasetError, ValueError) as exc:
-        return _usage_error(parser, str(exc))
-    from arenabench.fileio import FolderLockedError
-
-    try:  # the same lock as generate's: one run at a time writes into --out
-        held.enter_context(lock_out(args.out))
-    except FolderLockedError as exc:
-        return _usage_error(parser, str(exc))
-    _warn_if_incomplete(dataset)
-    if dataset.skipped:
-        first, why = dataset.skipped[0]
-        print(f"arenabench eval: warning: {len(dataset.skipped)} damaged image(s) left out "
-              f"(--skip-damaged; {first}: {why})", file=sys.stderr)
     interrupted: EvaluationInterrupted | None = None
+    failed: EvaluationFailed | None = None
     try:
+        if early is not None:
+            raise early
+        try:
+            thresholds = parse_thresholds(args.fail_under)
+            if args.cmd and (problem := missing_script_problem(args.cmd,
+                                                               base_dir=os.getcwd())):
+                raise ValueError(f"--cmd {args.cmd!r}: {problem}")
+            if args.cmd and uses_placeholder(args.cmd):  # the rest of the command first
+                CommandPipeline(substitute(args.cmd, OWN_PLACEHOLDER),
+                                settings=run_settings_from_args(args), output=args.output)
+            else:
+                pipeline = (
+                    CommandPipeline(args.cmd, settings=run_settings_from_args(args),
+                                    output=args.output, name=args.name or "")
+                    if args.cmd
+                    else make_pipeline(args.pipeline)
+                )
+            dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
+                                   skip_damaged=args.skip_damaged)
+            if args.cmd and uses_placeholder(args.cmd):  # made once, then reused
+                (command,), interpreter = resolve_placeholder(
+                    [args.cmd], progress=not args.no_progress, prog="arenabench eval")
+                pipeline = CommandPipeline(command, settings=run_settings_from_args(args),
+                                           output=args.output, name=args.name or args.cmd)
+        except (DatasetError, ValueError) as exc:
+            return _usage_error(parser, str(exc))
+        try:  # the same lock as generate's: one run at a time writes into --out
+            held.enter_context(lock_out(args.out))
+            locked = True
+        except FolderLockedError as exc:
+            return _usage_error(parser, str(exc))
+        _warn_if_incomplete(dataset)
+        if dataset.skipped:
+            first, why = dataset.skipped[0]
+            print(f"arenabench eval: warning: {len(dataset.skipped)} damaged image(s) left out "
+                  f"(--skip-damaged; {first}: {why})", file=sys.stderr)
         report = evaluate(
             args.pipeline if args.pipeline else pipeline,
             dataset,
@@ -327,34 +348,62 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     except ValueError as exc:
         return _usage_error(parser, str(exc))
     except EvaluationInterrupted as exc:
-        interrupted, report = exc, exc.report
-    if interpreter is not None:  # what ran the command, with the reports
-        from dataclasses import replace
-
-        report = replace(report, interpreter=interpreter.to_dict())
-    if interrupted is not None:
-        print(
-            f"arenabench eval: interrupted by signal {interrupted.signum} after "
-            f"{report.images_done} of {len(dataset.samples)} images; running commands killed",
-            file=sys.stderr,
-        )
+        interrupted = exc
+    except EvaluationFailed as exc:
+        failed = exc
+    except Interrupted as exc:  # before evaluate() had a report: an empty one
+        interrupted = EvaluationInterrupted(empty_report(
+            pipeline=args.name or args.cmd or args.pipeline,
+            dataset=str(dataset.root if dataset is not None else args.dataset),
+            area_reference=args.area_reference, tolerance=args.tolerance,
+            n_total=None if dataset is None else len(dataset.samples)), exc.signum)
+    stopped = interrupted or failed
+    if stopped is not None:
+        report = stopped.report
+        if interpreter is not None:
+            report = replace(report, interpreter=interpreter.to_dict())
+        total = f" of {report.n_total}" if report.n_total is not None else ""
+        if interrupted is not None:
+            print(f"arenabench eval: interrupted by signal {interrupted.signum} after "
+                  f"{report.images_done}{total} images; running commands killed",
+                  file=sys.stderr)
+            code = interrupted.exit_code
+        else:
+            print(f"arenabench eval: error: {failed}; running commands killed, nothing of it "
+                  f"scored ({report.images_done}{total} images finished before)",
+                  file=sys.stderr)
+            code = EXIT_HARNESS
         if args.out is not None:  # even with no image finished: never nothing
             try:
-                write_reports(report, args.out, formats=formats, dataset=dataset)
+                with deferred_stops():  # a second stop does not cut the writing short
+                    if not locked:
+                        held.enter_context(lock_out(args.out))
+                    write_reports(report, args.out, formats=formats, dataset=dataset)
+            except FolderLockedError as exc:
+                parser.fail(str(exc))
+                return code
             except OSError as exc:
                 parser.fail(write_failure(exc, args.out))
-                return interrupted.exit_code
+                return code
             print(f"  partial reports (\"complete\": false) in {args.out}", file=sys.stderr)
-        return interrupted.exit_code
-    print(headline(report))
-    if args.out is not None:
-        try:
-            written = write_reports(report, args.out, formats=formats, dataset=dataset)
-        except OSError as exc:  # ENOSPC: one line, no traceback
-            parser.fail(write_failure(exc, args.out))
-            return EXIT_FAILED
-        for fmt, path in written.items():
-            print(f"  {fmt:<5} {path}")
+        return code
+    if interpreter is not None:  # what ran the command, with the reports
+        report = replace(report, interpreter=interpreter.to_dict())
+    written: dict = {}
+    try:
+        # every image ran: a stop now cuts no report off; it is raised once they are written
+        # and the exit status says it came (arenabench.cli.run)
+        with deferred_stops():
+            print(headline(report))
+            if args.out is not None:
+                written = write_reports(report, args.out, formats=formats, dataset=dataset)
+    except Interrupted:
+        pass
+    except OSError as exc:  # ENOSPC: one line, no traceback
+        parser.fail(write_failure(exc, args.out))
+        return EXIT_FAILED
+    for fmt, path in written.items():
+        print(f"  {fmt:<5} {path}")
     for threshold in thresholds:  # every gate applied, passing or not: the CI log shows them
         print(threshold.gate_line(report.summary))
     reasons = check_thresholds(report.summary, thresholds)

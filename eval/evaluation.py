@@ -32,7 +32,7 @@ from .gt_facts import gt_facts
 from .metrics import DEFAULT_TOLERANCE, score_image, summarize
 from .pipelines import Pipeline, make_pipeline
 from .result_store import ResultStore
-from .results import ImageResult, Prediction, Report
+from .results import HarnessError, ImageResult, Prediction, Report
 from .run_slots import RunSlots, extra_thread
 
 
@@ -55,6 +55,24 @@ class EvaluationInterrupted(Exception):
         self.signum = signum
         self.exit_code = exit_code(signum)
         super().__init__(f"interrupted after {report.images_done} images")
+
+class EvaluationFailed(Exception):
+    """The harness could not run an image (:class:`~arenabench.eval.results.HarnessError`):
+    :func:`evaluate` stopped every run; nothing of that image was scored.
+
+    Attributes
+    ----------
+    report : Report
+        The images finished before (``complete=False``, ``n_done``).
+    error : HarnessError
+        What failed.
+    """
+
+    def __init__(self, report: Report, error: HarnessError) -> None:
+        self.report = report
+        self.error = error
+        super().__init__(f"the harness could not run an image: {error}")
+
 
 EXECUTORS: tuple[str, ...] = ("thread", "process")
 #: Images submitted ahead per worker (the rest wait in the dataset, not in memory).
@@ -215,6 +233,10 @@ def evaluate(
         When :class:`arenabench.interrupts.Interrupted` arrives while images run: running
         external commands are killed (their processes and directories removed), queued
         images dropped; the exception holds the partial report.
+    EvaluationFailed
+        When the harness could not run an image
+        (:class:`~arenabench.eval.results.HarnessError`): the runs are stopped the same way,
+        and nothing of that image is scored; the exception holds the partial report.
     """
     from arenabench.interrupts import Interrupted
 
@@ -232,50 +254,62 @@ def evaluate(
     samples = data.samples[:limit] if limit else data.samples
     # a missing reference area is a data error, found before any work
     data.check_area_reference(area_reference, limit=limit)
-    isolated = isolate and isinstance(pipeline, str) and ":" in pipeline  # a team's function
-    if isolated:
-        from arenabench.limits import DEFAULT_TIMEOUT_S
-
-        from .isolated import IsolatedCallablePipeline
-
-        isolated_pipe = IsolatedCallablePipeline(
-            pipeline, timeout_s=DEFAULT_TIMEOUT_S if timeout_s is None else timeout_s)
-        problem = isolated_pipe.trial()  # no pipeline at all (os:system): refused before
-        if problem:
-            isolated_pipe.close()
-            raise ValueError(problem)
-        pipe: Pipeline = isolated_pipe
-    else:
-        pipe = make_pipeline(pipeline)
-    n_workers = min(workers or usable_cores(), max(1, len(samples)))
-    use_process = (executor == "process" and pipe.in_process and isinstance(pipeline, str)
-                   and not isolated)  # an isolated function has its own processes
-    # an external command without run slots of its own gets n_workers for this evaluation,
-    # and one more thread than runs at once prepares the next image meanwhile (run_slots)
-    from .external import CommandPipeline
-
-    slots = None
-    if not use_process and isinstance(pipe, CommandPipeline) and pipe.slots is None:
-        slots = pipe.slots = RunSlots(n_workers)
-    pool: Executor
-    if use_process:
-        pool = ProcessPoolExecutor(
-            max_workers=n_workers,
-            mp_context=multiprocessing.get_context("spawn"),
-            initializer=_worker_pipeline,
-            initargs=(pipeline,),
-        )
-        submit = lambda s: pool.submit(  # noqa: E731
-            run_in_worker, PipelineRun(spec=pipeline, image_path=str(s.image_path)))
-    else:
-        pool = ThreadPoolExecutor(max_workers=n_workers + extra_thread(slots, n_workers),
-                                  thread_name_prefix="arenabench-eval")
-        submit = lambda s: pool.submit(pipe.run, s.image_path)  # noqa: E731
-    from arenabench.progress import progress as progress_bar
-
+    # from here on a stop gives the report of what finished (possibly no image: empty)
     store = ResultStore(len(samples), spill=spill)
     interrupted: Interrupted | None = None
+    failed: HarnessError | None = None
+    pipe: Pipeline | None = None
+    slots = None
     try:
+        isolated = isolate and isinstance(pipeline, str) and ":" in pipeline  # a team's function
+        if isolated:
+            from arenabench.limits import DEFAULT_TIMEOUT_S
+
+            from .isolated import IsolatedCallablePipeline
+
+            isolated_pipe = IsolatedCallablePipeline(
+                pipeline, timeout_s=DEFAULT_TIMEOUT_S if timeout_s is None else timeout_s)
+            pipe = isolated_pipe
+            problem = isolated_pipe.trial()  # no pipeline at all (os:system): refused before
+            if problem:
+                raise ValueError(problem)
+        else:
+            pipe = make_pipeline(pipeline)
+        n_workers = min(workers or usable_cores(), max(1, len(samples)))
+        use_process = (executor == "process" and pipe.in_process and isinstance(pipeline, str)
+                       and not isolated)  # an isolated function has its own processes
+        # an external command without run slots of its own gets n_workers for this
+        # evaluation, and one more thread than runs at once prepares the next image meanwhile
+        # (run_slots)
+        from .external import CommandPipeline
+
+        if not use_process and isinstance(pipe, CommandPipeline) and pipe.slots is None:
+            slots = pipe.slots = RunSlots(n_workers)
+        pool: Executor
+        if use_process:
+            pool = ProcessPoolExecutor(
+                max_workers=n_workers,
+                mp_context=multiprocessing.get_context("spawn"),
+                initializer=_worker_pipeline,
+                initargs=(pipeline,),
+            )
+            submit = lambda s: pool.submit(  # noqa: E731
+                run_in_worker, PipelineRun(spec=pipeline, image_path=str(s.image_path)))
+        else:
+            run = pipe.run
+            pool = ThreadPoolExecutor(max_workers=n_workers + extra_thread(slots, n_workers),
+                                      thread_name_prefix="arenabench-eval")
+            submit = lambda s: pool.submit(run, s.image_path)  # noqa: E731
+        from arenabench.progress import progress as progress_bar
+
+        stop = getattr(pipe, "stop", None)
+        stop = stop if callable(stop) else None
+
+        def stop_runs() -> None:
+            if stop is not None:
+                stop()
+            pool.shutdown(wait=True, cancel_futures=True)
+
         with (
             pool,
             progress_bar(len(samples), desc=f"eval {pipe.name}", enabled=progress) as bar,
@@ -283,14 +317,14 @@ def evaluate(
             try:
                 _run_all(samples, submit, store, window=IN_FLIGHT_PER_WORKER * n_workers,
                          on_image=lambda: bar.update(1), tolerance=tolerance,
-                         area_reference=area_reference)
+                         area_reference=area_reference, stop_runs=stop_runs,
+                         killable=stop is not None)
             except Interrupted as exc:
                 interrupted = exc
-                stop = getattr(pipe, "stop", None)
-                if callable(stop):
-                    stop()
-                pool.shutdown(wait=True, cancel_futures=True)
-        if phases and interrupted is None and not all(r.passed for r in store.compact()):
+            except HarnessError as exc:  # the runs are stopped: never scored as the pipeline's
+                failed = exc
+        if (phases and interrupted is None and failed is None
+                and not all(r.passed for r in store.compact())):
             results = list(store.images())
             try:
                 results = _check_phases(results, data, pipe, phases=phases,
@@ -298,32 +332,80 @@ def evaluate(
                                         workers=n_workers, progress=progress)
             except Interrupted as exc:  # the images are scored; their phase check is not
                 interrupted = exc
-                stop = getattr(pipe, "stop", None)
-                if callable(stop):
-                    stop()
+            except HarnessError as exc:
+                failed = exc
             store = ResultStore(len(results), spill=store.spilled)
             for i, r in enumerate(results):
                 store.add(i, r)
+    except Interrupted as exc:  # while setting up: nothing ran
+        interrupted = exc
+    except HarnessError as exc:
+        failed = exc
     finally:  # a command's warm servers and an isolated function's processes end here
-        close = getattr(pipe, "close", None)
-        if callable(close):
-            close()
-        if slots is not None:
-            pipe.slots = None  # given for this evaluation only
-    report = build_report(
-        store.compact(),
-        images=store.images(),
-        pipeline=pipe.name,
-        dataset=str(data.root),
-        area_reference=area_reference,
-        tolerance=tolerance,
-        complete=interrupted is None,
-        n_total=len(samples),
-        manifest_sha256=data.manifest_sha256(),
-    )
+        if pipe is not None:
+            # a stop arriving now cuts no server's end short; after the last image (and its
+            # phase check) it changes nothing: the report is whole, and the command's exit
+            # status says it was stopped (arenabench.cli.run)
+            _held(getattr(pipe, "close", None))
+            if slots is not None:
+                pipe.slots = None  # given for this evaluation only
+    report: Report | None = None
+
+    def build() -> None:
+        nonlocal report
+        report = build_report(
+            store.compact(),
+            images=store.images(),
+            pipeline=pipe.name if pipe is not None else _pipeline_name(pipeline),
+            dataset=str(data.root),
+            area_reference=area_reference,
+            tolerance=tolerance,
+            complete=interrupted is None and failed is None,
+            n_total=len(samples),
+            manifest_sha256=data.manifest_sha256(),
+        )
+
+    _held(build)  # a stop while the report is built: the report still comes whole
+    assert report is not None
     if interrupted is not None:
         raise EvaluationInterrupted(report, interrupted.signum)
+    if failed is not None:
+        raise EvaluationFailed(report, failed)
     return report
+
+
+def _held(fn: Callable[[], Any] | None) -> Any:
+    """Call ``fn`` with a stop signal held back until it returns; the
+    :class:`~arenabench.interrupts.Interrupted` that arrived meanwhile (``None``: none)."""
+    from arenabench.interrupts import Interrupted
+
+    if not callable(fn):
+        return None
+    try:
+        with deferred_stops():
+            fn()
+    except Interrupted as exc:
+        return exc
+    return None
+
+
+def _pipeline_name(pipeline: Any) -> str:
+    """A pipeline's name in reports before its adapter exists (a run stopped while it was
+    being made)."""
+    if isinstance(pipeline, str):
+        return pipeline
+    return str(getattr(pipeline, "name", None) or getattr(pipeline, "__name__", None)
+               or type(pipeline).__name__)
+
+
+def empty_report(*, pipeline: str, dataset: str, area_reference: str = "visible",
+                 tolerance: float = DEFAULT_TOLERANCE, n_total: int | None = None) -> Report:
+    """The report of a run stopped before any image finished (``complete=False``, no image):
+    what a stop while the dataset is read or the pipeline is made leaves, so that a stopped
+    command still writes its (empty) partial reports. ``n_total``: the images to run, when
+    known."""
+    return build_report([], pipeline=pipeline, dataset=dataset, area_reference=area_reference,
+                        tolerance=tolerance, complete=False, n_total=n_total)
 
 
 def _check_phases(results: list[ImageResult], data: Dataset, pipe: Pipeline,
@@ -332,25 +414,45 @@ def _check_phases(results: list[ImageResult], data: Dataset, pipe: Pipeline,
     """The phase check of a run's failing images (docs/phase-check.md)."""
     from arenabench.progress import progress as progress_bar
 
-    from .phase_check import UNCHECKED_CATEGORIES, check_phases
+    from .phase_check import check_phases, checked
 
-    failing = sum(1 for r in results if not r.passed and r.category not in UNCHECKED_CATEGORIES)
+    failing = sum(1 for r in results if checked(r))
     if not failing:
         return results
     by_id = data.items_by_id(r.id for r in results)
     with progress_bar(failing, desc=f"phase check {pipe.name}", enabled=progress) as bar:
         return check_phases(results, [by_id[r.id].gt for r in results], pipe.run,
                             phases=phases, tolerance=tolerance, area_reference=area_reference,
-                            workers=workers, on_image=lambda: bar.update(1))
+                            workers=workers, on_image=lambda: bar.update(1),
+                            stop=getattr(pipe, "stop", None))
 
 
 def _run_all(samples: Iterable[DatasetItem], submit: Callable[[DatasetItem], Future],
              store: ResultStore, *, window: int, on_image: Callable[[], None],
-             tolerance: float, area_reference: str) -> None:
+             tolerance: float, area_reference: str, stop_runs: Callable[[], None],
+             killable: bool) -> None:
     """Run every sample through ``submit`` with at most ``window`` images in flight, and
-    score each as it finishes into ``store`` (a pipeline that raises is a crash)."""
+    score each as it finishes into ``store`` (a pipeline that raises is a crash).
+
+    On a stop (:class:`~arenabench.interrupts.Interrupted`): the images already finished are
+    scored, ``stop_runs()`` kills the running ones (``killable``) and waits for them, the
+    images that finished meanwhile are scored too (when runs are killed, not the crashes:
+    a killed run reads as one), and the stop is raised again."""
     pending: dict[Future, tuple[int, DatasetItem]] = {}
     queue = iter(enumerate(samples))
+
+    def take(fut: Future) -> None:
+        i, sample = pending.pop(fut)
+        with deferred_stops():  # a finished image is scored and kept, whatever the signal
+            try:
+                pred = fut.result()
+            except HarnessError:  # the harness's failure: never scored
+                raise
+            except Exception as exc:  # the harness never dies from a bad pipeline
+                pred = Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
+            store.add(i, score_sample(sample, pred, tolerance=tolerance,
+                                      area_reference=area_reference))
+        on_image()
 
     def refill() -> None:
         while len(pending) < window:
@@ -359,21 +461,32 @@ def _run_all(samples: Iterable[DatasetItem], submit: Callable[[DatasetItem], Fut
                 return
             pending[submit(nxt[1])] = nxt
 
-    refill()
-    while pending:
-        checkpoint()  # a stop signal a library swallowed
-        done, _ = wait(pending, return_when=FIRST_COMPLETED)
-        for fut in done:
-            i, sample = pending.pop(fut)
-            with deferred_stops():  # a finished image is scored and kept, whatever the signal
-                try:
-                    pred = fut.result()
-                except Exception as exc:  # the harness never dies from a bad pipeline
-                    pred = Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
-                store.add(i, score_sample(sample, pred, tolerance=tolerance,
-                                          area_reference=area_reference))
-            on_image()
+    try:
         refill()
+        while pending:
+            checkpoint()  # a stop signal a library swallowed
+            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            for fut in done:
+                take(fut)
+            refill()
+    except BaseException:
+        from arenabench.interrupts import deferred_stops
+
+        def keep(fut: Future) -> None:
+            try:
+                take(fut)
+            except HarnessError:  # another image the harness failed: the first is raised
+                pass
+
+        with deferred_stops():  # a second stop does not cut this short
+            for fut in [f for f in pending if f.done()]:  # finished before the stop
+                keep(fut)
+            stop_runs()
+            for fut in [f for f in pending if f.done() and not f.cancelled()]:
+                if killable and fut.exception() is None and fut.result().status == "crash":
+                    continue  # perhaps the stop's own kill: not a result of the pipeline
+                keep(fut)
+        raise
 
 
 def score(

@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from arenabench.cliopts import (
+    GIVE_UP_AFTER_RULE,
     WORKERS_RULE,
     CommandParser,
     add_area_reference,
@@ -67,11 +68,17 @@ each team's report.json), and warns when arenabench itself is importable there.
 
 Resuming: a team graded before on the same dataset (manifest sha256), with the same submission
 files and the same options is skipped ("skipped: already graded"); so is everything after an
-interruption that had finished.
+interruption that had finished. A team an interruption stopped half-way keeps the results of
+its finished images (teams/TEAM/partial-results.jsonl): only the others run again.
+
+A team whose runs time out N times in a row (in image order; --give-up-after N) is given up:
+its later images are not run and count as timeouts ("not run: N consecutive timeouts before
+it"); its report.json says how many (given_up).
 
 exit status: 0 done; 1 some team could not be graded; 2 usage error or a failed check before
 any team ran; 3 most teams failed alike (the setup, not the teams); 130/143 interrupted (the
-leaderboard of the finished teams is written, marked INCOMPLETE). The organiser's recipe from
+leaderboard of the finished teams is written, marked INCOMPLETE, naming the unfinished teams
+and how far each got). The organiser's recipe from
 a fresh machine: docs/grading.md.
 """
 
@@ -111,13 +118,21 @@ def build_parser() -> CommandParser:
     p.add_argument("--reference", default=None, metavar="DIR",
                    help="a known-good submission for the preflight (default: the built-in "
                         "reference detector as a competition script)")
+    from arenabench.limits import DEFAULT_GIVE_UP_AFTER
+
+    p.add_argument("--give-up-after", type=GIVE_UP_AFTER_RULE.argtype("--give-up-after"),
+                   default=DEFAULT_GIVE_UP_AFTER, metavar="N",
+                   help="after N timeouts in a row (in image order) run none of that team's "
+                   "later images: they are recorded as timeouts, 'not run' (0: never; "
+                   "default: %(default)s)")
     add_phase_check_argument(p)
     add_run_options(p, placeholders=GRADE_PLACEHOLDERS, refused=GRADE_REFUSED)
     return p
 
 
 #: GradeOptions parameter -> the option that sets it (for error messages).
-_OPTION_NAMES = {"command": "--cmd", "formats": "--formats", "tolerance": "--tolerance"}
+_OPTION_NAMES = {"command": "--cmd", "formats": "--formats", "tolerance": "--tolerance",
+                 "give_up_after": "--give-up-after"}
 
 
 def _error(message: str) -> int:
@@ -149,7 +164,7 @@ def main(argv: list[str] | None = None) -> int:
         options = GradeOptions(command=args.cmd, output=args.output, tolerance=args.tolerance,
                                area_reference=args.area_reference,
                                settings=run_settings_from_args(args), formats=formats,
-                               phases=phases)
+                               phases=phases, give_up_after=args.give_up_after)
         find_teams(args.submissions)
         check_out_dir(args.out, Path(args.submissions), dataset.root)
     except (DatasetError, SubmissionsError, ValueError) as exc:
@@ -184,8 +199,8 @@ def main(argv: list[str] | None = None) -> int:
         except FolderLockedError as exc:
             return _error(str(exc))
         except Interrupted as exc:
-            print(f"{PROG}: {exc}: finished teams stay graded; run the same command again "
-                  "to resume", file=sys.stderr)
+            print(f"{PROG}: {exc}: finished teams stay graded, and the finished images of "
+                  "the others; run the same command again to resume", file=sys.stderr)
             return exc.exit_code
     failed = f", {len(result.errors)} failed" if result.errors else ""
     print(f"{len(result.graded)} graded, {len(result.skipped)} skipped{failed}; "

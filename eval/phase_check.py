@@ -32,7 +32,7 @@ import numpy as np
 from arenabench.gtrecord import GroundTruth
 from arenabench.interrupts import checkpoint
 
-from .results import ImageResult, Prediction
+from .results import SCORING_FAILURES, HarnessError, ImageResult, Prediction
 
 #: Phases a check renders by default.
 DEFAULT_PHASES = 8
@@ -48,9 +48,13 @@ PHASE_DEPENDENT_MEANING = (
     "phase-dependent: passes at some sub-pixel positions of the boxes and fails at others: on "
     "the hidden tests it would have depended on luck"
 )
-#: Failure categories the check leaves alone: the program failed (crashed, ran out of time
-#: or of a limit), not its reading of the pixels; re-running it N times would only cost.
-UNCHECKED_CATEGORIES = frozenset({"crash", "timeout", "limit"})
+#: The failure categories the check re-runs: answers that scoring found wrong (``wrong_count``,
+#: ``area_off``), the only failures a box's sub-pixel position can turn into a pass. The
+#: others stay unchecked: the program failed (``crash``, ``timeout``, ``limit``) or gave no
+#: answer (``bad_output``), and ``markers_not_found`` sees the same marker pixels at every
+#: phase (only the boxes move; the marker squares are byte-identical), so re-running any of
+#: them N times would only cost.
+CHECKED_CATEGORIES = frozenset(SCORING_FAILURES)
 #: ``--phase-check`` values besides a number.
 PHASE_CHECK_WORDS = ("auto", "off")
 
@@ -285,6 +289,20 @@ def render_phases(gt: GroundTruth, *, phases: int, folder: Path, suffix: str = "
 
 # ------------------------------------------------------------------------------ the check
 
+def checked(result: ImageResult) -> bool:
+    """Whether the phase check re-runs this image: a failure of a category in
+    :data:`CHECKED_CATEGORIES`."""
+    return not result.passed and result.category in CHECKED_CATEGORIES
+
+
+def unchecked_text() -> str:
+    """The failure categories the check leaves alone, as reports name them
+    (``"markers_not_found, crash, timeout, limit, bad_output"``)."""
+    from .results import CATEGORIES
+
+    return ", ".join(c for c in CATEGORIES if c not in CHECKED_CATEGORIES)
+
+
 def check_phases(
     results: Sequence[ImageResult],
     gts: Sequence[GroundTruth],
@@ -296,6 +314,7 @@ def check_phases(
     workers: int = 1,
     renderer: Any = None,
     on_image: Callable[[], None] | None = None,
+    stop: Callable[[], None] | None = None,
 ) -> list[ImageResult]:
     """``results`` with :class:`PhaseResult` added to each failing image (``phase``).
 
@@ -318,13 +337,16 @@ def check_phases(
         Default: this thread's reused renderer.
     on_image : callable, keyword-only
         Called after each failing image is checked (progress).
+    stop : callable, keyword-only
+        The pipeline's ``stop`` (kills its running runs): called when the check is cut short
+        (a stop signal), before the check waits for its runs, so that it ends at once rather
+        than after the runs' timeouts.
 
     Returns
     -------
     list of ImageResult
-        Passing images untouched; failing images with ``phase`` set (a failure whose GT
-        holds no scene, or whose category is in :data:`UNCHECKED_CATEGORIES`, keeps
-        ``phase=None``).
+        Passing images untouched; failing images with ``phase`` set when
+        :func:`checked` (any other failure keeps ``phase=None``).
     """
     from .dataset_reader import DatasetItem
     from .evaluation import score_sample
@@ -332,17 +354,16 @@ def check_phases(
     if len(results) != len(gts):
         raise ValueError(f"results and gts must have the same length, got {len(results)} "
                          f"and {len(gts)}")
-    failing = [i for i, r in enumerate(results) if not r.passed and gts[i].scene is not None
-               and r.category not in UNCHECKED_CATEGORIES]
+    failing = [i for i, r in enumerate(results) if checked(r) and gts[i].scene is not None]
     out = list(results)
     if phases < 1 or not failing:
         return out
     from .stale_runs import owned_dir_prefix
 
     tmp = tempfile.mkdtemp(prefix=owned_dir_prefix("arenabench-phase-"))
+    pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="arenabench-phase")
     try:
-        with ThreadPoolExecutor(max_workers=max(1, workers),
-                                thread_name_prefix="arenabench-phase") as pool:
+        try:
             for i in failing:
                 checkpoint()  # a stop signal a library swallowed
                 folder = Path(tmp, f"{i:06d}")
@@ -372,6 +393,12 @@ def check_phases(
                 shutil.rmtree(folder, ignore_errors=True)
                 if on_image is not None:
                     on_image()
+        except BaseException:  # a stop signal: end the runs, then wait for their threads
+            if stop is not None:
+                stop()
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
     return out
@@ -386,6 +413,8 @@ def _warn(message: str) -> None:
 def _safe_run(run: Callable[[Path], Prediction], path: Path) -> Prediction:
     try:
         return run(path)
+    except HarnessError:  # the harness's own failure: the check stops, nothing is scored
+        raise
     except Exception as exc:  # the harness never dies from a bad pipeline
         return Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
 
@@ -401,8 +430,8 @@ def phase_summary(results: Sequence[ImageResult]) -> dict[str, Any]:
         ``robust_failure_rate`` and ``phase_dependent_failure_rate`` (fractions of all
         images; ``None`` when no image was phase-checked) and ``phase_check``: ``phases``
         (N), ``checked``, ``robust``, ``phase_dependent``, ``unchecked`` (failing images not
-        checked: crash, timeout, limit) (image counts), ``meaning`` (one sentence); ``None``
-        when no image was phase-checked.
+        checked: the categories outside :data:`CHECKED_CATEGORIES`) (image counts),
+        ``meaning`` (one sentence); ``None`` when no image was phase-checked.
     """
     checked = [r.phase for r in results if r.phase is not None]
     if not checked:

@@ -79,7 +79,8 @@ def test_a_crashing_script_fails_with_its_message(cache, tmp_path):
     assert proc.returncode == 1, proc.stdout + proc.stderr
     assert f"FAIL: pass rate 0.0 % (0/{COUNT}" in proc.stdout
     assert f"failures: {COUNT} (crash {COUNT})" in proc.stdout
-    assert f"not phase-checked (crash, timeout, limit): {COUNT}" in proc.stdout
+    assert (f"not phase-checked (markers_not_found, crash, timeout, limit, bad_output): "
+            f"{COUNT}") in proc.stdout
     assert "deliberate crash" in proc.stdout
 
 

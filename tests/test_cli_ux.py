@@ -282,7 +282,7 @@ def test_plain_progress_prints_a_few_lines():
             bar.update(1)
     lines = buf.getvalue().splitlines()
     assert len(lines) == 10 and lines[-1] == "generate: 200/200 img (100 %), 50.0 s"
-    assert lines[0] == "generate: 20/200 img (10 %), 5.0 s"
+    assert lines[0] == "generate: 20/200 img (10 %), 5.0 s, eta 45 s"
     # a quick run: only the final line
     quick = io.StringIO()
     with PlainProgress(200, desc="eval", unit="img", file=quick, clock=lambda: now[0]) as bar:
@@ -486,3 +486,37 @@ def test_formats_doc_says_detect_json_is_one_line_for_output_json():
     section = text.split("### `arenabench detect --json`", 1)[1].split("\n## ", 1)[0]
     assert "indented JSON" not in section and "one compact JSON line" in section
     assert "--output json" in section
+
+
+def test_plain_progress_says_the_time_left_and_what_is_under_way():
+    import io
+
+    from arenabench.progress import PlainProgress, duration_text
+
+    now = [0.0]
+    buf = io.StringIO()
+    with PlainProgress(100, desc="grade", unit="run", file=buf,
+                       clock=lambda: now[0]) as bar:
+        now[0] = 60.0
+        bar.set_postfix_str("alpha 20/50, beta 5/50")
+        bar.update(25)  # 25 runs in 60 s: 75 left take 180 s
+    first, last = buf.getvalue().splitlines()
+    assert first == ("grade: 25/100 run (25 %), 60.0 s, eta 3 min 00 s; alpha 20/50, "
+                     "beta 5/50")
+    assert last == "grade: 25/100 run (25 %), 60.0 s"  # the end: no estimate, no status
+    assert [duration_text(s) for s in (12.4, 550, 7500)] == ["12 s", "9 min 10 s",
+                                                              "2 h 05 min"]
+
+
+def test_grade_progress_names_the_teams_under_way():
+    from pathlib import Path
+
+    from arenabench.eval.grade.grading import _progress_text, _TeamRun
+    from arenabench.eval.grade.partial import PartialLog
+    from arenabench.eval.grade.submissions import Team
+
+    runs = [_TeamRun(team=Team(name=n, path=Path("/x") / n), digest="0",
+                     preds=[], log=PartialLog(Path("/nonexistent"), {}), done=d)
+            for n, d in (("done", 8), ("alpha", 3), ("beta", 1), ("gamma", 2), ("delta", 5),
+                         ("idle", 0))]
+    assert _progress_text(runs, 8) == "alpha 3/8, beta 1/8, gamma 2/8, +1 more"

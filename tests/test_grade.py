@@ -517,3 +517,255 @@ def _check_deep_tree_and_sparse_file_hash(team, tmp_path):
     with open(team / "huge.bin", "r+b") as fh:
         fh.truncate((1 << 40) + 1)  # another size: another hash
     assert submission_hash(team) != h_huge
+
+
+# ------------------------------------------------- giving up on a team, resuming a team half-way
+
+#: A team script that says when it starts (a file ``run-N`` in MARKS: the grades below run
+#: with --sandbox none, so it can write there) and then, while the file ``MARKS/hang``
+#: exists, from its HANG_FROM-th run on, sleeps; otherwise it answers at once.
+MARKED_TEAM = """\
+import os, time
+marks, hang_from = {marks!r}, {hang_from}
+n = len([f for f in os.listdir(marks) if f.startswith("run-")])
+open(os.path.join(marks, f"run-{{n}}"), "w").close()
+if n >= hang_from and os.path.exists(os.path.join(marks, "hang")):
+    time.sleep(300)
+open("obstacles.txt", "w").write("Aruco ID: [80, 85, 90, 95]\\nObstacles: 1\\nArea: 1.0\\n")
+"""
+
+
+def _marked_team(subs: Path, name: str, marks: Path, *, hang_from: int) -> Path:
+    (subs / name).mkdir(parents=True)
+    marks.mkdir(parents=True)
+    (marks / "hang").touch()
+    (subs / name / "map.py").write_text(MARKED_TEAM.format(marks=str(marks),
+                                                           hang_from=hang_from))
+    return marks
+
+
+def _runs(marks: Path) -> int:
+    return len(list(marks.glob("run-*")))
+
+
+@pytest.fixture(scope="module")
+def toy8(tmp_path_factory):
+    import toy_arena
+
+    return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("toy8") / "toy", n=8, seed=1)
+
+
+@pytest.mark.slow
+def test_a_team_that_times_out_in_a_row_is_given_up(toy8, tmp_path, capsys):
+    subs = _fast_teams(tmp_path / "subs", {"a_fast": 1})
+    marks = _marked_team(subs, "b_hangs", tmp_path / "marks", hang_from=0)
+    out = tmp_path / "out"
+    opts = GradeOptions(command="{python} {submission}/map.py --image {image}",
+                        formats=("json",), give_up_after=2,
+                        # long enough for the preflight's reference on a busy machine
+                        settings=grade_settings(sandbox="none", limits={"timeout_s": 10.0}))
+    result = grade(toy8, subs, out, options=opts, workers=1, report_workers=1, log=print,
+                   allow_guessable_seed=True)
+    assert sorted(result.graded) == ["a_fast", "b_hangs"] and not result.errors
+    # images 0 and 1 timed out; image 2 may have started as 1 ended (then it was stopped);
+    # the five after it never ran
+    assert 2 <= _runs(marks) <= 3
+    report = json.loads((out / "teams" / "b_hangs" / "report.json").read_text())
+    images = report["images"]
+    assert [i["status"] for i in images] == ["timeout"] * 8
+    assert all("not run" not in i["message"] for i in images[:2])
+    assert all(i["message"].startswith("not run: 2 consecutive timeouts before it "
+                                       "(000000 to 000001)") for i in images[2:])
+    assert report["given_up"] == {"after": 2, "first": "000000", "last": "000001",
+                                  "timeouts": 2, "not_run": 6}
+    assert report["summary"]["failures"]["timeout"] == 8
+    state = json.loads((out / "teams" / "b_hangs" / STATE_FILE).read_text())
+    assert state["given_up"]["not_run"] == 6
+    said = capsys.readouterr().out
+    assert ("b_hangs: gave up after 2 consecutive timeouts (000000 to 000001): 6 images not run"
+            in said)
+    assert "b_hangs: graded (0/8 passed; gave up after 2 consecutive timeouts" in said
+    # the other team is untouched by it
+    fast = json.loads((out / "teams" / "a_fast" / "report.json").read_text())
+    assert fast["given_up"] is None and len(fast["images"]) == 8
+
+
+def test_consecutive_timeouts_are_counted_in_image_order_whatever_order_they_come_back():
+    from arenabench.eval.grade.give_up import first_timeout_run, timeout_run
+    from arenabench.eval.results import Prediction
+
+    t, ok = Prediction(status="timeout"), Prediction(status="ok", count=1, area=1.0)
+    preds = [None] * 8
+    # results come back out of order (parallel workers): 3, 1, 6, 2
+    for j, pred in ((3, t), (1, t), (6, t)):
+        preds[j] = pred
+        run = timeout_run(preds, j)
+        assert run is not None and run[1] - run[0] + 1 < 3  # 1 and 3 are not in a row yet
+    preds[2] = t
+    assert timeout_run(preds, 2) == (1, 3)  # 1, 2, 3: three in a row
+    preds[0] = ok
+    assert first_timeout_run(preds, 3) == (1, 3)
+    assert first_timeout_run(preds, 4) is None and first_timeout_run(preds, 0) is None
+    assert timeout_run(preds, 0) is None
+
+
+def test_give_up_after_is_refused_when_not_a_count(toy8, tmp_path, capsys):
+    subs = _fast_teams(tmp_path / "subs", {"a": 1})
+    for bad in ("-1", "two", "1.5"):
+        rc = arenabench_main(["grade", str(toy8), str(subs), "--out", str(tmp_path / "o"),
+                              "--give-up-after", bad, *GRADE_ARGS, "--allow-guessable-seed"])
+        err = capsys.readouterr().err.strip()
+        assert rc == 2 and "--give-up-after" in err and len(err.splitlines()) == 1, err
+    with pytest.raises(ValueError, match="give_up_after must be an integer"):
+        GradeOptions(give_up_after=-1)
+
+
+@pytest.mark.slow
+def test_an_interrupted_team_keeps_its_finished_images_and_resumes_from_there(toy8, tmp_path):
+    subs = _fast_teams(tmp_path / "subs", {"a_first": 1})
+    marks = _marked_team(subs, "b_stopped", tmp_path / "marks", hang_from=3)
+    out = tmp_path / "out"
+    argv = [sys.executable, "-m", "arenabench", "grade", str(toy8), str(subs), "--out",
+            str(out), "--cmd", "{python} {submission}/map.py --image {image}", "--workers", "1",
+            "--report-workers", "1", "--formats", "json,html", "--timeout", "300",
+            "--sandbox", "none", "--no-progress", "--allow-guessable-seed", *GRADE_ARGS]
+    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    try:
+        said: list[str] = []
+        import threading
+
+        from hostile_util import wait_for
+
+        reader = threading.Thread(target=lambda: said.extend(proc.stdout), daemon=True)
+        reader.start()
+        # a is graded (teams run in name order), and b's fourth run hangs: three of its
+        # images are done
+        assert wait_for(lambda: (any(x.startswith("a_first: graded") for x in said)
+                        and _runs(marks) >= 4) or proc.poll() is not None, timeout=300)
+        assert proc.poll() is None, said
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=120)
+        err = proc.stderr.read()
+        reader.join(10)
+        stdout = "".join(said)
+    finally:
+        proc.kill()
+    assert proc.returncode == 130, err
+    assert "b_stopped: not finished: 3 of 8 images done" in stdout, stdout
+    doc = json.loads((out / "leaderboard.json").read_text())
+    assert doc["complete"] is False and [t["team"] for t in doc["teams"]] == ["a_first"]
+    assert doc["unfinished"] == [{"team": "b_stopped", "images_done": 3, "images_total": 8}]
+    page = (out / "leaderboard.html").read_text()
+    assert "Not finished" in page and "b_stopped (3 of 8 images)" in page
+    partial = (out / "teams" / "b_stopped" / "partial-results.jsonl").read_text().splitlines()
+    assert len(partial) == 1 + 3  # the header, then images 0, 1, 2
+    # resumed (nothing hangs now): b runs only its five other images, a is not run again
+    (marks / "hang").unlink()
+    again = _grade_cli(str(toy8), str(subs), "--out", str(out), "--cmd",
+                       "{python} {submission}/map.py --image {image}", "--workers", "1",
+                       "--report-workers", "1", "--formats", "json,html", "--timeout", "300",
+                       "--sandbox", "none")  # the same options: a different one grades again
+    assert again.returncode == 0, again.stderr
+    assert "b_stopped: resuming: 3 of 8 images kept from the last run" in again.stdout
+    assert "a_first: skipped: already graded" in again.stdout
+    assert _runs(marks) == 4 + 5
+    report = json.loads((out / "teams" / "b_stopped" / "report.json").read_text())
+    assert [i["id"] for i in report["images"]] == [f"{i:06d}" for i in range(8)]
+    assert report["complete"] is True and report["summary"]["n"] == 8
+    assert not (out / "teams" / "b_stopped" / "partial-results.jsonl").exists()
+    doc = json.loads((out / "leaderboard.json").read_text())
+    assert doc["complete"] is True and doc["unfinished"] == []
+
+
+@pytest.mark.slow
+def test_kept_results_are_reused_only_for_the_same_submission(toy8, tmp_path):
+    from arenabench.eval.grade.partial import PARTIAL_FILE, PARTIAL_SCHEMA
+
+    subs = _fast_teams(tmp_path / "subs", {"a": 1})
+    out = tmp_path / "out"
+    opts = GradeOptions(command="{python} {submission}/map.py --image {image}",
+                        formats=("json",), settings=grade_settings(sandbox="none"))
+    grade(toy8, subs, out, options=opts, workers=1, allow_guessable_seed=True)
+    state = json.loads((out / "teams" / "a" / STATE_FILE).read_text())
+    header = {k: state[k] for k in ("dataset_manifest_sha256", "options_sha256",
+                                    "sandbox_sha256", "team", "submission_sha256")}
+    keep = out / "teams" / "a" / PARTIAL_FILE
+
+    def interrupted_before() -> None:
+        """What an interrupted grade of 'a' leaves: no state, image 0 kept (an answer the
+        script never gives), image 1's line cut short by a kill."""
+        (out / "teams" / "a" / STATE_FILE).unlink()
+        line = {"index": 0, "id": "000000",
+                "prediction": {"status": "ok", "count": 7, "area": 5.0}}
+        keep.write_text(json.dumps({"schema": PARTIAL_SCHEMA, **header}) + "\n"
+                        + json.dumps(line) + "\n" + '{"index": 1, "id": "0000')
+
+    interrupted_before()
+    grade(toy8, subs, out, options=opts, workers=1, allow_guessable_seed=True)
+    counts = [i["pred"]["count"] for i in
+              json.loads((out / "teams" / "a" / "report.json").read_text())["images"]]
+    assert counts == [7] + [1] * 7  # image 0 kept, the line cut short run again
+    assert not keep.exists()
+    interrupted_before()
+    (subs / "a" / "notes.txt").write_text("changed")  # another submission now
+    grade(toy8, subs, out, options=opts, workers=1, allow_guessable_seed=True)
+    counts = [i["pred"]["count"] for i in
+              json.loads((out / "teams" / "a" / "report.json").read_text())["images"]]
+    assert counts == [1] * 8  # nothing kept from another submission
+    assert not keep.exists()
+
+
+@pytest.mark.slow
+def test_a_team_given_up_on_a_dask_cluster_has_its_pending_units_cancelled(toy8, tmp_path):
+    distributed = pytest.importorskip("distributed")
+    subs = tmp_path / "subs"
+    marks = _marked_team(subs, "hangs", tmp_path / "marks", hang_from=0)
+    opts = GradeOptions(command="{python} {submission}/map.py --image {image}",
+                        formats=("json",), give_up_after=2,
+                        settings=grade_settings(sandbox="none", limits={"timeout_s": 10.0}))
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        result = grade(toy8, subs, tmp_path / "out", options=opts,
+                       scheduler=cluster.scheduler_address, allow_guessable_seed=True)
+    assert result.graded == ["hangs"]
+    assert 2 <= _runs(marks) <= 3  # one unit at a time: the others were cancelled
+    report = json.loads((tmp_path / "out" / "teams" / "hangs" / "report.json").read_text())
+    assert report["given_up"]["not_run"] == 6
+    assert [i["message"].startswith("not run:") for i in report["images"]] == [False] * 2 + \
+        [True] * 6
+
+
+def test_partial_results_read_back_exactly_and_only_under_their_own_header(tmp_path):
+    import math
+
+    from arenabench.eval.grade.partial import PartialLog, read_partial
+    from arenabench.eval.results import Prediction
+
+    path = tmp_path / "team" / "partial-results.jsonl"
+    header = {"team": "t", "submission_sha256": "a" * 64}
+    ids = ["000000", "000001", "000002"]
+    odd = Prediction(status="bad_output", count=2, area=float("nan"), marker_ids=(80, 85),
+                     message="area is not a number", latency_ms=12.25,
+                     obstacles=(((1.5, 2.0), (3.0, 4.0), (5.0, 1.0)),), obstacles_space="image",
+                     homography=((1.0, 0.0, 0.5), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)))
+    log = PartialLog(path, header)
+    log.add(2, "000002", odd)
+    log.add(0, "000000", Prediction(status="timeout", message="timed out after 60 s"))
+    log.close()
+    kept = read_partial(path, header, ids)
+    assert sorted(kept) == [0, 2] and kept[0].status == "timeout"
+    assert math.isnan(kept[2].area) and kept[2] == Prediction(**{**odd.__dict__,
+                                                                  "area": kept[2].area})
+    # appended to by the next run, after a line a kill cut short
+    with open(path, "a") as fh:
+        fh.write('{"index": 1, "id": "000')
+    again = PartialLog(path, header, append=True)
+    again.add(1, "000001", Prediction(status="ok", count=1, area=1.0))
+    again.close()
+    assert sorted(read_partial(path, header, ids)) == [0, 1, 2]
+    # a line naming another image than the set's at its index is not used
+    assert sorted(read_partial(path, header, ["000000", "000001", "zzz"])) == [0, 1]
+    # another submission: nothing kept, and the file is gone
+    assert read_partial(path, {**header, "submission_sha256": "b" * 64}, ids) is None
+    assert not path.exists()

@@ -30,6 +30,8 @@ COUNT = 150
 SEED = 3
 #: Generous bound on how long a signalled command may take to exit (the machine is shared).
 STOP_S = 20.0
+#: What eval writes into --out, interrupted or not.
+REPORT_FILES = ["junit.xml", "report.html", "report.json", "report.md", "results.csv"]
 
 
 def _arenabench(*args: str) -> subprocess.Popen:
@@ -350,24 +352,46 @@ def toy3(tmp_path_factory):
     return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("dbl") / "toy", n=3, seed=2)
 
 
+#: A script that says when it starts (a file ``run-N`` in MARKS, N counting its runs: the
+#: commands below run with --sandbox none, so it can write there), answers at once on its
+#: first FAST runs and sleeps on the others: the tests wait for these files, not for a time.
+MARKED = """\
+import os, time
+marks, fast = {marks!r}, {fast}
+n = len([f for f in os.listdir(marks) if f.startswith("run-")])
+open(os.path.join(marks, f"run-{{n}}"), "w").close()
+if n >= fast:
+    time.sleep(300)
+open("obstacles.txt", "w").write("Obstacles: 0\\nArea: 0.0\\n")
+"""
+
+
+def _marked(folder: Path, *, fast: int) -> tuple[Path, Path]:
+    """The script (``folder/map.py``) and its marks folder."""
+    marks = folder / "marks"
+    marks.mkdir(parents=True)
+    script = folder / "map.py"
+    script.write_text(MARKED.format(marks=str(marks), fast=fast))
+    return script, marks
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("delay", [0.05, 0.3])
 def test_second_sigint_eval_cmd_still_writes_every_partial_report(toy3, tmp_path, delay):
-    slow = tmp_path / "slow.py"
-    slow.write_text("import time\ntime.sleep(1.5)\n"
-                    "open('obstacles.txt', 'w').write('Obstacles: 0\\nArea: 0.0\\n')\n")
+    script, marks = _marked(tmp_path, fast=1)
     out = tmp_path / "out"
-    proc = _arenabench("eval", str(toy3), "--cmd", f"{sys.executable} {slow} {{image}}",
+    proc = _arenabench("eval", str(toy3), "--cmd", f"{sys.executable} {script} {{image}}",
                        "--workers", "1", "--sandbox", "none", "--no-progress", "--out", str(out))
-    time.sleep(3.5)  # one image done (1.5 s each, after a start of about 1 s)
-    assert proc.poll() is None
+    # the second image has started (one run at a time): the first has finished
+    _wait_until(proc, lambda: (marks / "run-1").exists())
     rc, err = _double_sigint(proc, delay)
     assert rc == 130, err
     assert "Traceback" not in err
-    assert sorted(p.name for p in out.iterdir()) == [
-        "junit.xml", "report.html", "report.json", "report.md", "results.csv"], err
+    assert sorted(p.name for p in out.iterdir()) == REPORT_FILES, err
     report = json.loads((out / "report.json").read_text())
-    assert report["complete"] is False and len(report["images"]) >= 1
+    # the first image's result, never the second's (killed by the stop: not a result)
+    assert report["complete"] is False and len(report["images"]) == 1, err
+    assert "after 1 of 3 images" in err
 
 
 @pytest.mark.slow
@@ -388,9 +412,7 @@ def test_second_sigint_generate_exits_130_and_resumes(tmp_path, delay):
 @pytest.mark.parametrize("delay", [0.05, 0.3])
 def test_second_sigint_grade_exits_130(toy3, tmp_path, delay):
     teams = tmp_path / "teams"
-    for team in ("a", "b"):
-        (teams / team).mkdir(parents=True)
-        (teams / team / "map.py").write_text("import time\ntime.sleep(1.5)\n")
+    marks = {team: _marked(teams / team, fast=0)[1] for team in ("a", "b")}
     out = tmp_path / "out"
     from procs_limit import GRADE_ARGS, PY_CMD
 
@@ -398,7 +420,7 @@ def test_second_sigint_grade_exits_130(toy3, tmp_path, delay):
                        "--workers", "2",
                        "--sandbox", "none", "--no-progress", "--allow-guessable-seed",
                        "--cmd", PY_CMD)
-    time.sleep(3.0)
+    _wait_until(proc, lambda: (marks["a"] / "run-0").exists())  # team a's runs have started
     rc, err = _double_sigint(proc, delay)
     assert rc == 130, err
     assert "Traceback" not in err
@@ -407,18 +429,16 @@ def test_second_sigint_grade_exits_130(toy3, tmp_path, delay):
 
 @pytest.mark.slow
 def test_eval_stopped_before_any_image_still_writes_empty_partial_reports(toy3, tmp_path):
-    slow = tmp_path / "slow.py"
-    slow.write_text("import time\ntime.sleep(30)\n")
+    script, marks = _marked(tmp_path, fast=0)
     out = tmp_path / "out"
-    proc = _arenabench("eval", str(toy3), "--cmd", f"{sys.executable} {slow} {{image}}",
+    proc = _arenabench("eval", str(toy3), "--cmd", f"{sys.executable} {script} {{image}}",
                        "--workers", "1", "--sandbox", "none", "--no-progress", "--out", str(out))
-    time.sleep(3.0)
+    _wait_until(proc, lambda: (marks / "run-0").exists())  # the first image is running
     rc, err = _double_sigint(proc, 0.05)
     assert rc == 130 and "Traceback" not in err, err
     report = json.loads((out / "report.json").read_text())
     assert report["complete"] is False and report["images"] == []
-    assert sorted(p.name for p in out.iterdir()) == [
-        "junit.xml", "report.html", "report.json", "report.md", "results.csv"]
+    assert sorted(p.name for p in out.iterdir()) == REPORT_FILES
 
 
 
@@ -460,3 +480,182 @@ print(type(trimesh.path).__name__, "gl_renderer" in worker_gl_info())
                           timeout=120)
     assert done.returncode == 0, done.stderr
     assert done.stdout.split() == ["interrupted", "module", "True"], done.stdout + done.stderr
+
+
+# ------------------------------------------------------------- a stop during the phase check
+
+#: A script wrong on every image at once, that hangs once the phase check re-runs it: run
+#: number n (counted in MARKS, a folder it can write to: --sandbox none) past the set's images
+#: writes ``phase-started`` and sleeps.
+PHASE_HANG = """\
+import os, sys, time
+marks, images = {marks!r}, {images}
+n = len([f for f in os.listdir(marks) if f.startswith("run-")])
+open(os.path.join(marks, f"run-{{n}}-{{os.getpid()}}"), "w").close()
+if n >= images:
+    open(os.path.join(marks, "phase-started"), "w").close()
+    time.sleep(300)
+open("obstacles.txt", "w").write("Obstacles: 99\\nArea: 1.0\\n")
+"""
+
+
+@pytest.fixture(scope="module")
+def twin2(tmp_path_factory):
+    """Two eyrc scenes: failures there are phase-checked (--phase-check auto)."""
+    from arenabench.generator.dataset_writer import generate_dataset
+
+    out = tmp_path_factory.mktemp("twin2") / "eyrc"
+    generate_dataset(out, preset="eyrc", count=2, seed=0, workers=1, progress=False)
+    return out
+
+
+def _phase_hang(folder: Path, marks: Path, images: int) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    marks.mkdir(parents=True, exist_ok=True)
+    script = folder / "map.py"
+    script.write_text(PHASE_HANG.format(marks=str(marks), images=images))
+    return script
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_eval_stopped_in_the_phase_check_ends_its_runs_at_once(twin2, tmp_path, sig):
+    marks = tmp_path / "marks"
+    script = _phase_hang(tmp_path / "team", marks, images=2)
+    out = tmp_path / "out"
+    proc = _arenabench("eval", str(twin2), "--cmd", f"{sys.executable} {script} {{image}}",
+                       "--workers", "1", "--timeout", "300", "--sandbox", "none",
+                       "--no-progress", "--out", str(out))
+    _wait_until(proc, lambda: (marks / "phase-started").exists())
+    # before the fix it waited for the re-runs' --timeout (300 s) and _stop killed it
+    rc, err, _, kids = _stop(proc, sig)
+    assert rc == 128 + sig, err
+    assert "Traceback" not in err
+    assert _still_alive(kids) == {}
+    report = json.loads((out / "report.json").read_text())
+    # both images scored; their phase check did not finish
+    assert report["complete"] is False and len(report["images"]) == 2
+    assert all(i["category"] == "wrong_count" and "phase" not in i for i in report["images"])
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_grade_stopped_in_a_team_phase_check_ends_its_report_workers(twin2, tmp_path, sig):
+    marks = tmp_path / "marks"
+    subs = tmp_path / "subs"
+    _phase_hang(subs / "a_hangs_in_phase_check", marks, images=2)
+    (subs / "b_sleeps").mkdir()
+    (subs / "b_sleeps" / "map.py").write_text("import time\ntime.sleep(300)\n")
+    out = tmp_path / "out"
+    from procs_limit import GRADE_ARGS
+
+    proc = _arenabench("grade", *GRADE_ARGS, str(twin2), str(subs), "--out", str(out),
+                       "--workers", "1", "--report-workers", "2", "--timeout", "300",
+                       "--sandbox", "none", "--no-progress", "--allow-guessable-seed",
+                       "--cmd", "{python} {submission}/map.py --image {image}")
+    _wait_until(proc, lambda: (marks / "phase-started").exists())
+    # before the fix it waited for the re-runs' --timeout (300 s) and _stop killed it
+    rc, err, _, kids = _stop(proc, sig)
+    assert rc == 128 + sig, err
+    assert "Traceback" not in err
+    assert any("multiprocessing" in c for c in kids.values())  # the report workers
+    assert _still_alive(kids) == {}
+    doc = json.loads((out / "leaderboard.json").read_text())
+    assert doc["complete"] is False
+    assert not (out / ".arenabench.lock").exists()
+
+
+# ------------------------------------------- a stop before a report exists, or after the last image
+
+FAST_MAP = "open('obstacles.txt', 'w').write('Obstacles: 0\\nArea: 0.0\\n')\n"
+
+
+def _signal_in(real, sig=signal.SIGINT):
+    """``real``, which sends ``sig`` to this process once it has done its work: the stop lands
+    there (the handler raises at the next instruction, inside this call)."""
+
+    def hooked(*args, **kwargs):
+        result = real(*args, **kwargs)
+        os.kill(os.getpid(), sig)
+        return result
+
+    return hooked
+
+
+@pytest.mark.parametrize(("where", "sig"), [("loading the dataset", signal.SIGINT),
+                                             ("building the pipeline", signal.SIGTERM)])
+def test_eval_stopped_before_any_image_ran_writes_an_empty_partial_report(
+        toy3, tmp_path, monkeypatch, where, sig):
+    from clirun import run_cli
+
+    import arenabench.eval.dataset_reader as dataset_reader
+    import arenabench.eval.evaluation as evaluation
+
+    if where == "loading the dataset":
+        monkeypatch.setattr(dataset_reader, "load_dataset",
+                            _signal_in(dataset_reader.load_dataset, sig))
+    else:
+        monkeypatch.setattr(evaluation, "make_pipeline",
+                            _signal_in(evaluation.make_pipeline, sig))
+    script = tmp_path / "map.py"
+    script.write_text(FAST_MAP)
+    out = tmp_path / "out"
+    proc = run_cli("eval", str(toy3), "--cmd", f"{sys.executable} {script} --image {{image}}",
+                   "--sandbox", "none", "--no-progress", "--out", str(out))
+    assert proc.returncode == 128 + sig, proc.stderr
+    assert "nothing more written" not in proc.stderr and "Traceback" not in proc.stderr
+    assert "after 0 of" in proc.stderr or "after 0 images" in proc.stderr, proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == REPORT_FILES
+    report = json.loads((out / "report.json").read_text())
+    assert report["complete"] is False and report["images"] == []
+    # how many images there were to run is known once the dataset is read
+    assert report.get("n_total") == (None if where == "loading the dataset" else 3)
+    assert "INCOMPLETE: 0" in (out / "report.md").read_text()
+
+
+@pytest.mark.parametrize("where", ["closing the pipeline", "writing the reports"])
+def test_eval_stopped_after_its_last_image_writes_the_whole_report(toy3, tmp_path, monkeypatch,
+                                                                   where):
+    from clirun import run_cli
+
+    import arenabench.eval.reports as reports
+    from arenabench.eval.external import CommandPipeline
+
+    if where == "closing the pipeline":
+        monkeypatch.setattr(CommandPipeline, "close", _signal_in(CommandPipeline.close))
+    else:  # after report.md, before report.html and junit.xml
+        monkeypatch.setattr(reports, "write_markdown", _signal_in(reports.write_markdown))
+    script = tmp_path / "map.py"
+    script.write_text(FAST_MAP)
+    out = tmp_path / "out"
+    proc = run_cli("eval", str(toy3), "--cmd", f"{sys.executable} {script} --image {{image}}",
+                   "--sandbox", "none", "--no-progress", "--out", str(out))
+    assert proc.returncode == 130, proc.stderr
+    assert "its outputs are complete" in proc.stderr and "Traceback" not in proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == REPORT_FILES  # none cut off
+    report = json.loads((out / "report.json").read_text())
+    assert report["complete"] is True and len(report["images"]) == 3
+
+
+@pytest.mark.slow
+def test_check_stopped_while_loading_its_twin_set_writes_an_empty_partial_report(
+        tmp_path, monkeypatch):
+    from clirun import run_cli
+
+    import arenabench.eval.dataset_reader as dataset_reader
+
+    script = tmp_path / "map.py"
+    script.write_text(FAST_MAP)
+    cache, out = tmp_path / "cache", tmp_path / "out"
+    env = {"ARENABENCH_CACHE_DIR": str(cache)}
+    made = run_cli("check", str(script), "--count", "2", "--sandbox", "none", "--no-progress",
+                   "--out", str(tmp_path / "first"), env=env)  # makes the twin set
+    assert made.returncode == 1, made.stderr
+    monkeypatch.setattr(dataset_reader, "load_dataset", _signal_in(dataset_reader.load_dataset))
+    proc = run_cli("check", str(script), "--count", "2", "--sandbox", "none", "--no-progress",
+                   "--out", str(out), env=env)
+    assert proc.returncode == 130, proc.stderr
+    assert "nothing more written" not in proc.stderr and "Traceback" not in proc.stderr
+    assert sorted(p.name for p in out.iterdir()) == REPORT_FILES
+    report = json.loads((out / "report.json").read_text())
+    assert report["complete"] is False and report["images"] == []

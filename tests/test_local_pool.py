@@ -19,8 +19,13 @@ def _pid_and_square(x: int) -> tuple[int, int]:
     return os.getpid(), x * x
 
 
-def _first_at_once(x: int) -> int:
-    time.sleep(0 if x == 0 else 2.0)
+def _first_at_once(task: tuple[int, str]) -> int:
+    """Task 0 returns at once; the others say they started (a file in the folder) and take
+    60 s."""
+    x, folder = task
+    if x:
+        open(os.path.join(folder, f"started-{x}"), "w").close()
+        time.sleep(60.0)
     return x
 
 
@@ -57,16 +62,19 @@ def test_a_failing_task_is_raised_here_and_no_worker_is_left():
 
 
 @pytest.mark.slow
-def test_closing_early_ends_the_workers():
+def test_closing_early_ends_the_workers(tmp_path):
     """Closed while every worker is inside a task (the first result comes at once, its worker
     takes the next task): the workers are ended, not waited for."""
-    results = local_map(_first_at_once, range(6), workers=2)
+    from hostile_util import wait_for
+
+    results = local_map(_first_at_once, [(x, str(tmp_path)) for x in range(6)], workers=2)
     assert next(results) == 0
+    # both workers are inside a 60 s task
+    assert wait_for(lambda: len(list(tmp_path.glob("started-*"))) == 2, timeout=60)
     start = time.monotonic()
-    time.sleep(0.5)  # its worker has sent the result and is in the next task
     results.close()
     assert not multiprocessing.active_children()
-    assert time.monotonic() - start < 2.0  # ended, not waited for (the tasks take 2 s)
+    assert time.monotonic() - start < 30.0  # ended, not waited for (the tasks take 60 s)
 
 
 _CLOSE_WHEN_IDLE = """
@@ -74,7 +82,7 @@ import multiprocessing, time
 from arenabench.local_pool import local_map
 results = local_map(abs, [1, -2], workers=2)
 next(results)
-time.sleep(1.0)  # both tasks are done: the workers wait for more, one holding the queue's lock
+next(results)  # both tasks are done: the workers wait for more, one holding the queue's lock
 start = time.monotonic()
 results.close()
 print(round(time.monotonic() - start, 1), len(multiprocessing.active_children()))

@@ -148,6 +148,26 @@ def test_nothing_is_rerun_when_nothing_fails_or_the_check_is_off(twin):
     assert "phase" not in report.to_dict()["images"][0]
 
 
+@pytest.mark.parametrize(("fn", "category"), [(edge_phase.garbage, "bad_output"),
+                                               (edge_phase.no_markers, "markers_not_found")])
+def test_failures_a_phase_cannot_change_are_not_rerun(twin, fn, category):
+    # garbage answers and missed markers: the check moves only the boxes, so re-running
+    # would only cost (N renders and N runs per image)
+    pipe = Counting(fn)
+    report = evaluate(pipe, twin, workers=2, phases=PHASES)
+    assert {r.category for r in report.images} == {category}
+    assert pipe.calls == COUNT and all(r.phase is None for r in report.images)
+    assert report.summary.phase_check is None
+
+
+def test_only_answers_scored_wrong_are_phase_checked():
+    from arenabench.eval.phase_check import CHECKED_CATEGORIES
+    from arenabench.eval.results import CATEGORIES, SCORING_FAILURES
+
+    assert CHECKED_CATEGORIES == frozenset(SCORING_FAILURES) == {"wrong_count", "area_off"}
+    assert CHECKED_CATEGORIES <= set(CATEGORIES)
+
+
 def test_a_sweep_phase_checks_its_failures_in_the_worker():
     from arenabench.eval.sweep.execution import run_sweep
     from arenabench.eval.sweep.grid import parse_varies

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import pytest
 import toy_arena  # tests/pipelines (pytest's pythonpath)
+from hostile_util import wait_for
 
 from arenabench.eval.evaluation import evaluate
 from arenabench.eval.external import CommandPipeline
@@ -52,6 +53,11 @@ def _most_at_once(intervals: list[tuple[float, float]]) -> int:
     return most
 
 
+def _waiting(slots: RunSlots) -> int:
+    """Threads waiting in ``slots.take`` (on its condition: CPython's ``Condition._waiters``)."""
+    return len(slots._cond._waiters)
+
+
 def test_bad_slot_counts_are_refused_naming_the_value():
     for bad in (0, -1, 1.5, True, None):
         with pytest.raises(ValueError, match="run slots must be a positive integer"):
@@ -67,12 +73,10 @@ def test_a_slot_is_handed_to_one_waiter_and_stop_wakes_the_others():
                for _ in range(3)]
     for w in waiters:
         w.start()
-    time.sleep(0.2)
-    assert got == [] and slots.free == 0  # all three wait for the one slot
+    assert wait_for(lambda: _waiting(slots) == 3)  # all three wait for the one slot
+    assert got == [] and slots.free == 0
     slots.give()
-    deadline = time.monotonic() + 5
-    while not got and time.monotonic() < deadline:
-        time.sleep(0.01)
+    assert wait_for(lambda: got and _waiting(slots) == 2)
     assert got == [True]  # one took it; two still wait
     stopped.set()
     slots.wake()
@@ -112,8 +116,8 @@ def test_stop_ends_the_running_command_and_the_one_waiting_for_its_slot(warm, to
     while slots.free and time.monotonic() < deadline:
         time.sleep(0.05)
     runs[1].start()
-    time.sleep(1.0)
-    assert slots.free == 0 and not preds  # one runs (30 s), the other waits for the slot
+    assert wait_for(lambda: _waiting(slots) == 1, timeout=60)  # the other waits for the slot
+    assert slots.free == 0 and not preds  # one runs (30 s)
     t = time.monotonic()
     pipe.stop()
     for r in runs:

@@ -7,12 +7,16 @@ reports are written as soon as its last unit is back, followed by a small state 
 later run skips a team whose state file says it was graded on the same dataset (SHA-256 of
 ``manifest.jsonl``), the same submission bytes (:func:`submission_hash`) and the same
 grading options, so an interrupted grade resumes where it stopped and a finished one does
-not run again. Out folder layout::
+not run again; a team stopped half-way keeps its finished images' results
+(:mod:`arenabench.eval.grade.partial`) and runs only the others. A team whose runs time out
+``give_up_after`` times in a row is given up (:mod:`arenabench.eval.grade.give_up`). Out
+folder layout::
 
     OUT/leaderboard.json  leaderboard.csv  leaderboard.html
     OUT/teams/TEAM/report.json  results.csv  report.md  report.html  junit.xml
     OUT/teams/TEAM/feedback.md  feedback.html  (for the team: no hidden image, no GT)
     OUT/teams/TEAM/grade-state.json          (written last, atomically)
+    OUT/teams/TEAM/partial-results.jsonl     (while the team is not finished)
 
 A submission's crash, hang, garbage or trickery only ever fails its own images; an error of
 the grader itself on one team (say, a report that cannot be written) is reported and the
@@ -27,7 +31,7 @@ import os
 import shlex
 import sys
 import threading
-from collections.abc import Callable, Generator, Sequence
+from collections.abc import Callable, Generator, Iterable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
@@ -35,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from arenabench import __version__
+from arenabench.cliopts import GIVE_UP_AFTER_RULE
 from arenabench.cmdtemplate import (
     GRADE_PLACEHOLDERS,
     GRADE_REFUSED,
@@ -49,10 +54,11 @@ from arenabench.fileio import (
     sha256_bytes,
     sha256_file,
 )
-from arenabench.interrupts import checkpoint
+from arenabench.interrupts import checkpoint, deferred_stops, stop_workers, worker_task
+from arenabench.limits import DEFAULT_GIVE_UP_AFTER
 from arenabench.workers import init_worker, process_state, usable_cores
 
-from ..dataset_reader import AREA_REFERENCES, Dataset, load_dataset
+from ..dataset_reader import AREA_REFERENCES, Dataset, DatasetSamples, load_dataset
 from ..dir_remover import wait_removed
 from ..evaluation import build_report, score_sample
 from ..external import CommandPipeline
@@ -63,7 +69,9 @@ from ..reports.feedback_report import FEEDBACK_FILES, write_feedback
 from ..results import Prediction, Summary
 from ..run_limits import RunSettings
 from ..run_slots import RunSlots, extra_thread
+from .give_up import GiveUp, first_timeout_run, timeout_run
 from .leaderboard import LeaderboardRow, leaderboard_dict, rank_rows
+from .partial import PARTIAL_FILE, PartialLog, read_partial
 from .submissions import SubmissionsError, Team, find_teams, submission_hash
 
 #: The competition's command; ``{submission}`` is the team folder's absolute path.
@@ -100,6 +108,9 @@ class GradeOptions:
     phases : int
         Phase check of each team's failing images (:mod:`arenabench.eval.phase_check`):
         sub-pixel phases re-rendered per failure, the team's command re-run on each; 0 = off.
+    give_up_after : int
+        Timeouts in a row, in image order, after which a team's later images are not run
+        (recorded as timeouts; :mod:`arenabench.eval.grade.give_up`); 0 = never.
     """
 
     command: str = DEFAULT_COMMAND
@@ -109,8 +120,10 @@ class GradeOptions:
     settings: RunSettings = field(default_factory=RunSettings)
     formats: tuple[str, ...] = tuple(FORMATS)
     phases: int = 0
+    give_up_after: int = DEFAULT_GIVE_UP_AFTER
 
     def __post_init__(self) -> None:
+        GIVE_UP_AFTER_RULE.check(self.give_up_after, name="give_up_after")
         if self.output not in OUTPUT_MODES:
             raise ValueError(f"output must be one of {OUTPUT_MODES}, got {self.output!r}")
         if not (math.isfinite(self.tolerance) and self.tolerance >= 0):
@@ -142,6 +155,7 @@ class GradeOptions:
             "run": self.settings.to_dict(),
             "arenabench": __version__,
             **({"phase_check": self.phases} if self.phases else {}),
+            "give_up_after": self.give_up_after,
         }
 
     def fingerprint(self) -> str:
@@ -263,15 +277,20 @@ def _row(team: str, state: dict[str, Any]) -> LeaderboardRow:
 
 
 class _LocalRuns:
-    """The units running in this process's threads, so that an interrupt can stop them."""
+    """The units running in this process's threads, so that an interrupt (or giving up on a
+    team) can stop them."""
 
     def __init__(self, slots: RunSlots) -> None:
         self._lock = threading.Lock()
-        self._live: dict[int, CommandPipeline] = {}
+        self._live: dict[int, CommandPipeline] = {}  # unit position -> its pipeline
+        self._dropped: set[int] = set()
         self._stopped = False
         self.slots = slots
 
-    def run(self, unit: GradeUnit) -> Prediction:
+    def run(self, position: int, unit: GradeUnit) -> Prediction:
+        with self._lock:
+            if position in self._dropped:
+                return _NOT_RUN
         try:
             pipe = _team_pipeline(unit.command, settings=unit.settings, output=unit.output,
                                   team=unit.team, base_dir=unit.submission, slots=self.slots)
@@ -280,12 +299,23 @@ class _LocalRuns:
         with self._lock:
             if self._stopped:
                 return Prediction(status="crash", message="interrupted")
-            self._live[id(pipe)] = pipe
+            if position in self._dropped:
+                return _NOT_RUN
+            self._live[position] = pipe
         try:
             return run_unit(unit, pipe)
         finally:
             with self._lock:
-                self._live.pop(id(pipe), None)
+                self._live.pop(position, None)
+
+    def drop(self, positions: Iterable[int]) -> None:
+        """These units are not wanted any more: not started, or stopped when running."""
+        with self._lock:
+            positions = set(positions) - self._dropped
+            self._dropped |= positions
+            live = [pipe for p, pipe in self._live.items() if p in positions]
+        for pipe in live:
+            pipe.stop()
 
     def stop(self) -> None:
         """Kill every running command; later units return at once."""
@@ -296,33 +326,103 @@ class _LocalRuns:
             pipe.stop()
 
 
-def _threads(units: list[GradeUnit],
-             workers: int) -> Generator[tuple[int, Prediction], None, None]:
-    # one thread more than runs at once: it prepares the next image while the runs go, and
-    # starts it the moment a run's slot frees (run_slots)
-    slots = RunSlots(workers)
-    runs = _LocalRuns(slots)
-    pool = ThreadPoolExecutor(max_workers=workers + extra_thread(slots, workers),
-                              thread_name_prefix="arenabench-grade")
-    futures = {pool.submit(runs.run, u): i for i, u in enumerate(units)}
-    try:
-        for fut in as_completed(futures):
-            checkpoint()
-            yield futures[fut], fut.result()
-    finally:
-        runs.stop()  # no-op after the last unit; on an interrupt, ends the running commands
-        pool.shutdown(wait=True, cancel_futures=True)
-        wait_removed()  # the runs' folders
+#: What a unit dropped before it ran returns (never used: its image has its result already).
+_NOT_RUN = Prediction(status="crash", message="not run")
 
 
-def _execute(units: list[GradeUnit], *, workers: int | None,
-             scheduler: Any) -> Generator[tuple[int, Prediction], None, None]:
-    if scheduler is not None:
-        from arenabench.cluster import cluster_map
+class _Threads:
+    """The units on local threads: their results as they come back (iterate), and at a stop
+    the results already back but not handed over yet (:meth:`ready`)."""
 
-        return cluster_map(run_unit, units, scheduler)  # type: ignore[return-value]
-    n = min(workers or usable_cores(), max(1, len(units)))
-    return _threads(units, n)
+    def __init__(self, units: list[GradeUnit], workers: int, runs: _LocalRuns) -> None:
+        self._runs = runs
+        # one thread more than runs at once: it prepares the next image while the runs go,
+        # and starts it the moment a run's slot frees (run_slots)
+        self._pool = ThreadPoolExecutor(
+            max_workers=workers + extra_thread(runs.slots, workers),
+            thread_name_prefix="arenabench-grade")
+        self._futures = {self._pool.submit(runs.run, i, u): i for i, u in enumerate(units)}
+        self._handed: set[Future] = set()
+        self._at_stop: list[tuple[int, Prediction]] | None = None
+        self._gen = self._results()
+
+    def _results(self) -> Generator[tuple[int, Prediction], None, None]:
+        try:
+            for fut in as_completed(self._futures):
+                checkpoint()
+                self._handed.add(fut)
+                yield self._futures[fut], fut.result()
+        except BaseException:  # a stop (here or in the caller): what ended before it is kept
+            self._at_stop = self.ready()
+            raise
+        finally:
+            self._runs.stop()  # no-op after the last unit; on a stop, ends the running ones
+            self._pool.shutdown(wait=True, cancel_futures=True)
+            wait_removed()  # the runs' folders
+
+    def __iter__(self) -> Iterator[tuple[int, Prediction]]:
+        return self._gen
+
+    def ready(self) -> list[tuple[int, Prediction]]:
+        """Results back but not handed over yet (their runs finished before a stop)."""
+        if self._at_stop is not None:
+            return self._at_stop
+        return [(i, fut.result()) for fut, i in self._futures.items()
+                if fut.done() and fut not in self._handed and not fut.cancelled()
+                and fut.exception() is None]
+
+    def close(self) -> None:
+        self._gen.close()
+
+
+class _Execution:
+    """The grade's units, on local threads or a Dask cluster: their results as they come back
+    (iterate), and :meth:`drop` for units no longer wanted (a team given up)."""
+
+    def __init__(self, units: list[GradeUnit], *, workers: int | None, client: Any) -> None:
+        self._dropped: set[int] = set()
+        self._runs: _LocalRuns | None = None
+        self._threads: _Threads | None = None
+        self._results: Iterator[tuple[int, Prediction]]
+        if client is not None:
+            from arenabench.cluster import cluster_map
+
+            self._results = cluster_map(run_unit, units, client,
+                                        drop=self._dropped.__contains__)
+        else:
+            n = min(workers or usable_cores(), max(1, len(units)))
+            self._runs = _LocalRuns(RunSlots(n))
+            self._threads = _Threads(units, n, self._runs)
+            self._results = iter(self._threads)
+
+    def __iter__(self) -> Iterator[tuple[int, Prediction]]:
+        return self._results
+
+    def ready(self) -> list[tuple[int, Prediction]]:
+        """At a stop: the results back but not handed over yet (local threads; none from a
+        cluster), before :meth:`close`."""
+        if self._threads is None:
+            return []
+        return [(i, p) for i, p in self._threads.ready() if i not in self._dropped]
+
+    def drop(self, positions: Iterable[int]) -> None:
+        """Units not wanted any more: never started, stopped when running (local threads),
+        cancelled when still pending (a cluster); their results are never used."""
+        positions = list(positions)
+        self._dropped.update(positions)
+        if self._runs is not None:
+            self._runs.drop(positions)
+
+    def close(self) -> None:
+        """Stop and cancel what is still running or pending."""
+        if self._threads is not None:
+            self._threads.close()
+        else:
+            self._results.close()  # type: ignore[attr-defined]
+
+
+def _execute(units: list[GradeUnit], *, workers: int | None, scheduler: Any) -> _Execution:
+    return _Execution(units, workers=workers, client=scheduler)
 
 
 def check_out_dir(out: Path, submissions: Path,
@@ -463,6 +563,32 @@ def grade(
             client.close()
 
 
+@dataclass
+class _TeamRun:
+    """One team being graded: its images' results so far (run now, kept from an earlier run,
+    or not run), and where they are kept meanwhile (``partial-results.jsonl``)."""
+
+    team: Team
+    digest: str
+    preds: list[Prediction | None]
+    log: PartialLog
+    done: int = 0
+    given_up: GiveUp | None = None
+    submitted: bool = False
+
+
+#: Teams named in the progress line (those with runs under way), at most.
+PROGRESS_TEAMS = 3
+
+
+def _progress_text(runs: Sequence[_TeamRun], n_images: int) -> str:
+    """The teams with runs under way and how far each got: ``"alpha 20/200, beta 3/200"``."""
+    active = [tr for tr in runs if not tr.submitted and 0 < tr.done < n_images]
+    text = ", ".join(f"{tr.team.name} {tr.done}/{n_images}" for tr in active[:PROGRESS_TEAMS])
+    more = len(active) - PROGRESS_TEAMS
+    return text + (f", +{more} more" if more > 0 else "")
+
+
 def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
            expect_common: dict[str, str], *, workers: int | None, client: Any,
            report_workers: int | None, progress: bool,
@@ -487,35 +613,76 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
             assert state is not None
             states[team.name] = state
             skipped.append(team.name)
+            (team_dir / PARTIAL_FILE).unlink(missing_ok=True)  # graded: nothing to resume
             emit(f"{team.name}: skipped: already graded ({_passed(state)})")
         else:
             (team_dir / STATE_FILE).unlink(missing_ok=True)  # stale: never trusted again
             todo.append((team, digest))
 
-    if todo:
-        emit(f"grading {len(todo)} of {len(teams)} teams on {len(data.samples)} images")
-    units: list[GradeUnit] = []
-    owner: list[int] = []
-    for k, (team, _) in enumerate(todo):
-        command = team_command(opts.command, team.path)
-        for image in data.image_paths():
-            units.append(GradeUnit(team=team.name, submission=str(team.path),
-                                   image=str(image), command=command,
-                                   output=opts.output, settings=opts.settings))
-            owner.append(k)
-
     n_images = len(data.samples)
-    preds: list[list[Prediction | None]] = [[None] * n_images for _ in todo]
-    left = [n_images] * len(todo)
-    graded: list[str] = []
-    errors: dict[str, str] = dict(refused)
-    bar = progress_bar(len(units), desc="grade", unit="run", enabled=progress)
+    ids = (data.samples.ids if isinstance(data.samples, DatasetSamples)  # no GT file read
+           else [s.id for s in data.samples])
+    if todo:
+        emit(f"grading {len(todo)} of {len(teams)} teams on {n_images} images")
+    # each team's results kept by an interrupted grade on the same dataset, submission,
+    # options and sandbox: those images do not run again
+    runs: list[_TeamRun] = []
+    for team, digest in todo:
+        path = root / TEAMS_DIR / team.name / PARTIAL_FILE
+        header = {**expect_common, "team": team.name, "submission_sha256": digest}
+        kept = read_partial(path, header, ids)
+        preds: list[Prediction | None] = [None] * n_images
+        for j, pred in (kept or {}).items():
+            preds[j] = pred
+        runs.append(_TeamRun(team=team, digest=digest, preds=preds, done=len(kept or {}),
+                             log=PartialLog(path, header, append=kept is not None)))
+        if kept:
+            emit(f"{team.name}: resuming: {len(kept)} of {n_images} images kept from the "
+                 "last run")
+
+    bar: Any = None
 
     def say(line: str) -> None:
         if hasattr(bar, "write"):  # a tqdm bar on a terminal: print above it
             bar.write(line, file=sys.stdout)
         else:
             emit(line)
+
+    def give_up(tr: _TeamRun, run: tuple[int, int]) -> list[int]:
+        """Record the team's images after ``run`` whose results are not back as not run;
+        their indices."""
+        first, last = run
+        later = [j for j in range(last + 1, n_images) if tr.preds[j] is None]
+        tr.given_up = GiveUp(after=opts.give_up_after, first=ids[first], last=ids[last],
+                             timeouts=last - first + 1, not_run=len(later))
+        skip = tr.given_up.prediction()
+        for j in later:
+            tr.preds[j] = skip
+        tr.done += len(later)
+        say(f"{tr.team.name}: {tr.given_up.text()} (--give-up-after {opts.give_up_after})")
+        return later
+
+    for tr in runs:  # the kept results may hold a run of timeouts already
+        if (run := first_timeout_run(tr.preds, opts.give_up_after)) is not None:
+            give_up(tr, run)
+
+    units: list[GradeUnit] = []
+    where: list[tuple[int, int]] = []  # unit position -> (team, image index)
+    position: dict[tuple[int, int], int] = {}
+    image_paths = data.image_paths()
+    for k, tr in enumerate(runs):
+        command = team_command(opts.command, tr.team.path)
+        for j, image in enumerate(image_paths):
+            if tr.preds[j] is None:
+                position[(k, j)] = len(units)
+                where.append((k, j))
+                units.append(GradeUnit(team=tr.team.name, submission=str(tr.team.path),
+                                       image=str(image), command=command,
+                                       output=opts.output, settings=opts.settings))
+
+    graded: list[str] = []
+    errors: dict[str, str] = dict(refused)
+    bar = progress_bar(len(units), desc="grade", unit="run", enabled=progress)
 
     if report_workers is None:  # only the HTML report is worth other processes
         report_workers = usable_cores() if "html" in opts.formats else 1
@@ -537,49 +704,92 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
                 say(f"{name}: error: {errors[name]}")
                 continue
             graded.append(name)
-            say(f"{name}: graded ({_passed(states[name])})")
+            gave_up = states[name].get("given_up")
+            note = f"; {GiveUp(**gave_up).text()}" if gave_up else ""
+            say(f"{name}: graded ({_passed(states[name])}{note})")
 
-    results = _execute(units, workers=workers, scheduler=client)
+    def finish(tr: _TeamRun) -> None:
+        tr.log.close()
+        job = _FinishJob(team=tr.team, digest=tr.digest,
+                         preds=[p for p in tr.preds if p is not None],
+                         dataset_root=str(data.root), root=str(root), opts=opts,
+                         expect_common=expect_common, sandbox=sandbox,
+                         given_up=None if tr.given_up is None else tr.given_up.to_dict())
+        tr.preds, tr.submitted = [], True  # the job holds them now
+        finishing[finisher.submit(job, data)] = job
+
+    def keep(i: int, pred: Prediction) -> _TeamRun | None:
+        """Record unit ``i``'s result (kept in the team's partial results); its team, or
+        ``None`` when it is not used (the team was given up meanwhile)."""
+        k, j = where[i]
+        tr = runs[k]
+        if tr.submitted or tr.preds[j] is not None:  # dropped: the team was given up
+            return None
+        tr.preds[j] = pred
+        tr.done += 1
+        tr.log.add(j, ids[j], pred)
+        bar.update(1)
+        return tr
+
+    execution = _execute(units, workers=workers, scheduler=client)
     finished = False
     n_total = len(teams) * n_images
     try:
-        for i, pred in results:
-            k = owner[i]
-            preds[k][i - k * n_images] = pred
-            left[k] -= 1
-            bar.update(1)
-            if left[k] == 0:
-                team, digest = todo[k]
-                job = _FinishJob(team=team, digest=digest,
-                                 preds=[p for p in preds[k] if p is not None],
-                                 dataset_root=str(data.root), root=str(root), opts=opts,
-                                 expect_common=expect_common, sandbox=sandbox)
-                preds[k] = []  # the job holds them now
-                finishing[finisher.submit(job, data)] = job
+        for tr in runs:  # every image kept (or not run): nothing left to run
+            if tr.done == n_images:
+                finish(tr)
+        for i, pred in execution:
+            tr = keep(i, pred)
+            if tr is None:
+                continue
+            k, j = where[i]
+            run = timeout_run(tr.preds, j) if tr.given_up is None else None
+            if opts.give_up_after and run and run[1] - run[0] + 1 >= opts.give_up_after:
+                later = give_up(tr, run)
+                execution.drop(position[(k, x)] for x in later)
+                bar.update(len(later))
+            bar.set_postfix_str(_progress_text(runs, n_images), refresh=False)
+            if tr.done == n_images:
+                finish(tr)
             collect(block=False)
         collect(block=True)
         finished = True
     except BaseException:  # interrupted: a partial leaderboard of the finished teams
         try:
+            for i, pred in execution.ready():  # runs that ended before the stop: kept
+                keep(i, pred)
             collect(block=False)
             rows = rank_rows(_row(t.name, states[t.name]) for t in teams if t.name in states)
-            done = len(skipped) * n_images + sum(n_images - x for x in left)
+            unfinished = [{"team": tr.team.name, "images_done": tr.done,
+                           "images_total": n_images}
+                          for tr in runs if tr.team.name not in states
+                          and tr.team.name not in errors]
+            done = len(skipped) * n_images + sum(
+                n_images if tr.team.name in states else tr.done for tr in runs)
             write_leaderboard_files(root, rows, data=data, opts=opts,
                                     manifest_sha256=expect_common["dataset_manifest_sha256"],
-                                    images_done=done, images_total=n_total, sandbox=sandbox)
+                                    images_done=done, images_total=n_total, sandbox=sandbox,
+                                    unfinished=unfinished)
+            for u in unfinished:
+                say(f"{u['team']}: not finished: {u['images_done']} of {n_images} images done "
+                    "(kept: the same command resumes from there)")
         except Exception:  # never hide the interrupt behind a report error
             pass
         raise
     finally:
-        results.close()  # stops and cancels what is still running or pending
+        execution.close()  # stops and cancels what is still running or pending
+        for tr in runs:
+            tr.log.close()
         bar.close()
         finisher.close(wait=finished)
 
     rows = rank_rows(_row(t.name, states[t.name]) for t in teams if t.name in states)
     done = sum(states[t.name]["summary"].get("n", 0) for t in teams if t.name in states)
-    files = write_leaderboard_files(root, rows, data=data, opts=opts,
-                                    manifest_sha256=expect_common["dataset_manifest_sha256"],
-                                    images_done=done, images_total=n_total, sandbox=sandbox)
+    with deferred_stops():  # every team is graded: a stop now cuts no leaderboard file off
+        files = write_leaderboard_files(
+            root, rows, data=data, opts=opts,
+            manifest_sha256=expect_common["dataset_manifest_sha256"], images_done=done,
+            images_total=n_total, sandbox=sandbox)
     systemic = systemic_failure({t.name: states[t.name] for t in teams if t.name in states})
     return GradeResult(rows=rows, graded=graded, skipped=skipped, errors=errors, files=files,
                        systemic=systemic)
@@ -597,13 +807,17 @@ class _FinishJob:
     opts: GradeOptions
     expect_common: dict[str, str]
     sandbox: dict[str, Any] = field(default_factory=dict)
+    given_up: dict[str, Any] | None = None
 
 
 def _finish_in_worker(job: _FinishJob) -> dict[str, Any]:
-    # the grade's images: the first n of the dataset, loaded once per worker process
-    data = process_state(("grade-dataset", job.dataset_root, len(job.preds)),
-                         lambda: load_dataset(job.dataset_root, limit=len(job.preds)))
-    return _finish_team(job, data)
+    # a SIGTERM (the grade stopped) unwinds the job: its phase check's runs are killed,
+    # then the worker exits
+    with worker_task():
+        # the grade's images: the first n of the dataset, loaded once per worker process
+        data = process_state(("grade-dataset", job.dataset_root, len(job.preds)),
+                             lambda: load_dataset(job.dataset_root, limit=len(job.preds)))
+        return _finish_team(job, data)
 
 
 class _Finisher:
@@ -637,8 +851,17 @@ class _Finisher:
         return fut
 
     def close(self, *, wait: bool) -> None:
-        if self._pool is not None:
-            self._pool.shutdown(wait=wait, cancel_futures=True)
+        """``wait``: let the jobs under way finish; otherwise (a stop) cancel the queued jobs
+        and end the pool's processes: SIGTERM unwinds a job (its phase check's runs are
+        killed), SIGKILL after :data:`arenabench.interrupts.WORKER_GRACE_S`."""
+        if self._pool is None:
+            return
+        if wait:
+            self._pool.shutdown(wait=True)
+            return
+        processes = list((getattr(self._pool, "_processes", None) or {}).values())
+        self._pool.shutdown(wait=False, cancel_futures=True)
+        stop_workers(processes=processes)
 
 
 def _passed(state: dict[str, Any]) -> str:
@@ -658,9 +881,13 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
 
         pipe = _team_pipeline(team_command(opts.command, team.path), settings=opts.settings,
                               output=opts.output, team=team.name, base_dir=str(team.path))
-        results = check_phases(results, [s.gt for s in data.samples[:len(results)]], pipe.run,
-                               phases=opts.phases, tolerance=opts.tolerance,
-                               area_reference=opts.area_reference, workers=2)
+        try:
+            results = check_phases(results, [s.gt for s in data.samples[:len(results)]],
+                                   pipe.run, phases=opts.phases, tolerance=opts.tolerance,
+                                   area_reference=opts.area_reference, workers=2,
+                                   stop=pipe.stop)
+        finally:
+            pipe.close()
     report = build_report(results, pipeline=team.name, dataset=str(data.root),
                           area_reference=opts.area_reference, tolerance=opts.tolerance,
                           manifest_sha256=job.expect_common["dataset_manifest_sha256"])
@@ -671,6 +898,7 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
         path = team_dir / FORMATS["json"]
         doc = json.loads(path.read_text(encoding="utf-8"))
         doc["sandbox"] = job.sandbox
+        doc["given_up"] = job.given_up  # images not run after a run of timeouts (give_up)
         atomic_write_json(path, doc)
     state = {
         "schema": STATE_SCHEMA,
@@ -681,16 +909,20 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
         "report": _report_link(team.name, opts.formats),
         "summary": report.summary.to_dict(),
         "first_error": first_error(job.preds, str(team.path)),
+        "given_up": job.given_up,
     }
     atomic_write_json(team_dir / STATE_FILE, state)  # last: marks the team as graded
+    (team_dir / PARTIAL_FILE).unlink(missing_ok=True)  # graded: nothing to resume
     return state
 
 
 def write_leaderboard_files(root: Path, rows: list[LeaderboardRow], *, data: Dataset,
                             opts: GradeOptions, manifest_sha256: str,
                             images_done: int | None = None, images_total: int | None = None,
-                            sandbox: dict[str, Any] | None = None) -> dict[str, Path]:
-    """Write ``leaderboard.json``, ``.csv`` and ``.html`` into ``root`` (atomically)."""
+                            sandbox: dict[str, Any] | None = None,
+                            unfinished: Sequence[dict[str, Any]] = ()) -> dict[str, Path]:
+    """Write ``leaderboard.json``, ``.csv`` and ``.html`` into ``root`` (atomically);
+    ``unfinished``: the teams an interrupted grade did not finish, with how far each got."""
     from ..reports.leaderboard_report import write_leaderboard
 
     doc = leaderboard_dict(
@@ -698,7 +930,7 @@ def write_leaderboard_files(root: Path, rows: list[LeaderboardRow], *, data: Dat
         dataset={"path": str(data.root), "manifest_sha256": manifest_sha256,
                  "n": len(data.samples)},
         options=opts.to_dict(), images_done=images_done, images_total=images_total,
-        sandbox=sandbox,
+        sandbox=sandbox, unfinished=unfinished,
     )
     return write_leaderboard(doc, root)
 

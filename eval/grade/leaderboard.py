@@ -18,6 +18,7 @@ is its JSON Schema)::
                  inside the sandbox, whether arenabench is importable there, how --max-procs
                  is enforced ("process_limit")},
      "categories": ["markers_not_found", "wrong_count", ...],
+     "unfinished": [{"team": "gamma", "images_done": 37, "images_total": 200}],
      "teams": [{"rank": 1, "tied": false, "team": "alpha", "n": 200, "n_passed": 198,
                 "pass_rate": 0.99,
                 "pass_rate_ci95": [0.96, 1.0], "count_exact_rate": 0.995,
@@ -26,6 +27,8 @@ is its JSON Schema)::
                 "robust_failure_rate": 0.005, "phase_dependent_failure_rate": 0.005,
                 "report": "teams/alpha/report.html", "submission_sha256": ...}, ...]}
 
+``unfinished`` (empty unless the grade was interrupted) lists the teams not graded, with how
+many of their images ran (their results are kept: the same command resumes from there).
 Every key is always present; ``area_rel_err_median``, ``count_mae`` and
 ``latency_ms_median`` are ``null`` when undefined (no answer at all);
 ``robust_failure_rate`` and ``phase_dependent_failure_rate`` (the phase check,
@@ -158,12 +161,15 @@ def leaderboard_dict(
     images_done: int | None = None,
     images_total: int | None = None,
     sandbox: Mapping[str, Any] | None = None,
+    unfinished: Sequence[Mapping[str, Any]] = (),
 ) -> dict[str, Any]:
     """The JSON document of ``leaderboard.json`` (rows must be ranked already).
 
     ``images_done`` of ``images_total`` (team-image runs) say how much of the grading ran;
-    ``complete`` is false when fewer ran (an interrupted grade). ``sandbox`` is what the
-    preflight saw (:mod:`arenabench.eval.preflight`).
+    ``complete`` is false when fewer ran (an interrupted grade), and ``unfinished`` names the
+    teams not graded then, each with ``images_done`` of ``images_total`` (its images whose
+    results are kept for the next run). ``sandbox`` is what the preflight saw
+    (:mod:`arenabench.eval.preflight`).
     """
     categories = categories_of(rows)
     total = sum(r.summary.n for r in rows) if images_total is None else int(images_total)
@@ -180,6 +186,8 @@ def leaderboard_dict(
         "sandbox": dict(sandbox) if sandbox is not None else None,
         "categories": list(categories),
         "teams": [r.to_dict(categories) for r in rows],
+        "unfinished": [{"team": str(u["team"]), "images_done": int(u["images_done"]),
+                        "images_total": int(u["images_total"])} for u in unfinished],
     }
 
 
@@ -213,6 +221,18 @@ LEADERBOARD_JSON_SCHEMA: dict[str, Any] = {
         "images_total": {"type": "integer", "minimum": 0},
         "sandbox": {"type": ["object", "null"]},
         "categories": {"type": "array", "items": {"type": "string"}},
+        "unfinished": {
+            "type": "array",
+            "items": {
+                "type": "object",
+                "required": ["team", "images_done", "images_total"],
+                "properties": {
+                    "team": {"type": "string"},
+                    "images_done": {"type": "integer", "minimum": 0},
+                    "images_total": {"type": "integer", "minimum": 0},
+                },
+            },
+        },
         "teams": {
             "type": "array",
             "items": {

@@ -161,6 +161,12 @@ def leaderboard_html(doc: dict[str, Any]) -> str:
     opts = doc["options"]
     complete = doc.get("complete", True)
     banner = "" if complete else banner_html(doc.get("images_done", 0), doc.get("images_total"))
+    left = doc.get("unfinished") or []
+    if left:  # the teams an interrupted grade did not finish, and how far each got
+        banner += ('\n<p id="unfinished" class="meta">Not finished (the same command resumes '
+                   "from where each stopped): " + ", ".join(
+                       f'{html.escape(str(u["team"]))} ({u["images_done"]} of '
+                       f'{u["images_total"]} images)' for u in left) + ".</p>")
     box = doc.get("sandbox") or {}
     seen = ", ".join(f"{k} {v}" for k, v in (box.get("versions") or {}).items() if v)
     sandbox = (f' Sandbox {html.escape(str(box.get("mode", "?")))}'

@@ -66,10 +66,11 @@ def _check_phases(task: SweepTask, gt: Any, results: list[Any], *, renderer: Any
 
     for k, (spec, result) in enumerate(zip(task.pipelines, results, strict=True)):
         if not result.passed:
-            results[k] = check_phases([result], [gt], _pipeline(spec).run, phases=task.phases,
+            pipe = _pipeline(spec)
+            results[k] = check_phases([result], [gt], pipe.run, phases=task.phases,
                                       tolerance=task.tolerance,
                                       area_reference=task.area_reference,
-                                      renderer=renderer)[0]
+                                      renderer=renderer, stop=getattr(pipe, "stop", None))[0]
 
 
 def run_task(task: SweepTask) -> dict[str, Any]:

@@ -58,6 +58,9 @@ from arenabench.suggest import did_you_mean
 EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_USAGE = 2
+#: The harness itself could not run an image (no space for a run's folder, the image cannot be
+#: copied, a launcher fails): the command stopped, nothing of that image was scored.
+EXIT_HARNESS = 4
 
 #: Options that more than one command has; each is added by the builder of the same name.
 SHARED_OPTIONS: tuple[str, ...] = (
@@ -165,6 +168,9 @@ TOLERANCE_RULE = Rule("float", 0.0, 1.0)
 TIMEOUT_RULE = Rule("float", MIN_TIMEOUT_S, MAX_TIMEOUT_S)
 #: ``--max-procs``: processes one external run may have at once (0: no process limit).
 MAX_PROCS_RULE = Rule("int", 0, MAX_RUN_PROCS)
+#: ``grade --give-up-after N``: timeouts in a row after which a team's later images are not
+#: run (0: never).
+GIVE_UP_AFTER_RULE = Rule("int", 0, MAX_DATASET_SCENES)
 #: Byte sizes of run limits (``--memory-limit``, ``--max-file-size``, ``--max-output``).
 BYTES_RULE = Rule("int", 1, MAX_RUN_BYTES)
 

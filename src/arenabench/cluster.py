@@ -37,7 +37,8 @@ def connect(scheduler: Any) -> Any:
 
 
 def cluster_map(
-    func: Callable[[Any], Any], items: Iterable[Any], scheduler: Any
+    func: Callable[[Any], Any], items: Iterable[Any], scheduler: Any, *,
+    drop: Callable[[int], bool] | None = None,
 ) -> Iterator[tuple[int, Any]]:
     """Run ``func(item)`` for every item on a Dask cluster, yielding as units finish.
 
@@ -50,6 +51,9 @@ def cluster_map(
     scheduler : str or distributed.Client
         ``tcp://HOST:PORT`` of a running scheduler (a client is opened and closed here), or
         a connected client (left open).
+    drop : callable, optional, keyword-only
+        ``drop(position)`` true: that unit is no longer wanted (asked after each result):
+        cancelled when still pending, its result (or error) never yielded.
 
     Yields
     ------
@@ -71,13 +75,23 @@ def cluster_map(
         position = {fut.key: i for i, fut in enumerate(futures)}
         done = as_completed(futures)
         del futures  # from here on only `done` holds the pending futures
+        cancelled: set[Any] = set()
         try:
             for fut in done:
                 checkpoint()
+                if drop is not None and drop(position[fut.key]):
+                    del fut  # not wanted any more: passed over, whatever it holds
+                    continue
                 result = fut.result()
                 key = fut.key
                 del fut  # release the result on the worker before handing it over
                 yield position[key], result
+                if drop is not None:
+                    unwanted = [f for f in list(done.futures) if f.key not in cancelled
+                                and drop(position[f.key])]
+                    if unwanted:
+                        cancelled.update(f.key for f in unwanted)
+                        client.cancel(unwanted)
         finally:
             pending = list(done.futures)
             done.clear()

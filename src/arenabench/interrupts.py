@@ -48,7 +48,7 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from contextlib import contextmanager
 
 #: The signals that stop a command.
@@ -323,20 +323,24 @@ def children_ignore_sigint() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-def stop_workers(*, grace_s: float = WORKER_GRACE_S) -> int:
+def stop_workers(*, grace_s: float = WORKER_GRACE_S,
+                 processes: Sequence[multiprocessing.process.BaseProcess] | None = None) -> int:
     """End every live ``multiprocessing`` child of this process: SIGTERM, then SIGKILL.
 
     Parameters
     ----------
     grace_s : float, keyword-only
         Seconds to wait for the children to exit after SIGTERM.
+    processes : sequence of multiprocessing.Process, optional, keyword-only
+        End only these (one pool's workers) instead of every child.
 
     Returns
     -------
     int
         How many children were running.
     """
-    children = multiprocessing.active_children()
+    children = (multiprocessing.active_children() if processes is None
+                else [p for p in processes if p.is_alive()])
     for child in children:
         child.terminate()
     deadline = time.monotonic() + grace_s

@@ -51,6 +51,11 @@ MAX_DATASET_SCENES = 1_000_000
 #: Most local worker processes or threads (``--workers``) of generate, sweep and eval.
 MAX_WORKERS = 256
 
+#: Timeouts in a row (in image order) after which ``grade`` runs none of a team's later images
+#: (``--give-up-after``; 0: never): a submission that hangs would otherwise cost ``--timeout``
+#: on every image.
+DEFAULT_GIVE_UP_AFTER = 3
+
 #: Most scenes rendered by one sweep: points x scenes per point (``sweep --per-point``,
 #: ``--random`` and the grid of ``--vary`` axes).
 MAX_SWEEP_SCENES = 1_000_000

@@ -40,12 +40,17 @@ class _Silent(_Closing):
     def update(self, n: int = 1) -> None:
         pass
 
+    def set_postfix_str(self, s: str = "", refresh: bool = True) -> None:
+        pass
+
     def close(self) -> None:
         pass
 
 
 class PlainProgress(_Closing):
-    """Progress as plain lines (``desc: 40/100 (40 %), 12.3 s``) for non-terminal stderr.
+    """Progress as plain lines (``desc: 40/100 img (40 %), 12.3 s, eta 18 s; status``) for
+    non-terminal stderr; the estimate of the time left is the time so far per unit done, times
+    the units left; ``status`` is the last :meth:`set_postfix_str` (tqdm's name).
 
     Parameters
     ----------
@@ -68,12 +73,21 @@ class PlainProgress(_Closing):
         self._start = self._last_time = clock()
         self._last_n = 0
         self._closed = False
+        self.status = ""
 
-    def _line(self) -> None:
+    def set_postfix_str(self, s: str = "", refresh: bool = True) -> None:
+        """What the next lines add after the counts (say, the teams under way)."""
+        self.status = str(s)
+
+    def _line(self, *, final: bool = False) -> None:
         pct = f" ({100 * self.n / self.total:.0f} %)" if self.total else ""
         seconds = self.clock() - self._start
-        print(f"{self.desc}: {self.n}/{self.total} {self.unit}{pct}, {seconds:.1f} s",
-              file=self.file, flush=True)
+        eta = ""
+        if not final and 0 < self.n < self.total:
+            eta = f", eta {duration_text(seconds * (self.total - self.n) / self.n)}"
+        status = f"; {self.status}" if self.status and not final else ""
+        print(f"{self.desc}: {self.n}/{self.total} {self.unit}{pct}, {seconds:.1f} s{eta}"
+              f"{status}", file=self.file, flush=True)
         self._last_n, self._last_time = self.n, self.clock()
 
     def update(self, n: int = 1) -> None:
@@ -92,7 +106,17 @@ class PlainProgress(_Closing):
         """Print the final line (once)."""
         if not self._closed:
             self._closed = True
-            self._line()
+            self._line(final=True)
+
+
+def duration_text(seconds: float) -> str:
+    """``"12 s"``, ``"9 min 10 s"``, ``"2 h 05 min"``."""
+    s = max(0, round(seconds))
+    if s < 60:
+        return f"{s} s"
+    if s < 3600:
+        return f"{s // 60} min {s % 60:02d} s"
+    return f"{s // 3600} h {s % 3600 // 60:02d} min"
 
 
 def progress(total: int, *, desc: str, unit: str = "img", enabled: bool = True,

@@ -63,6 +63,16 @@ def always_wrong(image_bgr: np.ndarray) -> dict:
     return {"count": det.count + 1, "area": det.area, "marker_ids": list(det.marker_ids)}
 
 
+def garbage(image_bgr: np.ndarray) -> dict:
+    """An answer that is no answer (``bad_output``), always."""
+    return {"count": "many", "area": "large"}
+
+
+def no_markers(image_bgr: np.ndarray) -> dict:
+    """``markers_not_found``, always."""
+    return {"status": "markers_not_found", "marker_ids": []}
+
+
 if __name__ == "__main__":  # pragma: no cover
     sys.exit("import it: edge_phase:detect")
 
