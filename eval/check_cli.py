@@ -273,9 +273,15 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``arenabench check``; returns the exit status."""
     from arenabench.interrupts import Interrupted, stop_on_signals
 
+    from .results import HarnessError
+
     with stop_on_signals():
         try:
             return _main(argv)
+        except HarnessError as exc:  # before any image (the interpreter's probe): nothing ran
+            print(f"{PROG}: error: the harness could not run the script: {exc}",
+                  file=sys.stderr)
+            return EXIT_HARNESS
         except Interrupted as exc:
             print(f"{PROG}: interrupted ({exc}); nothing more written", file=sys.stderr)
             return exc.exit_code

@@ -470,8 +470,6 @@ def _run_all(samples: Iterable[DatasetItem], submit: Callable[[DatasetItem], Fut
                 take(fut)
             refill()
     except BaseException:
-        from arenabench.interrupts import deferred_stops
-
         def keep(fut: Future) -> None:
             try:
                 take(fut)

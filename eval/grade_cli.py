@@ -16,6 +16,7 @@ import sys
 from pathlib import Path
 
 from arenabench.cliopts import (
+    EXIT_HARNESS,
     GIVE_UP_AFTER_RULE,
     WORKERS_RULE,
     CommandParser,
@@ -76,7 +77,8 @@ its later images are not run and count as timeouts ("not run: N consecutive time
 it"); its report.json says how many (given_up).
 
 exit status: 0 done; 1 some team could not be graded; 2 usage error or a failed check before
-any team ran; 3 most teams failed alike (the setup, not the teams); 130/143 interrupted (the
+any team ran; 3 most teams failed alike (the setup, not the teams); 4 the harness could not run
+an image (nothing of it scored; run again to resume); 130/143 interrupted (the
 leaderboard of the finished teams is written, marked INCOMPLETE, naming the unfinished teams
 and how far each got). The organiser's recipe from
 a fresh machine: docs/grading.md.
@@ -180,6 +182,7 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.interrupts import Interrupted, stop_on_signals
 
     from .competition_env import resolve_placeholder
+    from .results import HarnessError
 
     with stop_on_signals(), ExitStack() as held:
         try:
@@ -198,6 +201,11 @@ def main(argv: list[str] | None = None) -> int:
             return _error(f"{type(exc).__name__}: {exc}")
         except FolderLockedError as exc:
             return _error(str(exc))
+        except HarnessError as exc:  # the grader's own failure: nothing of it was scored
+            print(f"{PROG}: error: the harness could not run an image: {exc}; nothing of it "
+                  "was scored, finished teams stay graded (and the finished images of the "
+                  "others): run the same command again to resume", file=sys.stderr)
+            return EXIT_HARNESS
         except Interrupted as exc:
             print(f"{PROG}: {exc}: finished teams stay graded, and the finished images of "
                   "the others; run the same command again to resume", file=sys.stderr)

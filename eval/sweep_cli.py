@@ -12,6 +12,7 @@ import sys
 from dataclasses import replace
 
 from arenabench.cliopts import (
+    EXIT_HARNESS,
     CommandParser,
     add_area_reference,
     add_no_progress,
@@ -140,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from .cmd_script import missing_script_problem
     from .isolated import trial_pipeline
+    from .results import HarnessError
     from .sweep.execution import run_sweep
     from .sweep.grid import parse_varies
     from .sweep.outputs import FILES, KeptImageWriter, write_sweep
@@ -213,6 +215,10 @@ def main(argv: list[str] | None = None) -> int:
             return _error(f"{type(exc).__name__}: {exc}")
         except FolderLockedError as exc:
             return _error(str(exc))
+        except HarnessError as exc:  # the harness's own failure: nothing of it is scored
+            print(f"arenabench sweep: error: the harness could not run an image: {exc}; "
+                  "nothing written", file=sys.stderr)
+            return EXIT_HARNESS
         except Interrupted as exc:  # before the first task or after the last one
             print(f"arenabench sweep: {exc}; nothing written", file=sys.stderr)
             return exc.exit_code

@@ -470,3 +470,54 @@ def test_an_in_process_pipelines_detached_child_dies_with_eval(toy, tmp_path):
     assert result.returncode == 0, result.stderr
     assert wait_for(lambda: not processes_with(BURNER + "-detached"), timeout=30), \
         processes_with(BURNER + "-detached")
+
+
+ANSWERS = "open('obstacles.txt', 'w').write('Obstacles: 0\\nArea: 0\\n')\n"
+
+
+def _tiny_tmpdir(tmp_path: Path) -> tuple[list[str], Path]:
+    """A prefix running a command with TMPDIR on a tmpfs too small for any image's copy."""
+    unshare = shutil.which("unshare")
+    if os.getuid() != 0 or unshare is None:
+        pytest.skip("needs root and 'unshare --mount' for a full TMPDIR")
+    tiny = tmp_path / "tiny"
+    tiny.mkdir()
+    return [unshare, "--mount", "--propagation", "private", "sh", "-c",
+            f'mount -t tmpfs -o size=4k none {tiny} && exec "$@"', "sh"], tiny
+
+
+@pytest.mark.parametrize("warm", [True, False])
+def test_a_full_tmpdir_is_the_harness_failure_never_the_scripts(warm, toy, tmp_path):
+    prefix, tiny = _tiny_tmpdir(tmp_path)
+    script = tmp_path / "answers.py"
+    script.write_text(ANSWERS)
+    out = tmp_path / "out"
+    argv = [*prefix, PY, "-m", "arenabench", "eval", str(toy), "--cmd",
+            f"{PY} {script} --image {{image}}", "--sandbox", "none", "--no-progress",
+            "--phase-check", "off", "--workers", "1", "--out", str(out),
+            *([] if warm else ["--no-warm"])]
+    proc = subprocess.run(argv, capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "TMPDIR": str(tiny)})
+    assert proc.returncode == 4, (proc.returncode, proc.stderr[-2000:])
+    assert "the harness could not run an image" in proc.stderr and "Traceback" not in proc.stderr
+    doc = json.loads((out / "report.json").read_text())
+    assert doc["complete"] is False
+    assert all(r["category"] != "crash" for r in doc["images"]), doc["images"]
+
+
+def test_a_full_tmpdir_stops_a_grade_without_scoring_any_team(toy, tmp_path):
+    prefix, tiny = _tiny_tmpdir(tmp_path)
+    subs = tmp_path / "subs"
+    for name in ("a", "b"):
+        (subs / name).mkdir(parents=True)
+        (subs / name / "map.py").write_text(ANSWERS)
+    out = tmp_path / "out"
+    argv = [*prefix, PY, "-m", "arenabench", "grade", str(toy), str(subs), "--out", str(out),
+            "--cmd", f"{PY} {{submission}}/map.py --image {{image}}", "--sandbox", "none",
+            "--allow-guessable-seed", "--no-progress", "--phase-check", "off",
+            "--max-procs", "0"]
+    proc = subprocess.run(argv, capture_output=True, text=True, timeout=600,
+                          env={**os.environ, "TMPDIR": str(tiny)})
+    assert proc.returncode == 4, (proc.returncode, proc.stderr[-2000:])
+    assert "the harness could not run an image" in proc.stderr and "Traceback" not in proc.stderr
+    assert not list(out.glob("teams/*/report.json"))  # no team graded on a broken harness

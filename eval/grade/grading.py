@@ -66,7 +66,7 @@ from ..metrics import DEFAULT_TOLERANCE
 from ..predictions import OUTPUT_MODES
 from ..reports import FORMATS, write_reports
 from ..reports.feedback_report import FEEDBACK_FILES, write_feedback
-from ..results import Prediction, Summary
+from ..results import HarnessError, Prediction, Summary
 from ..run_limits import RunSettings
 from ..run_slots import RunSlots, extra_thread
 from .give_up import GiveUp, first_timeout_run, timeout_run
@@ -222,17 +222,26 @@ def _team_pipeline(
 
 
 def run_unit(unit: GradeUnit, pipe: CommandPipeline | None = None) -> Prediction:
-    """Run one team's command on one image; never raises (a grader error is a ``crash``).
+    """Run one team's command on one image; every failure of the team's command is a
+    :class:`Prediction`.
 
     ``pipe`` is the team's pipeline when the caller made it (to be able to stop it).
+
+    Raises
+    ------
+    HarnessError
+        When the grader itself cannot run the image (its own error is never scored as the
+        team's: the grade stops, and a rerun resumes).
     """
     try:
         if pipe is None:
             pipe = _team_pipeline(unit.command, settings=unit.settings, output=unit.output,
                                   team=unit.team, base_dir=unit.submission)
         return pipe.run(Path(unit.image))
+    except HarnessError:
+        raise
     except Exception as exc:
-        return Prediction(status="crash", message=f"grader: {type(exc).__name__}: {exc}"[:500])
+        raise HarnessError(f"grader: {type(exc).__name__}: {exc}"[:500]) from exc
 
 
 # ----------------------------------------------------------------------------- state
@@ -294,8 +303,8 @@ class _LocalRuns:
         try:
             pipe = _team_pipeline(unit.command, settings=unit.settings, output=unit.output,
                                   team=unit.team, base_dir=unit.submission, slots=self.slots)
-        except Exception as exc:
-            return Prediction(status="crash", message=f"grader: {type(exc).__name__}: {exc}")
+        except Exception as exc:  # the grader's failure, never the team's
+            raise HarnessError(f"grader: {type(exc).__name__}: {exc}"[:500]) from exc
         with self._lock:
             if self._stopped:
                 return Prediction(status="crash", message="interrupted")
