@@ -23,17 +23,17 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from arenabench.eval.datasets.reader import AREA_REFERENCES, Dataset, DatasetItem, load_dataset
+from arenabench.eval.datasets.result_store import ResultStore
+from arenabench.eval.runs.slots import RunSlots, extra_thread
+from arenabench.eval.scoring.breakdown import breakdown, rank_causes, systematic_errors
+from arenabench.eval.scoring.gt_facts import gt_facts
+from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE, score_image, summarize
+from arenabench.eval.scoring.results import HarnessError, ImageResult, Prediction, Report
 from arenabench.interrupts import checkpoint, deferred_stops
 from arenabench.workers import process_state, usable_cores
 
-from .breakdown import breakdown, rank_causes, systematic_errors
-from .dataset_reader import AREA_REFERENCES, Dataset, DatasetItem, load_dataset
-from .gt_facts import gt_facts
-from .metrics import DEFAULT_TOLERANCE, score_image, summarize
 from .pipelines import Pipeline, make_pipeline
-from .result_store import ResultStore
-from .results import HarnessError, ImageResult, Prediction, Report
-from .run_slots import RunSlots, extra_thread
 
 
 class EvaluationInterrupted(Exception):
@@ -57,7 +57,7 @@ class EvaluationInterrupted(Exception):
         super().__init__(f"interrupted after {report.images_done} images")
 
 class EvaluationFailed(Exception):
-    """The harness could not run an image (:class:`~arenabench.eval.results.HarnessError`):
+    """The harness could not run an image (:class:`~arenabench.eval.scoring.results.HarnessError`):
     :func:`evaluate` stopped every run; nothing of that image was scored.
 
     Attributes
@@ -110,8 +110,8 @@ def score_sample(
     sample: DatasetItem, pred: Prediction, *, tolerance: float, area_reference: str
 ) -> ImageResult:
     """Score one prediction against a dataset item's ground truth, as an
-    :class:`~arenabench.eval.results.ImageResult` (its ``params``: the item's, and the facts
-    :func:`~arenabench.eval.gt_facts.gt_facts` reads from its GT)."""
+    :class:`~arenabench.eval.scoring.results.ImageResult` (its ``params``: the item's, and the facts
+    :func:`~arenabench.eval.scoring.gt_facts.gt_facts` reads from its GT)."""
     truth = sample.truth(area_reference=area_reference)
     score = score_image(truth, pred, tolerance=tolerance)
     if score.passed and pred.run_images:  # only a failure card shows them
@@ -144,9 +144,9 @@ def build_report(
     (``complete=False``: a run stopped early, ``n_done`` is then the number of images given, of
     ``n_total``). Phase-check results on the images (``ImageResult.phase``) fill the summary's
     phase keys. ``images``: the full per-image results when ``results`` are compact ones
-    (:func:`arenabench.eval.result_store.compact_result`, same order). ``manifest_sha256``:
-    the dataset's (:meth:`~arenabench.eval.dataset_reader.Dataset.manifest_sha256`)."""
-    from .phase_check import phase_summary
+    (:func:`arenabench.eval.datasets.result_store.compact_result`, same order). ``manifest_sha256``:
+    the dataset's (:meth:`~arenabench.eval.datasets.reader.Dataset.manifest_sha256`)."""
+    from arenabench.eval.scoring.phase_check import phase_summary
 
     summary = summarize([r.score for r in results], [r.prediction for r in results])
     return Report(
@@ -187,7 +187,7 @@ def evaluate(
     ----------
     pipeline : str, callable or Pipeline
         ``"reference"``, ``"seed"``, ``"pkg.module:function"``, a function taking a BGR image,
-        or a pipeline object (e.g. :class:`~arenabench.eval.external.CommandPipeline`).
+        or a pipeline object (e.g. :class:`~arenabench.eval.runs.command.CommandPipeline`).
     dataset : path-like or Dataset
         Dataset folder written by the generator, or a loaded dataset.
     workers : int, optional
@@ -205,11 +205,11 @@ def evaluate(
     limit : int, optional
         Evaluate only the first ``limit`` images.
     phases : int
-        Phase check (:mod:`arenabench.eval.phase_check`): re-render each failing image's
+        Phase check (:mod:`arenabench.eval.scoring.phase_check`): re-render each failing image's
         scene at this many sub-pixel offsets and re-run the pipeline on each; 0 = off.
     isolate : bool
         Run a ``"pkg.module:function"`` pipeline in killable child processes
-        (:class:`~arenabench.eval.isolated.IsolatedCallablePipeline`, whatever ``executor``;
+        (:class:`~arenabench.eval.runs.isolated.IsolatedCallablePipeline`, whatever ``executor``;
         what ``arenabench eval`` does): ``sys.exit``, ``os._exit``, ``KeyboardInterrupt`` or
         an endless loop in it fail that image only. The children are started with ``spawn``:
         a script calling this needs the ``if __name__ == "__main__":`` guard.
@@ -218,8 +218,8 @@ def evaluate(
         external commands).
     spill : bool, optional
         Keep the per-image results in a temporary file rather than in memory
-        (:class:`~arenabench.eval.result_store.ResultStore`; default: for runs of more than
-        :data:`~arenabench.eval.result_store.SPILL_ABOVE` images). The report is the same
+        (:class:`~arenabench.eval.datasets.result_store.ResultStore`; default: for runs of more than
+        :data:`~arenabench.eval.datasets.result_store.SPILL_ABOVE` images). The report is the same
         either way; its ``images`` are then read back from the file when used.
 
     Returns
@@ -235,7 +235,7 @@ def evaluate(
         images dropped; the exception holds the partial report.
     EvaluationFailed
         When the harness could not run an image
-        (:class:`~arenabench.eval.results.HarnessError`): the runs are stopped the same way,
+        (:class:`~arenabench.eval.scoring.results.HarnessError`): the runs are stopped the same way,
         and nothing of that image is scored; the exception holds the partial report.
     """
     from arenabench.interrupts import Interrupted
@@ -263,9 +263,8 @@ def evaluate(
     try:
         isolated = isolate and isinstance(pipeline, str) and ":" in pipeline  # a team's function
         if isolated:
+            from arenabench.eval.runs.isolated import IsolatedCallablePipeline
             from arenabench.limits import DEFAULT_TIMEOUT_S
-
-            from .isolated import IsolatedCallablePipeline
 
             isolated_pipe = IsolatedCallablePipeline(
                 pipeline, timeout_s=DEFAULT_TIMEOUT_S if timeout_s is None else timeout_s)
@@ -281,7 +280,7 @@ def evaluate(
         # an external command without run slots of its own gets n_workers for this
         # evaluation, and one more thread than runs at once prepares the next image meanwhile
         # (run_slots)
-        from .external import CommandPipeline
+        from arenabench.eval.runs.command import CommandPipeline
 
         if not use_process and isinstance(pipe, CommandPipeline) and pipe.slots is None:
             slots = pipe.slots = RunSlots(n_workers)
@@ -412,9 +411,8 @@ def _check_phases(results: list[ImageResult], data: Dataset, pipe: Pipeline,
                   *, phases: int, tolerance: float, area_reference: str, workers: int,
                   progress: bool) -> list[ImageResult]:
     """The phase check of a run's failing images (docs/phase-check.md)."""
+    from arenabench.eval.scoring.phase_check import check_phases, checked
     from arenabench.progress import progress as progress_bar
-
-    from .phase_check import check_phases, checked
 
     failing = sum(1 for r in results if checked(r))
     if not failing:
@@ -492,7 +490,7 @@ def score(
     dataset: str | os.PathLike[str] | Dataset,
     **options: Any,
 ):
-    """Evaluate and return only the :class:`~arenabench.eval.results.Summary`.
+    """Evaluate and return only the :class:`~arenabench.eval.scoring.results.Summary`.
 
     For test suites: ``assert score(my_pipeline, dataset).pass_rate >= 0.95``. ``options``
     are those of :func:`evaluate`.

@@ -4,12 +4,12 @@
 - :class:`CallablePipeline`: a Python function (or ``"pkg.module:function"``) taking a BGR
   image and returning a mapping or object with ``count``, ``area`` (or ``total_area``) and
   optionally ``marker_ids`` and ``status``.
-- :class:`~arenabench.eval.external.CommandPipeline` (in its own module): a team's script run
+- :class:`~arenabench.eval.runs.command.CommandPipeline` (in its own module): a team's script run
   as it is graded, e.g. ``python3 map.py --image {image}``: a private directory per image, no
   shell, sandbox, limits and cleanup of every process it starts; ``obstacles.txt`` (or a JSON
   line on stdout) parsed.
 
-What a pipeline returned becomes a :class:`Prediction` in :mod:`arenabench.eval.predictions`.
+What a pipeline returned becomes a :class:`Prediction` in :mod:`arenabench.eval.runs.predictions`.
 
 No adapter ever raises for a bad pipeline: crashes, timeouts, limits and garbage
 become a :class:`Prediction` with status ``crash``, ``timeout``, ``limit`` or ``bad_output``
@@ -28,10 +28,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+from arenabench.eval.runs.predictions import prediction_from_result
+from arenabench.eval.scoring.results import Prediction, tail
 from arenabench.pipeline.config import PROFILES
-
-from .predictions import prediction_from_result
-from .results import Prediction, tail
 
 __all__ = [
     "BUILTIN_PIPELINES", "BuiltinPipeline", "CallablePipeline", "Pipeline", "call_on_image",

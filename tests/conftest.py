@@ -6,7 +6,7 @@ import tempfile
 
 import pytest
 
-from arenabench.eval.warm_client import close_all
+from arenabench.eval.runs.warm_client import close_all
 
 
 @pytest.fixture()
@@ -28,7 +28,7 @@ def competition_cache(tmp_path_factory):
     """A cache folder (``ARENABENCH_CACHE_DIR``) holding the competition's Python environment,
     made once per test session from the package index exactly as ``arenabench check`` makes it
     (a real second virtual environment with the competition's numpy and OpenCV)."""
-    from arenabench.eval.competition_env import competition_python
+    from arenabench.eval.runs.competition_env import competition_python
 
     cache = tmp_path_factory.mktemp("competition-cache")
     made = competition_python(cache=cache, progress=False, prog="tests")

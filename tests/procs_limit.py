@@ -2,7 +2,7 @@
 the tests add where it cannot (one place for every test file).
 
 ``grade`` fails closed where the process limit cannot be enforced (root without a writable
-pids cgroup: :func:`arenabench.eval.preflight.process_limit`). The tests' own grades are not
+pids cgroup: :func:`arenabench.eval.grade.preflight.process_limit`). The tests' own grades are not
 about that, so there they pass ``--max-procs 0`` (no process limit); everywhere else they run
 with the default limit, as an organiser's would. tests/test_grade_procs.py tests the refusal
 itself.
@@ -14,8 +14,8 @@ import shlex
 import sys
 from typing import Any
 
-from arenabench.eval.preflight import PreflightError, process_limit
-from arenabench.eval.run_limits import RunLimits, RunSettings
+from arenabench.eval.grade.preflight import PreflightError, process_limit
+from arenabench.eval.runs.limits import RunLimits, RunSettings
 from arenabench.limits import DEFAULT_MAX_PROCS
 
 

@@ -14,8 +14,8 @@ from pathlib import Path
 import pytest
 
 from arenabench.cli import main as arenabench_main
-from arenabench.eval.dataset_reader import DatasetError, DatasetItem, load_dataset
-from arenabench.eval.sweep_cli import main as sweep_main
+from arenabench.eval.commands.sweep import main as sweep_main
+from arenabench.eval.datasets.reader import DatasetError, DatasetItem, load_dataset
 from arenabench.generator.generate_cli import main as generate_main
 
 

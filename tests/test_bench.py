@@ -14,8 +14,8 @@ import sys
 
 import pytest
 
-from arenabench.eval.bench import FIGURE_KEYS, BenchConfig
-from arenabench.eval.bench_cli import main
+from arenabench.eval.bench.items import FIGURE_KEYS, BenchConfig
+from arenabench.eval.commands.bench import main
 
 DOCUMENTED_KEYS = (
     "generate_disk_ips", "generate_memory_ips", "naive_ips", "encode_floor_ips",
@@ -80,8 +80,8 @@ def test_quick_bench_json_has_no_verdicts(quick_run):
 
 
 def test_full_table_judges_targets():
-    from arenabench.eval.bench import TARGETS, BenchResult
-    from arenabench.eval.bench_cli import format_table
+    from arenabench.eval.bench.items import TARGETS, BenchResult
+    from arenabench.eval.commands.bench import format_table
 
     figures = {k: (v * 2 if op == ">=" else v / 2) for k, op, v, _ in TARGETS}
     text = format_table(BenchResult(figures=figures, details={}, machine={"cores": 2}))

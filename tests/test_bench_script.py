@@ -9,7 +9,7 @@ from pathlib import Path
 
 import pytest
 
-from arenabench.eval.bench import script_per_image
+from arenabench.eval.bench.items import script_per_image
 
 EXAMPLE = Path(__file__).resolve().parent / "data" / "task1c_image.jpg"
 

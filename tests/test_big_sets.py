@@ -12,11 +12,11 @@ from dataclasses import replace
 
 import pytest
 
-from arenabench.eval.bigset import fixed_answer, write_big_set
-from arenabench.eval.dataset_reader import DatasetError, DatasetSamples, load_dataset
+from arenabench.eval.datasets.bigset import fixed_answer, write_big_set
+from arenabench.eval.datasets.reader import DatasetError, DatasetSamples, load_dataset
+from arenabench.eval.datasets.result_store import ResultStore, StoredResults
 from arenabench.eval.evaluation import evaluate
 from arenabench.eval.reports import FORMATS, write_reports
-from arenabench.eval.result_store import ResultStore, StoredResults
 from arenabench.fileio import dumps_json
 from arenabench.jsonstream import Streamed, write_json_stream
 
@@ -106,7 +106,7 @@ def test_100k_images_evaluate_in_under_1_gb(tmp_path):
     big = write_big_set(tmp_path / "set", n)
     out = tmp_path / "out"
     command = [sys.executable, "-m", "arenabench", "eval", str(big.root),
-               "--pipeline", "arenabench.eval.bigset:fixed_answer", "--phase-check", "off",
+               "--pipeline", "arenabench.eval.datasets.bigset:fixed_answer", "--phase-check", "off",
                "--workers", "2", "--no-progress", "--out", str(out)]
     # a fresh process whose only children are the command's: their largest peak RSS
     probe = ("import resource, subprocess, sys; rc = subprocess.call(sys.argv[1:]); "

@@ -8,8 +8,8 @@ import json
 import edge_phase
 import pytest
 
-from arenabench.eval.breakdown import rank_causes
-from arenabench.eval.results import ImageResult, ImageScore, Prediction, Truth
+from arenabench.eval.scoring.breakdown import rank_causes
+from arenabench.eval.scoring.results import ImageResult, ImageScore, Prediction, Truth
 
 
 def _result(i: int, passed: bool, **params: float) -> ImageResult:
@@ -80,7 +80,7 @@ def _answered(i: int, count_err: int, area_ratio: float = 1.0) -> ImageResult:
 
 
 def test_a_count_offset_on_most_images_is_systematic():
-    from arenabench.eval.breakdown import systematic_errors, systematic_text
+    from arenabench.eval.scoring.breakdown import systematic_errors, systematic_text
 
     results = [_answered(i, 4) for i in range(50)]
     (found,) = systematic_errors(results, tolerance=0.05)
@@ -103,7 +103,7 @@ def test_a_count_offset_on_most_images_is_systematic():
 
 
 def test_an_area_factor_on_most_images_is_systematic():
-    from arenabench.eval.breakdown import systematic_errors
+    from arenabench.eval.scoring.breakdown import systematic_errors
 
     results = [_answered(i, 0, 1.21 + 0.001 * (i % 5)) for i in range(10)]
     (found,) = systematic_errors(results, tolerance=0.05)
@@ -115,8 +115,8 @@ def test_an_area_factor_on_most_images_is_systematic():
 
 
 def test_gt_facts_are_read_from_the_ground_truth(tmp_path):
-    from arenabench.eval.dataset_reader import load_dataset
-    from arenabench.eval.gt_facts import FACTS, gt_facts
+    from arenabench.eval.datasets.reader import load_dataset
+    from arenabench.eval.scoring.gt_facts import FACTS, gt_facts
     from arenabench.generator.dataset_writer import generate_dataset
 
     generate_dataset(tmp_path / "s", preset="eyrc", count=3, seed=0, workers=1, progress=False)
@@ -151,8 +151,8 @@ def test_a_minimum_area_script_is_traced_to_the_smallest_box(twin40, tmp_path):
     from pathlib import Path
 
     from arenabench.eval.evaluation import evaluate
-    from arenabench.eval.external import CommandPipeline
     from arenabench.eval.reports import write_reports
+    from arenabench.eval.runs.command import CommandPipeline
 
     script = Path(__file__).parent / "pipelines" / "style_min_area.py"
     report = evaluate(CommandPipeline(f"{sys.executable} {script} --image {{image}}"),
@@ -172,7 +172,7 @@ def test_a_minimum_area_script_is_traced_to_the_smallest_box(twin40, tmp_path):
 def test_counting_the_markers_as_obstacles_is_named_as_an_offset(tmp_path):
     """The seed profile on eyrc-upright counts the four markers as obstacles: every answer is
     GT + 4, every image fails alike, and no scene fact can separate them."""
-    from arenabench.eval.check_cli import verdict_lines
+    from arenabench.eval.commands.check import verdict_lines
     from arenabench.eval.evaluation import evaluate
     from arenabench.eval.reports import write_reports
     from arenabench.generator.dataset_writer import generate_dataset

@@ -155,7 +155,7 @@ def _own_versions() -> tuple[str, str, str]:
 def test_an_old_api_script_passes_under_the_competition_opencv_by_default(cache, tmp_path):
     """A script calling cv2.aruco.detectMarkers (OpenCV 4.x; removed in 5) runs, by default,
     under the competition's numpy and OpenCV, and says so in its output and its reports."""
-    from arenabench.eval.competition_env import COMPETITION_PINS
+    from arenabench.eval.runs.competition_env import COMPETITION_PINS
 
     out = tmp_path / "report"
     script = str(PIPELINES / "style_legacy_aruco.py")
@@ -202,7 +202,7 @@ def test_offline_the_check_falls_back_in_one_line_naming_the_versions_that_ran(t
     cannot be made and names the versions that ran instead; nothing half-made is left."""
     import socket
 
-    from arenabench.eval.competition_env import COMPETITION_PINS
+    from arenabench.eval.runs.competition_env import COMPETITION_PINS
 
     closed = socket.socket()  # bound, never listening: connections are refused
     closed.bind(("127.0.0.1", 0))

@@ -118,7 +118,7 @@ def test_eval_reads_what_our_own_detector_writes(toy, tmp_path):
 
 
 def test_a_json_line_pipeline_may_give_polygons_in_image_px():
-    from arenabench.eval.predictions import prediction_from_result
+    from arenabench.eval.runs.predictions import prediction_from_result
 
     square = [[10, 10], [60, 10], [60, 60], [10, 60]]
     pred = prediction_from_result({"count": 1, "area": 2500.0, "obstacles_image": [square]},
@@ -386,7 +386,7 @@ def test_demo_ends_saying_how_to_run_arenabench_from_a_shell():
     venv_bin = Path(sys.executable).parent
     if not (venv_bin / "arenabench").is_file():
         pytest.skip("not run from a virtual environment with the arenabench script")
-    code = "from arenabench.eval.demo import _on_path_hint; print(_on_path_hint())"
+    code = "from arenabench.eval.commands.demo import _on_path_hint; print(_on_path_hint())"
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           cwd=ROOT, env={**os.environ, "PATH": "/usr/bin:/bin"}, timeout=60)
     hint = proc.stdout.strip()

@@ -1,5 +1,6 @@
 """Command templates: the placeholders each command accepts, one-pass filling, literal braces,
-and the script a template names (``arenabench.cmdtemplate``, ``arenabench.eval.cmd_script``)."""
+and the script a template names (``arenabench.cmdtemplate``,
+``arenabench.eval.runs.cmd_script``)."""
 
 from __future__ import annotations
 
@@ -18,9 +19,9 @@ from arenabench.cmdtemplate import (
     placeholders,
     template_problem,
 )
-from arenabench.eval.cmd_script import missing_script_problem
-from arenabench.eval.external import CommandPipeline
 from arenabench.eval.grade.grading import GradeOptions, team_command
+from arenabench.eval.runs.cmd_script import missing_script_problem
+from arenabench.eval.runs.command import CommandPipeline
 
 
 def test_every_command_takes_declared_placeholders_only():

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 from clirun import run_cli
 
-from arenabench.eval.competition_env import (
+from arenabench.eval.runs.competition_env import (
     COMPETITION_PINS,
     PLACEHOLDER,
     RECORD_FILE,
@@ -97,7 +97,7 @@ def test_a_second_command_waits_for_the_one_making_it_and_reuses_its_work(
     folder.parent.mkdir(parents=True)
     lock = os.open(folder.with_name(folder.name + ".lock"), os.O_RDWR | os.O_CREAT, 0o644)
     fcntl.flock(lock, fcntl.LOCK_EX)
-    code = ("from arenabench.eval.competition_env import competition_python\n"
+    code = ("from arenabench.eval.runs.competition_env import competition_python\n"
             f"i = competition_python(cache={str(cache)!r}, prog='second')\n"
             "print('RESULT', i.source, i.made, i.executable, flush=True)\n")
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
@@ -126,7 +126,7 @@ def test_a_stopped_build_leaves_nothing_half_made(tmp_path):
     cache = tmp_path / "cache"
     folder = env_folder(cache)
     code = ("from arenabench.interrupts import Interrupted, stop_on_signals\n"
-            "from arenabench.eval.competition_env import competition_python\n"
+            "from arenabench.eval.runs.competition_env import competition_python\n"
             "with stop_on_signals():\n"
             "    try:\n"
             f"        competition_python(cache={str(cache)!r}, prog='stopped')\n"

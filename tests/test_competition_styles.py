@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 from pass_rates import STYLES, score_preset  # tests/pipelines (pytest's pythonpath)
 
-from arenabench.eval.eval_cli import main as eval_main
+from arenabench.eval.commands.eval import main as eval_main
 from arenabench.generator.generate_cli import main as generate_main
 
 PIPES = Path(__file__).resolve().parent / "pipelines"

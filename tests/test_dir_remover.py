@@ -10,8 +10,8 @@ import subprocess
 import sys
 from pathlib import Path
 
-from arenabench.eval import dir_remover
-from arenabench.eval.dir_remover import MAX_PENDING, remove_later, wait_removed
+from arenabench.eval.runs import remover as dir_remover
+from arenabench.eval.runs.remover import MAX_PENDING, remove_later, wait_removed
 
 
 def _folder(root: Path, name: str, files: int = 20) -> Path:
@@ -53,7 +53,7 @@ def test_the_harness_exit_waits_for_pending_removals(tmp_path):
     # many files per folder, so that the remover thread is still at work when the script
     # returns: without the exit hook, the daemon thread would die with folders left
     folders = [_folder(tmp_path, f"run{i}", files=400) for i in range(MAX_PENDING)]
-    code = ("import sys\nfrom arenabench.eval.dir_remover import remove_later\n"
+    code = ("import sys\nfrom arenabench.eval.runs.remover import remove_later\n"
             "for p in sys.argv[1:]:\n    remove_later(p)\n")
     done = subprocess.run([sys.executable, "-c", code, *map(str, folders)],
                           capture_output=True, text=True, timeout=120)

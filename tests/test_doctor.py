@@ -70,7 +70,7 @@ def test_command_line_json_no_context():
 def test_sandbox_and_browser_checks_run_for_real(monkeypatch, tmp_path):
     import shutil
 
-    from arenabench.eval.sandbox import bwrap_problem
+    from arenabench.eval.runs.sandbox import bwrap_problem
 
     check = doctor.check_sandbox()
     assert check.ok == (bwrap_problem() is None), check.detail

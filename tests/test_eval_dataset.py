@@ -2,7 +2,7 @@
 
 from pathlib import Path
 
-from arenabench.eval.dataset_reader import DatasetItem
+from arenabench.eval.datasets.reader import DatasetItem
 
 
 def _sample(markers):

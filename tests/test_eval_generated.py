@@ -12,8 +12,8 @@ pytest.importorskip("arenabench.generator.generate_cli", reason="generator not a
 pytest.importorskip("arenabench.pipeline", reason="pipeline not available yet")
 pytest.importorskip("arenabench.detect", reason="arenabench.detect command not available yet")
 
-from arenabench.eval.demo import main as demo_main
-from arenabench.eval.eval_cli import main as eval_main
+from arenabench.eval.commands.demo import main as demo_main
+from arenabench.eval.commands.eval import main as eval_main
 from arenabench.eval.reports.json_report import read_json
 from arenabench.generator.generate_cli import main as generate_main
 

@@ -11,12 +11,12 @@ import numpy as np
 import pytest
 import toy_arena
 
-from arenabench.eval.eval_cli import main as eval_main
+from arenabench.eval.commands.eval import main as eval_main
 from arenabench.eval.evaluation import evaluate
-from arenabench.eval.external import CommandPipeline
 from arenabench.eval.pipelines import CallablePipeline
-from arenabench.eval.results import Prediction
-from arenabench.eval.run_limits import RunLimits, RunSettings
+from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs.limits import RunLimits, RunSettings
+from arenabench.eval.scoring.results import Prediction
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 
@@ -194,7 +194,7 @@ def test_in_process_failures_never_escape(toy):
     (np.array([2.0, 7.0]), "ndarray"),
 ])
 def test_a_result_that_is_not_a_mapping_says_so(result, shown):
-    from arenabench.eval.predictions import prediction_from_result
+    from arenabench.eval.runs.predictions import prediction_from_result
 
     pred = prediction_from_result(result, latency_ms=1.0)
     assert pred.status == "bad_output"

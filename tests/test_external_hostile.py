@@ -15,10 +15,10 @@ import pytest
 import toy_arena
 from hostile_util import processes_with, wait_for
 
-from arenabench.eval.evaluation import evaluate
-from arenabench.eval.external import CommandPipeline
-from arenabench.eval.run_limits import RunLimits, RunSettings
-from arenabench.eval.sandbox import bwrap_problem, pids_cgroup_parent
+from arenabench.eval.evaluation import EvaluationFailed, evaluate
+from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs.limits import RunLimits, RunSettings
+from arenabench.eval.runs.sandbox import bwrap_problem, pids_cgroup_parent
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 HOSTILE = PIPES / "hostile"
@@ -295,7 +295,7 @@ def test_sigkill_of_the_harness_leaves_no_processes_or_directories(toy, tmp_path
     ],
 )
 def test_missing_executable_is_refused_up_front(cmd, message, toy, capsys):
-    from arenabench.eval.eval_cli import main
+    from arenabench.eval.commands.eval import main
 
     assert main([str(toy), "--cmd", cmd, "--no-progress"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
@@ -303,8 +303,8 @@ def test_missing_executable_is_refused_up_front(cmd, message, toy, capsys):
 
 
 def test_sandbox_bwrap_where_it_does_not_work_is_a_usage_error(toy, capsys, monkeypatch):
-    from arenabench.eval import sandbox
-    from arenabench.eval.eval_cli import main
+    from arenabench.eval.commands.eval import main
+    from arenabench.eval.runs import sandbox
 
     monkeypatch.setenv("PATH", str(Path(PY).parent))  # no bwrap on this PATH
     sandbox.bwrap_problem.cache_clear()
@@ -320,7 +320,7 @@ def test_sandbox_bwrap_where_it_does_not_work_is_a_usage_error(toy, capsys, monk
 def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
     toy, run_tmp, monkeypatch, capsys
 ):
-    from arenabench.eval import sandbox
+    from arenabench.eval.runs import sandbox
 
     monkeypatch.setenv("PATH", str(Path(PY).parent))  # no bwrap on this PATH
     monkeypatch.setattr(sandbox, "_warned_once", [])
@@ -337,8 +337,8 @@ def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
 
 
 def test_limit_is_a_failure_category_everywhere(toy, run_tmp):
-    from arenabench.eval.results import CATEGORIES, STATUSES
-    from arenabench.eval.thresholds import check_thresholds, parse_thresholds
+    from arenabench.eval.scoring.results import CATEGORIES, STATUSES
+    from arenabench.eval.scoring.thresholds import check_thresholds, parse_thresholds
 
     assert "limit" in CATEGORIES and "limit" in STATUSES
     report = evaluate(_pipe("memory.py", "none", env={"MB": "1024"}, memory_bytes=256 * 1024**2),
@@ -395,7 +395,7 @@ def test_long_and_empty_arguments_reach_the_command_as_given(sandbox, toy, run_t
 
 
 def test_stale_run_dirs_and_cgroups_of_dead_owners_are_swept(tmp_path):
-    from arenabench.eval.stale_runs import RUN_PREFIX, sweep_stale_runs
+    from arenabench.eval.runs.stale import RUN_PREFIX, sweep_stale_runs
 
     dead = subprocess.Popen([PY, "-c", "pass"])
     dead.wait()
@@ -457,7 +457,7 @@ def test_sigkill_of_the_whole_group_is_swept_by_the_next_run(toy, tmp_path):
 def test_pids_cgroup_probe_is_thread_safe(monkeypatch):
     from concurrent.futures import ThreadPoolExecutor
 
-    from arenabench.eval import sandbox
+    from arenabench.eval.runs import sandbox
 
     first = sandbox.pids_cgroup_parent()
     if first is None:
@@ -531,8 +531,9 @@ def test_a_run_whose_pids_cgroup_cannot_be_made_is_not_run(warm, toy, run_tmp, t
                            warm=warm)
     pipe = CommandPipeline(f"{PY} {script} --image {{image}}", settings=settings)
     pipe._cgroup = str(tmp_path / "no such cgroup")
-    images = evaluate(pipe, toy, workers=1, limit=1).images
-    assert images[0].prediction.status == "crash"
-    assert "cannot create the run's pids cgroup" in images[0].prediction.message
-    assert "--max-procs 16 cannot be enforced" in images[0].prediction.message
+    with pytest.raises(EvaluationFailed) as failed:  # the harness's failure: never scored
+        evaluate(pipe, toy, workers=1, limit=1)
+    assert "cannot create the run's pids cgroup" in str(failed.value)
+    assert "--max-procs 16 cannot be enforced" in str(failed.value)
+    assert failed.value.report.images == ()
     assert not ran.exists()

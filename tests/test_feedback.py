@@ -124,7 +124,7 @@ def test_a_team_without_its_feedback_is_graded_again(graded):
 
 def test_feedback_names_causes_and_offsets_without_their_medians():
     from arenabench.eval.evaluation import build_report
-    from arenabench.eval.results import ImageResult, ImageScore, Prediction, Truth
+    from arenabench.eval.scoring.results import ImageResult, ImageScore, Prediction, Truth
 
     def result(i, passed, size):
         return ImageResult(

@@ -17,7 +17,6 @@ import pytest
 from procs_limit import GRADE_ARGS, PY_CMD, grade_settings
 
 from arenabench.cli import main as arenabench_main
-from arenabench.eval.external import CommandPipeline
 from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade, team_command
 from arenabench.eval.grade.leaderboard import (
     LEADERBOARD_JSON_SCHEMA,
@@ -26,8 +25,9 @@ from arenabench.eval.grade.leaderboard import (
     rank_rows,
 )
 from arenabench.eval.grade.submissions import submission_hash
-from arenabench.eval.phase_check import DEFAULT_PHASES
-from arenabench.eval.results import Summary
+from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.scoring.phase_check import DEFAULT_PHASES
+from arenabench.eval.scoring.results import Summary
 
 TEAMS_SRC = Path(__file__).resolve().parent / "grade_teams"
 TEAMS = ("cheating", "correct", "crashing", "partly_right", "slow", "total_area")
@@ -592,7 +592,7 @@ def test_a_team_that_times_out_in_a_row_is_given_up(toy8, tmp_path, capsys):
 
 def test_consecutive_timeouts_are_counted_in_image_order_whatever_order_they_come_back():
     from arenabench.eval.grade.give_up import first_timeout_run, timeout_run
-    from arenabench.eval.results import Prediction
+    from arenabench.eval.scoring.results import Prediction
 
     t, ok = Prediction(status="timeout"), Prediction(status="ok", count=1, area=1.0)
     preds = [None] * 8
@@ -740,7 +740,7 @@ def test_partial_results_read_back_exactly_and_only_under_their_own_header(tmp_p
     import math
 
     from arenabench.eval.grade.partial import PartialLog, read_partial
-    from arenabench.eval.results import Prediction
+    from arenabench.eval.scoring.results import Prediction
 
     path = tmp_path / "team" / "partial-results.jsonl"
     header = {"team": "t", "submission_sha256": "a" * 64}

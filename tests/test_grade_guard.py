@@ -15,9 +15,9 @@ import pytest
 from clirun import CliResult, env_changes, run_cli
 from procs_limit import GRADE_ARGS, PY_CMD, grade_settings
 
-from arenabench.eval import warm_client
 from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade
-from arenabench.eval.sandbox import bwrap_problem
+from arenabench.eval.runs import warm_client
+from arenabench.eval.runs.sandbox import bwrap_problem
 from arenabench.generator.seeds import GUESSABLE_BELOW
 
 HERE = Path(__file__).resolve().parent
@@ -201,8 +201,8 @@ def test_a_seed_no_generator_writes_is_a_dataset_error_even_when_guessable_is_al
 
 
 def test_a_set_whose_every_seed_is_big_passes_the_seed_check(seed3_set, tmp_path):
-    from arenabench.eval.dataset_reader import load_dataset
-    from arenabench.eval.preflight import PreflightError, check_dataset_seed
+    from arenabench.eval.datasets.reader import load_dataset
+    from arenabench.eval.grade.preflight import PreflightError, check_dataset_seed
 
     data = _with_seeds(seed3_set, tmp_path / "hidden", meta=BIG_SEED, gt=BIG_SEED)
     assert check_dataset_seed(load_dataset(data), allow_guessable=False) == BIG_SEED
@@ -318,7 +318,7 @@ def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp
         assert host not in json.dumps(seen["cmdline"]) and host not in seen["environ"], host
     # mountinfo lists the mount points: the system folders, the interpreter's, the
     # submission's, the visible shared folder and, hidden under empty tmpfs, the dataset's
-    from arenabench.eval.interpreter import interpreter_folders
+    from arenabench.eval.runs.interpreter import interpreter_folders
 
     allowed = {str(subs / "snoop"), str(shared), str(data), str(data / "pics"),
                *interpreter_folders(sys.executable).folders}
@@ -365,7 +365,7 @@ def test_symlinked_team_grades_like_its_target(seed3_set, tmp_path):
 def teams_venv(competition_cache):
     """A second, real virtual environment with its own numpy and OpenCV at the competition's
     versions: the competition's environment, made once per session from the package index."""
-    from arenabench.eval.competition_env import env_folder
+    from arenabench.eval.runs.competition_env import env_folder
 
     return env_folder(competition_cache)
 
@@ -379,7 +379,7 @@ def test_a_second_venv_grades_a_correct_team_100(seed3_set, teams_venv, competit
     shutil.copytree(HERE / "grade_teams" / "correct", subs / "correct")
     # the team's script is the reference detector with its source alongside (the teams'
     # venv has no arenabench), as the built-in preflight reference is laid out
-    from arenabench.eval.preflight import builtin_reference
+    from arenabench.eval.grade.preflight import builtin_reference
 
     shutil.rmtree(subs / "correct")
     (subs / "correct").mkdir()
@@ -397,7 +397,7 @@ def test_a_second_venv_grades_a_correct_team_100(seed3_set, teams_venv, competit
     assert doc["teams"][0]["pass_rate"] == 1.0
     box = doc["sandbox"]
     assert box["mode"] == "bwrap" and box["kind"] == "venv"
-    from arenabench.eval.competition_env import COMPETITION_PINS
+    from arenabench.eval.runs.competition_env import COMPETITION_PINS
 
     for pin in COMPETITION_PINS:
         assert pin.matches(box["versions"][pin.module])
@@ -618,9 +618,9 @@ def test_interrupted_grade_and_eval_show_the_banner(seed3_set, tmp_path):
 def test_sweep_page_of_a_partial_sweep_shows_the_banner(tmp_path):
     from dataclasses import replace
 
+    from arenabench.eval.commands.sweep import main as sweep_main
     from arenabench.eval.sweep.html import sweep_page
     from arenabench.eval.sweep.outputs import load_sweep
-    from arenabench.eval.sweep_cli import main as sweep_main
 
     out = tmp_path / "sweep"
     assert sweep_main(["--vary", "camera.tilt_deg=0,10", "--per-point", "1", "--seed", "2",
@@ -651,7 +651,7 @@ def test_a_submission_too_large_to_fingerprint_is_refused_alone(seed3_set, tmp_p
 
 
 def test_interpreter_folders_of_venv_conda_pyenv_and_scripts(tmp_path):
-    from arenabench.eval.interpreter import interpreter_folders
+    from arenabench.eval.runs.interpreter import interpreter_folders
 
     def exe(path: Path, text: str = "") -> Path:
         path.parent.mkdir(parents=True, exist_ok=True)

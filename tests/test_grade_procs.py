@@ -18,8 +18,8 @@ from pathlib import Path
 import pytest
 from procs_limit import GRADE_ARGS, PY_CMD
 
-from arenabench.eval.preflight import NO_PROCESS_LIMIT, PreflightError, process_limit
-from arenabench.eval.run_limits import RunLimits
+from arenabench.eval.grade.preflight import NO_PROCESS_LIMIT, PreflightError, process_limit
+from arenabench.eval.runs.limits import RunLimits
 
 ANSWER = """\
 from pathlib import Path

@@ -10,7 +10,7 @@ import jsonschema
 import pytest
 
 from arenabench import schemas
-from arenabench.eval.bigset import template_records
+from arenabench.eval.datasets.bigset import template_records
 from arenabench.schemas.quickcheck import all_finite, compile_check
 
 #: Values put in place of a random leaf or member.

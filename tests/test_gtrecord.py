@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from arenabench.eval.dataset_reader import DatasetItem
+from arenabench.eval.datasets.reader import DatasetItem
 from arenabench.gtrecord import AreaRecord, GroundTruth, MarkerRecord, ObstacleRecord
 from arenabench.schemas import GT_SCHEMA, gt_problem, gt_schema
 

@@ -167,8 +167,8 @@ def test_impossible_answer_of_a_command_is_bad_output(toy, tmp_path, args, needl
 
 
 def test_score_never_passes_a_non_finite_value():
-    from arenabench.eval.metrics import score_image
-    from arenabench.eval.results import Prediction, Truth
+    from arenabench.eval.scoring.metrics import score_image
+    from arenabench.eval.scoring.results import Prediction, Truth
 
     truth = Truth(count=1, area=100.0, marker_ids=())
     for count, area in ((1, float("nan")), (1, float("inf")), (1, -100.0), (1.5, 100.0),
@@ -607,8 +607,8 @@ def test_manifest_paths_that_leave_the_dataset_are_refused(toy, tmp_path, where)
 
 
 def test_gt_area_1e_320_does_not_blame_the_pipeline():
-    from arenabench.eval.metrics import score_image
-    from arenabench.eval.results import Prediction, Truth
+    from arenabench.eval.scoring.metrics import score_image
+    from arenabench.eval.scoring.results import Prediction, Truth
 
     truth = Truth(count=0, area=1e-320, marker_ids=(80, 85, 90, 95))
     ok = score_image(truth, Prediction(status="ok", count=0, area=0.0,
@@ -1041,7 +1041,7 @@ def test_out_equal_to_or_inside_the_dataset_is_refused(toy, tmp_path, command, w
 
 
 def test_check_out_inside_its_twin_set_is_refused(tmp_path, monkeypatch):
-    from arenabench.eval.check_cli import CACHE_ENV, twin_set_dir
+    from arenabench.eval.commands.check import CACHE_ENV, twin_set_dir
 
     cache = tmp_path / "cache"
     monkeypatch.setenv(CACHE_ENV, str(cache))

@@ -588,7 +588,7 @@ def test_eval_stopped_before_any_image_ran_writes_an_empty_partial_report(
         toy3, tmp_path, monkeypatch, where, sig):
     from clirun import run_cli
 
-    import arenabench.eval.dataset_reader as dataset_reader
+    import arenabench.eval.datasets.reader as dataset_reader
     import arenabench.eval.evaluation as evaluation
 
     if where == "loading the dataset":
@@ -619,7 +619,7 @@ def test_eval_stopped_after_its_last_image_writes_the_whole_report(toy3, tmp_pat
     from clirun import run_cli
 
     import arenabench.eval.reports as reports
-    from arenabench.eval.external import CommandPipeline
+    from arenabench.eval.runs.command import CommandPipeline
 
     if where == "closing the pipeline":
         monkeypatch.setattr(CommandPipeline, "close", _signal_in(CommandPipeline.close))
@@ -642,7 +642,7 @@ def test_check_stopped_while_loading_its_twin_set_writes_an_empty_partial_report
         tmp_path, monkeypatch):
     from clirun import run_cli
 
-    import arenabench.eval.dataset_reader as dataset_reader
+    import arenabench.eval.datasets.reader as dataset_reader
 
     script = tmp_path / "map.py"
     script.write_text(FAST_MAP)

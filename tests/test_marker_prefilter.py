@@ -15,7 +15,7 @@ import cv2
 import numpy as np
 import pytest
 
-from arenabench.eval.bench import markerless_images
+from arenabench.eval.bench.items import markerless_images
 from arenabench.pipeline import DetectConfig, marker_prefilter, markers
 from arenabench.pipeline.detection import detect
 

@@ -10,9 +10,15 @@ from pathlib import Path
 
 import pytest
 
-from arenabench.eval.compare import COMPARED_METRICS, compare, parse_regression_limits, regressions
 from arenabench.eval.grade.leaderboard import LEADERBOARD_METRICS, LeaderboardRow
-from arenabench.eval.metric_registry import (
+from arenabench.eval.reports.summary_rows import phase_rows, summary_rows
+from arenabench.eval.scoring.compare import (
+    COMPARED_METRICS,
+    compare,
+    parse_regression_limits,
+    regressions,
+)
+from arenabench.eval.scoring.metric_registry import (
     DIRECTIONS,
     GATED,
     KINDS,
@@ -21,9 +27,8 @@ from arenabench.eval.metric_registry import (
     lookup,
     metrics_table_markdown,
 )
-from arenabench.eval.reports.summary_rows import phase_rows, summary_rows
-from arenabench.eval.results import CATEGORIES, STATUSES, Report, Summary
-from arenabench.eval.thresholds import check_thresholds, parse_thresholds
+from arenabench.eval.scoring.results import CATEGORIES, STATUSES, Report, Summary
+from arenabench.eval.scoring.thresholds import check_thresholds, parse_thresholds
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -100,7 +105,7 @@ def test_fail_under_refuses_a_limit_no_metric_can_reach(spec, needle):
 
 
 def test_every_metric_declares_the_range_of_its_limits():
-    from arenabench.eval.metric_registry import KIND_RANGES
+    from arenabench.eval.scoring.metric_registry import KIND_RANGES
 
     assert set(KIND_RANGES) == set(KINDS)
     for m in GATED:  # a limit at either end of the range is accepted
@@ -114,7 +119,7 @@ def test_every_metric_declares_the_range_of_its_limits():
 
 
 def test_fail_on_regression_deltas_keep_the_same_ranges():
-    from arenabench.eval.compare import parse_regression_limits
+    from arenabench.eval.scoring.compare import parse_regression_limits
 
     assert parse_regression_limits(["pass_rate=0.02,area_rel_err.p95=3"]) == {
         "pass_rate": 0.02, "area_rel_err.p95": 3.0}

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from arenabench.eval.metrics import score_image, summarize, wilson_interval
-from arenabench.eval.results import CATEGORIES, Prediction, Truth
+from arenabench.eval.scoring.metrics import score_image, summarize, wilson_interval
+from arenabench.eval.scoring.results import CATEGORIES, Prediction, Truth
 
 IDS = (80, 85, 90, 95)
 
@@ -139,7 +139,7 @@ def test_prediction_rejects_unknown_status():
 
 
 def test_wilson_interval_reaches_its_ends_exactly():
-    from arenabench.eval.metrics import wilson_interval
+    from arenabench.eval.scoring.metrics import wilson_interval
 
     for n in (1, 3, 7, 200):
         assert wilson_interval(0, n)[0] == 0.0 and wilson_interval(n, n)[1] == 1.0

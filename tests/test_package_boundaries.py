@@ -102,18 +102,20 @@ def test_no_forbidden_imports(folder):
 #: it (sandbox) and reading its answer (predictions) form a tree under the in-process adapters
 #: (pipelines), not a circle
 WITHIN_EVAL = {
-    "arenabench.eval.external": ("arenabench.eval.pipelines",),
-    "arenabench.eval.pipelines": ("arenabench.eval.external", "arenabench.eval.sandbox"),
-    "arenabench.eval.predictions": ("arenabench.eval.pipelines", "arenabench.eval.external",
-                                    "arenabench.eval.sandbox"),
-    "arenabench.eval.sandbox": ("arenabench.eval.pipelines", "arenabench.eval.external",
-                                "arenabench.eval.predictions"),
+    "arenabench.eval.runs.command": ("arenabench.eval.pipelines",),
+    "arenabench.eval.pipelines": ("arenabench.eval.runs.command",
+                                  "arenabench.eval.runs.sandbox"),
+    "arenabench.eval.runs.predictions": ("arenabench.eval.pipelines",
+                                         "arenabench.eval.runs.command",
+                                         "arenabench.eval.runs.sandbox"),
+    "arenabench.eval.runs.sandbox": ("arenabench.eval.pipelines", "arenabench.eval.runs.command",
+                                     "arenabench.eval.runs.predictions"),
 }
 
 
 @pytest.mark.parametrize("module", sorted(WITHIN_EVAL))
 def test_external_and_pipelines_do_not_import_each_other(module):
-    path = ROOT / "eval" / (module.rsplit(".", 1)[1] + ".py")
+    path = ROOT / "eval" / (module.removeprefix("arenabench.eval.").replace(".", "/") + ".py")
     assert module_name(path) == (module, False)
     offences = [f"{path.relative_to(ROOT)}:{line}: imports {name}"
                 for line, name in imported_names(path.read_text(), module)
@@ -129,8 +131,8 @@ def test_external_and_pipelines_do_not_import_each_other(module):
         ("from . import eval", "arenabench", True, {"arenabench", "arenabench.eval"}),
         ("from .records import X", "arenabench.eval.sweep.task", False,
          {"arenabench.eval.sweep.records", "arenabench.eval.sweep.records.X"}),
-        ("def f():\n    import arenabench.eval.metrics", "arenabench.detect", False,
-         {"arenabench.eval.metrics"}),
+        ("def f():\n    import arenabench.eval.scoring.metrics", "arenabench.detect", False,
+         {"arenabench.eval.scoring.metrics"}),
         ("import importlib\nimportlib.import_module('arenabench.generator.generate_cli')",
          "arenabench.x", False, {"importlib", "arenabench.generator.generate_cli"}),
         ("from arenabench import generator", "arenabench.x", False,

@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from arenabench.eval.evaluation import evaluate
-from arenabench.eval.phase_check import (
+from arenabench.eval.scoring.phase_check import (
     PHASE_DEPENDENT_MEANING,
     PhaseResult,
     box_offsets,
@@ -21,7 +21,7 @@ from arenabench.eval.phase_check import (
     resolve_phases,
     shifted_scene,
 )
-from arenabench.eval.results import Report
+from arenabench.eval.scoring.results import Report
 from arenabench.generator.camera import intrinsics, project, world_from_camera
 from arenabench.generator.dataset_writer import generate_dataset
 from arenabench.generator.sampler import sample_scene
@@ -161,8 +161,8 @@ def test_failures_a_phase_cannot_change_are_not_rerun(twin, fn, category):
 
 
 def test_only_answers_scored_wrong_are_phase_checked():
-    from arenabench.eval.phase_check import CHECKED_CATEGORIES
-    from arenabench.eval.results import CATEGORIES, SCORING_FAILURES
+    from arenabench.eval.scoring.phase_check import CHECKED_CATEGORIES
+    from arenabench.eval.scoring.results import CATEGORIES, SCORING_FAILURES
 
     assert CHECKED_CATEGORIES == frozenset(SCORING_FAILURES) == {"wrong_count", "area_off"}
     assert CHECKED_CATEGORIES <= set(CATEGORIES)

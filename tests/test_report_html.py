@@ -190,7 +190,7 @@ def test_no_failures_says_so(builtin_pages):
 def test_report_json_keeps_the_polygons_compact(builtin_pages):
     import json
 
-    from arenabench.eval.results import Report
+    from arenabench.eval.scoring.results import Report
 
     page, report = builtin_pages["strict"]
     data = json.loads((page.parent / "report.json").read_text())

@@ -11,11 +11,11 @@ from pathlib import Path
 import pytest
 import toy_arena
 
-from arenabench.eval.eval_cli import main as eval_main
+from arenabench.eval.commands.eval import main as eval_main
 from arenabench.eval.evaluation import evaluate
-from arenabench.eval.external import CommandPipeline
 from arenabench.eval.reports import write_reports
-from arenabench.eval.run_limits import RunLimits, RunSettings
+from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs.limits import RunLimits, RunSettings
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 PY = sys.executable
@@ -80,7 +80,7 @@ def test_eval_prints_a_missed_gate_as_failed(toy, capsys):
 
 def test_html_lists_the_likely_causes_before_the_failure_cards(tmp_path):
     from arenabench.eval.evaluation import build_report
-    from arenabench.eval.results import ImageResult, ImageScore, Prediction, Truth
+    from arenabench.eval.scoring.results import ImageResult, ImageScore, Prediction, Truth
 
     def result(i, passed, size):
         return ImageResult(

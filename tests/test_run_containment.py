@@ -32,11 +32,11 @@ import toy_arena
 from clirun import run_cli
 from hostile_util import processes_with, wait_for
 
-from arenabench.eval import launcher
-from arenabench.eval.external import CommandPipeline
-from arenabench.eval.run_limits import RunLimits, RunSettings
-from arenabench.eval.sandbox import bwrap_problem, pids_cgroup_parent
-from arenabench.eval.stale_runs import sweep_stale_runs
+from arenabench.eval.runs import launcher
+from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs.limits import RunLimits, RunSettings
+from arenabench.eval.runs.sandbox import bwrap_problem, pids_cgroup_parent
+from arenabench.eval.runs.stale import sweep_stale_runs
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 PY = sys.executable

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 import pytest
 
-from arenabench.eval.run_images import (
+from arenabench.eval.runs.run_images import (
     INPUT_COPY_NAMES,
     collect_run_images,
     image_size,
@@ -144,7 +144,7 @@ def _card_images(page: str) -> dict[str, list[str]]:
 @pytest.mark.slow
 @pytest.mark.parametrize("warm", [True, False], ids=["warm", "cold"])
 def test_the_failure_card_shows_the_warp_the_script_saved(twin8, tmp_path, warm):
-    from arenabench.eval.eval_cli import main as eval_main
+    from arenabench.eval.commands.eval import main as eval_main
     from arenabench.eval.reports.json_report import read_json
 
     out = tmp_path / "out"
@@ -161,7 +161,7 @@ def test_the_failure_card_shows_the_warp_the_script_saved(twin8, tmp_path, warm)
     assert all(len(v) == 1 for v in shown.values())
     assert "the run&#x27;s transformed_image.png (1000 x 1000)" in page
     # it is the script's warp: the image through the ground truth's homography, scaled down
-    from arenabench.eval.dataset_reader import load_dataset
+    from arenabench.eval.datasets.reader import load_dataset
 
     items = load_dataset(twin8).items_by_id(failing)
     for ident, (uri,) in shown.items():
@@ -184,7 +184,7 @@ def test_the_failure_card_shows_the_warp_the_script_saved(twin8, tmp_path, warm)
 def test_the_card_renders_in_headless_chromium(twin8, tmp_path):
     from test_report_html import _console_messages, _find_chromium, _render
 
-    from arenabench.eval.eval_cli import main as eval_main
+    from arenabench.eval.commands.eval import main as eval_main
 
     chromium = _find_chromium()
     if chromium is None:
@@ -200,8 +200,8 @@ def test_the_card_renders_in_headless_chromium(twin8, tmp_path):
 
 
 def test_results_kept_in_a_file_keep_their_run_images(tmp_path):
-    from arenabench.eval.result_store import ResultStore
-    from arenabench.eval.results import ImageResult, ImageScore, Prediction, Truth
+    from arenabench.eval.datasets.result_store import ResultStore
+    from arenabench.eval.scoring.results import ImageResult, ImageScore, Prediction, Truth
 
     thumb = thumbnail_jpeg(encode_png(_picture(500, 500)))
     assert thumb is not None

@@ -13,10 +13,10 @@ import toy_arena  # tests/pipelines (pytest's pythonpath)
 from hostile_util import wait_for
 
 from arenabench.eval.evaluation import evaluate
-from arenabench.eval.external import CommandPipeline
-from arenabench.eval.run_limits import RunLimits, RunSettings
-from arenabench.eval.run_slots import RunSlots
-from arenabench.eval.sandbox import bwrap_problem
+from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs.limits import RunLimits, RunSettings
+from arenabench.eval.runs.sandbox import bwrap_problem
+from arenabench.eval.runs.slots import RunSlots
 
 PY = sys.executable
 needs_bwrap = pytest.mark.skipif(bwrap_problem() is not None, reason=str(bwrap_problem()))

@@ -4,8 +4,8 @@ harness records."""
 import numpy as np
 import pytest
 
-from arenabench.eval.metrics import score_image, summarize
-from arenabench.eval.results import ImageResult, Prediction, Truth
+from arenabench.eval.scoring.metrics import score_image, summarize
+from arenabench.eval.scoring.results import ImageResult, Prediction, Truth
 from arenabench.eval.sweep.breakdown import (
     CurvePoint,
     axis_curve,

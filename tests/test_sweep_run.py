@@ -10,10 +10,10 @@ from pathlib import Path
 
 import pytest
 
+from arenabench.eval.commands.sweep import main as sweep_main
 from arenabench.eval.sweep.execution import run_sweep
 from arenabench.eval.sweep.grid import parse_varies
 from arenabench.eval.sweep.records import SWEEP_SCHEMA, PipelineSpec, SweepSpec
-from arenabench.eval.sweep_cli import main as sweep_main
 
 VARY = ["camera.tilt_deg=0:40:20"]
 PER_POINT = 3

@@ -13,12 +13,12 @@ from pathlib import Path
 import pytest
 import toy_arena  # tests/pipelines (pytest's pythonpath)
 
-from arenabench.eval import warm_client
 from arenabench.eval.evaluation import evaluate
-from arenabench.eval.external import CommandPipeline
-from arenabench.eval.run_limits import RunLimits, RunSettings
-from arenabench.eval.sandbox import bwrap_problem, pids_cgroup_parent
-from arenabench.eval.warm_client import WarmTarget, close_all, warm_target
+from arenabench.eval.runs import warm_client
+from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs.limits import RunLimits, RunSettings
+from arenabench.eval.runs.sandbox import bwrap_problem, pids_cgroup_parent
+from arenabench.eval.runs.warm_client import WarmTarget, close_all, warm_target
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 PROBE = PIPES / "warm_probe.py"
@@ -154,7 +154,7 @@ def test_max_procs_gives_a_warm_run_the_processes_of_a_cold_one(sandbox, toy, ru
 
 def _standby_cgroups(server):
     """The run cgroups that hold one process of ``server``'s tree each: its standbys."""
-    from arenabench.eval.launcher import descendants
+    from arenabench.eval.runs.launcher import descendants
 
     parent = Path(server.cgroup if server.isolate else pids_cgroup_parent())
     tree = set(descendants(server.proc.pid))
@@ -175,7 +175,7 @@ def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, t
 
     from hostile_util import wait_for
 
-    from arenabench.eval.warm_server import STANDBYS
+    from arenabench.eval.runs.warm_server import STANDBYS
 
     if pids_cgroup_parent() is None:
         pytest.skip("no writable pids cgroup here")
@@ -211,14 +211,14 @@ def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, t
 
 
 @pytest.mark.parametrize("module, argv", [
-    ("arenabench.eval.eval_cli", ["data", "--cmd", "x {image}"]),
-    ("arenabench.eval.sweep_cli", ["--preset", "eyrc", "--cmd", "x {image}", "--out", "o"]),
-    ("arenabench.eval.grade_cli", ["subs", "data", "--cmd", "x {image}", "--out", "o"]),
+    ("arenabench.eval.commands.eval", ["data", "--cmd", "x {image}"]),
+    ("arenabench.eval.commands.sweep", ["--preset", "eyrc", "--cmd", "x {image}", "--out", "o"]),
+    ("arenabench.eval.commands.grade", ["subs", "data", "--cmd", "x {image}", "--out", "o"]),
 ])
 def test_no_warm_is_an_option_of_eval_sweep_and_grade(module, argv):
     import importlib
 
-    from arenabench.eval.run_limits import run_settings_from_args
+    from arenabench.eval.runs.limits import run_settings_from_args
 
     parser = importlib.import_module(module).build_parser()
     assert run_settings_from_args(parser.parse_args([*argv, "--no-warm"])).warm is False

@@ -12,10 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from arenabench.eval.external import CommandPipeline
-from arenabench.eval.run_limits import RunSettings
-from arenabench.eval.sandbox import bwrap_problem
-from arenabench.eval.warm_client import WARM_UP_SOURCE, WarmTarget, _server_for, close_all
+from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs.limits import RunSettings
+from arenabench.eval.runs.sandbox import bwrap_problem
+from arenabench.eval.runs.warm_client import WARM_UP_SOURCE, WarmTarget, _server_for, close_all
 
 PROBE = r"""
 import json, random, sys
@@ -135,7 +135,7 @@ def _submission(root: Path, files: dict[str, str]) -> Path:
 def test_what_the_submissions_own_modules_import_is_found_without_running_them(tmp_path):
     """The script's imports and, through the submission's modules it imports (plain, package,
     relative, a cycle), theirs: read with ast, never run."""
-    from arenabench.eval.warm_server import _script_imports
+    from arenabench.eval.runs.warm_server import _script_imports
 
     ran = tmp_path / "ran"
     boom = f"open({str(ran)!r}, 'w').close()\n"
@@ -157,7 +157,7 @@ def test_what_the_submissions_own_modules_import_is_found_without_running_them(t
 
 
 def test_the_search_through_a_submissions_modules_is_bounded(tmp_path, monkeypatch):
-    from arenabench.eval import warm_server
+    from arenabench.eval.runs import warm_server
 
     n = warm_server.LOCAL_MODULES_MAX + 5
     files = {"map.py": "import m0\n"}

@@ -35,9 +35,9 @@ def _busy_s() -> float:
 
 def chain(images: list[Path], cmd: str) -> None:
     """Print wall, latency and busy CPU ms per image of warm runs one after another."""
-    from arenabench.eval import warm_client
-    from arenabench.eval.external import CommandPipeline
-    from arenabench.eval.run_limits import RunSettings
+    from arenabench.eval.runs import warm_client
+    from arenabench.eval.runs.command import CommandPipeline
+    from arenabench.eval.runs.limits import RunSettings
 
     pipe = CommandPipeline(cmd, settings=RunSettings(warm=True))
     first = pipe.run(images[0])  # starts the server
@@ -68,7 +68,7 @@ def floor(images: list[Path], script: Path) -> None:
     import cv2  # noqa: F401  (what a warm server preloads)
     import numpy  # noqa: F401
 
-    from arenabench.eval.warm_up import warm_up
+    from arenabench.eval.runs.warm_up import warm_up
 
     warm_up()
     gc.freeze()
@@ -117,7 +117,7 @@ def floor(images: list[Path], script: Path) -> None:
 
 def cgroup_move() -> None:
     """Print the median and maximum time of a process's move into a fresh pids cgroup."""
-    from arenabench.eval.sandbox import pids_cgroup_parent
+    from arenabench.eval.runs.sandbox import pids_cgroup_parent
 
     parent = pids_cgroup_parent()
     if parent is None:
@@ -166,7 +166,7 @@ def main() -> None:
     if args.what == "cgroup-move":
         cgroup_move()
         return
-    from arenabench.eval.bench import SCRIPT_PATH
+    from arenabench.eval.bench.items import SCRIPT_PATH
 
     images = sorted(p for p in args.images.iterdir() if p.suffix in (".png", ".jpg"))[: args.n]
     if len(images) < 2:

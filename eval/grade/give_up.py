@@ -23,7 +23,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
-from ..results import Prediction
+from arenabench.eval.scoring.results import Prediction
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,14 @@ from arenabench.cmdtemplate import (
     fill,
     template_problem,
 )
+from arenabench.eval.datasets.reader import AREA_REFERENCES, Dataset, DatasetSamples, load_dataset
+from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs.limits import RunSettings
+from arenabench.eval.runs.predictions import OUTPUT_MODES
+from arenabench.eval.runs.remover import wait_removed
+from arenabench.eval.runs.slots import RunSlots, extra_thread
+from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE
+from arenabench.eval.scoring.results import HarnessError, Prediction, Summary
 from arenabench.fileio import (
     OutputPathError,
     atomic_write_json,
@@ -58,17 +66,9 @@ from arenabench.interrupts import checkpoint, deferred_stops, stop_workers, work
 from arenabench.limits import DEFAULT_GIVE_UP_AFTER
 from arenabench.workers import init_worker, process_state, usable_cores
 
-from ..dataset_reader import AREA_REFERENCES, Dataset, DatasetSamples, load_dataset
-from ..dir_remover import wait_removed
 from ..evaluation import build_report, score_sample
-from ..external import CommandPipeline
-from ..metrics import DEFAULT_TOLERANCE
-from ..predictions import OUTPUT_MODES
 from ..reports import FORMATS, write_reports
 from ..reports.feedback_report import FEEDBACK_FILES, write_feedback
-from ..results import HarnessError, Prediction, Summary
-from ..run_limits import RunSettings
-from ..run_slots import RunSlots, extra_thread
 from .give_up import GiveUp, first_timeout_run, timeout_run
 from .leaderboard import LeaderboardRow, leaderboard_dict, rank_rows
 from .partial import PARTIAL_FILE, PartialLog, read_partial
@@ -106,7 +106,7 @@ class GradeOptions:
         Report files written per team (keys of ``FORMATS``); not part of the fingerprint,
         but a team whose files are missing is graded again.
     phases : int
-        Phase check of each team's failing images (:mod:`arenabench.eval.phase_check`):
+        Phase check of each team's failing images (:mod:`arenabench.eval.scoring.phase_check`):
         sub-pixel phases re-rendered per failure, the team's command re-run on each; 0 = off.
     give_up_after : int
         Timeouts in a row, in image order, after which a team's later images are not run
@@ -473,7 +473,7 @@ def grade(
 
     Before any team runs: the sandbox must work unless ``options.settings.sandbox`` is
     ``"none"`` (fail closed), a generated set's seed must not be guessable, and the preflight
-    (:mod:`arenabench.eval.preflight`) must pass.
+    (:mod:`arenabench.eval.grade.preflight`) must pass.
 
     Parameters
     ----------
@@ -500,7 +500,7 @@ def grade(
     allow_guessable_seed : bool, keyword-only
         Grade a set whose seed is not proven unguessable: one that some file records as
         below 2**64 (a submission can re-render it), or as anything but an integer, or not
-        at all (:func:`arenabench.eval.preflight.check_dataset_seed`).
+        at all (:func:`arenabench.eval.grade.preflight.check_dataset_seed`).
     reference : path-like, optional, keyword-only
         A known-good submission for the preflight (default: the built-in reference).
 
@@ -522,7 +522,7 @@ def grade(
     for name, value in (("workers", workers), ("report_workers", report_workers)):
         if value is not None and (int(value) != value or value < 1):
             raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
-    from ..preflight import check_dataset_seed, preflight, process_limit, require_sandbox
+    from .preflight import check_dataset_seed, preflight, process_limit, require_sandbox
 
     data = dataset if isinstance(dataset, Dataset) else load_dataset(dataset)
     check_dataset_seed(data, allow_guessable=allow_guessable_seed)
@@ -886,7 +886,7 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
         for s, p in zip(data.samples, job.preds, strict=True)
     ]
     if opts.phases and not all(r.passed for r in results):
-        from ..phase_check import check_phases
+        from arenabench.eval.scoring.phase_check import check_phases
 
         pipe = _team_pipeline(team_command(opts.command, team.path), settings=opts.settings,
                               output=opts.output, team=team.name, base_dir=str(team.path))

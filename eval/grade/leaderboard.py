@@ -42,8 +42,8 @@ from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, replace
 from typing import Any
 
-from ..metric_registry import METRIC, Metric
-from ..results import CATEGORIES, Summary
+from arenabench.eval.scoring.metric_registry import METRIC, Metric
+from arenabench.eval.scoring.results import CATEGORIES, Summary
 
 LEADERBOARD_SCHEMA = "arenabench.leaderboard/1"
 
@@ -169,7 +169,7 @@ def leaderboard_dict(
     ``complete`` is false when fewer ran (an interrupted grade), and ``unfinished`` names the
     teams not graded then, each with ``images_done`` of ``images_total`` (its images whose
     results are kept for the next run). ``sandbox`` is what the preflight saw
-    (:mod:`arenabench.eval.preflight`).
+    (:mod:`arenabench.eval.grade.preflight`).
     """
     categories = categories_of(rows)
     total = sum(r.summary.n for r in rows) if images_total is None else int(images_total)

@@ -24,16 +24,15 @@ from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any, TextIO
 
+from arenabench.eval.scoring.results import Prediction
 from arenabench.jsonstream import dumps_exact_line
-
-from ..results import Prediction
 
 PARTIAL_FILE = "partial-results.jsonl"
 PARTIAL_SCHEMA = "arenabench.grade-partial/1"
 
 
 def prediction_to_json(pred: Prediction) -> dict[str, Any]:
-    """``pred`` as JSON (every field of :class:`~arenabench.eval.results.Prediction`)."""
+    """``pred`` as JSON (every field of :class:`~arenabench.eval.scoring.results.Prediction`)."""
     return asdict(pred)
 
 

@@ -6,8 +6,9 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from ..dataset_reader import Dataset
-from ..results import Report
+from arenabench.eval.datasets.reader import Dataset
+from arenabench.eval.scoring.results import Report
+
 from .csv_report import write_csv
 from .html_report import write_html
 from .json_report import write_json

@@ -7,9 +7,8 @@ import os
 from pathlib import Path
 from typing import IO
 
+from arenabench.eval.scoring.results import Report
 from arenabench.jsonstream import atomic_text_writer
-
-from ..results import Report
 
 COLUMNS: tuple[str, ...] = (
     "id",

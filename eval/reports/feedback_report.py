@@ -16,12 +16,12 @@ import html
 import os
 from pathlib import Path
 
+from arenabench.eval.scoring.breakdown import systematic_text
+from arenabench.eval.scoring.metric_registry import summary_row_groups
+from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING
+from arenabench.eval.scoring.results import HARNESS_STATUSES, Report
 from arenabench.fileio import atomic_write_text
 
-from ..breakdown import systematic_text
-from ..metric_registry import summary_row_groups
-from ..phase_check import PHASE_DEPENDENT_MEANING
-from ..results import HARNESS_STATUSES, Report
 from .incomplete import banner_html, banner_markdown
 from .markdown_report import TOP_CAUSES
 

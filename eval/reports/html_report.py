@@ -16,13 +16,13 @@ from typing import Any
 
 import numpy as np
 
+from arenabench.eval.datasets.reader import Dataset, DatasetError, load_dataset
+from arenabench.eval.scoring.breakdown import shown_breakdown, strongest_cause_text, systematic_text
+from arenabench.eval.scoring.results import ImageResult, Prediction, Report
 from arenabench.fileio import atomic_write_text
 from arenabench.gtrecord import AREA_REFERENCE_FIELDS, DEFAULT_AREA_REFERENCE
 from arenabench.limits import MAX_IMAGE_SIDE_PX
 
-from ..breakdown import shown_breakdown, strongest_cause_text, systematic_text
-from ..dataset_reader import Dataset, DatasetError, load_dataset
-from ..results import ImageResult, Prediction, Report
 from .incomplete import banner_html, partial
 from .markdown_report import TOP_CAUSES, phase_cell
 from .summary_rows import (

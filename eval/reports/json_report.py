@@ -7,10 +7,9 @@ import os
 from dataclasses import replace
 from pathlib import Path
 
+from arenabench.eval.scoring.results import Report
 from arenabench.fileio import read_regular
 from arenabench.jsonstream import Streamed, write_json_stream
-
-from ..results import Report
 
 
 def write_json(report: Report, path: str | os.PathLike[str]) -> Path:

@@ -7,10 +7,9 @@ import re
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
+from arenabench.eval.scoring.results import ImageResult, Report
 from arenabench.fileio import atomic_write_bytes
 from arenabench.jsonstream import atomic_text_writer
-
-from ..results import ImageResult, Report
 
 _INVALID_XML = re.compile("[\x00-\x08\x0b\x0c\x0e-\x1f\ud800-\udfff\ufffe\uffff]")
 

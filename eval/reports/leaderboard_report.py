@@ -19,10 +19,10 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
+from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING
 from arenabench.fileio import atomic_write_json, atomic_write_text
 
 from ..grade.leaderboard import LEADERBOARD_METRICS
-from ..phase_check import PHASE_DEPENDENT_MEANING
 from .incomplete import banner_html, partial
 
 CSS = """

@@ -7,10 +7,10 @@ import re
 from collections.abc import Iterable
 from pathlib import Path
 
+from arenabench.eval.scoring.breakdown import shown_breakdown, strongest_cause_text, systematic_text
+from arenabench.eval.scoring.results import Report
 from arenabench.fileio import atomic_write_text
 
-from ..breakdown import shown_breakdown, strongest_cause_text, systematic_text
-from ..results import Report
 from .incomplete import banner_markdown, partial
 from .summary_rows import (
     BREAKDOWN_COLUMNS,

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from ..metric_registry import METRIC, ROW_SEPARATORS, summary_row_groups
-from ..phase_check import PHASE_DEPENDENT_MEANING
-from ..results import Report, Summary
+from arenabench.eval.scoring.metric_registry import METRIC, ROW_SEPARATORS, summary_row_groups
+from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING
+from arenabench.eval.scoring.results import Report, Summary
 
 
 def fmt(value: object, *, pct: bool = False, digits: int = 4) -> str:
@@ -80,6 +80,6 @@ def headline(report: Report) -> str:
 
 def interpreter_text(interpreter: dict) -> str:
     """A report's ``interpreter`` record in words: the versions, then what it is."""
-    from ..competition_env import Interpreter
+    from arenabench.eval.runs.competition_env import Interpreter
 
     return Interpreter.from_dict(interpreter).describe()

@@ -26,8 +26,9 @@ from typing import Any
 
 import numpy as np
 
-from ..metrics import summarize
-from ..results import ImageResult, Summary
+from arenabench.eval.scoring.metrics import summarize
+from arenabench.eval.scoring.results import ImageResult, Summary
+
 from .grid import Axis
 
 #: Bins of a random sweep's continuous axis.
@@ -146,7 +147,7 @@ def breakdown_value(curve: Sequence[CurvePoint], *, threshold: float) -> Any:
 def scenes_needed(threshold: float) -> int | None:
     """Fewest scenes, all passing, whose pass rate's lower 95 % Wilson bound reaches
     ``threshold`` (``None`` when no number does: a threshold of 1 or more)."""
-    from ..metrics import wilson_interval
+    from arenabench.eval.scoring.metrics import wilson_interval
 
     if threshold >= 1.0:
         return None

@@ -26,15 +26,15 @@ from typing import Any
 
 import numpy as np
 
+from arenabench.eval.scoring.metrics import summarize
+from arenabench.eval.scoring.phase_check import phase_summary
+from arenabench.eval.scoring.results import ImageResult
 from arenabench.generator.params import PARAMETERS
 from arenabench.generator.presets import resolve
 from arenabench.interrupts import Interrupted, signal_name
 from arenabench.local_pool import local_map
 from arenabench.workers import check_workers, usable_cores
 
-from ..metrics import summarize
-from ..phase_check import phase_summary
-from ..results import ImageResult
 from .breakdown import axis_curve, breakdown_value
 from .grid import grid_points, random_points
 from .records import PointSummary, SweepResult, SweepSpec, SweepTask

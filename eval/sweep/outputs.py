@@ -19,6 +19,7 @@ import os
 from pathlib import Path
 from typing import Any
 
+from arenabench.eval.scoring.results import CATEGORIES
 from arenabench.fileio import (
     atomic_write_bytes,
     atomic_write_text,
@@ -27,7 +28,6 @@ from arenabench.fileio import (
 )
 from arenabench.generator.presets import format_value
 
-from ..results import CATEGORIES
 from .html import sweep_page
 from .plots import sweep_figures
 from .records import SweepResult
@@ -135,9 +135,9 @@ def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
     ValueError
         When ``sweep.json`` is not of schema ``arenabench.sweep/1``.
     """
+    from arenabench.eval.runs.limits import RunSettings
     from arenabench.generator.presets import parse_overrides
 
-    from ..run_limits import RunSettings
     from .grid import parse_vary
     from .records import SWEEP_SCHEMA, PipelineSpec, PointSummary, SweepSpec
 

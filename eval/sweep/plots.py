@@ -10,7 +10,8 @@ from typing import Any
 
 import numpy as np
 
-from ..results import ImageResult
+from arenabench.eval.scoring.results import ImageResult
+
 from .breakdown import CurvePoint, axis_curve, heat_grid
 from .grid import Axis
 from .records import SweepResult

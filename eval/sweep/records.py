@@ -8,17 +8,17 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
+from arenabench.eval.datasets.reader import AREA_REFERENCES
+from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs.limits import RunSettings
+from arenabench.eval.runs.predictions import OUTPUT_MODES
+from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE
+from arenabench.eval.scoring.results import ImageResult, Summary
 from arenabench.generator.presets import Value, format_value
 from arenabench.generator.seeds import check_seed
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 
-from ..dataset_reader import AREA_REFERENCES
-from ..external import CommandPipeline
-from ..metrics import DEFAULT_TOLERANCE
 from ..pipelines import Pipeline, make_pipeline, pipeline_name_problem
-from ..predictions import OUTPUT_MODES
-from ..results import ImageResult, Summary
-from ..run_limits import RunSettings
 from .grid import Axis
 
 SWEEP_SCHEMA = "arenabench.sweep/1"
@@ -110,7 +110,7 @@ class SweepSpec:
     tolerance : float
         Largest passing ``|area_rel_err|``.
     area_reference : {"visible", "footprint", "contour"}
-        GT area scored against (:data:`arenabench.eval.dataset_reader.AREA_REFERENCES`).
+        GT area scored against (:data:`arenabench.eval.datasets.reader.AREA_REFERENCES`).
     threshold : float
         Breakdown threshold on the pass rate's lower 95 % bound.
     breakdown_mode : {"marginal", "axis"}
@@ -120,7 +120,7 @@ class SweepSpec:
     independent_scenes : bool
         Give every point its own scenes (indices ``p * per_point + i``) instead of the same.
     phases : int
-        Phase check of every failing image (:mod:`arenabench.eval.phase_check`), in the
+        Phase check of every failing image (:mod:`arenabench.eval.scoring.phase_check`), in the
         worker that rendered it; 0 = off.
     """
 

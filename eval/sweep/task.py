@@ -17,13 +17,13 @@ from pathlib import Path
 from typing import Any
 
 from arenabench import workers
+from arenabench.eval.datasets.reader import DatasetItem
+from arenabench.eval.runs.stale import owned_dir_prefix
+from arenabench.eval.scoring.results import Prediction
 from arenabench.imageio import IMAGE_EXTENSIONS, decode_image, encode_image
 from arenabench.interrupts import worker_task
 
-from ..dataset_reader import DatasetItem
 from ..evaluation import score_sample
-from ..results import Prediction
-from ..stale_runs import owned_dir_prefix
 from .records import PipelineSpec, SweepTask
 
 
@@ -62,7 +62,7 @@ def _predict(spec: PipelineSpec, bgr: Any, image: list[bytes], tmp: list[str],
 
 def _check_phases(task: SweepTask, gt: Any, results: list[Any], *, renderer: Any) -> None:
     """The phase check of each failing pipeline result, in place (the worker's renderer)."""
-    from ..phase_check import check_phases
+    from arenabench.eval.scoring.phase_check import check_phases
 
     for k, (spec, result) in enumerate(zip(task.pipelines, results, strict=True)):
         if not result.passed:

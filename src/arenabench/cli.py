@@ -28,13 +28,17 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "fit": ("arenabench.generator.fit_cli", "fit a scene file to a real arena image"),
     "render": ("arenabench.generator.render_cli", "render one scene file with its ground truth"),
     "contact-sheet": ("arenabench.generator.contact_sheet", "tile a preset's scenes in one image"),
-    "eval": ("arenabench.eval.eval_cli",
+    "eval": ("arenabench.eval.commands.eval",
              "score a pipeline on a dataset (reports, JUnit, exit codes)"),
-    "bench": ("arenabench.eval.bench_cli", "measure generation and scoring throughput here"),
-    "sweep": ("arenabench.eval.sweep_cli", "vary scene parameters, score, find breakdown points"),
-    "grade": ("arenabench.eval.grade_cli", "grade many teams' submissions, rank them (resumable)"),
-    "check": ("arenabench.eval.check_cli", "know before you submit: a script on the twin, verdict"),
-    "demo": ("arenabench.eval.demo", "generate a small eyrc set, score the reference pipeline"),
+    "bench": ("arenabench.eval.commands.bench", "measure generation and scoring throughput here"),
+    "sweep": ("arenabench.eval.commands.sweep",
+              "vary scene parameters, score, find breakdown points"),
+    "grade": ("arenabench.eval.commands.grade",
+              "grade many teams' submissions, rank them (resumable)"),
+    "check": ("arenabench.eval.commands.check",
+              "know before you submit: a script on the twin, verdict"),
+    "demo": ("arenabench.eval.commands.demo",
+             "generate a small eyrc set, score the reference pipeline"),
 }
 
 #: Exit status when the reader of stdout went away (128 + SIGPIPE, as a shell reports it).

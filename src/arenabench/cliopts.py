@@ -500,7 +500,7 @@ def cmd_template_problem(ns: argparse.Namespace, *,
 def add_run_options(parser: CommandParser, *, placeholders: Collection[str] | None = None,
                     refused: Mapping[str, str] | None = None) -> None:
     """The options of external runs (``--timeout``, the limits, ``--sandbox``, ``--env``);
-    :func:`arenabench.eval.run_limits.run_settings_from_args` reads them. A ``--cmd``
+    :func:`arenabench.eval.runs.limits.run_settings_from_args` reads them. A ``--cmd``
     template may hold only the command's ``placeholders`` (default
     :data:`arenabench.cmdtemplate.RUN_PLACEHOLDERS`) and must hold ``{image}``
     (:func:`cmd_template_problem`)."""

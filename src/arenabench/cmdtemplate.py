@@ -25,11 +25,11 @@ PLACEHOLDERS: dict[str, str] = {
     "image": "the path of the image's private copy, in the run's own folder",
     "python": "the Python interpreter running arenabench",
     "competition_python": "the competition's Python environment (its numpy and OpenCV), made "
-                          "once into arenabench's cache (arenabench.eval.competition_env)",
+                          "once into arenabench's cache (arenabench.eval.runs.competition_env)",
     "submission": "the team folder's absolute path",
 }
 #: The competition environment's interpreter (filled before any run:
-#: :func:`arenabench.eval.competition_env.resolve_placeholder`).
+#: :func:`arenabench.eval.runs.competition_env.resolve_placeholder`).
 COMPETITION_PYTHON = "competition_python"
 #: The placeholders of ``eval --cmd``, ``sweep --cmd`` and ``check --python``.
 RUN_PLACEHOLDERS: tuple[str, ...] = ("image", "python", COMPETITION_PYTHON)

@@ -254,7 +254,7 @@ BROWSER_FIX = "sudo apt-get install -y chromium"
 BROWSERS = ("chromium", "chromium-browser", "google-chrome", "google-chrome-stable")
 # the harness's own probe (one declaration of the sandbox's namespaces), in a subprocess:
 # the core package never imports the harness
-_SANDBOX_PROBE = ("from arenabench.eval.sandbox import bwrap_problem; "
+_SANDBOX_PROBE = ("from arenabench.eval.runs.sandbox import bwrap_problem; "
                   "print('ARENABENCH_PROBE ' + (bwrap_problem() or 'ok'))")
 
 

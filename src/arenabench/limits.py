@@ -79,7 +79,7 @@ def check_at_most(value: int, limit: int, what: str) -> None:
 
 #: Defaults of an external run's limits (``eval``/``sweep``/``grade`` ``--timeout``,
 #: ``--memory-limit``, ``--max-procs``, ``--max-file-size``, ``--max-output``; the fields of
-#: :class:`arenabench.eval.run_limits.RunLimits`).
+#: :class:`arenabench.eval.runs.limits.RunLimits`).
 DEFAULT_TIMEOUT_S = 60.0
 DEFAULT_MEMORY_BYTES = 2 * 1024**3
 DEFAULT_MAX_PROCS = 64
@@ -110,7 +110,7 @@ MAX_WORKDIR_COPY_BYTES = 64 * 1024**2
 MAX_WORKDIR_COPY_FILES = 2000
 
 #: Images an external run leaves in its working directory (its warp, ...) that the HTML
-#: report shows on the image's failure card (:mod:`arenabench.eval.run_images`): most
+#: report shows on the image's failure card (:mod:`arenabench.eval.runs.run_images`): most
 #: directory entries looked at, most images kept per run, largest file read (bytes), largest
 #: image decoded (px, from its header), longest side of the thumbnail kept (px).
 MAX_RUN_IMAGE_ENTRIES = 256

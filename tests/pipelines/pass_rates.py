@@ -90,9 +90,9 @@ def score_preset(
     """
     if count < 1:
         raise ValueError(f"count must be >= 1, got {count!r}")
-    from arenabench.eval.dataset_reader import DatasetItem
-    from arenabench.eval.metrics import score_image
+    from arenabench.eval.datasets.reader import DatasetItem
     from arenabench.eval.pipelines import make_pipeline
+    from arenabench.eval.scoring.metrics import score_image
     from arenabench.generator import Renderer, make_sample
     from arenabench.generator.presets import resolve
     from arenabench.generator.sampler import SamplingError

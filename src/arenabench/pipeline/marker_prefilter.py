@@ -16,7 +16,7 @@ square (solid: every pixel dark) next to a *light* region holding a :data:`LIGHT
 :func:`could_hold_marker` looks for such a pair (erosions and one dilation: about 5 ms of
 CPU on a 1000 x 1000 image). On uniform noise the threshold is dark with probability about
 0.47 per pixel, so a solid light 5 x 5 square has a probability of about 0.53**25 = 1.3e-7 per
-position: none of 40 noise images (``markerless_images`` of :mod:`arenabench.eval.bench`,
+position: none of 40 noise images (``markerless_images`` of :mod:`arenabench.eval.bench.items`,
 seeds 0-39) passed; of their thresholded images (grey level 70), where dark pixels are rare
 and light ones common, 1 of 40 did (then its search runs, about 25 ms). Where no pair is
 found the search is skipped: no marker.

@@ -1,0 +1,488 @@
+"""``arenabench check map.py``: know before you submit.
+
+Checks the interpreter first (the preflight's probe: Python, numpy, OpenCV with aruco, through
+the same run settings as the script), generates (or reuses, from the user cache) a set of
+hidden-test twin scenes, runs the script on each as the competition did (``python3 map.py
+--image PATH`` with the competition's numpy and OpenCV: :mod:`arenabench.eval.runs.competition_env`;
+``obstacles.txt`` in the working directory; sandboxed where bubblewrap works: the ``eval --cmd``
+machinery), phase-checks the failures, and prints a short verdict with the versions that ran the
+script and the report's path (docs/phase-check.md).
+
+Exit status: 0 the pass rate reaches ``--fail-under``; 1 it does not; 2 bad input (before any
+work); 130/143 stopped by SIGINT/SIGTERM.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import os
+import shutil
+import sys
+from pathlib import Path
+
+from arenabench.cliopts import (
+    EXIT_FAILED,
+    EXIT_HARNESS,
+    CommandParser,
+    add_count,
+    add_no_progress,
+    add_out,
+    add_run_options,
+    add_workers,
+    output_problem,
+    usage_error,
+    write_failure,
+)
+from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, escape, template_problem
+from arenabench.eval.runs.competition_env import OWN_PLACEHOLDER, PLACEHOLDER
+from arenabench.eval.scoring.metric_registry import METRIC
+from arenabench.eval.scoring.phase_check import add_phase_check_argument
+from arenabench.generator.seeds import seed_argument
+
+PROG = "arenabench check"
+#: Twin scenes a check runs on by default.
+DEFAULT_COUNT = 200
+DEFAULT_PRESET = "eyrc"
+#: Pass rate a script must reach (``--fail-under``).
+DEFAULT_FAIL_UNDER = 0.95
+#: Environment variable naming the cache folder (default: ``$XDG_CACHE_HOME/arenabench``, else
+#: ``~/.cache/arenabench``).
+CACHE_ENV = "ARENABENCH_CACHE_DIR"
+#: Largest ``--count``.
+MAX_COUNT = 10000
+
+EPILOG = """\
+examples:
+  arenabench check map.py                       # 200 eyrc twin scenes, threshold 95 %
+  arenabench check map.py --count 50 --fail-under 0.9
+  arenabench check src/map.py --preset eyrc-jitter --seed 3 --out check-report/
+  arenabench check map.py --python ~/teams-venv/bin/python
+
+The interpreter: {competition_python} (the default) is the competition's environment (numpy and
+OpenCV at the competition's versions), made once from the package index into the cache
+(envs/) and reused; where it cannot be made, one line says so and arenabench's own Python runs
+the script. --python {python} runs it with arenabench's own Python, --python PATH with another.
+Before any scene is rendered the interpreter is probed (Python, numpy, OpenCV with aruco)
+through the same sandbox and limits; one that lacks them is refused (exit 2). The versions
+that ran the script are printed and recorded in the reports.
+
+The twin set is generated once per (preset, seed, count, generator version) into the cache
+(ARENABENCH_CACHE_DIR, else $XDG_CACHE_HOME/arenabench, else ~/.cache/arenabench: sets/) and
+reused; a smaller --count takes the first scenes of a larger cached set (the same scenes).
+Reports go to reports/SCRIPT-PRESET-sSEED-nCOUNT-HASH/ in the cache (HASH: the script's path,
+the interpreter and the run options), or --out.
+
+The script's conventions, as the competition ran it: 'PYTHON SCRIPT --image IMAGE' with its
+own folder visible read-only and, as its working directory, a private copy of that folder
+(what the competition's run in the script's folder amounts to, without letting one run see
+another's obstacles.txt); it writes obstacles.txt there; its own exit status 0 means an answer,
+3 means markers not found, any other status a crash.
+
+arenabench's exit status: 0 pass rate >= --fail-under, 1 below it, 2 bad input (before any
+work), 130/143 interrupted.
+"""
+
+
+def build_parser() -> CommandParser:
+    """The argument parser of ``arenabench check``."""
+    p = CommandParser(
+        prog=PROG,
+        description="Know before you submit: run a competition script on hidden-test twin "
+        "scenes, tell robust failures from luck, and name the strongest cause.",
+        epilog=EPILOG,
+    )
+    p.add_argument("script", help="the competition script (map.py)")
+    add_count(p, maximum=MAX_COUNT, default=DEFAULT_COUNT,
+              help=f"twin scenes (default: {DEFAULT_COUNT})")
+    p.add_argument("--seed", type=seed_argument, default=0,
+                   help="scene seed (default: %(default)s)")
+    p.add_argument("--preset", default=DEFAULT_PRESET,
+                   help="scene preset (default: %(default)s, the hidden-test twin)")
+    p.add_argument("--fail-under", default=str(DEFAULT_FAIL_UNDER), metavar="RATE",
+                   help="pass rate needed for exit status 0, a fraction in [0, 1] "
+                   "(default: %(default)s)")
+    p.add_argument("--python", default=PLACEHOLDER, metavar="PYTHON",
+                   help=f"interpreter that runs the script: {PLACEHOLDER} (the competition's "
+                   f"numpy and OpenCV, made once into the cache), {OWN_PLACEHOLDER} (the one "
+                   "running arenabench) or a path (default: %(default)s)")
+    add_out(p, help="folder for the report files (default: the cache's reports/ folder)")
+    add_workers(p, help="scripts run at once")
+    add_no_progress(p)
+    add_phase_check_argument(p)
+    add_run_options(p)
+    return p
+
+
+def cache_dir() -> Path:
+    """The user cache folder of arenabench (see :data:`CACHE_ENV`)."""
+    if os.environ.get(CACHE_ENV):
+        return Path(os.environ[CACHE_ENV])
+    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
+    return Path(base) / "arenabench"
+
+
+def twin_set_dir(*, preset: str, seed: int, count: int) -> Path:
+    """Cache folder of the twin set ``<preset>-<seed>-<count>-<generator version>``."""
+    from arenabench.generator.make import GENERATOR_VERSION
+
+    return cache_dir() / "sets" / f"{preset}-{seed}-{count}-v{GENERATOR_VERSION}"
+
+
+def larger_twin_set(*, preset: str, seed: int, count: int) -> tuple[Path, int] | None:
+    """The smallest complete cached twin set of ``preset`` and ``seed`` (this generator
+    version, no ``--set``) with more than ``count`` scenes, and its size; ``None`` when there
+    is none.
+
+    Its first ``count`` scenes are the scenes of a ``count``-scene set: scene ``i`` draws
+    only from the streams of ``(seed, i)`` (:func:`arenabench.generator.sampler.stream_rng`),
+    whatever the set's size.
+    """
+    import json
+    import re
+
+    from arenabench.generator.make import GENERATOR_VERSION
+
+    pattern = re.compile(rf"{re.escape(preset)}-{seed}-(\d+)-v{re.escape(str(GENERATOR_VERSION))}")
+    found: list[tuple[int, Path]] = []
+    folder = cache_dir() / "sets"
+    try:
+        names = [p for p in folder.iterdir() if (m := pattern.fullmatch(p.name))
+                 and int(m.group(1)) > count]
+    except OSError:
+        return None
+    for path in names:
+        meta_path = path / "dataset.json"
+        try:
+            if not meta_path.is_file():  # never open a FIFO
+                continue
+            meta = json.loads(meta_path.read_text(encoding="utf-8"))
+        except (OSError, ValueError):
+            continue
+        args = meta.get("args") if isinstance(meta, dict) else None
+        n = int(pattern.fullmatch(path.name).group(1))  # type: ignore[union-attr]
+        if (isinstance(args, dict) and meta.get("complete") is True
+                and args == {"preset": preset, "count": n, "seed": seed, "overrides": {},
+                             "generator_version": GENERATOR_VERSION}):
+            found.append((n, path))
+    if not found:
+        return None
+    n, path = min(found)
+    return path, n
+
+
+def report_dir(script: Path, *, preset: str, seed: int, count: int, interpreter: str,
+               settings: dict[str, object], phases: int) -> Path:
+    """The default report folder: ``reports/<script>-<preset>-s<seed>-n<count>-<hash>`` in the
+    cache, the hash over everything else that changes the result (the script's path, the
+    interpreter, the run settings, the phase check)."""
+    from arenabench.fileio import dumps_json
+
+    key = dumps_json({"script": str(script), "interpreter": interpreter,
+                      "settings": settings, "phases": phases})
+    digest = hashlib.sha256(key.encode()).hexdigest()[:10]
+    return cache_dir() / "reports" / f"{script.stem}-{preset}-s{seed}-n{count}-{digest}"
+
+
+def _error(message: str) -> int:
+    return usage_error(PROG, message)
+
+
+def _python_problem(python: str) -> str | None:
+    """Why ``--python`` cannot be run, as one line (placeholders are resolved later)."""
+    if python in (PLACEHOLDER, OWN_PLACEHOLDER):
+        return None
+    if "{" in python:
+        return (f"--python {python}: not an interpreter (give {PLACEHOLDER}, "
+                f"{OWN_PLACEHOLDER} or a path)")
+    if "/" not in python:
+        return None if shutil.which(python) else f"--python {python}: not found on PATH"
+    if not os.path.exists(python):
+        return f"--python {python}: no such file"
+    if not (os.path.isfile(python) and os.access(python, os.X_OK)):
+        return f"--python {python}: not an executable file"
+    return None
+
+
+def _validate(args: argparse.Namespace) -> str | None:
+    """The first bad input, as one line; ``None`` when all is well."""
+    from arenabench.generator.presets import get_preset
+
+    script = Path(args.script)
+    if not script.exists():
+        return f"{args.script}: no such file"
+    if not script.is_file():
+        return f"{args.script}: not a file"
+    if not os.access(script, os.R_OK):
+        return f"{args.script}: not readable"
+    problem = template_problem(args.python, RUN_PLACEHOLDERS)
+    if problem:
+        return f"--python {args.python!r}: {problem}"
+    try:  # the pass rate's range, as eval's --fail-under pass_rate=RATE
+        args.fail_under = METRIC["pass_rate"].check_limit(args.fail_under,
+                                                          option="--fail-under")
+    except ValueError as exc:
+        return str(exc)
+    try:
+        get_preset(args.preset)
+    except ValueError as exc:
+        return f"--preset: {exc}"
+    return _python_problem(args.python)
+
+
+def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
+    """The verdict: pass rate, robust and phase-dependent failures, the strongest cause
+    (:func:`arenabench.eval.scoring.breakdown.strongest_cause_text`), a systematic error of the
+    answers (:func:`arenabench.eval.scoring.breakdown.systematic_text`)."""
+    from arenabench.eval.scoring.breakdown import strongest_cause_text, systematic_text
+    from arenabench.eval.scoring.phase_check import (
+        PHASE_DEPENDENT_MEANING,
+        rate_text,
+        unchecked_text,
+    )
+
+    s = report.summary
+    ok = s.pass_rate >= fail_under
+    lines = [f"{'PASS' if ok else 'FAIL'}: pass rate {rate_text(s.pass_rate)} "
+             f"({s.n_passed}/{s.n}; needed {rate_text(fail_under)})"]
+    n_fail = s.n - s.n_passed
+    if n_fail:
+        fails = ", ".join(f"{c} {v}" for c, v in s.failures.items() if v)
+        lines.append(f"  failures: {n_fail} ({fails})")
+        pc = s.phase_check
+        if pc is not None:
+            lines.append(f"  robust failures: {pc['robust']} ({rate_text(s.robust_failure_rate)})"
+                         ": fail at every sub-pixel position: the method is wrong there")
+            lines.append(f"  phase-dependent failures: {pc['phase_dependent']} "
+                         f"({rate_text(s.phase_dependent_failure_rate)}): "
+                         f"{PHASE_DEPENDENT_MEANING.split(': ', 1)[1]}")
+        unchecked = pc["unchecked"] if pc is not None else n_fail
+        if phases and unchecked:
+            lines.append(f"  not phase-checked ({unchecked_text()}): {unchecked}")
+        if (text := systematic_text(report.systematic)) is not None:
+            lines.append(f"  {text[0].lower()}{text[1:]}")
+        if report.causes:
+            text = strongest_cause_text(report.causes)
+            lines.append(f"  {text[0].lower()}{text[1:]}")
+        first = next(r for r in report.images if not r.passed)
+        detail = first.prediction.message or (
+            f"gt {first.truth.count} obstacles / {first.truth.area:.0f} px, answered "
+            f"{first.prediction.count} / {first.prediction.area}")
+        lines.append(f"  first failure: {first.id}: {first.category}: {detail[:200]}")
+    return lines
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``arenabench check``; returns the exit status."""
+    from arenabench.eval.scoring.results import HarnessError
+    from arenabench.interrupts import Interrupted, stop_on_signals
+
+    with stop_on_signals():
+        try:
+            return _main(argv)
+        except HarnessError as exc:  # before any image (the interpreter's probe): nothing ran
+            print(f"{PROG}: error: the harness could not run the script: {exc}",
+                  file=sys.stderr)
+            return EXIT_HARNESS
+        except Interrupted as exc:
+            print(f"{PROG}: interrupted ({exc}); nothing more written", file=sys.stderr)
+            return exc.exit_code
+
+
+def _main(argv: list[str] | None) -> int:
+    parser = build_parser()
+    args = parser.parse_or_status(argv)
+    if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
+        return args
+    problem = _validate(args)
+    if problem:
+        return _error(problem)
+    from dataclasses import replace
+
+    from arenabench.eval.runs.command import CommandPipeline
+    from arenabench.eval.runs.limits import run_settings_from_args
+    from arenabench.eval.scoring.phase_check import resolve_phases
+
+    script = Path(args.script).resolve()
+    from arenabench.eval.reports import FORMATS
+
+    twin = twin_set_dir(preset=args.preset, seed=args.seed, count=args.count)
+
+    def out_problem(out: Path) -> str | None:
+        return output_problem(out, own=FORMATS.values(), what="'arenabench check' report",
+                              inputs=[("the twin set", twin)])
+
+    if args.out is not None and (problem := out_problem(args.out)):
+        return _error(problem)
+    python = args.python
+    if python not in (PLACEHOLDER, OWN_PLACEHOLDER) and "/" in python:
+        python = os.path.abspath(python)  # from where the command runs, not the script's folder
+
+    def make_pipeline(template: str, base: str, *, warm: bool = True) -> CommandPipeline:
+        return CommandPipeline(template, settings=replace(settings, warm=settings.warm and warm),
+                               name=script.name, base_dir=base)
+
+    try:
+        # the working directory holds a copy of the script's folder, as when the competition
+        # ran the script there: relative reads work, obstacles.txt lands in the copy
+        base = run_settings_from_args(args)
+        settings = replace(base, workdir_from=str(script.parent),  # and no __pycache__ there
+                           env={"PYTHONDONTWRITEBYTECODE": "1", **base.env})
+        make_pipeline(_template(OWN_PLACEHOLDER, script), str(script.parent))  # the options
+    except ValueError as exc:
+        return _error(str(exc))
+    phases = resolve_phases(args.phase_check, [args.preset])
+    progress = not args.no_progress
+
+    interpreter = _interpreter(python, progress=progress)
+    template = _template(interpreter.executable if python == PLACEHOLDER else python, script)
+    try:
+        pipeline = make_pipeline(template, str(script.parent))
+        interpreter = _probe(interpreter, template, script, make_pipeline, settings,
+                             mode=pipeline.sandbox)
+    except ValueError as exc:  # PreflightError: the interpreter lacks numpy, cv2 or aruco
+        return _error(str(exc))
+    out = args.out if args.out is not None else report_dir(
+        script, preset=args.preset, seed=args.seed, count=args.count,
+        interpreter=interpreter.executable, settings=settings.to_dict(), phases=phases)
+    if problem := out_problem(out):
+        return _error(problem)
+    print(f"interpreter: {interpreter.describe()}")
+
+    from arenabench.eval.datasets.reader import DatasetError, load_dataset
+    from arenabench.eval.evaluation import EvaluationInterrupted, evaluate
+    from arenabench.eval.reports import write_reports
+    from arenabench.generator.dataset_writer import GenerateError, generate_dataset
+
+    larger = None if twin.exists() else larger_twin_set(preset=args.preset, seed=args.seed,
+                                                         count=args.count)
+    try:
+        if larger is not None:  # its first scenes are this set's: nothing to render
+            twin = larger[0]
+            made = None
+            what = f"reused twin set {twin} (its first {args.count} of {larger[1]} scenes"
+        else:
+            made = generate_dataset(twin, preset=args.preset, count=args.count, seed=args.seed,
+                                    workers=min(args.workers or _cores(), 8),
+                                    progress=progress)
+            what = (("reused" if made.rendered == 0 else f"generated {made.rendered} scenes of")
+                    + f" twin set {twin} ({args.count} scenes")
+    except (GenerateError, ValueError) as exc:
+        return _error(f"twin set {twin}: {exc}")
+    if made is not None and made.interrupted is not None:
+        print(f"{PROG}: {made.summary()}", file=sys.stderr)
+        return 128 + made.interrupted
+    from arenabench.cliopts import lock_out
+    from arenabench.eval.evaluation import EvaluationFailed, empty_report
+    from arenabench.fileio import FolderLockedError
+    from arenabench.interrupts import Interrupted, deferred_stops
+
+    # the set is made: a stop from now on writes the partial (perhaps empty) reports
+    dataset = None
+    try:
+        with lock_out(out):  # one run at a time writes into the report folder
+            try:
+                try:
+                    dataset = load_dataset(twin, limit=args.count if larger else None)
+                except (DatasetError, ValueError) as exc:
+                    return _error(f"twin set {twin}: {exc}")
+                print(f"{PROG}: {what} of {args.preset}, seed {args.seed}); report folder {out}")
+                report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
+                                  phases=phases)
+            except (EvaluationInterrupted, EvaluationFailed, Interrupted) as exc:
+                # partial reports, marked INCOMPLETE
+                partial = (exc.report if isinstance(exc, (EvaluationInterrupted,
+                                                          EvaluationFailed))
+                           else empty_report(pipeline=pipeline.name, dataset=str(twin),
+                                             n_total=None if dataset is None
+                                             else len(dataset.samples)))
+                partial = replace(partial, interpreter=interpreter.to_dict())
+                try:
+                    with deferred_stops():  # a second stop does not cut the writing short
+                        write_reports(partial, out, dataset=dataset)
+                except OSError as err:
+                    print(f"{PROG}: error: {write_failure(err, out)}", file=sys.stderr)
+                if isinstance(exc, EvaluationFailed):
+                    print(f"{PROG}: error: {exc}; nothing of it scored; partial report in "
+                          f"{out}", file=sys.stderr)
+                    return EXIT_HARNESS
+                print(f"{PROG}: interrupted after {partial.images_done} images; running "
+                      f"scripts killed; partial report in {out}", file=sys.stderr)
+                return exc.exit_code
+            report = replace(report, interpreter=interpreter.to_dict())
+            written: dict = {}
+            try:
+                with deferred_stops():  # every image ran: a stop cuts no report off
+                    written = write_reports(report, out, dataset=dataset)
+            except Interrupted:  # raised once they are written: the exit status says so
+                pass
+    except FolderLockedError as exc:
+        return _error(str(exc))
+    except OSError as exc:  # ENOSPC: one line, no traceback (as eval and grade)
+        print(f"{PROG}: error: {write_failure(exc, out)}", file=sys.stderr)
+        return EXIT_FAILED
+    for line in verdict_lines(report, fail_under=args.fail_under, phases=phases):
+        print(line)
+    if written:
+        print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
+    return 0 if report.summary.pass_rate >= args.fail_under else 1
+
+
+def _template(python: str, script: Path) -> str:
+    """The command that runs ``script`` with ``python`` (a path or :data:`OWN_PLACEHOLDER`);
+    paths are literal text in the template (a folder may be named ``x{image}y``)."""
+    import shlex
+
+    py = python if python == OWN_PLACEHOLDER else escape(python)
+    return f"{shlex.quote(py)} {shlex.quote(escape(str(script)))} --image {{{IMAGE}}}"
+
+
+def _interpreter(python: str, *, progress: bool):
+    """The :class:`~arenabench.eval.runs.competition_env.Interpreter` that ``--python`` names (the
+    competition's environment is made here when it is missing)."""
+    from arenabench.eval.runs.competition_env import Interpreter, competition_python
+
+    if python == PLACEHOLDER:
+        return competition_python(progress=progress, prog=PROG)
+    if python == OWN_PLACEHOLDER:
+        return Interpreter(sys.executable, "own")
+    return Interpreter(shutil.which(python) or python, "given")
+
+
+def _probe(interpreter, template: str, script: Path, make_pipeline, settings, *, mode: str):
+    """``interpreter`` with the versions the preflight's probe saw, run as ``template`` runs
+    the script (same sandbox, limits and working directory; one cold run on a stand-in image).
+
+    Raises
+    ------
+    PreflightError
+        One line: the interpreter cannot run, or lacks numpy, OpenCV or aruco.
+    """
+    import shlex
+    import tempfile
+
+    import cv2
+    import numpy as np
+
+    from arenabench.eval.grade.preflight import PreflightRecord, probe_interpreter
+
+    argv = shlex.split(template)
+    probe_template = shlex.join([argv[0], "{submission}/" + script.name, *argv[2:]])
+    with tempfile.TemporaryDirectory(prefix="arenabench-check-") as tmp:
+        image = Path(tmp, "image.png")  # a stand-in: the probe does not read it
+        image.write_bytes(cv2.imencode(".png", np.zeros((1, 1), np.uint8))[1].tobytes())
+        record = probe_interpreter(
+            probe_template, image=image, make_pipeline=make_pipeline, mode=mode,
+            record=PreflightRecord(mode=mode, limits=settings.to_dict()), option="--python",
+            command_name="the command running the script")
+    return interpreter.with_versions(record.versions)
+
+
+def _cores() -> int:
+    from arenabench.workers import usable_cores
+
+    return usable_cores()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    raise SystemExit(main())

@@ -1,0 +1,447 @@
+"""Typed records of an evaluation: what a pipeline predicted, per-image results, summary, report.
+
+Every record converts to and from the JSON of ``report.json`` (schema ``arenabench.report/1``,
+keys as in docs/formats.md; extra keys are only ever added, never renamed).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+from arenabench.competition import DEFAULT_TOLERANCE
+from arenabench.eval.runs.run_images import RunImage
+
+REPORT_SCHEMA = "arenabench.report/1"
+
+#: Statuses of a pipeline that answered: ``ok``, or a failure it reported itself.
+PIPELINE_STATUSES: tuple[str, ...] = ("ok", "markers_not_found")
+#: Statuses the harness assigns when the pipeline did not produce a usable answer
+#: (``limit``: an external command failed after hitting a run limit other than the timeout,
+#: i.e. memory, processes or file size; the message says which).
+HARNESS_STATUSES: tuple[str, ...] = ("crash", "timeout", "limit", "bad_output")
+#: Pipeline statuses.
+STATUSES: tuple[str, ...] = (*PIPELINE_STATUSES, *HARNESS_STATUSES)
+#: Failures of an answer that scoring finds (the status was ``ok``).
+SCORING_FAILURES: tuple[str, ...] = ("wrong_count", "area_off")
+
+#: Failure categories, in the order reports list them: the pipeline's own failure statuses,
+#: the scoring failures, then the harness's statuses.
+CATEGORIES: tuple[str, ...] = (
+    *(s for s in PIPELINE_STATUSES if s != "ok"), *SCORING_FAILURES, *HARNESS_STATUSES,
+)
+
+#: Pixel spaces a pipeline's obstacle polygons may be given in.
+OBSTACLE_SPACES: tuple[str, ...] = ("frame", "image")
+
+class HarnessError(RuntimeError):
+    """The harness itself could not run an image (no space for the run's folder, the image
+    cannot be copied, the run cannot be prepared): never scored as the pipeline's failure.
+    :func:`arenabench.eval.evaluation.evaluate` and ``grade`` stop with it (one line)."""
+
+
+#: Longest stdout/stderr tail kept per image (characters).
+TAIL_CHARS = 2000
+
+
+def tail(text: str | None, limit: int = TAIL_CHARS) -> str:
+    """Last ``limit`` characters of ``text`` (empty for ``None``), prefixed with an ellipsis
+    when cut."""
+    if not text:
+        return ""
+    return text if len(text) <= limit else "..." + text[-limit:]
+
+
+@dataclass(frozen=True)
+class Truth:
+    """The ground truth one image is scored against.
+
+    Parameters
+    ----------
+    count : int
+        Number of obstacles in the frame.
+    area : float
+        Reference area in frame px (``visible_px``, ``footprint_px`` or ``contour_px``).
+    marker_ids : tuple of int
+        Ids of the markers fully in view.
+    """
+
+    count: int
+    area: float
+    marker_ids: tuple[int, ...] = ()
+
+
+@dataclass(frozen=True)
+class Prediction:
+    """What a pipeline reported for one image (or why it reported nothing usable).
+
+    Parameters
+    ----------
+    status : str
+        One of :data:`STATUSES`.
+    count, area : int or None, float or None
+        Reported obstacle count and total area (frame px); ``None`` when not reported.
+    marker_ids : tuple of int or None
+        Reported marker ids; ``None`` when the pipeline does not report ids.
+    message : str
+        Why the pipeline failed (empty when it did not).
+    stdout, stderr : str
+        Tails of the pipeline's output streams (external commands; tracebacks in-process).
+    latency_ms : float
+        Wall time of the pipeline call in milliseconds (what reports write is
+        :attr:`measured_latency_ms`).
+    obstacles : tuple of polygons or None
+        What the pipeline found, for drawing: one polygon (tuple of (x, y)) per obstacle, in
+        ``obstacles_space`` px, simplified to within about 2 px; ``None`` when not reported.
+    obstacles_space : {"frame", "image"}
+        Whether ``obstacles`` are in rectified frame px or input image px.
+    homography : 3 x 3 tuple or None
+        The pipeline's input image px -> frame px homography, when it reports one.
+    run_images : tuple of RunImage
+        Thumbnails of the images an external run left in its working directory (its warp...;
+        :mod:`arenabench.eval.runs.run_images`), for the HTML report's failure card; never written
+        into ``report.json``, and dropped from an image that passed.
+    starved : bool
+        A ``timeout`` of a run that spent much of its time waiting for a CPU (the machine was
+        busy, :data:`arenabench.eval.runs.predictions.STARVED_SHARE`): what it says of the pipeline
+        is nothing.
+    """
+
+    status: str
+    count: int | None = None
+    area: float | None = None
+    marker_ids: tuple[int, ...] | None = None
+    message: str = ""
+    stdout: str = ""
+    stderr: str = ""
+    latency_ms: float = 0.0
+    obstacles: tuple[tuple[tuple[float, float], ...], ...] | None = None
+    obstacles_space: str = "frame"
+    homography: tuple[tuple[float, float, float], ...] | None = None
+    run_images: tuple[RunImage, ...] = field(default=(), repr=False)
+    starved: bool = False
+
+    def __post_init__(self) -> None:
+        if self.status not in STATUSES:
+            raise ValueError(f"status must be one of {STATUSES}, got {self.status!r}")
+        if self.obstacles_space not in OBSTACLE_SPACES:
+            raise ValueError(
+                f"obstacles_space must be one of {OBSTACLE_SPACES}, got {self.obstacles_space!r}"
+            )
+
+    @property
+    def measured_latency_ms(self) -> float | None:
+        """The latency reports write and latency statistics use: ``None`` for a timed-out
+        image (its run was cut short, not timed) and for one whose pipeline never ran
+        (latency 0), else :attr:`latency_ms`."""
+        if self.status == "timeout" or not self.latency_ms > 0:
+            return None
+        return self.latency_ms
+
+    def drawing_dict(self) -> dict[str, Any]:
+        """The drawing fields as JSON (empty when the pipeline reported no polygons)."""
+        out: dict[str, Any] = {}
+        if self.obstacles is not None:
+            out["obstacles"] = [[[x, y] for x, y in poly] for poly in self.obstacles]
+            out["obstacles_space"] = self.obstacles_space
+        if self.homography is not None:
+            out["homography"] = [list(row) for row in self.homography]
+        return out
+
+
+def drawing_from_json(pred: dict[str, Any]) -> dict[str, Any]:
+    """``Prediction`` keyword arguments from the drawing fields of a ``pred`` record."""
+    out: dict[str, Any] = {}
+    if pred.get("obstacles") is not None:
+        out["obstacles"] = tuple(
+            tuple((float(x), float(y)) for x, y in poly) for poly in pred["obstacles"]
+        )
+        out["obstacles_space"] = str(pred.get("obstacles_space", "frame"))
+    if pred.get("homography") is not None:
+        out["homography"] = tuple(tuple(float(v) for v in row) for row in pred["homography"])
+    return out
+
+
+@dataclass(frozen=True)
+class ImageScore:
+    """Metrics of one image (output of :func:`arenabench.eval.scoring.metrics.score_image`).
+
+    ``area_err_kind`` is ``"relative"`` normally and ``"absolute_px"`` when the ground-truth
+    area is 0 (``area_rel_err`` then holds the absolute error in px; docs/ground-truth.md).
+    """
+
+    passed: bool
+    category: str | None
+    count_err: int | None
+    area_rel_err: float | None
+    area_err_kind: str
+    marker_ids_ok: bool | None
+
+
+def _phase_from_json(d: dict[str, Any] | None) -> Any:
+    if not d:
+        return None
+    from .phase_check import PhaseResult
+
+    return PhaseResult.from_dict(d)
+
+
+@dataclass(frozen=True)
+class ImageResult:
+    """Everything the report says about one image."""
+
+    id: str
+    image: str
+    truth: Truth
+    prediction: Prediction
+    score: ImageScore
+    gt_area_visible: float = 0.0
+    gt_area_footprint: float = 0.0
+    params: dict[str, float] = field(default_factory=dict)
+    #: The phase check's finding on a failing image (``PhaseResult``), ``None`` when not run.
+    phase: Any = None
+
+    @property
+    def passed(self) -> bool:
+        """Whether the image passed."""
+        return self.score.passed
+
+    @property
+    def category(self) -> str | None:
+        """Failure category, ``None`` when the image passed."""
+        return self.score.category
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form (the ``images[]`` entries of ``report.json``)."""
+        p, s = self.prediction, self.score
+        return {
+            "id": self.id,
+            "image": self.image,
+            "pass": s.passed,
+            "category": s.category,
+            "status": p.status,
+            "message": p.message,
+            "gt": {
+                "count": self.truth.count,
+                "area": self.truth.area,
+                "marker_ids": list(self.truth.marker_ids),
+                "area_visible_px": self.gt_area_visible,
+                "area_footprint_px": self.gt_area_footprint,
+            },
+            "pred": {
+                "count": p.count,
+                "area": p.area,
+                "marker_ids": None if p.marker_ids is None else list(p.marker_ids),
+                **p.drawing_dict(),
+            },
+            "area_rel_err": s.area_rel_err,
+            "area_err_kind": s.area_err_kind,
+            "count_err": s.count_err,
+            "marker_ids_ok": s.marker_ids_ok,
+            "latency_ms": p.measured_latency_ms,
+            "stdout_tail": p.stdout,
+            "stderr_tail": p.stderr,
+            "params": dict(self.params),
+            **({} if self.phase is None else {"phase": self.phase.to_dict()}),
+            **({"starved": True} if p.starved else {}),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> ImageResult:
+        """Inverse of :meth:`to_dict` (tolerates a minimal entry: id, pass, gt, pred)."""
+        gt, pred = d.get("gt", {}), d.get("pred", {})
+        ids = pred.get("marker_ids")
+        prediction = Prediction(
+            status=d.get("status", "ok"),
+            count=pred.get("count"),
+            area=pred.get("area"),
+            marker_ids=None if ids is None else tuple(int(i) for i in ids),
+            message=d.get("message", ""),
+            stdout=d.get("stdout_tail", ""),
+            stderr=d.get("stderr_tail", ""),
+            latency_ms=float(d.get("latency_ms") or 0.0),
+            starved=bool(d.get("starved", False)),
+            **drawing_from_json(pred),
+        )
+        truth = Truth(
+            count=int(gt.get("count", 0)),
+            area=float(gt.get("area", 0.0)),
+            marker_ids=tuple(int(i) for i in gt.get("marker_ids", [])),
+        )
+        score = ImageScore(
+            passed=bool(d.get("pass")),
+            category=d.get("category"),
+            count_err=d.get("count_err"),
+            area_rel_err=d.get("area_rel_err"),
+            area_err_kind=d.get("area_err_kind", "relative"),
+            marker_ids_ok=d.get("marker_ids_ok"),
+        )
+        return cls(
+            id=str(d["id"]),
+            image=d.get("image", ""),
+            truth=truth,
+            prediction=prediction,
+            score=score,
+            gt_area_visible=float(gt.get("area_visible_px", truth.area)),
+            gt_area_footprint=float(gt.get("area_footprint_px", truth.area)),
+            params={k: float(v) for k, v in d.get("params", {}).items()},
+            phase=_phase_from_json(d.get("phase")),
+        )
+
+
+@dataclass(frozen=True)
+class Summary:
+    """Summary metrics of a run (the ``summary`` object of ``report.json``).
+
+    ``area_rel_err`` holds statistics of ``|area_rel_err|``; ``area_rel_err_signed`` of the
+    signed value. Both use only images where the pipeline answered (status ``ok``) and the
+    ground-truth area is non-zero. ``count_mae`` uses images with a reported count.
+    ``marker_id_accuracy`` is ``None`` when the pipeline never reports ids.
+    """
+
+    n: int
+    pass_rate: float
+    pass_rate_ci95: tuple[float, float]
+    count_exact_rate: float
+    count_mae: float | None
+    area_rel_err: dict[str, float | None]
+    area_rel_err_signed: dict[str, float | None]
+    marker_id_accuracy: float | None
+    failures: dict[str, int]
+    latency_ms: dict[str, float | None]
+    n_passed: int = 0
+    #: Phase check (docs/phase-check.md): robust and phase-dependent failures as fractions of
+    #: all images, and its counts; ``None`` when no image was phase-checked.
+    robust_failure_rate: float | None = None
+    phase_dependent_failure_rate: float | None = None
+    phase_check: dict[str, Any] | None = None
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form."""
+        return {
+            "n": self.n,
+            "n_passed": self.n_passed,
+            "pass_rate": self.pass_rate,
+            "pass_rate_ci95": list(self.pass_rate_ci95),
+            "count_exact_rate": self.count_exact_rate,
+            "count_mae": self.count_mae,
+            "area_rel_err": dict(self.area_rel_err),
+            "area_rel_err_signed": dict(self.area_rel_err_signed),
+            "marker_id_accuracy": self.marker_id_accuracy,
+            "failures": dict(self.failures),
+            "latency_ms": dict(self.latency_ms),
+            "robust_failure_rate": self.robust_failure_rate,
+            "phase_dependent_failure_rate": self.phase_dependent_failure_rate,
+            "phase_check": None if self.phase_check is None else dict(self.phase_check),
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Summary:
+        """Inverse of :meth:`to_dict`."""
+        lo, hi = d.get("pass_rate_ci95", [0.0, 1.0])
+        return cls(
+            n=int(d["n"]),
+            n_passed=int(d.get("n_passed", round(d["pass_rate"] * d["n"]))),
+            pass_rate=float(d["pass_rate"]),
+            pass_rate_ci95=(float(lo), float(hi)),
+            count_exact_rate=float(d.get("count_exact_rate", 0.0)),
+            count_mae=d.get("count_mae"),
+            area_rel_err=dict(d.get("area_rel_err", {})),
+            area_rel_err_signed=dict(d.get("area_rel_err_signed", {})),
+            marker_id_accuracy=d.get("marker_id_accuracy"),
+            failures={k: int(v) for k, v in d.get("failures", {}).items()},
+            latency_ms=dict(d.get("latency_ms", {})),
+            robust_failure_rate=d.get("robust_failure_rate"),
+            phase_dependent_failure_rate=d.get("phase_dependent_failure_rate"),
+            phase_check=d.get("phase_check"),
+        )
+
+
+@dataclass(frozen=True)
+class Report:
+    """A whole evaluation: settings, summary, per-image results and the parameter breakdown.
+
+    ``complete`` is ``False`` for a run stopped early (SIGINT/SIGTERM); its summary then
+    covers the ``n_done`` images evaluated before the stop, of ``n_total`` (when known).
+    """
+
+    pipeline: str
+    dataset: str
+    area_reference: str
+    tolerance: float
+    summary: Summary
+    images: tuple[ImageResult, ...]
+    breakdown: dict[str, list[dict[str, Any]]] = field(default_factory=dict)
+    schema: str = REPORT_SCHEMA
+    #: Scene parameters and derived facts ranked by how well they separate failures from
+    #: passes (:func:`arenabench.eval.scoring.breakdown.rank_causes`), strongest first.
+    causes: tuple[dict[str, Any], ...] = ()
+    complete: bool = True
+    n_done: int | None = None
+    n_total: int | None = None
+    #: The interpreter that ran a command's script, where it was probed (``arenabench check``):
+    #: ``executable``, ``source``, ``python``, ``numpy``, ``cv2``
+    #: (:meth:`arenabench.eval.runs.competition_env.Interpreter.to_dict`).
+    interpreter: dict[str, Any] | None = None
+    #: SHA-256 of the dataset's ``manifest.jsonl`` (which set was scored: ``--compare``
+    #: refuses reports of different sets); ``None`` for a dataset without one.
+    manifest_sha256: str | None = None
+    #: Systematic errors of the answers
+    #: (:func:`arenabench.eval.scoring.breakdown.systematic_errors`): the same count offset or
+    #: area factor on most answered images.
+    systematic: tuple[dict[str, Any], ...] = ()
+
+    @property
+    def images_done(self) -> int:
+        """Images evaluated (``n_done``, or every image of a complete report)."""
+        return len(self.images) if self.n_done is None else self.n_done
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form (``report.json``)."""
+        return {
+            "schema": self.schema,
+            "pipeline": self.pipeline,
+            "dataset": self.dataset,
+            "manifest_sha256": self.manifest_sha256,
+            "area_reference": self.area_reference,
+            "tolerance": self.tolerance,
+            "complete": self.complete,
+            "n_done": self.images_done,
+            **({} if self.n_total is None else {"n_total": self.n_total}),
+            **({} if self.interpreter is None else {"interpreter": dict(self.interpreter)}),
+            "summary": self.summary.to_dict(),
+            "breakdown": self.breakdown,
+            "causes": [dict(c) for c in self.causes],
+            "systematic": [dict(c) for c in self.systematic],
+            "images": [r.to_dict() for r in self.images],
+        }
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> Report:
+        """Inverse of :meth:`to_dict`.
+
+        Raises
+        ------
+        ValueError
+            When ``schema`` is not ``arenabench.report/1``.
+        """
+        if d.get("schema") != REPORT_SCHEMA:
+            raise ValueError(f"report schema must be {REPORT_SCHEMA!r}, got {d.get('schema')!r}")
+        return cls(
+            pipeline=str(d.get("pipeline", "")),
+            dataset=str(d.get("dataset", "")),
+            area_reference=str(d.get("area_reference", "visible")),
+            tolerance=float(d.get("tolerance", DEFAULT_TOLERANCE)),
+            summary=Summary.from_dict(d["summary"]),
+            images=tuple(ImageResult.from_dict(i) for i in d.get("images", [])),
+            breakdown=dict(d.get("breakdown", {})),
+            causes=tuple(dict(c) for c in d.get("causes", [])),
+            systematic=tuple(dict(c) for c in d.get("systematic") or []),
+            manifest_sha256=(None if d.get("manifest_sha256") is None
+                             else str(d["manifest_sha256"])),
+            complete=bool(d.get("complete", True)),
+            n_done=None if d.get("n_done") is None else int(d["n_done"]),
+            n_total=None if d.get("n_total") is None else int(d["n_total"]),
+            interpreter=(dict(d["interpreter"]) if isinstance(d.get("interpreter"), dict)
+                         else None),
+        )
