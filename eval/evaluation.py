@@ -25,10 +25,8 @@ from typing import Any
 
 from arenabench.eval.datasets.reader import AREA_REFERENCES, Dataset, DatasetItem, load_dataset
 from arenabench.eval.datasets.result_store import ResultStore
-from arenabench.eval.runs.slots import RunSlots, extra_thread
 from arenabench.eval.scoring.breakdown import breakdown, rank_causes, systematic_errors
-from arenabench.eval.scoring.gt_facts import gt_facts
-from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE, score_image, summarize
+from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE, score_sample, summarize
 from arenabench.eval.scoring.results import HarnessError, ImageResult, Prediction, Report
 from arenabench.interrupts import checkpoint, deferred_stops
 from arenabench.workers import process_state, usable_cores
@@ -79,7 +77,6 @@ EXECUTORS: tuple[str, ...] = ("thread", "process")
 IN_FLIGHT_PER_WORKER = 4
 
 
-
 @dataclass(frozen=True)
 class PipelineRun:
     """One image for a process-pool worker: run the pipeline named ``spec`` on it.
@@ -104,28 +101,6 @@ def _worker_pipeline(spec: str) -> Pipeline:
 def run_in_worker(task: PipelineRun) -> Prediction:
     """A process-pool worker's unit: run the pipeline on one image."""
     return _worker_pipeline(task.spec).run(Path(task.image_path))
-
-
-def score_sample(
-    sample: DatasetItem, pred: Prediction, *, tolerance: float, area_reference: str
-) -> ImageResult:
-    """Score one prediction against a dataset item's ground truth, as an
-    :class:`~arenabench.eval.scoring.results.ImageResult` (its ``params``: the item's, and the facts
-    :func:`~arenabench.eval.scoring.gt_facts.gt_facts` reads from its GT)."""
-    truth = sample.truth(area_reference=area_reference)
-    score = score_image(truth, pred, tolerance=tolerance)
-    if score.passed and pred.run_images:  # only a failure card shows them
-        pred = replace(pred, run_images=())
-    return ImageResult(
-        id=sample.id,
-        image=str(sample.image_path),
-        truth=truth,
-        prediction=pred,
-        score=score,
-        gt_area_visible=float(sample.gt.area.visible_px),
-        gt_area_footprint=float(sample.gt.area.footprint_px),
-        params={**sample.params, **gt_facts(sample.gt)},
-    )
 
 
 def build_report(
@@ -187,7 +162,7 @@ def evaluate(
     ----------
     pipeline : str, callable or Pipeline
         ``"reference"``, ``"seed"``, ``"pkg.module:function"``, a function taking a BGR image,
-        or a pipeline object (e.g. :class:`~arenabench.eval.runs.command.CommandPipeline`).
+        or a pipeline object (e.g. :class:`~arenabench.eval.runs.pipeline.CommandPipeline`).
     dataset : path-like or Dataset
         Dataset folder written by the generator, or a loaded dataset.
     workers : int, optional
@@ -259,11 +234,10 @@ def evaluate(
     interrupted: Interrupted | None = None
     failed: HarnessError | None = None
     pipe: Pipeline | None = None
-    slots = None
     try:
         isolated = isolate and isinstance(pipeline, str) and ":" in pipeline  # a team's function
         if isolated:
-            from arenabench.eval.runs.isolated import IsolatedCallablePipeline
+            from arenabench.eval.runs import IsolatedCallablePipeline
             from arenabench.limits import DEFAULT_TIMEOUT_S
 
             isolated_pipe = IsolatedCallablePipeline(
@@ -275,15 +249,7 @@ def evaluate(
         else:
             pipe = make_pipeline(pipeline)
         n_workers = min(workers or usable_cores(), max(1, len(samples)))
-        use_process = (executor == "process" and pipe.in_process and isinstance(pipeline, str)
-                       and not isolated)  # an isolated function has its own processes
-        # an external command without run slots of its own gets n_workers for this
-        # evaluation, and one more thread than runs at once prepares the next image meanwhile
-        # (run_slots)
-        from arenabench.eval.runs.command import CommandPipeline
-
-        if not use_process and isinstance(pipe, CommandPipeline) and pipe.slots is None:
-            slots = pipe.slots = RunSlots(n_workers)
+        use_process = executor == "process" and pipe.in_process and isinstance(pipeline, str)
         pool: Executor
         if use_process:
             pool = ProcessPoolExecutor(
@@ -296,17 +262,13 @@ def evaluate(
                 run_in_worker, PipelineRun(spec=pipeline, image_path=str(s.image_path)))
         else:
             run = pipe.run
-            pool = ThreadPoolExecutor(max_workers=n_workers + extra_thread(slots, n_workers),
+            pool = ThreadPoolExecutor(max_workers=pipe.threads(n_workers),
                                       thread_name_prefix="arenabench-eval")
             submit = lambda s: pool.submit(run, s.image_path)  # noqa: E731
         from arenabench.progress import progress as progress_bar
 
-        stop = getattr(pipe, "stop", None)
-        stop = stop if callable(stop) else None
-
         def stop_runs() -> None:
-            if stop is not None:
-                stop()
+            pipe.stop()
             pool.shutdown(wait=True, cancel_futures=True)
 
         with (
@@ -317,7 +279,7 @@ def evaluate(
                 _run_all(samples, submit, store, window=IN_FLIGHT_PER_WORKER * n_workers,
                          on_image=lambda: bar.update(1), tolerance=tolerance,
                          area_reference=area_reference, stop_runs=stop_runs,
-                         killable=stop is not None)
+                         killable=not pipe.in_process)
             except Interrupted as exc:
                 interrupted = exc
             except HarnessError as exc:  # the runs are stopped: never scored as the pipeline's
@@ -345,9 +307,7 @@ def evaluate(
             # a stop arriving now cuts no server's end short; after the last image (and its
             # phase check) it changes nothing: the report is whole, and the command's exit
             # status says it was stopped (arenabench.cli.run)
-            _held(getattr(pipe, "close", None))
-            if slots is not None:
-                pipe.slots = None  # given for this evaluation only
+            _held(pipe.close)
     report: Report | None = None
 
     def build() -> None:
@@ -422,7 +382,7 @@ def _check_phases(results: list[ImageResult], data: Dataset, pipe: Pipeline,
         return check_phases(results, [by_id[r.id].gt for r in results], pipe.run,
                             phases=phases, tolerance=tolerance, area_reference=area_reference,
                             workers=workers, on_image=lambda: bar.update(1),
-                            stop=getattr(pipe, "stop", None))
+                            stop=pipe.stop)
 
 
 def _run_all(samples: Iterable[DatasetItem], submit: Callable[[DatasetItem], Future],

@@ -4,12 +4,12 @@
 - :class:`CallablePipeline`: a Python function (or ``"pkg.module:function"``) taking a BGR
   image and returning a mapping or object with ``count``, ``area`` (or ``total_area``) and
   optionally ``marker_ids`` and ``status``.
-- :class:`~arenabench.eval.runs.command.CommandPipeline` (in its own module): a team's script run
+- :class:`~arenabench.eval.runs.pipeline.CommandPipeline` (in its own module): a team's script run
   as it is graded, e.g. ``python3 map.py --image {image}``: a private directory per image, no
   shell, sandbox, limits and cleanup of every process it starts; ``obstacles.txt`` (or a JSON
   line on stdout) parsed.
 
-What a pipeline returned becomes a :class:`Prediction` in :mod:`arenabench.eval.runs.predictions`.
+What a pipeline returned becomes a :class:`Prediction` in :mod:`arenabench.eval.scoring.answers`.
 
 No adapter ever raises for a bad pipeline: crashes, timeouts, limits and garbage
 become a :class:`Prediction` with status ``crash``, ``timeout``, ``limit`` or ``bad_output``
@@ -24,11 +24,11 @@ import sys
 import time
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
 
-from arenabench.eval.runs.predictions import prediction_from_result
+from arenabench.eval.scoring.answers import prediction_from_result
 from arenabench.eval.scoring.results import Prediction, tail
 from arenabench.pipeline.config import PROFILES
 
@@ -42,14 +42,47 @@ BUILTIN_PIPELINES: tuple[str, ...] = PROFILES
 
 
 class Pipeline(Protocol):
-    """What the runner needs of a pipeline."""
+    """What the evaluation loop needs of a pipeline, whatever kind it is (the loop never asks
+    which): in-process (:class:`BuiltinPipeline`, :class:`CallablePipeline`), in killable child
+    processes (:class:`~arenabench.eval.runs.isolated.IsolatedCallablePipeline`) or an external
+    command (:class:`~arenabench.eval.runs.pipeline.CommandPipeline`)."""
 
     name: str
+    #: Runs in this process (a process pool may run it in its workers instead).
     in_process: bool
 
     def run(self, image_path: Path) -> Prediction:
         """Run on one image; never raises for a pipeline's own failure."""
         ...
+
+    def threads(self, workers: int) -> int:
+        """Threads the loop runs for ``workers`` images at once (called once, first)."""
+        ...
+
+    def stop(self) -> None:
+        """Kill what runs now; later runs return at once (a stop signal)."""
+        ...
+
+    def close(self) -> None:
+        """The end of the loop's use: end what the pipeline holds (servers, processes)."""
+        ...
+
+
+class InProcess:
+    """What an in-process pipeline answers of :class:`Pipeline` beyond :meth:`run`: a thread
+    per worker, nothing to stop or to end."""
+
+    in_process = True
+
+    def threads(self, workers: int) -> int:
+        """One thread per worker."""
+        return workers
+
+    def stop(self) -> None:
+        """Nothing runs outside the caller's threads."""
+
+    def close(self) -> None:
+        """Nothing to end."""
 
 
 def _read_image(path: Path) -> Any:
@@ -97,7 +130,7 @@ def call_on_image(func: Callable[[Any], Any], image: Any) -> Prediction:
 
 
 @dataclass
-class BuiltinPipeline:
+class BuiltinPipeline(InProcess):
     """The project's own pipeline, ``reference`` or ``seed`` profile, called in-process.
 
     Parameters
@@ -106,7 +139,6 @@ class BuiltinPipeline:
     """
 
     profile: str = "reference"
-    in_process: bool = field(default=True, init=False)
 
     def __post_init__(self) -> None:
         if self.profile not in BUILTIN_PIPELINES:
@@ -227,7 +259,7 @@ def pipeline_name_problem(spec: str) -> str | None:
 
 
 @dataclass
-class CallablePipeline:
+class CallablePipeline(InProcess):
     """A Python function ``f(image_bgr) -> mapping | object`` called in-process.
 
     Parameters
@@ -240,7 +272,6 @@ class CallablePipeline:
 
     func: Callable[[Any], Any] | str
     name: str = ""
-    in_process: bool = field(default=True, init=False)
 
     def __post_init__(self) -> None:
         if isinstance(self.func, str):
@@ -263,6 +294,20 @@ class CallablePipeline:
         return call_on_image(self.func, image)
 
 
+class _Adapted(InProcess):
+    """A pipeline object of the caller's with ``run`` and ``name`` only: the rest of
+    :class:`Pipeline` as an in-process one has it."""
+
+    def __init__(self, inner: Any) -> None:
+        self.inner = inner
+        self.name = str(inner.name)
+        self.in_process = bool(getattr(inner, "in_process", True))
+
+    def run(self, image_path: Path) -> Prediction:
+        """The caller's ``run``."""
+        return self.inner.run(image_path)
+
+
 def make_pipeline(
     spec: str | Callable[[Any], Any] | Pipeline,
 ) -> Pipeline:
@@ -281,7 +326,9 @@ def make_pipeline(
             return CallablePipeline(spec)
         raise ValueError(pipeline_name_problem(spec))
     if hasattr(spec, "run") and hasattr(spec, "name"):
-        return spec  # type: ignore[return-value]
+        if all(callable(getattr(spec, m, None)) for m in ("threads", "stop", "close")):
+            return spec  # type: ignore[return-value]
+        return _Adapted(spec)
     if callable(spec):
         return CallablePipeline(spec)
     raise ValueError(f"pipeline must be a name, a callable or a pipeline object, got {spec!r}")

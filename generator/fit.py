@@ -23,6 +23,7 @@ from dataclasses import dataclass, field, replace
 import cv2
 import numpy as np
 
+from arenabench.aruco import aruco_dictionary
 from arenabench.frame import CORNER_ORDER
 from arenabench.generator import camera as cam
 from arenabench.generator import competition_arena as comp
@@ -144,7 +145,7 @@ def detect_marker_corners(bgr: np.ndarray, markers: MarkerSpec, *,
         When one of ``markers.ids`` is not found.
     """
     gray = cv2.cvtColor(bgr, cv2.COLOR_BGR2GRAY) if bgr.ndim == 3 else bgr
-    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, markers.dictionary))
+    dictionary = aruco_dictionary(markers.dictionary, field="markers.dictionary")
     params = cv2.aruco.DetectorParameters()
     if refine:
         params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX

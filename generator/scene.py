@@ -12,6 +12,7 @@ from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+from arenabench.aruco import aruco_dictionary
 from arenabench.frame import COMPETITION_DICTIONARY
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.params import PARAMETERS
@@ -179,9 +180,7 @@ class MarkerSpec:
         object.__setattr__(self, "ids", ids)
         if not isinstance(self.dictionary, str):
             raise ValueError(f"markers.dictionary must be a name, got {self.dictionary!r}")
-        from arenabench.generator.textures import aruco_dictionary  # imports this module
-
-        size = aruco_dictionary(self.dictionary).bytesList.shape[0]
+        size = aruco_dictionary(self.dictionary, field="markers.dictionary").bytesList.shape[0]
         for marker_id in ids:
             if not 0 <= marker_id < size:
                 raise ValueError(f"markers.ids: id {marker_id} is not in {self.dictionary} "

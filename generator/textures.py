@@ -11,6 +11,7 @@ import functools
 import cv2
 import numpy as np
 
+from arenabench.aruco import aruco_dictionary
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.edges import linear_to_srgb, srgb_to_linear
 from arenabench.generator.layout import floor_extent
@@ -20,20 +21,6 @@ from arenabench.generator.scene import ArenaSpec
 FLOOR_TEXELS = 2048
 #: Texels per marker module (cell): 4x4 markers are 6 modules wide with the black border.
 MODULE_TEXELS = 32
-
-
-def aruco_dictionary(name: str):
-    """The cv2.aruco predefined dictionary called ``name`` (e.g. ``"DICT_4X4_100"``).
-
-    Raises
-    ------
-    ValueError
-        When OpenCV has no such dictionary.
-    """
-    code = getattr(cv2.aruco, name, None)
-    if not name.startswith("DICT_") or not isinstance(code, int):
-        raise ValueError(f"markers.dictionary: unknown ArUco dictionary {name!r}")
-    return cv2.aruco.getPredefinedDictionary(code)
 
 
 def marker_texture(dictionary: str, marker_id: int, side_m: float, quiet_zone_m: float):
@@ -47,7 +34,7 @@ def marker_texture(dictionary: str, marker_id: int, side_m: float, quiet_zone_m:
         The quiet zone actually drawn, in metres (rounded to whole texels), so that the sheet's
         outline is the marker square grown by ``pad_m``.
     """
-    d = aruco_dictionary(dictionary)
+    d = aruco_dictionary(dictionary, field="markers.dictionary")
     if not 0 <= marker_id < d.bytesList.shape[0]:
         raise ValueError(f"markers.ids: id {marker_id} is not in {dictionary}")
     side_px = (d.markerSize + 2) * MODULE_TEXELS
@@ -59,7 +46,7 @@ def marker_texture(dictionary: str, marker_id: int, side_m: float, quiet_zone_m:
 
 @functools.lru_cache(maxsize=256)
 def _marker_sheet(dictionary: str, marker_id: int, side_px: int, pad_px: int) -> np.ndarray:
-    d = aruco_dictionary(dictionary)
+    d = aruco_dictionary(dictionary, field="markers.dictionary")
     img = cv2.aruco.generateImageMarker(d, marker_id, side_px, borderBits=1)
     img = cv2.copyMakeBorder(img, pad_px, pad_px, pad_px, pad_px, cv2.BORDER_CONSTANT, value=255)
     rgb = np.ascontiguousarray(np.repeat(img[:, :, None], 3, axis=2))

@@ -6,21 +6,26 @@ import tempfile
 
 import pytest
 
-from arenabench.eval.runs.warm_client import close_all
+from arenabench.eval.runs.context import RunContext
 
 
 @pytest.fixture()
 def run_tmp(tmp_path, monkeypatch):
     """The folder the runs' private directories (and warm servers' folders) go to, checked
-    empty afterwards; warm servers an earlier test left in this process (pytest-xdist mixes
-    modules) are ended first, and the test's own at its end."""
-    close_all()
+    empty afterwards: whatever the test ran, its run contexts are closed by then."""
     d = tmp_path / "runs"
     d.mkdir()
     monkeypatch.setattr(tempfile, "tempdir", str(d))
     yield d
-    close_all()
     assert list(d.iterdir()) == [], "a server's or run's directory was left behind"
+
+
+@pytest.fixture()
+def runs(run_tmp):
+    """A run context for the test's pipelines (``runs.command(...)``), closed at its end,
+    before :func:`run_tmp` checks its folder."""
+    with RunContext() as context:
+        yield context
 
 
 @pytest.fixture(scope="session")

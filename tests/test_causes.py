@@ -152,7 +152,7 @@ def test_a_minimum_area_script_is_traced_to_the_smallest_box(twin40, tmp_path):
 
     from arenabench.eval.evaluation import evaluate
     from arenabench.eval.reports import write_reports
-    from arenabench.eval.runs.command import CommandPipeline
+    from arenabench.eval.runs import CommandPipeline
 
     script = Path(__file__).parent / "pipelines" / "style_min_area.py"
     report = evaluate(CommandPipeline(f"{sys.executable} {script} --image {{image}}"),

@@ -118,7 +118,7 @@ def test_eval_reads_what_our_own_detector_writes(toy, tmp_path):
 
 
 def test_a_json_line_pipeline_may_give_polygons_in_image_px():
-    from arenabench.eval.runs.predictions import prediction_from_result
+    from arenabench.eval.scoring.answers import prediction_from_result
 
     square = [[10, 10], [60, 10], [60, 60], [10, 60]]
     pred = prediction_from_result({"count": 1, "area": 2500.0, "obstacles_image": [square]},

@@ -19,9 +19,10 @@ from arenabench.cmdtemplate import (
     placeholders,
     template_problem,
 )
-from arenabench.eval.grade.grading import GradeOptions, team_command
+from arenabench.eval.grade.grading import GradeOptions
+from arenabench.eval.grade.teams import team_command
+from arenabench.eval.runs import CommandPipeline
 from arenabench.eval.runs.cmd_script import missing_script_problem
-from arenabench.eval.runs.command import CommandPipeline
 
 
 def test_every_command_takes_declared_placeholders_only():

@@ -19,11 +19,11 @@ from clirun import run_cli
 
 from arenabench.eval.runs.competition_env import (
     COMPETITION_PINS,
-    PLACEHOLDER,
+    COMPETITION_PLACEHOLDER,
     RECORD_FILE,
     competition_python,
     env_folder,
-    substitute,
+    substitute_competition_python,
 )
 
 PIPELINES = Path(__file__).resolve().parent / "pipelines"
@@ -44,9 +44,10 @@ def offline(monkeypatch):
 
 
 def test_substitute_replaces_the_placeholder_argument_by_argument():
-    cmd = substitute(f"{PLACEHOLDER} 'my map.py' --image {{image}}", "/a b/bin/python")
+    cmd = substitute_competition_python(f"{COMPETITION_PLACEHOLDER} 'my map.py' --image {{image}}",
+                                        "/a b/bin/python")
     assert cmd == "'/a b/bin/python' 'my map.py' --image '{image}'"
-    assert substitute("python3 map.py", "/x") == "python3 map.py"
+    assert substitute_competition_python("python3 map.py", "/x") == "python3 map.py"
 
 
 @pytest.mark.slow
@@ -148,13 +149,13 @@ def test_eval_and_sweep_run_competition_python_commands(competition_cache, tmp_p
     gen = run_cli("generate", "--count", "2", "--seed", "0", "--out", str(data), "--workers",
                   "1", "--no-progress")
     assert gen.returncode == 0, gen.stderr
-    cmd = f"{PLACEHOLDER} {LEGACY} --image {{image}}"
+    cmd = f"{COMPETITION_PLACEHOLDER} {LEGACY} --image {{image}}"
     out = tmp_path / "eval"
     proc = run_cli("eval", str(data), "--cmd", cmd, "--out", str(out), "--no-progress",
                    "--phase-check", "off", "--fail-under", "pass_rate=1", env=env)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     python = env_folder(competition_cache) / "bin" / "python"
-    assert f"{PLACEHOLDER} is {python}" in proc.stderr
+    assert f"{COMPETITION_PLACEHOLDER} is {python}" in proc.stderr
     report = json.loads((out / "report.json").read_text())
     assert report["pipeline"] == cmd  # the name the user gave
     assert report["interpreter"]["source"] == "competition"

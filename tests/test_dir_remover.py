@@ -1,6 +1,6 @@
-"""Finished runs' folders are removed off the run path (eval/dir_remover.py): every folder
-handed over is gone once waited for, at the harness's exit, and at once in a worker process
-that leaves with ``os._exit``."""
+"""Finished runs' folders are removed off the run path (eval/runs/remover.py): every folder
+handed over is gone once waited for, when its run context ends, and at once in a worker
+process that leaves with ``os._exit``; two removers share nothing."""
 
 from __future__ import annotations
 
@@ -10,8 +10,7 @@ import subprocess
 import sys
 from pathlib import Path
 
-from arenabench.eval.runs import remover as dir_remover
-from arenabench.eval.runs.remover import MAX_PENDING, remove_later, wait_removed
+from arenabench.eval.runs.remover import MAX_PENDING, FolderRemover
 
 
 def _folder(root: Path, name: str, files: int = 20) -> Path:
@@ -23,21 +22,36 @@ def _folder(root: Path, name: str, files: int = 20) -> Path:
 
 
 def test_every_folder_handed_over_is_gone_once_waited_for(tmp_path):
+    remover = FolderRemover()
     folders = [_folder(tmp_path, f"run{i}") for i in range(3 * MAX_PENDING)]
     for f in folders:  # more than may wait at once: some are removed inline
-        remove_later(str(f))
-    assert wait_removed(timeout=30)
+        remover.remove_later(str(f))
+    assert remover.wait(timeout=30)
     assert list(tmp_path.iterdir()) == []
-    assert dir_remover._busy == 0
+    assert remover.pending == 0
+    assert remover.close(timeout=30)
 
 
 def test_a_missing_folder_is_no_error(tmp_path):
-    remove_later(str(tmp_path / "never-made"))
-    assert wait_removed(timeout=30)
+    remover = FolderRemover()
+    remover.remove_later(str(tmp_path / "never-made"))
+    assert remover.wait(timeout=30)
+    remover.close()
+
+
+def test_a_closed_remover_starts_again_and_two_share_nothing(tmp_path):
+    first, second = FolderRemover(), FolderRemover()
+    first.remove_later(str(_folder(tmp_path, "a")))
+    assert first.close(timeout=30) and not (tmp_path / "a").exists()
+    first.remove_later(str(_folder(tmp_path, "b")))  # after close: its thread starts again
+    assert first.wait(timeout=30) and not (tmp_path / "b").exists()
+    assert second.pending == 0  # nothing of the first's is the second's
+    first.close()
+    second.close()
 
 
 def _remove_in_worker(path: str) -> bool:
-    remove_later(path)
+    FolderRemover().remove_later(path)
     return os.path.exists(path)
 
 
@@ -49,12 +63,13 @@ def test_a_multiprocessing_worker_removes_its_folder_before_returning(tmp_path):
     assert still_there is False and not folder.exists()
 
 
-def test_the_harness_exit_waits_for_pending_removals(tmp_path):
-    # many files per folder, so that the remover thread is still at work when the script
-    # returns: without the exit hook, the daemon thread would die with folders left
+def test_the_end_of_a_run_context_waits_for_pending_removals(tmp_path):
+    # many files per folder, so that the remover thread is still at work when the block
+    # ends: without the wait, the daemon thread would die with the script, folders left
     folders = [_folder(tmp_path, f"run{i}", files=400) for i in range(MAX_PENDING)]
-    code = ("import sys\nfrom arenabench.eval.runs.remover import remove_later\n"
-            "for p in sys.argv[1:]:\n    remove_later(p)\n")
+    code = ("import sys\nfrom arenabench.eval.runs import RunContext\n"
+            "with RunContext(cgroup_parent=None) as runs:\n"
+            "    for p in sys.argv[1:]:\n        runs.remover.remove_later(p)\n")
     done = subprocess.run([sys.executable, "-c", code, *map(str, folders)],
                           capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr

@@ -14,7 +14,7 @@ import toy_arena
 from arenabench.eval.commands.eval import main as eval_main
 from arenabench.eval.evaluation import evaluate
 from arenabench.eval.pipelines import CallablePipeline
-from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs import CommandPipeline
 from arenabench.eval.runs.limits import RunLimits, RunSettings
 from arenabench.eval.scoring.results import Prediction
 
@@ -194,7 +194,7 @@ def test_in_process_failures_never_escape(toy):
     (np.array([2.0, 7.0]), "ndarray"),
 ])
 def test_a_result_that_is_not_a_mapping_says_so(result, shown):
-    from arenabench.eval.runs.predictions import prediction_from_result
+    from arenabench.eval.scoring.answers import prediction_from_result
 
     pred = prediction_from_result(result, latency_ms=1.0)
     assert pred.status == "bad_output"

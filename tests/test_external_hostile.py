@@ -16,7 +16,7 @@ import toy_arena
 from hostile_util import processes_with, wait_for
 
 from arenabench.eval.evaluation import EvaluationFailed, evaluate
-from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs import CommandPipeline, RunContext
 from arenabench.eval.runs.limits import RunLimits, RunSettings
 from arenabench.eval.runs.sandbox import bwrap_problem, pids_cgroup_parent
 
@@ -391,7 +391,7 @@ def test_long_and_empty_arguments_reach_the_command_as_given(sandbox, toy, run_t
     assert images[0].category in (None, "wrong_count", "area_off"), images[0].prediction.message
     argv = pipe.argv(Path("/x/image.png"))
     assert argv[3:5] == [long_arg, ""], argv  # never the working directory's path
-    assert os.getcwd() not in pipe._visible_paths()
+    assert os.getcwd() not in pipe.command.visible
 
 
 def test_stale_run_dirs_and_cgroups_of_dead_owners_are_swept(tmp_path):
@@ -529,10 +529,11 @@ def test_a_run_whose_pids_cgroup_cannot_be_made_is_not_run(warm, toy, run_tmp, t
     script.write_text(f"open({str(ran)!r}, 'w').close()\n")
     settings = RunSettings(limits=RunLimits(timeout_s=30.0, max_procs=16), sandbox="none",
                            warm=warm)
-    pipe = CommandPipeline(f"{PY} {script} --image {{image}}", settings=settings)
-    pipe._cgroup = str(tmp_path / "no such cgroup")
-    with pytest.raises(EvaluationFailed) as failed:  # the harness's failure: never scored
-        evaluate(pipe, toy, workers=1, limit=1)
+    with RunContext(cgroup_parent=str(tmp_path / "no such cgroup")) as runs:
+        pipe = CommandPipeline(f"{PY} {script} --image {{image}}", settings=settings,
+                               context=runs)
+        with pytest.raises(EvaluationFailed) as failed:  # the harness's failure: never scored
+            evaluate(pipe, toy, workers=1, limit=1)
     assert "cannot create the run's pids cgroup" in str(failed.value)
     assert "--max-procs 16 cannot be enforced" in str(failed.value)
     assert failed.value.report.images == ()

@@ -6,6 +6,7 @@ of one image, nothing the team's script printed."""
 import json
 import re
 import shutil
+import sys
 from pathlib import Path
 
 import pytest
@@ -50,7 +51,7 @@ def graded(tmp_path_factory):
     (subs / "leaky" / "map.py").write_text(LEAKY)
     shutil.copytree(HERE / "grade_teams" / "correct", subs / "correct")
     out = root / "results"
-    opts = GradeOptions(command="{python} {submission}/map.py --image {image}",
+    opts = GradeOptions(command=f"{sys.executable} {{submission}}/map.py --image {{image}}",
                         formats=("json", "md", "html"), settings=grade_settings())
     result = grade(data, subs, out, options=opts, workers=2, allow_guessable_seed=True)
     assert sorted(result.graded) == ["correct", "leaky", "minarea"], result.errors

@@ -17,7 +17,7 @@ import pytest
 from procs_limit import GRADE_ARGS, PY_CMD, grade_settings
 
 from arenabench.cli import main as arenabench_main
-from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade, team_command
+from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade
 from arenabench.eval.grade.leaderboard import (
     LEADERBOARD_JSON_SCHEMA,
     LEADERBOARD_SCHEMA,
@@ -25,7 +25,8 @@ from arenabench.eval.grade.leaderboard import (
     rank_rows,
 )
 from arenabench.eval.grade.submissions import submission_hash
-from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.grade.teams import team_command
+from arenabench.eval.runs import CommandPipeline
 from arenabench.eval.scoring.phase_check import DEFAULT_PHASES
 from arenabench.eval.scoring.results import Summary
 
@@ -560,7 +561,7 @@ def test_a_team_that_times_out_in_a_row_is_given_up(toy8, tmp_path, capsys):
     subs = _fast_teams(tmp_path / "subs", {"a_fast": 1})
     marks = _marked_team(subs, "b_hangs", tmp_path / "marks", hang_from=0)
     out = tmp_path / "out"
-    opts = GradeOptions(command="{python} {submission}/map.py --image {image}",
+    opts = GradeOptions(command=f"{sys.executable} {{submission}}/map.py --image {{image}}",
                         formats=("json",), give_up_after=2,
                         # long enough for the preflight's reference on a busy machine
                         settings=grade_settings(sandbox="none", limits={"timeout_s": 10.0}))
@@ -626,8 +627,8 @@ def test_an_interrupted_team_keeps_its_finished_images_and_resumes_from_there(to
     marks = _marked_team(subs, "b_stopped", tmp_path / "marks", hang_from=3)
     out = tmp_path / "out"
     argv = [sys.executable, "-m", "arenabench", "grade", str(toy8), str(subs), "--out",
-            str(out), "--cmd", "{python} {submission}/map.py --image {image}", "--workers", "1",
-            "--report-workers", "1", "--formats", "json,html", "--timeout", "300",
+            str(out), "--cmd", f"{sys.executable} {{submission}}/map.py --image {{image}}",
+            "--workers", "1", "--report-workers", "1", "--formats", "json,html", "--timeout", "300",
             "--sandbox", "none", "--no-progress", "--allow-guessable-seed", *GRADE_ARGS]
     proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
                             env={**os.environ, "PYTHONUNBUFFERED": "1"})
@@ -663,8 +664,9 @@ def test_an_interrupted_team_keeps_its_finished_images_and_resumes_from_there(to
     # resumed (nothing hangs now): b runs only its five other images, a is not run again
     (marks / "hang").unlink()
     again = _grade_cli(str(toy8), str(subs), "--out", str(out), "--cmd",
-                       "{python} {submission}/map.py --image {image}", "--workers", "1",
-                       "--report-workers", "1", "--formats", "json,html", "--timeout", "300",
+                       f"{sys.executable} {{submission}}/map.py --image {{image}}",
+                       "--workers", "1", "--report-workers", "1", "--formats", "json,html",
+                       "--timeout", "300",
                        "--sandbox", "none")  # the same options: a different one grades again
     assert again.returncode == 0, again.stderr
     assert "b_stopped: resuming: 3 of 8 images kept from the last run" in again.stdout
@@ -684,7 +686,7 @@ def test_kept_results_are_reused_only_for_the_same_submission(toy8, tmp_path):
 
     subs = _fast_teams(tmp_path / "subs", {"a": 1})
     out = tmp_path / "out"
-    opts = GradeOptions(command="{python} {submission}/map.py --image {image}",
+    opts = GradeOptions(command=f"{sys.executable} {{submission}}/map.py --image {{image}}",
                         formats=("json",), settings=grade_settings(sandbox="none"))
     grade(toy8, subs, out, options=opts, workers=1, allow_guessable_seed=True)
     state = json.loads((out / "teams" / "a" / STATE_FILE).read_text())
@@ -721,7 +723,7 @@ def test_a_team_given_up_on_a_dask_cluster_has_its_pending_units_cancelled(toy8,
     distributed = pytest.importorskip("distributed")
     subs = tmp_path / "subs"
     marks = _marked_team(subs, "hangs", tmp_path / "marks", hang_from=0)
-    opts = GradeOptions(command="{python} {submission}/map.py --image {image}",
+    opts = GradeOptions(command=f"{sys.executable} {{submission}}/map.py --image {{image}}",
                         formats=("json",), give_up_after=2,
                         settings=grade_settings(sandbox="none", limits={"timeout_s": 10.0}))
     with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
@@ -740,15 +742,19 @@ def test_partial_results_read_back_exactly_and_only_under_their_own_header(tmp_p
     import math
 
     from arenabench.eval.grade.partial import PartialLog, read_partial
-    from arenabench.eval.scoring.results import Prediction
+    from arenabench.eval.scoring.results import Prediction, RunImage
 
     path = tmp_path / "team" / "partial-results.jsonl"
     header = {"team": "t", "submission_sha256": "a" * 64}
     ids = ["000000", "000001", "000002"]
+    # a failing run's thumbnails (bytes) are kept too: the next run's failure card shows them
+    thumb = RunImage(name="warped.png", jpeg=b"\xff\xd8\xff\xe0 not JSON text", width=9,
+                     height=7)
     odd = Prediction(status="bad_output", count=2, area=float("nan"), marker_ids=(80, 85),
                      message="area is not a number", latency_ms=12.25,
                      obstacles=(((1.5, 2.0), (3.0, 4.0), (5.0, 1.0)),), obstacles_space="image",
-                     homography=((1.0, 0.0, 0.5), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)))
+                     homography=((1.0, 0.0, 0.5), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0)),
+                     run_images=(thumb,))
     log = PartialLog(path, header)
     log.add(2, "000002", odd)
     log.add(0, "000000", Prediction(status="timeout", message="timed out after 60 s"))

@@ -552,7 +552,7 @@ def test_grade_stopped_in_a_team_phase_check_ends_its_report_workers(twin2, tmp_
     proc = _arenabench("grade", *GRADE_ARGS, str(twin2), str(subs), "--out", str(out),
                        "--workers", "1", "--report-workers", "2", "--timeout", "300",
                        "--sandbox", "none", "--no-progress", "--allow-guessable-seed",
-                       "--cmd", "{python} {submission}/map.py --image {image}")
+                       "--cmd", f"{sys.executable} {{submission}}/map.py --image {{image}}")
     _wait_until(proc, lambda: (marks / "phase-started").exists())
     # before the fix it waited for the re-runs' --timeout (300 s) and _stop killed it
     rc, err, _, kids = _stop(proc, sig)
@@ -619,7 +619,7 @@ def test_eval_stopped_after_its_last_image_writes_the_whole_report(toy3, tmp_pat
     from clirun import run_cli
 
     import arenabench.eval.reports as reports
-    from arenabench.eval.runs.command import CommandPipeline
+    from arenabench.eval.runs import CommandPipeline
 
     if where == "closing the pipeline":
         monkeypatch.setattr(CommandPipeline, "close", _signal_in(CommandPipeline.close))
@@ -644,16 +644,18 @@ def test_check_stopped_while_loading_its_twin_set_writes_an_empty_partial_report
 
     import arenabench.eval.datasets.reader as dataset_reader
 
-    script = tmp_path / "map.py"
+    (tmp_path / "team").mkdir()  # the script's folder is copied into every run's
+    script = tmp_path / "team" / "map.py"
     script.write_text(FAST_MAP)
     cache, out = tmp_path / "cache", tmp_path / "out"
     env = {"ARENABENCH_CACHE_DIR": str(cache)}
     made = run_cli("check", str(script), "--count", "2", "--sandbox", "none", "--no-progress",
-                   "--out", str(tmp_path / "first"), env=env)  # makes the twin set
+                   "--python", "{python}", "--out", str(tmp_path / "first"),
+                   env=env)  # makes the twin set
     assert made.returncode == 1, made.stderr
     monkeypatch.setattr(dataset_reader, "load_dataset", _signal_in(dataset_reader.load_dataset))
     proc = run_cli("check", str(script), "--count", "2", "--sandbox", "none", "--no-progress",
-                   "--out", str(out), env=env)
+                   "--python", "{python}", "--out", str(out), env=env)
     assert proc.returncode == 130, proc.stderr
     assert "nothing more written" not in proc.stderr and "Traceback" not in proc.stderr
     assert sorted(p.name for p in out.iterdir()) == REPORT_FILES

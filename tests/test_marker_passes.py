@@ -10,12 +10,12 @@ import cv2
 import numpy as np
 import pytest
 
+from arenabench.aruco import aruco_dictionary
 from arenabench.pipeline import ALL_DICTIONARIES, PUBLISHED_DICTIONARIES
 from arenabench.pipeline.markers import (
     available_dictionaries,
     correction_bits,
     extends,
-    get_dictionary,
     pass_plan,
     plan_stages,
     search_markers,
@@ -26,7 +26,7 @@ MULTI = hasattr(cv2.aruco.ArucoDetector, "detectMarkersMultiDict")
 
 
 def _sheet(name: str, ids, *, size: int = 520, side: int = 150) -> np.ndarray:
-    d = get_dictionary(name)
+    d = aruco_dictionary(name)
     img = np.full((size, size), 255, np.uint8)
     for k, mid in enumerate(ids):
         x, y = 40 + 260 * (k % 2), 40 + 260 * (k // 2)
@@ -44,7 +44,7 @@ def _one_pass_per_dictionary(image: np.ndarray, rule: str):
 
     select = select_seed_four if rule == "seed" else select_reference_four
     for name in NAMES:
-        det = cv2.aruco.ArucoDetector(get_dictionary(name), cv2.aruco.DetectorParameters())
+        det = cv2.aruco.ArucoDetector(aruco_dictionary(name), cv2.aruco.DetectorParameters())
         corners, ids, _ = det.detectMarkers(image)
         hits = DictionaryHits(name)
         for c, i in zip(corners, [] if ids is None else ids.ravel(), strict=True):

@@ -15,8 +15,9 @@ import cv2
 import numpy as np
 import pytest
 
+from arenabench.aruco import aruco_dictionary
 from arenabench.eval.bench.items import markerless_images
-from arenabench.pipeline import DetectConfig, marker_prefilter, markers
+from arenabench.pipeline import DetectConfig, marker_prefilter
 from arenabench.pipeline.detection import detect
 
 EXAMPLE = Path(__file__).resolve().parent / "data" / "task1c_image.jpg"
@@ -53,7 +54,7 @@ def _noisy(image: np.ndarray, sigma: float, seed: int) -> np.ndarray:
 def _sheet(name: str, ids: list[int], side: int, angle: float) -> np.ndarray:
     """1000 x 1000 white sheet with markers ``ids`` of ``side`` px, turned ``angle`` degrees
     (drawn 4x larger and shrunk with area averaging, as a camera would see them)."""
-    d = markers.get_dictionary(name)
+    d = aruco_dictionary(name)
     img = np.full((1000, 1000), 255, np.uint8)
     for k, mid in enumerate(ids):
         tile = np.full((side * 8, side * 8), 255, np.uint8)
@@ -127,7 +128,7 @@ def test_a_marker_pasted_on_noise(side, monkeypatch):
     q = side // 2
     image[300 - q : 300 + side + q, 300 - q : 300 + side + q] = 255
     image[300 : 300 + side, 300 : 300 + side] = cv2.aruco.generateImageMarker(
-        markers.get_dictionary("DICT_4X4_100"), 80, side)
+        aruco_dictionary("DICT_4X4_100"), 80, side)
     fast = _assert_same_either_way(cv2.cvtColor(image, cv2.COLOR_GRAY2BGR), monkeypatch,
                                    f"{side} px")
     assert '"marker_ids": [80]' in fast[0]

@@ -14,7 +14,7 @@ import toy_arena
 from arenabench.eval.commands.eval import main as eval_main
 from arenabench.eval.evaluation import evaluate
 from arenabench.eval.reports import write_reports
-from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs import CommandPipeline
 from arenabench.eval.runs.limits import RunLimits, RunSettings
 
 PIPES = Path(__file__).resolve().parent / "pipelines"

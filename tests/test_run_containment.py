@@ -32,8 +32,7 @@ import toy_arena
 from clirun import run_cli
 from hostile_util import processes_with, wait_for
 
-from arenabench.eval.runs import launcher
-from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs import CommandPipeline, proctools
 from arenabench.eval.runs.limits import RunLimits, RunSettings
 from arenabench.eval.runs.sandbox import bwrap_problem, pids_cgroup_parent
 from arenabench.eval.runs.stale import sweep_stale_runs
@@ -275,20 +274,20 @@ def test_copy_back_brings_the_answer_and_a_bounded_set_of_images(tmp_path):
     os.mkfifo(src / "fifo.jpg")
     big = src / "big.png"
     with open(big, "wb") as fh:
-        fh.truncate(launcher.RESULT_BYTES_MAX + 1)
+        fh.truncate(proctools.RESULT_BYTES_MAX + 1)
     for i in range(40):
         (src / f"many{i:02d}.jpg").write_bytes(b"j")
     s, d = os.open(src, os.O_RDONLY), os.open(dst, os.O_RDONLY)
     try:
-        launcher.copy_back(s, d, skip="image.png")
+        proctools.copy_back(s, d, skip="image.png")
     finally:
         os.close(s)
         os.close(d)
     names = sorted(p.name for p in dst.iterdir())
     assert "obstacles.txt" in names and (dst / "obstacles.txt").read_text().startswith("Obst")
-    assert "warped.png" in names or len(names) == launcher.RESULT_FILES_MAX
+    assert "warped.png" in names or len(names) == proctools.RESULT_FILES_MAX
     assert not {"image.png", "notes.txt", "link.png", "fifo.jpg", "big.png"} & set(names)
-    assert len(names) <= launcher.RESULT_FILES_MAX
+    assert len(names) <= proctools.RESULT_FILES_MAX
     assert all((dst / n).is_file() and not (dst / n).is_symlink() for n in names)
 
 
@@ -310,7 +309,7 @@ def test_copy_back_keeps_what_kind_of_answer_it_was(kind, tmp_path):
             fh.truncate(200 << 20)
     s, d = os.open(src, os.O_RDONLY), os.open(dst, os.O_RDONLY)
     try:
-        launcher.copy_back(s, d, skip="image.png")
+        proctools.copy_back(s, d, skip="image.png")
     finally:
         os.close(s)
         os.close(d)
@@ -319,7 +318,7 @@ def test_copy_back_keeps_what_kind_of_answer_it_was(kind, tmp_path):
             "fifo": lambda: back.exists() and not back.is_file() and not back.is_dir(),
             "large": lambda: back.stat().st_size == 200 << 20}[kind]()
     if kind == "large":
-        assert back.stat().st_blocks * 512 <= 2 * launcher.ANSWER_COPY_BYTES  # a hole
+        assert back.stat().st_blocks * 512 <= 2 * proctools.ANSWER_COPY_BYTES  # a hole
 
 
 #: The one CPU the starvation test's run and burners share.

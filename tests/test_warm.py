@@ -1,4 +1,4 @@
-"""The warm interpreter of Python commands (eval/warm_client.py, eval/warm_server.py), run for
+"""The warm interpreter of Python commands (eval/runs/warm_client.py, warm_server.py), run for
 real: with bubblewrap where it works here and with ``--sandbox none``."""
 
 from __future__ import annotations
@@ -8,17 +8,18 @@ import json
 import os
 import sys
 import time
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import pytest
 import toy_arena  # tests/pipelines (pytest's pythonpath)
 
 from arenabench.eval.evaluation import evaluate
-from arenabench.eval.runs import warm_client
-from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs import CommandPipeline
+from arenabench.eval.runs.command import Command
 from arenabench.eval.runs.limits import RunLimits, RunSettings
 from arenabench.eval.runs.sandbox import bwrap_problem, pids_cgroup_parent
-from arenabench.eval.runs.warm_client import WarmTarget, close_all, warm_target
+from arenabench.eval.runs.warm_client import WarmTarget, warm_target
 
 PIPES = Path(__file__).resolve().parent / "pipelines"
 PROBE = PIPES / "warm_probe.py"
@@ -33,10 +34,11 @@ def toy(tmp_path_factory):
     return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("toy") / "toy", n=4, seed=3)
 
 
-def _probe(sandbox, *, warm=True, env=None, **limits):
+def _probe(sandbox, *, warm=True, env=None, context=None, **limits):
     settings = RunSettings(limits=RunLimits(**{"timeout_s": 30.0, **limits}), sandbox=sandbox,
                            warm=warm, env=env or {})
-    return CommandPipeline(f"{PY} {PROBE} --image {{image}}", settings=settings)
+    return CommandPipeline(f"{PY} {PROBE} --image {{image}}", settings=settings,
+                           context=context)
 
 
 def _seen(pred):
@@ -55,7 +57,8 @@ def test_which_commands_run_warm(tmp_path):
                  ["python", str(tmp_path / "missing.py")], ["./map", "--image", "{image}"],
                  ["python", "{image}"], ["python"]):
         assert warm_target(cold) is None, cold
-    assert CommandPipeline(f"{PY} {PROBE}", settings=RunSettings(warm=False))._warm is None
+    with CommandPipeline(f"{PY} {PROBE}", settings=RunSettings(warm=False)) as pipe:
+        assert pipe.command.warm is None
 
 
 @pytest.mark.slow
@@ -95,21 +98,22 @@ def _sha(path: Path) -> str:
     ("forkbomb", "limit", {"max_procs": 16}),
 ])
 def test_a_misbehaving_run_ends_alone_and_the_server_goes_on(sandbox, mode, category, limits,
-                                                             toy, run_tmp):
+                                                             toy, runs):
     if mode == "forkbomb" and pids_cgroup_parent() is None and os.getuid() == 0:
         pytest.skip("root without a writable pids cgroup: --max-procs is not enforceable")
     images = sorted((toy / "images").iterdir())
-    pipe = _probe(sandbox, env={"PROBE_BAD": _sha(images[1]), "PROBE_MODE": mode}, **limits)
+    pipe = _probe(sandbox, env={"PROBE_BAD": _sha(images[1]), "PROBE_MODE": mode},
+                  context=runs, **limits)
     first = pipe.run(images[0])
     assert first.status == "ok" and _seen(first)["preloaded"] == ["cv2", "numpy"]
-    (server,) = warm_client._servers.values()
+    (server,) = runs.servers.servers()
     bad = pipe.run(images[1])
     assert bad.status == category, (bad.message, bad.stderr)
     for image in images[2:]:
         after = pipe.run(image)
         assert after.status == "ok", (after.message, after.stderr)
         assert _seen(after)["preloaded"] == ["cv2", "numpy"]
-    assert list(warm_client._servers.values()) == [server] and not server.dead
+    assert runs.servers.servers() == [server] and not server.dead
 
 
 _COUNT_FORKS = """
@@ -147,14 +151,14 @@ def test_max_procs_gives_a_warm_run_the_processes_of_a_cold_one(sandbox, toy, ru
                                warm=warm)
         pipe = CommandPipeline(f"{PY} {script} --image {{image}}", settings=settings)
         counts[warm] = [int(pipe.run(image).stdout.split()[-1]) for image in images]
-        assert (pipe._warm is not None) == warm
+        assert (pipe.command.warm is not None) == warm
         pipe.close()
     assert counts[False] == counts[True] == [5, 5, 5]  # the script and five more
 
 
 def _standby_cgroups(server):
     """The run cgroups that hold one process of ``server``'s tree each: its standbys."""
-    from arenabench.eval.runs.launcher import descendants
+    from arenabench.eval.runs.proctools import descendants
 
     parent = Path(server.cgroup if server.isolate else pids_cgroup_parent())
     tree = set(descendants(server.proc.pid))
@@ -170,7 +174,7 @@ def _standby_cgroups(server):
 
 
 @pytest.mark.parametrize("sandbox", SANDBOXES)
-def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, toy, run_tmp):
+def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, toy, runs):
     from concurrent.futures import ThreadPoolExecutor
 
     from hostile_util import wait_for
@@ -180,11 +184,12 @@ def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, t
     if pids_cgroup_parent() is None:
         pytest.skip("no writable pids cgroup here")
     images = sorted((toy / "images").iterdir())
-    pipe = _probe(sandbox, env={"PROBE_BAD": _sha(images[3]), "PROBE_MODE": "slow"})
+    pipe = _probe(sandbox, env={"PROBE_BAD": _sha(images[3]), "PROBE_MODE": "slow"},
+                  context=runs)
     seen = set()
     for image in images[:3]:
         assert pipe.run(image).status == "ok"
-        (server,) = warm_client._servers.values()
+        (server,) = runs.servers.servers()
         standbys = wait_for(lambda s=server: len(_standby_cgroups(s)) == STANDBYS and
                             _standby_cgroups(s), timeout=10)
         assert standbys, _standby_cgroups(server)
@@ -206,7 +211,7 @@ def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, t
     assert pred.status == "ok" and _seen(pred)["preloaded"] == ["cv2", "numpy"], pred.message
     assert not server.dead
     seen |= set(waiting) | set(_standby_cgroups(server))
-    close_all()
+    runs.close()
     assert not [g for g in seen if g.exists()], "a standby's cgroup was left behind"
 
 
@@ -226,24 +231,24 @@ def test_no_warm_is_an_option_of_eval_sweep_and_grade(module, argv):
 
 
 @pytest.mark.parametrize("sandbox", SANDBOXES)
-def test_a_server_outlives_the_thread_that_started_it(sandbox, toy, run_tmp):
+def test_a_server_outlives_the_thread_that_started_it(sandbox, toy, runs):
     # PR_SET_PDEATHSIG follows the thread that started the keeper: the end of that thread
     # (a pool's worker, a caller's own thread) is not the end of the harness
     import threading
 
     images = sorted((toy / "images").iterdir())
-    pipe = _probe(sandbox)
+    pipe = _probe(sandbox, context=runs)
     first = []
     starter = threading.Thread(target=lambda: first.append(pipe.run(images[0])))
     starter.start()
     starter.join()
     assert first[0].status == "ok", (first[0].message, first[0].stderr)
-    (server,) = warm_client._servers.values()
+    (server,) = runs.servers.servers()
     time.sleep(0.5)  # the keeper has had its signal by now
     assert server.proc.poll() is None, server.proc.returncode
     again = pipe.run(images[1])
     assert again.status == "ok", (again.message, again.stderr)
-    assert list(warm_client._servers.values()) == [server] and not server.dead
+    assert runs.servers.servers() == [server] and not server.dead
 
 
 @pytest.mark.slow
@@ -276,14 +281,24 @@ def test_sigkill_of_the_harness_ends_the_server_and_its_runs(sandbox, toy, tmp_p
     assert wait_for(lambda: not list(tmpdir.iterdir()), timeout=10), list(tmpdir.iterdir())
 
 
-class _KeepAnswer(CommandPipeline):
+@dataclass(frozen=True)
+class _KeepAnswer(Command):
     """A command whose ``obstacles.txt`` bytes are kept (read where the harness reads it)."""
 
-    def _interpret(self, result, stdout, stderr, workdir):
+    answers: dict = field(default_factory=dict, compare=False, hash=False)
+
+    def interpret(self, result, stdout, stderr, workdir):
         path = Path(workdir, "obstacles.txt")
         self.answers[_sha(next(Path(workdir).glob("image.*")))] = (
             path.read_bytes() if path.exists() else None, result["rc"], stdout, stderr)
-        return super()._interpret(result, stdout, stderr, workdir)
+        return super().interpret(result, stdout, stderr, workdir)
+
+
+def _keeping_answers(pipe: CommandPipeline) -> _KeepAnswer:
+    """``pipe`` made to keep its answers' bytes (its command swapped for a keeping one)."""
+    c = pipe.command
+    pipe.command = _KeepAnswer(**{f.name: getattr(c, f.name) for f in fields(Command)})
+    return pipe.command
 
 
 @pytest.fixture(scope="module")
@@ -307,15 +322,15 @@ def test_competition_styles_answer_byte_for_byte_the_same_warm_and_cold(sandbox,
     for style in STYLES:
         answers = {}
         for warm in (False, True):
-            pipe = _KeepAnswer(f"{PY} {PIPES / style}.py --image {{image}}",
-                               settings=RunSettings(sandbox=sandbox, warm=warm))
-            pipe.answers = {}
+            pipe = CommandPipeline(f"{PY} {PIPES / style}.py --image {{image}}",
+                                   settings=RunSettings(sandbox=sandbox, warm=warm))
+            keeping = _keeping_answers(pipe)
             with ThreadPoolExecutor(2) as pool:
                 preds = list(pool.map(pipe.run, twin50))
             assert all(p.status in ("ok", "markers_not_found") for p in preds), style
-            assert (pipe._warm is not None) == warm
-            assert warm_client._servers if warm else True
-            answers[warm] = pipe.answers
+            assert (pipe.command.warm is not None) == warm
+            assert pipe.context.servers.servers() if warm else True
+            answers[warm] = keeping.answers
             pipe.close()
         assert len(answers[True]) == len(twin50), style
         assert answers[True] == answers[False], style

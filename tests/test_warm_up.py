@@ -12,10 +12,10 @@ from pathlib import Path
 
 import pytest
 
-from arenabench.eval.runs.command import CommandPipeline
+from arenabench.eval.runs import CommandPipeline
 from arenabench.eval.runs.limits import RunSettings
 from arenabench.eval.runs.sandbox import bwrap_problem
-from arenabench.eval.runs.warm_client import WARM_UP_SOURCE, WarmTarget, _server_for, close_all
+from arenabench.eval.runs.warm_client import WARM_UP_SOURCE
 
 PROBE = r"""
 import json, random, sys
@@ -79,14 +79,9 @@ def test_a_submissions_own_module_of_a_preloaded_name_is_its_own(tmp_path, warm)
     (sub / "cv2.py").write_text("WHOSE = 'the team'\n")
     image = tmp_path / "img.png"
     image.write_bytes(b"not read")
-    close_all()
-    try:
-        pipe = CommandPipeline(f"{sys.executable} {sub / 'map.py'} --image {{image}}",
-                               settings=RunSettings(sandbox="none", warm=warm))
+    with CommandPipeline(f"{sys.executable} {sub / 'map.py'} --image {{image}}",
+                         settings=RunSettings(sandbox="none", warm=warm)) as pipe:
         preds = [pipe.run(Path(image)) for _ in range(2)]
-        pipe.close()
-    finally:
-        close_all()
     assert [p.status for p in preds] == ["ok", "ok"], preds[0].stderr
     assert [p.stdout.strip() for p in preds] == ["the team", "the team"]
 
@@ -112,16 +107,11 @@ def test_the_server_is_single_threaded_when_ready(tmp_path):
     script.write_text("import cv2\nimport numpy\n")
     image = tmp_path / "img.png"
     image.write_bytes(b"not read")
-    close_all()
-    try:
-        pipe = CommandPipeline(f"{sys.executable} {script} --image {{image}}",
-                               settings=RunSettings(sandbox="none"))
-        server = _server_for(pipe, WarmTarget(script=str(script)), image)
+    with CommandPipeline(f"{sys.executable} {script} --image {{image}}",
+                         settings=RunSettings(sandbox="none")) as pipe:
+        server = pipe.context.servers.server_for(pipe, image)
         assert server is not None
         threads = _threads_of_server(server.home)  # no run forked yet
-        pipe.close()
-    finally:
-        close_all()
     assert threads == 1
 
 
@@ -196,13 +186,8 @@ def test_a_helper_modules_imports_are_preloaded_and_the_helper_runs_in_each_run(
     })
     image = tmp_path / "img.png"
     image.write_bytes(b"not read")
-    close_all()
-    try:
-        pipe = CommandPipeline(f"{sys.executable} {script} --image {{image}}",
-                               settings=RunSettings(sandbox=sandbox, warm=warm))
+    with CommandPipeline(f"{sys.executable} {script} --image {{image}}",
+                         settings=RunSettings(sandbox=sandbox, warm=warm)) as pipe:
         preds = [pipe.run(Path(image)) for _ in range(2)]
-        pipe.close()
-    finally:
-        close_all()
     assert [p.status for p in preds] == ["ok", "ok"], preds[0].stderr
     assert [p.stdout.split() for p in preds] == [[str(warm), "False"]] * 2

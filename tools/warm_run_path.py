@@ -35,9 +35,7 @@ def _busy_s() -> float:
 
 def chain(images: list[Path], cmd: str) -> None:
     """Print wall, latency and busy CPU ms per image of warm runs one after another."""
-    from arenabench.eval.runs import warm_client
-    from arenabench.eval.runs.command import CommandPipeline
-    from arenabench.eval.runs.limits import RunSettings
+    from arenabench.eval.runs import CommandPipeline, RunSettings
 
     pipe = CommandPipeline(cmd, settings=RunSettings(warm=True))
     first = pipe.run(images[0])  # starts the server
@@ -47,8 +45,7 @@ def chain(images: list[Path], cmd: str) -> None:
     for image in images[1:]:
         latency += pipe.run(image).latency_ms
     t1, b1 = time.perf_counter(), _busy_s()
-    pipe.close()
-    warm_client.close_all()
+    pipe.close()  # its own run context: the server ends
     n = len(images) - 1
     print(f"{n} warm runs: wall {1000 * (t1 - t0) / n:.1f} ms per image, run latency "
           f"{latency / n:.1f} ms, machine busy {1000 * (b1 - b0) / n:.1f} CPU ms per image")
@@ -68,7 +65,7 @@ def floor(images: list[Path], script: Path) -> None:
     import cv2  # noqa: F401  (what a warm server preloads)
     import numpy  # noqa: F401
 
-    from arenabench.eval.runs.warm_up import warm_up
+    from arenabench.eval.runs import warm_up
 
     warm_up()
     gc.freeze()
@@ -117,7 +114,7 @@ def floor(images: list[Path], script: Path) -> None:
 
 def cgroup_move() -> None:
     """Print the median and maximum time of a process's move into a fresh pids cgroup."""
-    from arenabench.eval.runs.sandbox import pids_cgroup_parent
+    from arenabench.eval.runs import pids_cgroup_parent
 
     parent = pids_cgroup_parent()
     if parent is None:

@@ -24,7 +24,7 @@ size (1000 x 1000):
 7. ``worker_peak_rss_mb`` / ``worker_rss_growth_mb``: peak resident memory of a rendering
    worker and its growth over ``rss_renders`` consecutive renders;
 8. ``sandbox_overhead_ms``: what bubblewrap adds to one external run
-   (:class:`~arenabench.eval.runs.command.CommandPipeline`, a trivial shell command writing
+   (:class:`~arenabench.eval.runs.pipeline.CommandPipeline`, a trivial shell command writing
    ``obstacles.txt``): median wall time per run with ``--sandbox bwrap`` minus with
    ``--sandbox none`` (``sandbox_runs`` runs each, interleaved, one at a time; 0 with
    ``details.sandbox.bwrap`` false where bubblewrap does not work).
@@ -282,7 +282,7 @@ def _pipeline_one(task: ImageTask) -> tuple[bool, float]:
     Returns whether it passed and the CPU seconds it took.
     """
     from arenabench.eval.datasets.reader import DatasetItem
-    from arenabench.eval.runs.predictions import prediction_from_result
+    from arenabench.eval.scoring.answers import prediction_from_result
     from arenabench.eval.scoring.metrics import score_image
     from arenabench.imageio import load_image
     from arenabench.pipeline import detect
@@ -626,9 +626,7 @@ SANDBOX_COMMAND = "sh -c 'printf \"Aruco ID: []\\nObstacles: 0\\nArea: 0\\n\" > 
 
 def _sandbox_overhead(image: Path, runs: int) -> tuple[float, dict[str, Any]]:
     """Median wall ms per external run with and without bubblewrap (item 8)."""
-    from arenabench.eval.runs.command import CommandPipeline
-    from arenabench.eval.runs.limits import RunSettings
-    from arenabench.eval.runs.sandbox import bwrap_problem
+    from arenabench.eval.runs import CommandPipeline, RunSettings, bwrap_problem
 
     problem = bwrap_problem()
     modes = ("none",) if problem else ("none", "bwrap")
@@ -666,9 +664,7 @@ def script_per_image(images: list[Path]) -> tuple[dict[str, float], dict[str, An
     """
     import runpy
 
-    from arenabench.eval.runs import warm_client
-    from arenabench.eval.runs.command import CommandPipeline
-    from arenabench.eval.runs.limits import RunSettings
+    from arenabench.eval.runs import CommandPipeline, RunSettings
 
     if not images:
         raise ValueError("bench: item 9 needs at least one image")
@@ -702,10 +698,8 @@ def script_per_image(images: list[Path]) -> tuple[dict[str, float], dict[str, An
         answers[name] = [(p.status, p.count, p.area) for p in preds]
     # the warm server's start and end alone (with one run): what the warm figure spends once
     c0 = _cpu_seconds()
-    pipe = CommandPipeline(cmd, settings=RunSettings(warm=True))
-    pipe.run(images[0])
-    pipe.close()
-    warm_client.close_all()
+    with CommandPipeline(cmd, settings=RunSettings(warm=True)) as pipe:  # its own context
+        pipe.run(images[0])
     once = 1000.0 * (_cpu_seconds() - c0)
     n = len(images)
     per = {k: 1000.0 * v / n for k, v in cpu.items()}

@@ -21,6 +21,7 @@ import shutil
 import sys
 from pathlib import Path
 
+from arenabench.cachedir import cache_dir
 from arenabench.cliopts import (
     EXIT_FAILED,
     EXIT_HARNESS,
@@ -35,7 +36,7 @@ from arenabench.cliopts import (
     write_failure,
 )
 from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, escape, template_problem
-from arenabench.eval.runs.competition_env import OWN_PLACEHOLDER, PLACEHOLDER
+from arenabench.eval.runs import COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER
 from arenabench.eval.scoring.metric_registry import METRIC
 from arenabench.eval.scoring.phase_check import add_phase_check_argument
 from arenabench.generator.seeds import seed_argument
@@ -46,9 +47,6 @@ DEFAULT_COUNT = 200
 DEFAULT_PRESET = "eyrc"
 #: Pass rate a script must reach (``--fail-under``).
 DEFAULT_FAIL_UNDER = 0.95
-#: Environment variable naming the cache folder (default: ``$XDG_CACHE_HOME/arenabench``, else
-#: ``~/.cache/arenabench``).
-CACHE_ENV = "ARENABENCH_CACHE_DIR"
 #: Largest ``--count``.
 MAX_COUNT = 10000
 
@@ -102,24 +100,17 @@ def build_parser() -> CommandParser:
     p.add_argument("--fail-under", default=str(DEFAULT_FAIL_UNDER), metavar="RATE",
                    help="pass rate needed for exit status 0, a fraction in [0, 1] "
                    "(default: %(default)s)")
-    p.add_argument("--python", default=PLACEHOLDER, metavar="PYTHON",
-                   help=f"interpreter that runs the script: {PLACEHOLDER} (the competition's "
-                   f"numpy and OpenCV, made once into the cache), {OWN_PLACEHOLDER} (the one "
-                   "running arenabench) or a path (default: %(default)s)")
+    p.add_argument("--python", default=COMPETITION_PLACEHOLDER, metavar="PYTHON",
+                   help=f"interpreter that runs the script: {COMPETITION_PLACEHOLDER} (the "
+                   f"competition's numpy and OpenCV, made once into the cache), "
+                   f"{OWN_PYTHON_PLACEHOLDER} (the one running arenabench) or a path "
+                   "(default: %(default)s)")
     add_out(p, help="folder for the report files (default: the cache's reports/ folder)")
     add_workers(p, help="scripts run at once")
     add_no_progress(p)
     add_phase_check_argument(p)
     add_run_options(p)
     return p
-
-
-def cache_dir() -> Path:
-    """The user cache folder of arenabench (see :data:`CACHE_ENV`)."""
-    if os.environ.get(CACHE_ENV):
-        return Path(os.environ[CACHE_ENV])
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "arenabench"
 
 
 def twin_set_dir(*, preset: str, seed: int, count: int) -> Path:
@@ -190,11 +181,11 @@ def _error(message: str) -> int:
 
 def _python_problem(python: str) -> str | None:
     """Why ``--python`` cannot be run, as one line (placeholders are resolved later)."""
-    if python in (PLACEHOLDER, OWN_PLACEHOLDER):
+    if python in (COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER):
         return None
     if "{" in python:
-        return (f"--python {python}: not an interpreter (give {PLACEHOLDER}, "
-                f"{OWN_PLACEHOLDER} or a path)")
+        return (f"--python {python}: not an interpreter (give {COMPETITION_PLACEHOLDER}, "
+                f"{OWN_PYTHON_PLACEHOLDER} or a path)")
     if "/" not in python:
         return None if shutil.which(python) else f"--python {python}: not found on PATH"
     if not os.path.exists(python):
@@ -299,8 +290,7 @@ def _main(argv: list[str] | None) -> int:
         return _error(problem)
     from dataclasses import replace
 
-    from arenabench.eval.runs.command import CommandPipeline
-    from arenabench.eval.runs.limits import run_settings_from_args
+    from arenabench.eval.runs import CommandPipeline, run_settings_from_args
     from arenabench.eval.scoring.phase_check import resolve_phases
 
     script = Path(args.script).resolve()
@@ -315,7 +305,7 @@ def _main(argv: list[str] | None) -> int:
     if args.out is not None and (problem := out_problem(args.out)):
         return _error(problem)
     python = args.python
-    if python not in (PLACEHOLDER, OWN_PLACEHOLDER) and "/" in python:
+    if python not in (COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER) and "/" in python:
         python = os.path.abspath(python)  # from where the command runs, not the script's folder
 
     def make_pipeline(template: str, base: str, *, warm: bool = True) -> CommandPipeline:
@@ -328,19 +318,25 @@ def _main(argv: list[str] | None) -> int:
         base = run_settings_from_args(args)
         settings = replace(base, workdir_from=str(script.parent),  # and no __pycache__ there
                            env={"PYTHONDONTWRITEBYTECODE": "1", **base.env})
-        make_pipeline(_template(OWN_PLACEHOLDER, script), str(script.parent))  # the options
+        # the options, checked (no run)
+        make_pipeline(_template(OWN_PYTHON_PLACEHOLDER, script), str(script.parent)).close()
     except ValueError as exc:
         return _error(str(exc))
     phases = resolve_phases(args.phase_check, [args.preset])
     progress = not args.no_progress
 
     interpreter = _interpreter(python, progress=progress)
-    template = _template(interpreter.executable if python == PLACEHOLDER else python, script)
+    template = _template(
+        interpreter.executable if python == COMPETITION_PLACEHOLDER else python, script)
     try:
         pipeline = make_pipeline(template, str(script.parent))
+    except ValueError as exc:
+        return _error(str(exc))
+    try:
         interpreter = _probe(interpreter, template, script, make_pipeline, settings,
                              mode=pipeline.sandbox)
     except ValueError as exc:  # PreflightError: the interpreter lacks numpy, cv2 or aruco
+        pipeline.close()
         return _error(str(exc))
     out = args.out if args.out is not None else report_dir(
         script, preset=args.preset, seed=args.seed, count=args.count,
@@ -429,22 +425,22 @@ def _main(argv: list[str] | None) -> int:
 
 
 def _template(python: str, script: Path) -> str:
-    """The command that runs ``script`` with ``python`` (a path or :data:`OWN_PLACEHOLDER`);
+    """The command that runs ``script`` with ``python`` (a path or :data:`OWN_PYTHON_PLACEHOLDER`);
     paths are literal text in the template (a folder may be named ``x{image}y``)."""
     import shlex
 
-    py = python if python == OWN_PLACEHOLDER else escape(python)
+    py = python if python == OWN_PYTHON_PLACEHOLDER else escape(python)
     return f"{shlex.quote(py)} {shlex.quote(escape(str(script)))} --image {{{IMAGE}}}"
 
 
 def _interpreter(python: str, *, progress: bool):
     """The :class:`~arenabench.eval.runs.competition_env.Interpreter` that ``--python`` names (the
     competition's environment is made here when it is missing)."""
-    from arenabench.eval.runs.competition_env import Interpreter, competition_python
+    from arenabench.eval.runs import Interpreter, competition_python
 
-    if python == PLACEHOLDER:
+    if python == COMPETITION_PLACEHOLDER:
         return competition_python(progress=progress, prog=PROG)
-    if python == OWN_PLACEHOLDER:
+    if python == OWN_PYTHON_PLACEHOLDER:
         return Interpreter(sys.executable, "own")
     return Interpreter(shutil.which(python) or python, "given")
 

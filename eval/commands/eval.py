@@ -30,8 +30,7 @@ from arenabench.cliopts import (
     write_failure,
 )
 from arenabench.eval.pipelines import BUILTIN_PIPELINES
-from arenabench.eval.runs.limits import run_settings_from_args
-from arenabench.eval.runs.predictions import OUTPUT_MODES
+from arenabench.eval.runs import OUTPUT_MODES, run_settings_from_args
 from arenabench.eval.scoring.metric_registry import fail_under_help
 from arenabench.eval.scoring.phase_check import add_phase_check_argument
 
@@ -268,13 +267,13 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             )
             from arenabench.eval.pipelines import make_pipeline
             from arenabench.eval.reports.summary_rows import headline
-            from arenabench.eval.runs.cmd_script import missing_script_problem
-            from arenabench.eval.runs.command import CommandPipeline
-            from arenabench.eval.runs.competition_env import (
-                OWN_PLACEHOLDER,
-                resolve_placeholder,
-                substitute,
-                uses_placeholder,
+            from arenabench.eval.runs import (
+                OWN_PYTHON_PLACEHOLDER,
+                CommandPipeline,
+                missing_script_problem,
+                resolve_competition_python,
+                substitute_competition_python,
+                uses_competition_python,
             )
             from arenabench.eval.scoring.phase_check import resolve_phases
             from arenabench.eval.scoring.thresholds import check_thresholds, parse_thresholds
@@ -302,8 +301,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             if args.cmd and (problem := missing_script_problem(args.cmd,
                                                                base_dir=os.getcwd())):
                 raise ValueError(f"--cmd {args.cmd!r}: {problem}")
-            if args.cmd and uses_placeholder(args.cmd):  # the rest of the command first
-                CommandPipeline(substitute(args.cmd, OWN_PLACEHOLDER),
+            if args.cmd and uses_competition_python(args.cmd):  # the rest of the command first
+                CommandPipeline(substitute_competition_python(args.cmd, OWN_PYTHON_PLACEHOLDER),
                                 settings=run_settings_from_args(args), output=args.output)
             else:
                 pipeline = (
@@ -314,8 +313,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                 )
             dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
                                    skip_damaged=args.skip_damaged)
-            if args.cmd and uses_placeholder(args.cmd):  # made once, then reused
-                (command,), interpreter = resolve_placeholder(
+            if args.cmd and uses_competition_python(args.cmd):  # made once, then reused
+                (command,), interpreter = resolve_competition_python(
                     [args.cmd], progress=not args.no_progress, prog="arenabench eval")
                 pipeline = CommandPipeline(command, settings=run_settings_from_args(args),
                                            output=args.output, name=args.name or args.cmd)

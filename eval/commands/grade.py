@@ -32,7 +32,7 @@ from arenabench.cliopts import (
     usage_error,
 )
 from arenabench.cmdtemplate import GRADE_PLACEHOLDERS, GRADE_REFUSED
-from arenabench.eval.runs.predictions import OUTPUT_MODES
+from arenabench.eval.runs import OUTPUT_MODES
 from arenabench.eval.scoring.phase_check import add_phase_check_argument
 
 PROG = "arenabench grade"
@@ -86,7 +86,7 @@ a fresh machine: docs/grading.md.
 
 def build_parser() -> CommandParser:
     """The argument parser of ``arenabench grade``."""
-    from arenabench.eval.grade.grading import DEFAULT_COMMAND
+    from arenabench.eval.grade.teams import DEFAULT_COMMAND
     from arenabench.eval.reports import FORMATS
 
     p = CommandParser(
@@ -152,7 +152,7 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.eval.datasets.reader import DatasetError, load_dataset
     from arenabench.eval.grade.grading import GradeOptions, check_out_dir, grade
     from arenabench.eval.grade.submissions import SubmissionsError, find_teams
-    from arenabench.eval.runs.limits import run_settings_from_args
+    from arenabench.eval.runs import run_settings_from_args
     from arenabench.eval.scoring.phase_check import resolve_phases
 
     formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
@@ -177,14 +177,14 @@ def main(argv: list[str] | None = None) -> int:
     from contextlib import ExitStack
     from dataclasses import replace
 
-    from arenabench.eval.runs.competition_env import resolve_placeholder
+    from arenabench.eval.runs import resolve_competition_python
     from arenabench.eval.scoring.results import HarnessError
     from arenabench.fileio import FolderLockedError
     from arenabench.interrupts import Interrupted, stop_on_signals
 
     with stop_on_signals(), ExitStack() as held:
         try:
-            (command,), _ = resolve_placeholder([options.command], prog=PROG,
+            (command,), _ = resolve_competition_python([options.command], prog=PROG,
                                                 progress=not args.no_progress)
             options = replace(options, command=command)
             held.enter_context(lock_out(args.out))  # generate's lock: one run per --out

@@ -27,9 +27,13 @@ from arenabench.cliopts import (
     write_failure,
 )
 from arenabench.eval.pipelines import BUILTIN_PIPELINES
-from arenabench.eval.runs.competition_env import OWN_PLACEHOLDER, resolve_placeholder, substitute
-from arenabench.eval.runs.limits import run_settings_from_args
-from arenabench.eval.runs.predictions import OUTPUT_MODES
+from arenabench.eval.runs import (
+    OUTPUT_MODES,
+    OWN_PYTHON_PLACEHOLDER,
+    resolve_competition_python,
+    run_settings_from_args,
+    substitute_competition_python,
+)
 from arenabench.eval.scoring.phase_check import add_phase_check_argument, resolve_phases
 from arenabench.generator.seeds import seed_argument
 from arenabench.interrupts import Interrupted, stop_on_signals
@@ -135,8 +139,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_or_status(argv)
     if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
         return args
-    from arenabench.eval.runs.cmd_script import missing_script_problem
-    from arenabench.eval.runs.isolated import trial_pipeline
+    from arenabench.eval.runs import missing_script_problem, trial_pipeline
     from arenabench.eval.scoring.results import HarnessError
     from arenabench.eval.sweep.execution import run_sweep
     from arenabench.eval.sweep.grid import parse_varies
@@ -170,7 +173,8 @@ def main(argv: list[str] | None = None) -> int:
             if p.kind == "cmd" or ":" in p.value:
                 # import errors, missing executables now, as one line ({competition_python}
                 # is made after every other check: {python} stands in for it here)
-                replace(p, value=substitute(p.value, OWN_PLACEHOLDER)).build()
+                trial = substitute_competition_python(p.value, OWN_PYTHON_PLACEHOLDER)
+                replace(p, value=trial).build().close()
             if p.kind == "pipeline" and ":" in p.value:
                 trial_pipeline(p.value, timeout_s=settings.limits.timeout_s)
         spec = SweepSpec(
@@ -198,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     writer = KeptImageWriter(args.out)
     with stop_on_signals() as stop, ExitStack() as held:
         try:
-            templates, _ = resolve_placeholder(
+            templates, _ = resolve_competition_python(
                 [p.value if p.kind == "cmd" else "" for p in pipelines],
                 progress=not args.no_progress, prog="arenabench sweep")
             spec = replace(spec, pipelines=tuple(

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from .entries import DatasetError, checked_entry, gt_facts
+
 #: Manifests larger than this (about 20,000 entries of the generator's ~250-byte lines) are
 #: checked on several processes by default.
 PARALLEL_ABOVE_BYTES = 5_000_000
@@ -38,16 +40,14 @@ class Chunk:
 
 def check_chunk(chunk: Chunk) -> list[tuple[str, Any]]:
     """Each entry's outcome, in order, up to the first error: ``("ok", gt_facts)``
-    (:func:`~arenabench.eval.datasets.reader.gt_facts`), ``("damaged", why)`` or
+    (:func:`~.entries.gt_facts`), ``("damaged", why)`` or
     ``("error", message)`` (then nothing more)."""
-    from .reader import DatasetError, _checked_entry, gt_facts
-
     base, shown = Path(chunk.base), Path(chunk.shown)
     dirs: dict[str, Path] = {}
     out: list[tuple[str, Any]] = []
     for lineno, entry in chunk.items:
         try:
-            gt = _checked_entry(entry, f"{chunk.manifest}:{lineno}", base=base, shown=shown,
+            gt = checked_entry(entry, f"{chunk.manifest}:{lineno}", base=base, shown=shown,
                                 verify=chunk.verify, dirs=dirs)
         except DatasetError as exc:
             out.append(("error", str(exc)))
@@ -66,11 +66,9 @@ def check_manifest(entries: Iterator[tuple[int, dict[str, Any]]],
     """Check the manifest's ``entries`` on ``workers`` spawned processes, a window of chunks
     at a time, and give each outcome to ``accept(entry, "ok" | "damaged", value)`` in
     manifest order; the first error found (a file's, or the manifest's own when every entry
-    before it is fine) is raised as a :class:`~arenabench.eval.datasets.reader.DatasetError`."""
+    before it is fine) is raised as a :class:`~.entries.DatasetError`."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
-
-    from .reader import DatasetError
 
     def chunk(items: list[tuple[int, dict[str, Any]]]) -> Chunk:
         return Chunk(items=tuple(items), manifest=str(manifest), base=str(base),

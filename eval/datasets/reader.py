@@ -17,14 +17,13 @@ from arenabench.fileio import open_regular, read_regular, sha256_bytes, sha256_f
 from arenabench.gtrecord import AREA_REFERENCES as AREA_REFERENCES  # declared there
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE as DEFAULT_AREA_REFERENCE
 from arenabench.gtrecord import GroundTruth
-from arenabench.imageio import image_file_problem
 from arenabench.limits import MAX_DATASET_META_BYTES, MAX_IMAGE_ID_CHARS
-from arenabench.schemas import gt_problem
 from arenabench.workers import usable_cores
 
-
-class DatasetError(ValueError):
-    """A dataset is missing or malformed; the message names the file and field."""
+from .check import MAX_CHECK_WORKERS, PARALLEL_ABOVE_BYTES, check_manifest
+from .entries import DatasetError as DatasetError  # the readers' error, declared there
+from .entries import checked_entry, gt_facts, os_problem, path_error
+from .entries import validate_gt as validate_gt
 
 
 @dataclass(frozen=True)
@@ -68,7 +67,7 @@ class DatasetItem:
         if area is None:
             area = self.gt.area.extra.get(key)
         if area is None:
-            raise _fail(self.gt_path, f"field 'area.{key}' is missing (written by an older "
+            raise path_error(self.gt_path, f"field 'area.{key}' is missing (written by an older "
                                       f"generator?): regenerate the dataset to score against "
                                       f"--area-reference {area_reference}")
         return Truth(
@@ -302,9 +301,9 @@ class DatasetSamples(Sequence[DatasetItem]):
         try:
             gt_bytes = read_regular(gt_path)
         except OSError as exc:
-            raise _fail(shown_gt, f"cannot read ({exc.strerror or exc})") from None
+            raise path_error(shown_gt, f"cannot read ({exc.strerror or exc})") from None
         if digest is not None and sha256_bytes(gt_bytes) != digest:
-            raise _fail(shown_gt, "changed since the dataset was loaded (content does not "
+            raise path_error(shown_gt, "changed since the dataset was loaded (content does not "
                         "match gt_sha256 in manifest.jsonl)")
         record = GroundTruth.from_dict(json.loads(gt_bytes))
         return DatasetItem(id=sid, image_path=self._base / image, gt_path=gt_path, gt=record,
@@ -332,32 +331,6 @@ def flatten_numeric(obj: Any, prefix: str = "") -> dict[str, float]:
     return out
 
 
-_SHA256 = re.compile(r"[0-9a-f]{64}")
-
-
-def _is_sha256(value: Any) -> bool:
-    return isinstance(value, str) and _SHA256.fullmatch(value) is not None
-
-
-def _fail(path: Path, what: str) -> DatasetError:
-    return DatasetError(f"{path}: {what}")
-
-
-def validate_gt(gt: Any, path: Path) -> None:
-    """Check a parsed GT record against the ``arenabench.gt/1`` JSON Schema (shipped in
-    :mod:`arenabench.schemas`) and that every number in it is finite.
-
-    Raises
-    ------
-    DatasetError
-        One line naming ``path``, the field and the problem, e.g.
-        ``gt/000003.json: area.visible_px: nan is not a finite number``.
-    """
-    problem = gt_problem(gt)
-    if problem is not None:
-        raise _fail(path, problem)
-
-
 def load_dataset(
     root: str | Path, *, limit: int | None = None, verify: bool = True,
     skip_damaged: bool = False, workers: int | None = None,
@@ -369,17 +342,7 @@ def load_dataset(
                              workers=workers)
     except (OSError, RuntimeError) as exc:  # RuntimeError: Path.resolve of a link loop
         where = getattr(exc, "filename", None) or root
-        raise DatasetError(f"{where}: {_os_problem(exc)}") from None
-
-
-def _os_problem(exc: OSError | RuntimeError) -> str:
-    """A file system error in words: ``cannot read (Permission denied)``, ``a symbolic link
-    loop``."""
-    import errno
-
-    if isinstance(exc, RuntimeError) or exc.errno == errno.ELOOP:
-        return "a symbolic link loop"
-    return f"cannot read ({exc.strerror or exc})"
+        raise DatasetError(f"{where}: {os_problem(exc)}") from None
 
 
 def _load_dataset(
@@ -465,7 +428,6 @@ def _load_dataset(
     if limit is not None:
         workers = 1
     elif workers is None:
-        from .check import MAX_CHECK_WORKERS, PARALLEL_ABOVE_BYTES
 
         big = limit is None and manifest.stat().st_size > PARALLEL_ABOVE_BYTES
         workers = min(usable_cores(), MAX_CHECK_WORKERS) if big else 1
@@ -475,15 +437,13 @@ def _load_dataset(
         raise DatasetError(f"{manifest}: cannot read ({exc.strerror or exc})") from None
     with io.TextIOWrapper(stream, encoding="utf-8") as fh:  # a line at a time
         if workers > 1:
-            from .check import check_manifest
-
             check_manifest(_manifest_entries(fh, manifest), accept, manifest=manifest,
                            base=base, shown=shown, verify=verify, area_keys=area_keys,
                            workers=workers)
         else:
             dirs: dict[str, Path] = {}  # resolved folders of the manifest's paths
             for lineno, entry in _manifest_entries(fh, manifest):
-                gt = _checked_entry(entry, f"{manifest}:{lineno}", base=base, shown=shown,
+                gt = checked_entry(entry, f"{manifest}:{lineno}", base=base, shown=shown,
                                     verify=verify, dirs=dirs)
                 if isinstance(gt, str):  # a damaged image
                     accept(entry, "damaged", gt)
@@ -505,14 +465,6 @@ def _seed_strength(seed: Any) -> tuple[int, int]:
     """Sort key of recorded seeds, weakest first: anything but an integer, then integers by
     size."""
     return (1, seed) if type(seed) is int else (0, 0)
-
-
-def gt_facts(gt: dict[str, Any], area_keys: tuple[str, ...]) -> tuple[str, tuple[str, ...], Any]:
-    """What :class:`DatasetFacts` keeps of one valid GT record: its preset (``""`` for none),
-    the keys of ``area_keys`` its area lacks, and its ``seed`` (``None`` for none)."""
-    area = gt["area"]
-    return (gt.get("preset") or "", tuple(k for k in area_keys if area.get(k) is None),
-            gt.get("seed"))
 
 
 def _manifest_entries(fh: Iterable[str], manifest: Path) -> Iterator[tuple[int, dict[str, Any]]]:
@@ -566,89 +518,3 @@ def _lines(fh: Iterable[str]) -> Iterator[str]:
         yield from raw.splitlines()
 
 
-def _inside(base: Path, rel: str, dirs: dict[str, Path]) -> bool:
-    """Whether ``rel`` names a path inside the resolved folder ``base``, symbolic links
-    followed; ``dirs`` caches the resolved folders (one ``lstat`` per file, not per
-    component, for the common ``images/NNNNNN.png``)."""
-    if os.path.isabs(rel):
-        return False
-    folder, _, name = rel.rpartition("/")
-    if name in ("", ".", "..") or any(p in ("", ".", "..") for p in folder.split("/") if folder):
-        return (base / rel).resolve().is_relative_to(base)
-    real = dirs.get(folder)
-    if real is None:
-        real = dirs[folder] = (base / folder).resolve()
-    path = real / name
-    if path.is_symlink():
-        return path.resolve().is_relative_to(base)
-    return real.is_relative_to(base)
-
-
-def _checked_entry(entry: dict[str, Any], where: str, *, base: Path, shown: Path,
-                   verify: bool, dirs: dict[str, Path]) -> dict[str, Any] | str:
-    """:func:`_checked_files`; a file of the entry that cannot be read (a folder without
-    permission, a symbolic link loop) is a :class:`DatasetError` naming the manifest line."""
-    try:
-        return _checked_files(entry, where, base=base, shown=shown, verify=verify, dirs=dirs)
-    except (OSError, RuntimeError) as exc:  # RuntimeError: Path.resolve of a link loop
-        what = getattr(exc, "filename", None)
-        raise DatasetError(f"{where}: {f'{what}: ' if what else ''}{_os_problem(exc)}") from None
-
-
-def _checked_files(entry: dict[str, Any], where: str, *, base: Path, shown: Path,
-                   verify: bool, dirs: dict[str, Path]) -> dict[str, Any] | str:
-    """Check one manifest entry's files (closed folder, hashes, damage, GT schema): the
-    parsed GT, or why the image is damaged.
-
-    Raises
-    ------
-    DatasetError
-        For anything else wrong with the entry.
-    """
-    if verify:
-        for key in ("image_sha256", "gt_sha256"):
-            if not _is_sha256(entry.get(key)):
-                raise DatasetError(
-                    f"{where}: field {key!r} missing or not a SHA-256 hex digest "
-                    "(--no-verify skips the check)"
-                )
-    for key in ("image", "gt"):
-        rel = entry[key]
-        if not _inside(base, rel, dirs):
-            raise DatasetError(f"{where}: {key} path {rel!r} leaves the dataset folder "
-                               f"{shown} (a dataset is a closed folder)")
-    image_path, gt_path = base / entry["image"], base / entry["gt"]
-    shown_image, shown_gt = shown / entry["image"], shown / entry["gt"]
-    for what, path, shown_path in (("image", image_path, shown_image),
-                                   ("ground-truth", gt_path, shown_gt)):
-        if not path.is_file():
-            why = "is not a regular file" if path.exists() else "does not exist"
-            raise DatasetError(f"{where}: {what} file {shown_path} {why}")
-    try:
-        gt_bytes = read_regular(gt_path)
-    except OSError as exc:
-        raise _fail(shown_gt, f"cannot read ({exc.strerror or exc})") from None
-    if verify and sha256_bytes(gt_bytes) != entry["gt_sha256"]:
-        raise _fail(shown_gt, "content does not match gt_sha256 in manifest.jsonl "
-                    "(corrupt or replaced; --no-verify skips the check)")
-    if verify:
-        try:
-            digest = sha256_file(image_path)
-        except OSError as exc:
-            raise _fail(shown_image, f"cannot read ({exc.strerror or exc})") from None
-        if digest != entry["image_sha256"]:
-            raise _fail(shown_image, "content does not match image_sha256 in manifest.jsonl "
-                        "(truncated, corrupt or replaced; --no-verify skips the check)")
-    damage = image_file_problem(image_path)
-    if damage is not None:
-        return damage
-    try:
-        gt = json.loads(gt_bytes.decode("utf-8"))
-    except UnicodeDecodeError:
-        raise _fail(shown_gt, "not UTF-8 text") from None
-    except json.JSONDecodeError as exc:
-        raise _fail(shown_gt, f"not JSON ({exc.msg} at line {exc.lineno})") from None
-    except RecursionError:
-        raise _fail(shown_gt, "not JSON (nested too deeply)") from None
-    validate_gt(gt, shown_gt)
-    return gt

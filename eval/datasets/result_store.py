@@ -26,8 +26,7 @@ from collections.abc import Iterator, Mapping, Sequence
 from dataclasses import replace
 from typing import Any, overload
 
-from arenabench.eval.runs.run_images import RunImage
-from arenabench.eval.scoring.results import ImageResult, Prediction
+from arenabench.eval.scoring.results import ImageResult, Prediction, RunImage
 from arenabench.jsonstream import dumps_exact_line
 
 #: Runs of more images than this keep their results in a temporary file.

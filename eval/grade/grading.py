@@ -43,15 +43,10 @@ from arenabench.cliopts import GIVE_UP_AFTER_RULE
 from arenabench.cmdtemplate import (
     GRADE_PLACEHOLDERS,
     GRADE_REFUSED,
-    fill,
     template_problem,
 )
 from arenabench.eval.datasets.reader import AREA_REFERENCES, Dataset, DatasetSamples, load_dataset
-from arenabench.eval.runs.command import CommandPipeline
-from arenabench.eval.runs.limits import RunSettings
-from arenabench.eval.runs.predictions import OUTPUT_MODES
-from arenabench.eval.runs.remover import wait_removed
-from arenabench.eval.runs.slots import RunSlots, extra_thread
+from arenabench.eval.runs import OUTPUT_MODES, CommandPipeline, RunContext, RunSettings
 from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE
 from arenabench.eval.scoring.results import HarnessError, Prediction, Summary
 from arenabench.fileio import (
@@ -66,23 +61,20 @@ from arenabench.interrupts import checkpoint, deferred_stops, stop_workers, work
 from arenabench.limits import DEFAULT_GIVE_UP_AFTER
 from arenabench.workers import init_worker, process_state, usable_cores
 
-from ..evaluation import build_report, score_sample
+from ..evaluation import build_report
 from ..reports import FORMATS, write_reports
 from ..reports.feedback_report import FEEDBACK_FILES, write_feedback
+from ..scoring.metrics import score_sample
 from .give_up import GiveUp, first_timeout_run, timeout_run
 from .leaderboard import LeaderboardRow, leaderboard_dict, rank_rows
 from .partial import PARTIAL_FILE, PartialLog, read_partial
 from .submissions import SubmissionsError, Team, find_teams, submission_hash
+from .teams import DEFAULT_COMMAND, TEAM_ENV, team_command
 
-#: The competition's command; ``{submission}`` is the team folder's absolute path.
-DEFAULT_COMMAND = "python3 {submission}/map.py --image {image}"
 STATE_FILE = "grade-state.json"
 STATE_SCHEMA = "arenabench.grade-state/1"
 TEAMS_DIR = "teams"
 LEADERBOARD_FILES: tuple[str, ...] = ("leaderboard.json", "leaderboard.csv", "leaderboard.html")
-#: Variables every team's command gets on top of ``RunSettings.env``: Python must not write
-#: ``__pycache__`` into a submission (submissions are read-only inputs).
-TEAM_ENV: dict[str, str] = {"PYTHONDONTWRITEBYTECODE": "1"}
 
 
 @dataclass(frozen=True)
@@ -202,23 +194,21 @@ class GradeResult:
     systemic: str | None = None
 
 
-def team_command(template: str, submission: str | os.PathLike[str]) -> str:
-    """``template`` with ``{submission}`` replaced by the folder's absolute path, argument by
-    argument (paths with spaces or quotes stay one argument); the other placeholders stay,
-    and the path is put in as literal text (:func:`arenabench.cmdtemplate.escape`): a team
-    folder named ``x{image}y`` keeps its name when the image is filled in."""
-    values = {"submission": str(Path(submission).absolute())}
-    return shlex.join(fill(arg, values, partial=True) for arg in shlex.split(template))
-
-
 def _team_pipeline(
     command: str, *, settings: RunSettings, output: str, team: str, base_dir: str,
-    slots: RunSlots | None = None,
+    context: RunContext | None = None,
 ) -> CommandPipeline:
-    """The team's :class:`CommandPipeline`: ``settings`` plus :data:`TEAM_ENV`."""
+    """The team's :class:`CommandPipeline`: ``settings`` plus :data:`TEAM_ENV` (in
+    ``context``, else in a context of its own that its ``close()`` ends)."""
     settings = replace(settings, env={**settings.env, **TEAM_ENV})
     return CommandPipeline(command, settings=settings, output=output, name=team,
-                           base_dir=base_dir, slots=slots)
+                           base_dir=base_dir, context=context)
+
+
+def _worker_context() -> RunContext:
+    """The run context of a cluster worker's process: its warm servers serve the units it
+    gets, for as long as it lives (they end with it)."""
+    return process_state(("grade-run-context",), RunContext)
 
 
 def run_unit(unit: GradeUnit, pipe: CommandPipeline | None = None) -> Prediction:
@@ -234,9 +224,10 @@ def run_unit(unit: GradeUnit, pipe: CommandPipeline | None = None) -> Prediction
         team's: the grade stops, and a rerun resumes).
     """
     try:
-        if pipe is None:
+        if pipe is None:  # a cluster worker's unit
             pipe = _team_pipeline(unit.command, settings=unit.settings, output=unit.output,
-                                  team=unit.team, base_dir=unit.submission)
+                                  team=unit.team, base_dir=unit.submission,
+                                  context=_worker_context())
         return pipe.run(Path(unit.image))
     except HarnessError:
         raise
@@ -289,12 +280,12 @@ class _LocalRuns:
     """The units running in this process's threads, so that an interrupt (or giving up on a
     team) can stop them."""
 
-    def __init__(self, slots: RunSlots) -> None:
+    def __init__(self, context: RunContext) -> None:
         self._lock = threading.Lock()
         self._live: dict[int, CommandPipeline] = {}  # unit position -> its pipeline
         self._dropped: set[int] = set()
         self._stopped = False
-        self.slots = slots
+        self.context = context
 
     def run(self, position: int, unit: GradeUnit) -> Prediction:
         with self._lock:
@@ -302,7 +293,8 @@ class _LocalRuns:
                 return _NOT_RUN
         try:
             pipe = _team_pipeline(unit.command, settings=unit.settings, output=unit.output,
-                                  team=unit.team, base_dir=unit.submission, slots=self.slots)
+                                  team=unit.team, base_dir=unit.submission,
+                                  context=self.context)
         except Exception as exc:  # the grader's failure, never the team's
             raise HarnessError(f"grader: {type(exc).__name__}: {exc}"[:500]) from exc
         with self._lock:
@@ -347,9 +339,8 @@ class _Threads:
         self._runs = runs
         # one thread more than runs at once: it prepares the next image while the runs go,
         # and starts it the moment a run's slot frees (run_slots)
-        self._pool = ThreadPoolExecutor(
-            max_workers=workers + extra_thread(runs.slots, workers),
-            thread_name_prefix="arenabench-grade")
+        self._pool = ThreadPoolExecutor(max_workers=runs.context.threads(workers),
+                                        thread_name_prefix="arenabench-grade")
         self._futures = {self._pool.submit(runs.run, i, u): i for i, u in enumerate(units)}
         self._handed: set[Future] = set()
         self._at_stop: list[tuple[int, Prediction]] | None = None
@@ -367,7 +358,7 @@ class _Threads:
         finally:
             self._runs.stop()  # no-op after the last unit; on a stop, ends the running ones
             self._pool.shutdown(wait=True, cancel_futures=True)
-            wait_removed()  # the runs' folders
+            self._runs.context.close()  # the warm servers end, the runs' folders go
 
     def __iter__(self) -> Iterator[tuple[int, Prediction]]:
         return self._gen
@@ -400,7 +391,7 @@ class _Execution:
                                         drop=self._dropped.__contains__)
         else:
             n = min(workers or usable_cores(), max(1, len(units)))
-            self._runs = _LocalRuns(RunSlots(n))
+            self._runs = _LocalRuns(RunContext(slots=n))
             self._threads = _Threads(units, n, self._runs)
             self._results = iter(self._threads)
 

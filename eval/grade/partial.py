@@ -20,7 +20,6 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Mapping, Sequence
-from dataclasses import asdict, fields
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -29,27 +28,6 @@ from arenabench.jsonstream import dumps_exact_line
 
 PARTIAL_FILE = "partial-results.jsonl"
 PARTIAL_SCHEMA = "arenabench.grade-partial/1"
-
-
-def prediction_to_json(pred: Prediction) -> dict[str, Any]:
-    """``pred`` as JSON (every field of :class:`~arenabench.eval.scoring.results.Prediction`)."""
-    return asdict(pred)
-
-
-def _tuples(value: Any) -> Any:
-    return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
-
-
-def prediction_from_json(d: Mapping[str, Any]) -> Prediction:
-    """Inverse of :func:`prediction_to_json` (keys it does not know are ignored).
-
-    Raises
-    ------
-    TypeError, ValueError
-        When ``d`` is not a prediction.
-    """
-    names = {f.name for f in fields(Prediction)}
-    return Prediction(**{k: _tuples(v) for k, v in d.items() if k in names})
 
 
 class PartialLog:
@@ -81,7 +59,7 @@ class PartialLog:
                 self._fh.write(dumps_exact_line(self._header) + "\n")
             elif self._fh.tell() and not _ends_with_newline(self.path):
                 self._fh.write("\n")  # after a line cut short: it stays unreadable alone
-        line = {"index": index, "id": image_id, "prediction": prediction_to_json(pred)}
+        line = {"index": index, "id": image_id, "prediction": pred.to_json()}
         # exact values (NaN kept): the next run scores the same prediction again
         self._fh.write(dumps_exact_line(line) + "\n")
         self._fh.flush()
@@ -138,7 +116,7 @@ def read_partial(path: Path, header: Mapping[str, Any],
             index = line["index"]
             if (isinstance(index, int) and not isinstance(index, bool)
                     and 0 <= index < len(ids) and line["id"] == ids[index]):
-                kept[index] = prediction_from_json(line["prediction"])
+                kept[index] = Prediction.from_json(line["prediction"])
         except (ValueError, TypeError, KeyError, AttributeError):
             continue  # a line cut short, or not one of ours: that image runs again
     return kept

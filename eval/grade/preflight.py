@@ -38,7 +38,8 @@ from dataclasses import asdict, dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from arenabench.eval.runs.stale import owned_dir_prefix
+from arenabench.eval.grade.teams import team_command
+from arenabench.eval.runs import owned_dir_prefix
 from arenabench.generator.seeds import GUESSABLE_BELOW, is_guessable, seed_problem
 
 if TYPE_CHECKING:
@@ -147,7 +148,7 @@ def require_sandbox(mode: str) -> str:
         For ``auto`` or ``bwrap`` without a working bubblewrap (one line: how to install it
         or opt out).
     """
-    from arenabench.eval.runs.sandbox import bwrap_problem
+    from arenabench.eval.runs import bwrap_problem
 
     if mode == "none":
         return "none"
@@ -174,7 +175,7 @@ def process_limit(max_procs: int) -> str:
     PreflightError
         As root where no pids cgroup can be made (one line: why, and ``--max-procs 0``).
     """
-    from arenabench.eval.runs.sandbox import pids_cgroup_parent
+    from arenabench.eval.runs import pids_cgroup_parent
 
     if max_procs == 0:
         return NO_PROCESS_LIMIT
@@ -362,9 +363,7 @@ def probe_interpreter(
     PreflightError
         One line naming the cause: the interpreter cannot run or lacks numpy, OpenCV or aruco.
     """
-    from arenabench.eval.runs.interpreter import interpreter_folders
-
-    from .grading import team_command
+    from arenabench.eval.runs import interpreter_folders
 
     with tempfile.TemporaryDirectory(prefix=owned_dir_prefix("arenabench-preflight-")) as tmp:
         probe_dir = Path(tmp, "probe")
@@ -376,10 +375,11 @@ def probe_interpreter(
         except ValueError as exc:  # names the probe's folder: say where paths resolve from
             raise PreflightError(relative_interpreter_problem(template, option)
                                  or str(exc)) from None
-        record = replace(record, executable=getattr(pipe, "_executable", None))
-        if record.executable:
-            record = replace(record, kind=interpreter_folders(record.executable).kind)
-        pred = pipe.run(Path(image))
+        with pipe:  # its own run context: ended here
+            record = replace(record, executable=pipe.command.executable)
+            if record.executable:
+                record = replace(record, kind=interpreter_folders(record.executable).kind)
+            pred = pipe.run(Path(image))
     info = _probe_info(pred.stdout)
     if info is None or pred.status in ("crash", "timeout", "limit"):
         why = (pred.stderr.strip().splitlines() or [pred.message])[-1]
@@ -433,8 +433,6 @@ def preflight(
         One line naming the cause: the interpreter cannot run, lacks a module, the sandbox
         fails, or the reference gives no answer.
     """
-    from .grading import team_command
-
     if problem := relative_interpreter_problem(template):
         raise PreflightError(problem)
     record = probe_interpreter(template, image=image, make_pipeline=make_pipeline, mode=mode,
@@ -448,8 +446,8 @@ def preflight(
             if not builtin_reference(ref_dir, template, output=output):
                 return replace(record, reference={"source": "none (the command names no "
                                                   "Python script: pass --reference DIR)"})
-        pipe = make_pipeline(team_command(template, ref_dir), str(ref_dir))
-        pred = pipe.run(Path(image))
+        with make_pipeline(team_command(template, ref_dir), str(ref_dir)) as pipe:
+            pred = pipe.run(Path(image))
         ref = {"source": source, "image": Path(image).name, "status": pred.status,
                "count": pred.count, "area": pred.area}
         if pred.status != "ok":

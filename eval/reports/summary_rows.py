@@ -80,6 +80,6 @@ def headline(report: Report) -> str:
 
 def interpreter_text(interpreter: dict) -> str:
     """A report's ``interpreter`` record in words: the versions, then what it is."""
-    from arenabench.eval.runs.competition_env import Interpreter
+    from arenabench.eval.runs import Interpreter
 
     return Interpreter.from_dict(interpreter).describe()

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from arenabench.cmdtemplate import TemplateError, fill, placeholders
 
-from .warm_client import _PYTHON_NAME
+from .warm_client import PYTHON_NAME
 
 #: Most entries of the script's folder looked at for a "did you mean".
 _MAX_LISTED = 1000
@@ -20,7 +20,7 @@ _MAX_LISTED = 1000
 
 def _runs_python(program: str) -> bool:
     return program in ("{python}", "{competition_python}") or bool(
-        _PYTHON_NAME.fullmatch(os.path.basename(program)))
+        PYTHON_NAME.fullmatch(os.path.basename(program)))
 
 
 def missing_script_problem(template: str, *, base_dir: str | os.PathLike[str]) -> str | None:
@@ -30,7 +30,7 @@ def missing_script_problem(template: str, *, base_dir: str | os.PathLike[str]) -
     A script argument is one that ends in ``.py``, or the first argument after a Python
     interpreter (``python``, ``python3``, ``python3.X``, ``{python}``) that is not an option;
     one holding a placeholder is filled per run and not checked. Relative paths are resolved
-    from ``base_dir`` (as :class:`~arenabench.eval.runs.command.CommandPipeline` does).
+    from ``base_dir`` (as :class:`~arenabench.eval.runs.pipeline.CommandPipeline` does).
     """
     try:
         args = shlex.split(template)

@@ -1,19 +1,14 @@
-"""External pipelines (``--cmd``): each run contained, limited, cleaned up and categorised.
+"""A prepared external command (``--cmd``) and the runners that run it on one image.
 
-Interface (used by ``eval``, ``sweep`` and ``grade``)::
+:class:`Command` is a template prepared once (split, its executable found, what the sandbox
+shows, the warm target of a Python script); :meth:`Command.argv_for`, :meth:`Command.env`,
+:meth:`Command.fill_workdir` and :meth:`Command.launch_config` give one run's argument list,
+environment, private directory and the launcher's configuration; :meth:`Command.interpret`
+reads a finished run into a :class:`~arenabench.eval.scoring.results.Prediction`.
 
-    CommandPipeline(template, *, settings=RunSettings(...), output="obstacles",
-                    name="", base_dir=os.getcwd())
-    pipeline.run(image_path) -> Prediction          # never raises for the command's failures
-    pipeline.stop()                                 # kill running runs, refuse new ones
-    pipeline.close()                                # end its warm servers (eval's end)
-
-``settings`` (:class:`~arenabench.eval.runs.limits.RunSettings`) holds the limits
-(``limits.timeout_s``, ``memory_bytes``, ``max_procs``, ``max_file_size``, ``max_output``),
-the sandbox mode, the image's name and extra environment variables. Construction raises
-``ValueError`` (one line) for a template that cannot be split, an executable that does not
-exist, ``output`` not in :data:`~arenabench.eval.runs.predictions.OUTPUT_MODES`, or
-``sandbox="bwrap"`` where bubblewrap is missing or does not work.
+A :class:`Runner` runs one image of a :class:`~.pipeline.CommandPipeline`: the warm one
+(:class:`~.warm_client.WarmServers`) for a Python script, then the cold one
+(:class:`~.cold.ColdRunner`), which always answers.
 
 How one image runs
 ------------------
@@ -41,206 +36,205 @@ How one image runs
 
 from __future__ import annotations
 
-import marshal
 import os
 import shlex
 import shutil
-import signal
-import subprocess
 import sys
-import tempfile
-import threading
-from dataclasses import KW_ONLY, dataclass, field
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING, Protocol
 
 from arenabench.cmdtemplate import fill, placeholders
 from arenabench.competition import OBSTACLES_FILE
-from arenabench.eval.scoring.results import HarnessError, Prediction
+from arenabench.eval.scoring.results import Prediction
 
-from .launcher import BOX, BOX_DIRS
 from .limits import RunLimits, RunSettings
-from .predictions import OUTPUT_MODES, STARVED_RETRIES, prediction_from_run
-from .remover import remove_later, wait_removed
+from .predictions import OUTPUT_MODES, prediction_from_run
+from .proctools import BOX_DIRS, LaunchConfig, WarmLaunch
 from .sandbox import (
     SANDBOX_DIR,
     bwrap_argv,
-    launch_limits,
-    pids_cgroup_parent,
     resolve_sandbox,
     sandbox_path,
     visible_paths,
     warn_if_procs_unlimited,
 )
-from .slots import RunSlots, hold
-from .stale import run_dir_prefix, sweep_stale_runs
+from .warm_client import WarmTarget, warm_target
 
-#: The launcher script (standard library only; run with ``python -I -S``).
-LAUNCHER = str(Path(__file__).with_name("launcher.py"))
-#: Seconds the harness waits for a launcher beyond the command's own timeout.
-LAUNCHER_GRACE_S = 30.0
+if TYPE_CHECKING:
+    from .pipeline import CommandPipeline
 
 
-def _decode(data: bytes) -> str:
-    return data.decode("utf-8", errors="replace")
-
-
-def _wait(proc: subprocess.Popen, timeout: float) -> int:
-    """``proc.wait(timeout)`` without its polling sleeps (a pidfd is readable at exit)."""
-    import select
-
-    try:
-        fd = os.pidfd_open(proc.pid)
-    except (AttributeError, OSError):  # old kernel, or already reaped
-        return proc.wait(timeout=timeout)
-    try:
-        ready, _, _ = select.select([fd], [], [], timeout)
-    finally:
-        os.close(fd)
-    if not ready:
-        raise subprocess.TimeoutExpired(proc.args, timeout)
-    return proc.wait()
-
-
-@dataclass
-class CommandPipeline:
-    """An external command, run once per image the way competition scripts are graded.
-
-    Parameters
-    ----------
-    template : str
-        Command line, split with :func:`shlex.split` (no shell). In every argument
-        ``{image}`` becomes the path of the image's private copy and ``{python}`` the running
-        Python interpreter; substitution is per argument, so paths with spaces survive.
-        Arguments naming an existing file or folder relative to ``base_dir`` are made
-        absolute (their folders are the submission's, visible read-only in the sandbox).
-    settings : RunSettings, keyword-only
-        Limits (``settings.limits.timeout_s`` is the per-image timeout), sandbox mode,
-        image name and extra environment.
-    output : {"obstacles", "json"}, keyword-only
-        Read ``obstacles.txt`` from the working directory, or the last JSON object line on
-        stdout.
-    name : str, keyword-only
-        Name in reports (default: the template).
-    base_dir : str, keyword-only
-        Folder that relative paths in the template are relative to (default: the current
-        directory when the pipeline is created).
-    slots : RunSlots, optional, keyword-only
-        Shared with the other pipelines of a grade or evaluation: a run waits for a free slot
-        before its command starts and gives it back at its end (:mod:`.run_slots`). Default:
-        no limit beyond the caller's threads.
+def _resolve_executable(exe: str, base_dir: str) -> str | None:
+    """The path of the template's program (``None`` for a placeholder other than
+    ``{python}``).
 
     Raises
     ------
     ValueError
-        One line naming the problem: bad template or ``output``, an executable that does not
-        exist, ``sandbox="bwrap"`` without a working bubblewrap.
+        One line: the executable does not exist or is not executable.
+    """
+    if "{" in exe:
+        return None if "{python}" != exe else sys.executable
+    if "/" in exe:
+        path = Path(base_dir, exe)
+        if not path.is_file() or not os.access(path, os.X_OK):
+            why = "does not exist" if not path.exists() else "is not an executable file"
+            raise ValueError(f"--cmd: executable {exe!r} {why} (relative to {base_dir})")
+        return os.path.abspath(path)  # not resolved: a venv's python is a symlink
+    found = shutil.which(exe)
+    if found is None:
+        raise ValueError(f"--cmd: executable {exe!r} not found on PATH")
+    return found
 
-    Notes
-    -----
-    Exit status 0 means "answer written"; 3 means markers not found; any other non-zero
-    exit is a ``crash`` (or ``limit``, see the module docstring).
+
+def _resolved_args(argv: tuple[str, ...], base_dir: str) -> tuple[str, ...]:
+    """The template's arguments with each literal one naming an existing file or folder
+    relative to ``base_dir`` made absolute (a placeholder's argument is filled per run)."""
+    out = []
+    for arg in argv:
+        if placeholders(arg):  # filled per run (Command.argv_for)
+            out.append(arg)
+            continue
+        arg = fill(arg, {})  # literal text: '{{' is a brace
+        if arg and not arg.startswith("-") and not os.path.isabs(arg):
+            candidate = Path(base_dir, arg)  # '' is an argument, never the folder
+            try:
+                exists = candidate.exists()
+            except OSError:  # e.g. longer than a file name may be: an argument, not a path
+                exists = False
+            if exists:
+                arg = os.path.abspath(candidate)
+        out.append(arg)
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class Command:
+    """A command template prepared once: what every run of it needs, cold or warm.
+
+    Made by :meth:`prepare`; immutable, so the pipelines of one context share it.
+
+    Attributes
+    ----------
+    template : str
+        The command line as given.
+    settings : RunSettings
+        Limits, sandbox mode, image name, extra environment.
+    output : {"obstacles", "json"}
+        How the command answers.
+    base_dir : str
+        What relative paths in the template are relative to.
+    argv : tuple of str
+        The template split into arguments (placeholders unfilled).
+    args : tuple of str
+        The same with literal paths made absolute (:func:`_resolved_args`).
+    executable : str or None
+        The program's path (``None`` for an unresolved placeholder).
+    sandbox : {"bwrap", "none"}
+        The sandbox runs get (:func:`.sandbox.resolve_sandbox`).
+    cgroup_parent : str or None
+        Where the runs' pids cgroups go.
+    visible : tuple of str
+        The read-only folders of the sandbox besides /usr (:func:`.sandbox.visible_paths`).
+    warm : WarmTarget or None
+        What a warm run executes, when the command runs a Python script and
+        ``settings.warm`` (:func:`.warm_client.warm_target`).
     """
 
     template: str
-    _: KW_ONLY
-    settings: RunSettings = field(default_factory=RunSettings)
-    output: str = "obstacles"
-    name: str = ""
-    base_dir: str = field(default_factory=os.getcwd)
-    slots: RunSlots | None = field(default=None, repr=False, compare=False)
-    in_process: bool = field(default=False, init=False)
+    settings: RunSettings
+    output: str
+    base_dir: str
+    argv: tuple[str, ...]
+    args: tuple[str, ...]
+    executable: str | None
+    sandbox: str
+    cgroup_parent: str | None
+    visible: tuple[str, ...]
+    warm: WarmTarget | None = field(default=None, compare=False)
 
-    def __post_init__(self) -> None:
-        if not isinstance(self.settings, RunSettings):
-            raise ValueError(f"settings must be a RunSettings, got {self.settings!r}")
-        if self.output not in OUTPUT_MODES:
-            raise ValueError(f"output must be one of {OUTPUT_MODES}, got {self.output!r}")
+    @classmethod
+    def prepare(cls, template: str, *, settings: RunSettings, output: str, base_dir: str,
+                cgroup_parent: str | None) -> Command:
+        """Split, check and resolve ``template`` once.
+
+        Raises
+        ------
+        ValueError
+            One line: bad template or ``output``, an executable that does not exist,
+            ``sandbox="bwrap"`` without a working bubblewrap.
+        """
+
+        if not isinstance(settings, RunSettings):
+            raise ValueError(f"settings must be a RunSettings, got {settings!r}")
+        if output not in OUTPUT_MODES:
+            raise ValueError(f"output must be one of {OUTPUT_MODES}, got {output!r}")
         try:
-            self._argv = shlex.split(self.template)
+            argv = tuple(shlex.split(template))
         except ValueError as exc:
             raise ValueError(f"template cannot be split into arguments: {exc}") from None
-        if not self._argv:
-            raise ValueError(f"template must not be empty, got {self.template!r}")
-        self.name = self.name or self.template
-        self._executable = self._resolve_executable()
-        self.sandbox = resolve_sandbox(self.settings.sandbox)
-        self._cgroup = pids_cgroup_parent()
-        sweep_stale_runs(cgroup_parent=self._cgroup)  # what SIGKILLed runs left, once
-        warn_if_procs_unlimited(self._cgroup, max_procs=self.limits.max_procs)
-        self._lock = threading.Lock()
-        self._live: set[subprocess.Popen] = set()
-        self._stopped = False
-        from .warm_client import warm_target
-
-        self._warm = warm_target(self._resolved_args()) if self.settings.warm else None
+        if not argv:
+            raise ValueError(f"template must not be empty, got {template!r}")
+        executable = _resolve_executable(argv[0], base_dir)
+        sandbox = resolve_sandbox(settings.sandbox)
+        warn_if_procs_unlimited(cgroup_parent, max_procs=settings.limits.max_procs)
+        args = _resolved_args(argv, base_dir)
+        visible = tuple(visible_paths(executable, list(args),
+                                      python=any("{python}" in a for a in argv)))
+        return cls(template=template, settings=settings, output=output, base_dir=base_dir,
+                   argv=argv, args=args, executable=executable, sandbox=sandbox,
+                   cgroup_parent=cgroup_parent, visible=visible,
+                   warm=warm_target(list(args)) if settings.warm else None)
 
     @property
     def limits(self) -> RunLimits:
         """The run limits (``settings.limits``)."""
         return self.settings.limits
 
-    def _resolve_executable(self) -> str | None:
-        exe = self._argv[0]
-        if "{" in exe:
-            return None if "{python}" != exe else sys.executable
-        if "/" in exe:
-            path = Path(self.base_dir, exe)
-            if not path.is_file() or not os.access(path, os.X_OK):
-                why = "does not exist" if not path.exists() else "is not an executable file"
-                raise ValueError(f"--cmd: executable {exe!r} {why} (relative to {self.base_dir})")
-            return os.path.abspath(path)  # not resolved: a venv's python is a symlink
-        found = shutil.which(exe)
-        if found is None:
-            raise ValueError(f"--cmd: executable {exe!r} not found on PATH")
-        return found
-
-    def _resolved_args(self) -> list[str]:
-        out = []
-        for arg in self._argv:
-            if placeholders(arg):  # filled per run (argv)
-                out.append(arg)
-                continue
-            arg = fill(arg, {})  # literal text: '{{' is a brace
-            if arg and not arg.startswith("-") and not os.path.isabs(arg):
-                candidate = Path(self.base_dir, arg)  # '' is an argument, never the folder
-                try:
-                    exists = candidate.exists()
-                except OSError:  # e.g. longer than a file name may be: an argument, not a path
-                    exists = False
-                if exists:
-                    arg = os.path.abspath(candidate)
-            out.append(arg)
-        return out
+    @property
+    def sandboxed(self) -> bool:
+        """Runs go under bubblewrap."""
+        return self.sandbox == "bwrap"
 
     def image_name(self, image_path: Path) -> str:
         """File name of the image's copy in the private directory."""
         return self.settings.image_name or "image" + Path(image_path).suffix
 
-    def argv(self, image_path: Path, *, image_dir: str | None = None) -> list[str]:
+    def argv_for(self, image_path: Path, *, image_dir: str | None = None) -> list[str]:
         """The command's argument list for one image (without any sandbox prefix).
 
-        ``{image}`` is ``image_dir`` (default: :data:`SANDBOX_DIR` under bubblewrap) joined
-        with :meth:`image_name`.
+        ``{image}`` is ``image_dir`` (default: :data:`SANDBOX_DIR` under bubblewrap, else the
+        image's own folder) joined with :meth:`image_name`.
         """
         if image_dir is None:
-            image_dir = SANDBOX_DIR if self.sandbox == "bwrap" else str(Path(image_path).parent)
+            image_dir = SANDBOX_DIR if self.sandboxed else str(Path(image_path).parent)
         image = os.path.join(image_dir, self.image_name(image_path))
         values = {"image": image, "python": sys.executable}
         # one pass per template argument (arenabench.cmdtemplate.fill): a value, or a path
         # resolved from a literal argument, is never searched for placeholders
         return [fill(t, values) if placeholders(t) else a
-                for t, a in zip(self._argv, self._resolved_args(), strict=True)]
+                for t, a in zip(self.argv, self.args, strict=True)]
 
-    def _visible_paths(self) -> list[str]:
-        """Read-only folders of the sandbox besides /usr (:func:`.sandbox.visible_paths`)."""
-        return visible_paths(self._executable, self._resolved_args(),
-                             python=any("{python}" in a for a in self._argv))
-
-    def _bwrap_argv(self, folder: str, image_path: Path) -> list[str]:
+    def bwrap_argv(self, folder: str, image_path: Path) -> list[str]:
         """bubblewrap's arguments for a run (or a warm server) whose folders ``work``, ``tmp``
         and ``shm`` are in ``folder``."""
         work, tmp, shm = (os.path.join(folder, name) for name in BOX_DIRS)
-        return bwrap_argv(work, tmp, shm, image_path, self._visible_paths())
+        return bwrap_argv(work, tmp, shm, image_path, list(self.visible))
+
+    def env(self, home: str, tmp: str) -> dict[str, str]:
+        """The command's whole environment (cold runs, warm servers and warm runs alike);
+        under bubblewrap ``PATH`` names no host folder (:func:`.sandbox.sandbox_path`)."""
+        env = {
+            "PATH": (sandbox_path(self.executable) if self.sandboxed
+                     else os.environ.get("PATH", os.defpath)),
+            "HOME": home,
+            "LANG": "C.UTF-8",
+            "LC_ALL": "C.UTF-8",
+            "TMPDIR": tmp,
+        }
+        env.update(self.settings.env)
+        return env
 
     def fill_workdir(self, work: str, image_path: Path) -> str | None:
         """Fill a run's private working directory ``work`` (cold and warm runs alike): the files
@@ -259,181 +253,46 @@ class CommandPipeline:
             return f"cannot copy the image: {exc}"
         return None
 
-    def _env(self, home: str, tmp: str) -> dict[str, str]:
-        """The command's whole environment (cold runs, warm servers and warm runs alike);
-        under bubblewrap ``PATH`` names no host folder (:func:`.sandbox.sandbox_path`)."""
-        env = {
-            "PATH": (sandbox_path(self._executable) if self.sandbox == "bwrap"
-                     else os.environ.get("PATH", os.defpath)),
-            "HOME": home,
-            "LANG": "C.UTF-8",
-            "LC_ALL": "C.UTF-8",
-            "TMPDIR": tmp,
-        }
-        env.update(self.settings.env)
-        return env
+    def launch_config(self, *, exe: str, argv: list[str], env: dict[str, str], cwd: str,
+                      rundir: str, image_path: Path, cgroup_parent: str | None,
+                      extra_procs: int, parent_pid: int,
+                      warm: WarmLaunch | None = None) -> LaunchConfig:
+        """The one launch configuration of a run, cold or warm: its limits, its cgroup
+        (``extra_procs``: processes of the run beyond the command's: bubblewrap's, a warm run's
+        keeper), its box under bubblewrap."""
+        lim = self.limits
+        return LaunchConfig(
+            exe=exe, argv=argv, env=env, cwd=cwd, rundir=rundir, timeout_s=lim.timeout_s,
+            memory_bytes=lim.memory_bytes, max_file_size=lim.max_file_size,
+            max_output=lim.max_output, max_procs=lim.max_procs,
+            pids_max=lim.max_procs + extra_procs, cgroup_parent=cgroup_parent,
+            sandboxed=self.sandboxed,
+            nproc_rlimit=cgroup_parent is None and os.getuid() != 0, parent_pid=parent_pid,
+            box_bytes=lim.disk_bytes if self.sandboxed else None,
+            image_name=self.image_name(image_path), warm=warm)
 
-    def stop(self) -> None:
-        """Kill every running run (their launchers clean up) and make later runs return at
-        once as ``crash`` with message ``interrupted``."""
-        with self._lock:
-            self._stopped = True
-            live = list(self._live)
-        for proc in live:
-            try:
-                proc.send_signal(signal.SIGTERM)
-            except OSError:
-                pass
-        if self.slots is not None:
-            self.slots.wake()
-        if self._warm is not None:
-            from .warm_client import stop_warm
+    def interpret(self, result: dict, stdout: str, stderr: str, workdir: str) -> Prediction:
+        """A finished run's :class:`Prediction` (:func:`.predictions.prediction_from_run`)."""
+        return prediction_from_run(result, stdout, stderr, workdir, output=self.output,
+                                   limits=self.limits,
+                                   pids_cgroup=self.cgroup_parent is not None)
 
-            stop_warm(self)
 
-    def close(self) -> None:
-        """End the command's idle warm servers (a later run starts one again), once the
-        folders of finished runs are removed."""
-        wait_removed()
-        if self._warm is not None:
-            from .warm_client import close_warm
+class Runner(Protocol):
+    """One way of running a command on an image: the warm servers of a context, or cold
+    launchers. The pipeline tries its runners in order; a runner that cannot take the image
+    answers ``None`` and the next one runs it."""
 
-            close_warm(self)
-
-    def run(self, image_path: Path) -> Prediction:
-        """Run the command on one image in a fresh private directory (never raises for the
-        command's own failures). A run that timed out starved (it waited for a CPU most of
-        the time: :data:`.predictions.STARVED_SHARE`) is run again, up to
-        :data:`.predictions.STARVED_RETRIES` times.
+    def run(self, pipe: CommandPipeline, image_path: Path) -> Prediction | None:
+        """Run ``pipe``'s command on one image; ``None``: not here (never for the last runner).
 
         Raises
         ------
         HarnessError
-            When the harness cannot run the image (no space for the run's folder, the image
-            cannot be copied, the launcher fails): the harness's failure, never scored.
+            When the harness cannot run the image.
         """
-        pred = self._run_once(Path(image_path))
-        for _ in range(STARVED_RETRIES):
-            if not pred.starved or self._stopped:
-                break
-            pred = self._run_once(Path(image_path))
-        return pred
+        ...
 
-    def _run_once(self, image_path: Path) -> Prediction:
-        if self._stopped:
-            return Prediction(status="crash", message="interrupted")
-        if self._warm is not None:  # a Python script: through its warm server (warm_client)
-            from .warm_client import run_warm
-
-            warm = run_warm(self, self._warm, image_path)
-            if warm is not None:
-                return warm
-        try:
-            rundir = tempfile.mkdtemp(prefix=run_dir_prefix())  # names its owner: stale_runs
-        except OSError as exc:
-            raise HarnessError(f"cannot make a run's folder in {tempfile.gettempdir()}: "
-                               f"{exc.strerror or exc}") from None
-        try:
-            return self._run_in(image_path, rundir)
-        finally:
-            remove_later(rundir)  # the worker goes on with its next image meanwhile
-
-    def _run_in(self, image_path: Path, rundir: str) -> Prediction:
-        work, tmp = os.path.join(rundir, "work"), os.path.join(rundir, "tmp")
-        try:
-            os.mkdir(work)
-            os.mkdir(tmp)
-        except OSError as exc:
-            raise HarnessError(f"cannot make a run's folder in {rundir}: "
-                               f"{exc.strerror or exc}") from None
-        problem = self.fill_workdir(work, image_path)
-        if problem:
-            raise HarnessError(problem)
-        lim = self.limits
-        if self.sandbox == "bwrap":  # the launcher makes the run's box (a tmpfs) at rundir/box
-            argv = self._bwrap_argv(os.path.join(rundir, BOX), image_path) + self.argv(image_path)
-            env = self._env(SANDBOX_DIR, "/tmp")
-            pids_max = lim.max_procs + 1  # bubblewrap's own process (the command is pid 1)
-        else:
-            argv = self.argv(image_path, image_dir=work)
-            env = self._env(work, tmp)
-            pids_max = lim.max_procs
-        cfg = {
-            "exe": argv[0] if self.sandbox == "bwrap" else (self._executable or argv[0]),
-            "argv": argv, "env": env, "cwd": work, "rundir": rundir,
-            **launch_limits(lim, cgroup_parent=self._cgroup, sandboxed=self.sandbox == "bwrap",
-                            pids_max=pids_max),
-            "box_bytes": lim.disk_bytes if self.sandbox == "bwrap" else None,
-            "image_name": self.image_name(image_path),
-            "parent_pid": os.getpid(),
-        }  # fmt: skip
-        cfg_path = os.path.join(rundir, "launch.bin")
-        try:
-            with open(cfg_path, "wb") as fh:
-                marshal.dump(cfg, fh)
-        except OSError as exc:
-            raise HarnessError(f"cannot write {cfg_path}: {exc.strerror or exc}") from None
-        slot = hold(self.slots, lambda: self._stopped)
-        if slot is None:
-            return Prediction(status="crash", message="interrupted")
-        try:
-            with self._lock:
-                if self._stopped:
-                    return Prediction(status="crash", message="interrupted")
-                try:
-                    with open(os.path.join(rundir, "launcher.log"), "wb") as log:
-                        # close_fds=False lets Python use posix_spawn (no fork of the
-                        # harness); its own descriptors are non-inheritable (PEP 446)
-                        proc = subprocess.Popen(
-                            [sys.executable, "-I", "-S", LAUNCHER, cfg_path],
-                            stdin=subprocess.DEVNULL, stdout=log, stderr=log, close_fds=False,
-                        )
-                except OSError as exc:
-                    raise HarnessError(f"cannot start a run's launcher: "
-                                       f"{exc.strerror or exc}") from None
-                self._live.add(proc)
-            launcher_hung = self._wait_launcher(proc)
-        finally:
-            slot.release()
-        try:
-            result = marshal.loads(Path(rundir, "result.bin").read_bytes())
-        except (OSError, ValueError, EOFError, TypeError):
-            if self._stopped:
-                return Prediction(status="crash", message="interrupted")
-            if launcher_hung:
-                return Prediction(status="timeout", message=(
-                    f"timed out after {lim.timeout_s:g} s; its launcher stopped answering and "
-                    "was killed"), latency_ms=(lim.timeout_s + LAUNCHER_GRACE_S) * 1e3)
-            try:
-                log_text = _decode(Path(rundir, "launcher.log").read_bytes()[-4000:])
-            except OSError:
-                log_text = ""
-            last = (log_text.strip().splitlines() or [""])[-1][:300]
-            raise HarnessError(
-                f"a run's launcher failed (status {proc.returncode}): {last}") from None
-        out = _decode(Path(rundir, "stdout").read_bytes())
-        err = _decode(Path(rundir, "stderr").read_bytes())
-        return self._interpret(result, out, err, work)
-
-    def _wait_launcher(self, proc: subprocess.Popen) -> bool:
-        """Wait for a cold run's launcher; ``True`` when it outlived the timeout and its grace
-        and was killed."""
-        try:
-            _wait(proc, self.limits.timeout_s + LAUNCHER_GRACE_S)
-            return False
-        except subprocess.TimeoutExpired:
-            proc.terminate()
-            try:
-                proc.wait(timeout=10)
-            except subprocess.TimeoutExpired:
-                proc.kill()
-                proc.wait()
-            return True
-        finally:
-            with self._lock:
-                self._live.discard(proc)
-
-    def _interpret(self, result: dict, stdout: str, stderr: str, workdir: str) -> Prediction:
-        """The run's :class:`Prediction` (:func:`.predictions.prediction_from_run`)."""
-        return prediction_from_run(result, stdout, stderr, workdir, output=self.output,
-                                   limits=self.limits, pids_cgroup=self._cgroup is not None)
+    def stop(self, pipe: CommandPipeline) -> None:
+        """Kill ``pipe``'s runs under way here."""
+        ...

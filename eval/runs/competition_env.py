@@ -3,15 +3,15 @@
 Task 1C scripts were written for (and graded with) numpy 1.26 and OpenCV 4.10; many call
 functions OpenCV 5 removed (``cv2.aruco.detectMarkers``). arenabench itself may run on newer
 releases, so ``arenabench check`` (by default) and ``eval``/``sweep`` ``--cmd`` (where the
-template names :data:`PLACEHOLDER`) run scripts with an interpreter of their own: a virtual
-environment holding exactly :data:`COMPETITION_PINS`, made once per base Python by this module
-into the user cache and reused afterwards::
+template names :data:`COMPETITION_PLACEHOLDER`) run scripts with an interpreter of their own: a
+virtual environment holding exactly :data:`COMPETITION_PINS`, made once per base Python by this
+module into the user cache and reused afterwards::
 
     competition_python(cache=None, progress=True, prog="arenabench check") -> Interpreter
 
 How it is made
 --------------
-- In ``<cache>/envs/`` (:func:`arenabench.eval.commands.check.cache_dir`), in a folder named after
+- In ``<cache>/envs/`` (:func:`arenabench.cachedir.cache_dir`), in a folder named after
   the base interpreter and the pins (:func:`env_folder`): ``python -m venv`` of the running
   Python, then its own ``pip install --only-binary :all:`` of the pins from the package index
   (pip's own settings apply: ``PIP_INDEX_URL``, ``PIP_FIND_LINKS``, a ``pip.conf``), then a
@@ -48,6 +48,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
+from arenabench.cachedir import cache_dir
 from arenabench.cmdtemplate import (
     COMPETITION_PYTHON,
     TemplateError,
@@ -98,9 +99,9 @@ COMPETITION_PINS: tuple[Pin, ...] = (
 )
 #: Stands for the competition environment's interpreter in ``check --python`` and in the
 #: ``--cmd`` templates of ``eval`` and ``sweep``.
-PLACEHOLDER = "{" + COMPETITION_PYTHON + "}"
+COMPETITION_PLACEHOLDER = "{" + COMPETITION_PYTHON + "}"
 #: Stands for the Python running arenabench (the same commands; resolved by the run machinery).
-OWN_PLACEHOLDER = "{python}"
+OWN_PYTHON_PLACEHOLDER = "{python}"
 #: The record of what was made, in the environment's folder.
 RECORD_FILE = "arenabench-env.json"
 RECORD_SCHEMA = "arenabench.competition-env/1"
@@ -226,21 +227,22 @@ def own_versions() -> dict[str, str]:
 # ----------------------------------------------------------------------------- templates
 
 
-def uses_placeholder(template: str) -> bool:
-    """Whether a ``--cmd`` template names :data:`PLACEHOLDER` (an escaped ``{{...}}`` does
-    not)."""
+def uses_competition_python(template: str) -> bool:
+    """Whether a ``--cmd`` template names :data:`COMPETITION_PLACEHOLDER` (an escaped
+    ``{{...}}`` does not)."""
     try:
         return any(COMPETITION_PYTHON in placeholders(a) for a in shlex.split(template))
     except (ValueError, TemplateError):  # the command's own check names the problem
         return False
 
 
-def substitute(template: str, executable: str) -> str:
-    """``template`` with :data:`PLACEHOLDER` replaced by ``executable`` (a path, literal text;
-    or :data:`OWN_PLACEHOLDER`, which stays a placeholder), argument by argument (a path with
-    spaces stays one argument; the other placeholders stay for the runs). A template that
-    cannot be split is returned as it is (the run machinery names that problem)."""
-    text = executable if executable == OWN_PLACEHOLDER else escape(executable)
+def substitute_competition_python(template: str, executable: str) -> str:
+    """``template`` with :data:`COMPETITION_PLACEHOLDER` replaced by ``executable`` (a path,
+    literal text; or :data:`OWN_PYTHON_PLACEHOLDER`, which stays a placeholder), argument by
+    argument (a path with spaces stays one argument; the other placeholders stay for the
+    runs). A template that cannot be split is returned as it is (the run machinery names that
+    problem)."""
+    text = executable if executable == OWN_PYTHON_PLACEHOLDER else escape(executable)
     try:
         argv = shlex.split(template)
         return shlex.join(replace_placeholder(a, COMPETITION_PYTHON, text) for a in argv)
@@ -248,19 +250,20 @@ def substitute(template: str, executable: str) -> str:
         return template
 
 
-def resolve_placeholder(templates: list[str], *, progress: bool,
-                        prog: str) -> tuple[list[str], Interpreter | None]:
-    """``templates`` with :data:`PLACEHOLDER` replaced by the competition environment's
-    interpreter (made first when it is missing; arenabench's own where it cannot be made), and
-    that interpreter (``None``, and the templates unchanged, when none names it). One line on
-    stderr names the interpreter and its versions."""
-    if not any(uses_placeholder(t) for t in templates):
+def resolve_competition_python(templates: list[str], *, progress: bool,
+                               prog: str) -> tuple[list[str], Interpreter | None]:
+    """``templates`` with :data:`COMPETITION_PLACEHOLDER` replaced by the competition
+    environment's interpreter (made first when it is missing; arenabench's own where it cannot
+    be made), and that interpreter (``None``, and the templates unchanged, when none names
+    it). One line on stderr names the interpreter and its versions."""
+    if not any(uses_competition_python(t) for t in templates):
         return list(templates), None
     interp = competition_python(progress=progress, prog=prog)
     if interp.source == "competition":  # a fallback's warning line said it all
-        print(f"{prog}: {PLACEHOLDER} is {interp.executable} ({interp.describe_versions()}, "
-              "the competition's environment)", file=sys.stderr, flush=True)
-    return [substitute(t, interp.executable) for t in templates], interp
+        print(f"{prog}: {COMPETITION_PLACEHOLDER} is {interp.executable} "
+              f"({interp.describe_versions()}, the competition's environment)",
+              file=sys.stderr, flush=True)
+    return [substitute_competition_python(t, interp.executable) for t in templates], interp
 
 
 # ----------------------------------------------------------------------------- the cache
@@ -274,8 +277,6 @@ def env_folder(cache: str | os.PathLike[str] | None = None) -> Path:
     """Where the competition environment of this base Python lives:
     ``<cache>/envs/competition-<cache tag>-<hash of the base interpreter and the pins>``."""
     if cache is None:
-        from arenabench.eval.commands.check import cache_dir
-
         cache = cache_dir()
     from arenabench.fileio import dumps_json
 
@@ -329,7 +330,7 @@ def competition_python(
     Parameters
     ----------
     cache : path-like, optional, keyword-only
-        The cache folder (default: :func:`arenabench.eval.commands.check.cache_dir`).
+        The cache folder (default: :func:`arenabench.cachedir.cache_dir`).
     progress : bool, keyword-only
         Show pip's steps while it is made (a first and a last line are always shown).
     prog : str, keyword-only

@@ -14,13 +14,23 @@ from __future__ import annotations
 
 import multiprocessing
 import os
+import signal
 import threading
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from arenabench.aruco import aruco_dictionary
+from arenabench.eval.pipelines import CallablePipeline
+from arenabench.eval.scoring.answers import not_a_mapping, short_repr
 from arenabench.eval.scoring.results import Prediction
+from arenabench.frame import COMPETITION_DICTIONARY, COMPETITION_MARKER_IDS, CORNER_ORDER
+from arenabench.interrupts import children_ignore_sigint
+from arenabench.workers import init_worker
+
+from . import proctools
+from .sandbox import pids_cgroup_parent
 
 #: Seconds a child may take to start and import the pipeline's module.
 START_TIMEOUT_S = 120.0
@@ -37,11 +47,9 @@ def trial_image() -> Any:
     import cv2
     import numpy as np
 
-    from arenabench.frame import COMPETITION_DICTIONARY, COMPETITION_MARKER_IDS, CORNER_ORDER
-
     side, m, pad = TRIAL_SIDE_PX, TRIAL_MARKER_PX, 8
     image = np.full((side, side, 3), 170, np.uint8)
-    dictionary = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, COMPETITION_DICTIONARY))
+    dictionary = aruco_dictionary(COMPETITION_DICTIONARY)
     far = side - m - 2 * pad
     corners = {"nw": (0, 0), "ne": (far, 0), "se": (far, far), "sw": (0, far)}
     for corner in CORNER_ORDER:
@@ -57,10 +65,8 @@ def trial_image() -> Any:
 def trial_call(func: Any) -> tuple[str, str]:
     """Call ``func`` on :func:`trial_image` (in an isolated child): ``("refused", why)`` when
     it cannot be a pipeline (it refuses an image with a ``TypeError``, or returns what no
-    pipeline returns: :func:`~arenabench.eval.runs.predictions.not_a_mapping`), else
+    pipeline returns: :func:`~arenabench.eval.scoring.answers.not_a_mapping`), else
     ``("ok", "")`` (its other failures are scored per image)."""
-    from .predictions import _short, not_a_mapping
-
     try:
         result = func(trial_image())
     except TypeError as exc:
@@ -68,7 +74,7 @@ def trial_call(func: Any) -> tuple[str, str]:
     except BaseException:  # its own failure on this image: scored per image
         return "ok", ""
     if not_a_mapping(result):
-        return "refused", (f"returned {type(result).__name__} {_short(result)} for an image, "
+        return "refused", (f"returned {type(result).__name__} {short_repr(result)} for an image, "
                            "not a result (a mapping, or an object with count and area "
                            "attributes)")
     return "ok", ""
@@ -80,12 +86,8 @@ def _serve(conn: Any, spec: str, parent_pid: int, cgroup_parent: str | None) -> 
     It is a child subreaper, in a pids cgroup of its own where one can be made
     (:func:`_hold_descendants`): whatever process the function starts (``setsid``, a double
     fork) stays where :meth:`IsolatedCallablePipeline.close` finds and kills it."""
-    from arenabench.workers import init_worker
-
     init_worker(parent_pid=parent_pid)
     _hold_descendants(cgroup_parent)
-    from arenabench.eval.pipelines import CallablePipeline
-
     try:
         pipe = CallablePipeline(spec)
     except BaseException as exc:
@@ -114,31 +116,25 @@ def _serve(conn: Any, spec: str, parent_pid: int, cgroup_parent: str | None) -> 
 
 def _hold_descendants(cgroup_parent: str | None) -> None:
     """Make this process a child subreaper and, under ``cgroup_parent``, move it into a pids
-    cgroup of its own (:func:`arenabench.eval.runs.launcher.cgroup_path` of its pid: named as a
+    cgroup of its own (:func:`arenabench.eval.runs.proctools.cgroup_path` of its pid: named as a
     run's, so a later command's sweep removes it if this harness is killed)."""
-    from . import launcher
-
-    launcher._LIBC.prctl(launcher.PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+    proctools.LIBC.prctl(proctools.PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
     if cgroup_parent:
-        launcher.enter_cgroup(cgroup_parent)
+        proctools.enter_cgroup(cgroup_parent)
 
 
 def _end_tree(pid: int, cgroup_parent: str | None) -> None:
     """SIGKILL what child ``pid`` started (its descendants, and its cgroup's processes) and
     remove its cgroup; the child itself is ended by its caller."""
-    import signal
-
-    from . import launcher
-
-    for other in launcher.descendants(pid):
+    for other in proctools.descendants(pid):
         try:
             os.kill(other, signal.SIGKILL)
         except OSError:
             pass
     if cgroup_parent:
-        group = launcher.cgroup_path(cgroup_parent, pid)
+        group = proctools.cgroup_path(cgroup_parent, pid)
         if os.path.isdir(group):
-            for other in launcher._cgroup_pids(group):
+            for other in proctools.cgroup_pids(group):
                 if other != pid:
                     try:
                         os.kill(other, signal.SIGKILL)
@@ -148,9 +144,7 @@ def _end_tree(pid: int, cgroup_parent: str | None) -> None:
 
 def _remove_group(pid: int, cgroup_parent: str | None) -> None:
     if cgroup_parent:
-        from . import launcher
-
-        launcher.kill_cgroup_tree(launcher.cgroup_path(cgroup_parent, pid))
+        proctools.kill_cgroup_tree(proctools.cgroup_path(cgroup_parent, pid))
 
 
 @dataclass(eq=False)
@@ -173,18 +167,15 @@ class IsolatedCallablePipeline:
 
     spec: str
     timeout_s: float = 60.0
-    in_process: bool = field(default=True, init=False)
+    #: Runs in child processes of its own (never in a process pool's workers).
+    in_process: bool = field(default=False, init=False)
 
     def __post_init__(self) -> None:
-        from arenabench.eval.pipelines import CallablePipeline
-
         self.name = CallablePipeline(self.spec).name  # import errors: one line, now
         self._local = threading.local()
         self._lock = threading.Lock()
         self._children: set[_Child] = set()
         self._stopped = False
-        from .sandbox import pids_cgroup_parent
-
         self._cgroup = pids_cgroup_parent()
         self._spare: _Child | None = None  # the trial's child, for the first image
 
@@ -212,8 +203,6 @@ class IsolatedCallablePipeline:
         return None
 
     def _start(self) -> _Child:
-        from arenabench.interrupts import children_ignore_sigint
-
         ctx = multiprocessing.get_context("spawn")
         ours, theirs = ctx.Pipe()
         with children_ignore_sigint():
@@ -287,6 +276,10 @@ class IsolatedCallablePipeline:
             return Prediction(status="crash", latency_ms=(time.perf_counter() - start) * 1e3,
                               message=f"the pipeline ended its process ({why}; os._exit or a "
                                       "fatal error)")
+
+    def threads(self, workers: int) -> int:
+        """One thread (and child process) per worker."""
+        return workers
 
     def stop(self) -> None:
         """Kill every child (an interrupted run)."""

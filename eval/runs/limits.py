@@ -61,7 +61,7 @@ class RunLimits:
         Bytes of stdout and of stderr kept (the tail); more is discarded, not held in memory.
     disk_bytes : int
         What a run may write in all (its working folder, ``/tmp`` and ``/dev/shm``: one tmpfs
-        of this size, under bubblewrap; :func:`arenabench.eval.runs.launcher.mount_box`).
+        of this size, under bubblewrap; :func:`arenabench.eval.runs.proctools.mount_box`).
     """
 
     timeout_s: float = DEFAULT_TIMEOUT_S

@@ -1,34 +1,27 @@
 """Removing finished runs' private folders off the run path.
 
 A worker that has read a run's results (``obstacles.txt``, stdout, stderr, the launcher's
-result) hands the run's folder to :func:`remove_later` and goes on with its next image; one
-daemon thread removes the folders in the order they came. Measured in a warm grade (6 teams x
-200 images, 2 workers on 2 cores), removing a folder inline took 1.6 ms median and 3.2 ms mean
-of a worker's time, mostly waiting for a core or the GIL, not working (0.6 ms of CPU), and
-that worker had no run going meanwhile (docs/warm-interpreter.md, "Run folders removed off the
-run path").
+result) hands the run's folder to :meth:`FolderRemover.remove_later` and goes on with its next
+image; one thread of the remover removes the folders in the order they came. What it buys is
+measured in docs/measurements.md ("Run folders removed off the run path").
 
 Rules:
 
+- one remover per :class:`~arenabench.eval.runs.context.RunContext` (so per evaluation, grade,
+  check or sweep worker); it starts its thread on first use and stops it in :meth:`close`,
+  which returns once every folder handed over is removed: nothing is left that a caller could
+  see, and nothing outlives the context (a later folder starts the thread again);
 - at most :data:`MAX_PENDING` folders wait; beyond that the caller removes its folder itself,
-  so that the disk a run may fill (``--max-file-size``, per file) stays bounded;
-- in a process that :mod:`multiprocessing` started (the workers of ``sweep``, of ``eval
-  --executor process``, of a Dask cluster) the caller removes its folder itself: such a
-  worker leaves with ``os._exit``, which runs no exit hook;
-- :func:`wait_removed` returns when every folder handed over so far is gone;
-  :meth:`CommandPipeline.close` (so ``evaluate``), ``grade``'s runs and
-  :func:`.warm_client.close_all` call it before they return, and it runs at interpreter exit,
-  so nothing is left behind that a caller could see;
-- a folder that cannot be removed is left as ``shutil.rmtree(..., ignore_errors=True)``
-  leaves it: the next command's sweep (:mod:`.stale_runs`) removes it once this process is
-  gone.
+  so that the disk the waiting folders take stays bounded;
+- in a process that :mod:`multiprocessing` started (the workers of ``sweep`` and of a Dask
+  cluster, which may leave with ``os._exit``) the caller removes its folder itself;
+- a folder that cannot be removed is left as ``shutil.rmtree(..., ignore_errors=True)`` leaves
+  it: the next command's sweep (:mod:`.stale`) removes it once this process is gone.
 """
 
 from __future__ import annotations
 
-import atexit
 import multiprocessing
-import os
 import shutil
 import threading
 from collections import deque
@@ -36,67 +29,77 @@ from collections import deque
 #: Folders that may wait for removal at once (beyond this a caller removes its own).
 MAX_PENDING = 16
 
-_cond = threading.Condition()
-_queue: deque[str] = deque()
-_busy = 0  # folders handed over and not yet removed (queued or being removed)
-_thread: threading.Thread | None = None
 
+class FolderRemover:
+    """Removes folders handed to it in a thread of its own (see the module docstring)."""
 
-def _remover() -> None:
-    global _busy
-    while True:
-        with _cond:
-            while not _queue:
-                _cond.wait()
-            path = _queue.popleft()
-        try:
-            shutil.rmtree(path, ignore_errors=True)
-        finally:
-            with _cond:
-                _busy -= 1
-                _cond.notify_all()
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._queue: deque[str | None] = deque()
+        self._busy = 0  # folders handed over and not yet removed (queued or being removed)
+        self._thread: threading.Thread | None = None
 
+    @property
+    def pending(self) -> int:
+        """Folders handed over and not yet removed."""
+        with self._cond:
+            return self._busy
 
-def remove_later(path: str) -> None:
-    """Remove the folder ``path`` (and what it holds) soon, in the remover thread; at once, in
-    this thread, when :data:`MAX_PENDING` folders are already waiting or in a process that
-    :mod:`multiprocessing` started."""
-    global _busy
-    with _cond:
-        if _busy < MAX_PENDING and multiprocessing.parent_process() is None and _running():
-            _busy += 1
-            _queue.append(path)
-            _cond.notify_all()
-            return
-    shutil.rmtree(path, ignore_errors=True)
+    def _loop(self) -> None:
+        while True:
+            with self._cond:
+                while not self._queue:
+                    self._cond.wait()
+                path = self._queue.popleft()
+            if path is None:  # close(): every folder before it is removed
+                return
+            try:
+                shutil.rmtree(path, ignore_errors=True)
+            finally:
+                with self._cond:
+                    self._busy -= 1
+                    self._cond.notify_all()
 
+    def remove_later(self, path: str) -> None:
+        """Remove the folder ``path`` (and what it holds) soon, in the remover's thread; at
+        once, in this thread, when :data:`MAX_PENDING` folders are already waiting
+        or in a process that :mod:`multiprocessing` started."""
+        with self._cond:
+            if (self._busy < MAX_PENDING and multiprocessing.parent_process() is None
+                    and self._running()):
+                self._busy += 1
+                self._queue.append(path)
+                self._cond.notify_all()
+                return
+        shutil.rmtree(path, ignore_errors=True)
 
-def _running() -> bool:
-    # the remover thread, started on first use (with _cond held); False when no thread can
-    # start (the interpreter is shutting down): the caller then removes its folder itself
-    global _thread
-    if _thread is None or not _thread.is_alive():
-        thread = threading.Thread(target=_remover, name="arenabench-remover", daemon=True)
-        try:
-            thread.start()
-        except RuntimeError:
-            return False
-        _thread = thread
-    return True
+    def _running(self) -> bool:
+        # the thread, started on first use (with the condition held); False when no thread
+        # can start (the interpreter is shutting down): the caller then removes its folder
+        if self._thread is None or not self._thread.is_alive():
+            thread = threading.Thread(target=self._loop, name="arenabench-remover", daemon=True)
+            try:
+                thread.start()
+            except RuntimeError:
+                return False
+            self._thread = thread
+        return True
 
+    def wait(self, timeout: float | None = None) -> bool:
+        """Wait until every folder handed over so far is removed; whether they all are
+        (false only when ``timeout`` seconds passed first)."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self._busy == 0, timeout)
 
-def wait_removed(timeout: float | None = None) -> bool:
-    """Wait until every folder handed to :func:`remove_later` so far is removed; returns
-    whether they all are (false only when ``timeout`` seconds passed first)."""
-    with _cond:
-        return _cond.wait_for(lambda: _busy == 0, timeout)
-
-
-def _after_fork_in_child() -> None:
-    # a forked child removes none of its parent's folders, and holds none of its locks
-    global _cond, _queue, _busy, _thread
-    _cond, _queue, _busy, _thread = threading.Condition(), deque(), 0, None
-
-
-os.register_at_fork(after_in_child=_after_fork_in_child)
-atexit.register(wait_removed, 30.0)
+    def close(self, timeout: float | None = None) -> bool:
+        """Remove every folder handed over (waiting for them), then end the thread (a later
+        folder starts it again). Whether every folder is removed."""
+        done = self.wait(timeout)
+        with self._cond:
+            thread, self._thread = self._thread, None
+            if thread is not None:
+                self._queue.append(None)
+                self._cond.notify_all()
+        if thread is not None and done and thread is not threading.current_thread():
+            thread.join(timeout)
+        return done

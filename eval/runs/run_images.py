@@ -26,12 +26,12 @@ for a PNG of that size (inflated in full); a run that leaves no image costs a di
 
 from __future__ import annotations
 
-import base64
 import os
-from dataclasses import dataclass
+from dataclasses import replace
 from pathlib import Path
-from typing import Any
 
+from arenabench.competition import OutputFormatError
+from arenabench.eval.scoring.results import RunImage
 from arenabench.limits import (
     MAX_IMAGE_SIDE_PX,
     MAX_RUN_IMAGE_BYTES,
@@ -40,6 +40,8 @@ from arenabench.limits import (
     MAX_RUN_IMAGES,
     RUN_IMAGE_THUMB_PX,
 )
+
+from .outputs import read_small
 
 #: File name endings looked at (compared in lower case).
 RUN_IMAGE_SUFFIXES: tuple[str, ...] = (".png", ".jpg", ".jpeg")
@@ -50,42 +52,6 @@ INPUT_COPY_NAMES: frozenset[str] = frozenset("image" + s for s in RUN_IMAGE_SUFF
 THUMB_JPEG_QUALITY = 80
 #: Longest file name kept (characters; longer ones are cut with an ellipsis).
 MAX_NAME_CHARS = 80
-
-
-@dataclass(frozen=True)
-class RunImage:
-    """A thumbnail of one image a run left in its working directory.
-
-    Attributes
-    ----------
-    name : str
-        Its file name (printable, at most :data:`MAX_NAME_CHARS` characters).
-    jpeg : bytes
-        The thumbnail, JPEG-encoded, at most :data:`~arenabench.limits.RUN_IMAGE_THUMB_PX` px
-        on its longer side.
-    width, height : int
-        The size of the image the run wrote, px.
-    """
-
-    name: str
-    jpeg: bytes
-    width: int
-    height: int
-
-    def data_uri(self) -> str:
-        """The thumbnail as a ``data:image/jpeg;base64,...`` URI (for a self-contained page)."""
-        return "data:image/jpeg;base64," + base64.b64encode(self.jpeg).decode("ascii")
-
-    def to_json(self) -> dict[str, Any]:
-        """JSON form (a big run's temporary result file keeps thumbnails this way)."""
-        return {"name": self.name, "jpeg": base64.b64encode(self.jpeg).decode("ascii"),
-                "width": self.width, "height": self.height}
-
-    @classmethod
-    def from_json(cls, d: dict[str, Any]) -> RunImage:
-        """Inverse of :meth:`to_json`."""
-        return cls(name=str(d["name"]), jpeg=base64.b64decode(d["jpeg"]),
-                   width=int(d["width"]), height=int(d["height"]))
 
 
 def _printable(name: str) -> str:
@@ -199,12 +165,6 @@ def thumbnail_jpeg(data: bytes) -> RunImage | None:
 def collect_run_images(workdir: str | os.PathLike[str]) -> tuple[RunImage, ...]:
     """Thumbnails of the images a finished run left in ``workdir`` (see the module docstring
     for what is looked at and the bounds); empty when there are none."""
-    from dataclasses import replace
-
-    from arenabench.competition import OutputFormatError
-
-    from .predictions import read_small
-
     kept: list[RunImage] = []
     for name in _candidates(os.fspath(workdir)):
         if len(kept) >= MAX_RUN_IMAGES:

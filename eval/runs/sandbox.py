@@ -1,6 +1,6 @@
 """Containing an external command's run: bubblewrap, the pids cgroup, the resource limits.
 
-Used by :class:`~arenabench.eval.runs.command.CommandPipeline` (cold runs) and
+Used by :class:`~arenabench.eval.runs.pipeline.CommandPipeline` (cold runs) and
 :mod:`arenabench.eval.runs.warm_client` (warm servers and their runs); it starts no command itself.
 
 Sandbox (``RunSettings.sandbox``)
@@ -27,7 +27,7 @@ Limits
 the cgroup file system is writable (else ``RLIMIT_NPROC``, which the kernel does not enforce
 for root) for the number of processes, the timeout. The launcher
 (:mod:`arenabench.eval.runs.launcher`, standard library only) applies them from the fields
-:func:`launch_limits` gives.
+:class:`~.proctools.LaunchConfig` carries.
 """
 
 from __future__ import annotations
@@ -39,8 +39,6 @@ import sys
 import threading
 from functools import lru_cache
 from pathlib import Path
-
-from .limits import RunLimits
 
 #: Where the private directory appears inside the bubblewrap sandbox.
 SANDBOX_DIR = "/sandbox"
@@ -167,31 +165,6 @@ def warn_if_procs_unlimited(cgroup: str | None, *, max_procs: int) -> None:
                   "enforced for external commands")
 
 
-def launch_limits(limits: RunLimits, *, cgroup_parent: str | None, sandboxed: bool,
-                  pids_max: int) -> dict[str, object]:
-    """The launcher's limit fields for one run (merged into its ``launch.bin``).
-
-    Parameters
-    ----------
-    limits : RunLimits
-        The run's limits.
-    cgroup_parent : str or None, keyword-only
-        Where the run's pids cgroup is made (``None``: ``RLIMIT_NPROC`` instead, except for
-        root, whom it does not bind).
-    sandboxed : bool, keyword-only
-        Whether the command runs under bubblewrap.
-    pids_max : int, keyword-only
-        The cgroup's ``pids.max`` (the command's processes plus any of the sandbox's own).
-    """
-    return {
-        "timeout_s": limits.timeout_s, "memory_bytes": limits.memory_bytes,
-        "max_file_size": limits.max_file_size, "max_output": limits.max_output,
-        "max_procs": limits.max_procs, "pids_max": pids_max,
-        "cgroup_parent": cgroup_parent, "sandboxed": sandboxed,
-        "nproc_rlimit": cgroup_parent is None and os.getuid() != 0,
-    }  # fmt: skip
-
-
 def dataset_folders(image_dir: Path) -> list[Path]:
     """The folders from ``image_dir``'s parent up to the dataset root that holds it (the
     nearest one with ``manifest.jsonl`` or ``dataset.json``); empty when there is none."""
@@ -249,7 +222,7 @@ def bwrap_argv(work: str, tmp: str, shm: str, image_path: Path, visible: list[st
     work, tmp, shm : str
         The run's private directory (bound at :data:`SANDBOX_DIR`, the command's cwd), its
         ``/tmp`` and its ``/dev/shm`` (the rest of ``/dev`` is read-only): the folders of its
-        box (:func:`arenabench.eval.runs.launcher.mount_box`), the only places it can write.
+        box (:func:`arenabench.eval.runs.proctools.mount_box`), the only places it can write.
     image_path : Path
         The dataset image: its folder and every folder up to the dataset's root are hidden
         under an empty tmpfs where they lie inside a visible folder.

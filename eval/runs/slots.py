@@ -39,6 +39,7 @@ class RunSlots:
         self.n = n
         self._cond = threading.Condition()
         self._free = n
+        self._waiting = 0
 
     def take(self, stopped: Callable[[], bool]) -> bool:
         """Wait for a free slot and take it; ``False`` (nothing taken) once ``stopped()``."""
@@ -47,7 +48,11 @@ class RunSlots:
                 if self._free:
                     self._free -= 1
                     return True
-                self._cond.wait()
+                self._waiting += 1
+                try:
+                    self._cond.wait()
+                finally:
+                    self._waiting -= 1
             return False
 
     def give(self) -> None:
@@ -62,6 +67,12 @@ class RunSlots:
         """Wake every waiting thread (to see that its pipeline was stopped)."""
         with self._cond:
             self._cond.notify_all()
+
+    @property
+    def waiting(self) -> int:
+        """Threads now waiting in :meth:`take` for a slot."""
+        with self._cond:
+            return self._waiting
 
     @property
     def free(self) -> int:

@@ -122,6 +122,6 @@ def _remove_cgroup(group: Path) -> bool:
     """SIGKILL what is left in ``group`` and in the cgroups under it (orphans of a dead
     launcher or warm server; not our children, so never reaped here) and remove them, deepest
     first; ``False`` when one stays."""
-    from .launcher import kill_cgroup_tree
+    from .proctools import kill_cgroup_tree
 
     return group.exists() and kill_cgroup_tree(str(group))

@@ -8,23 +8,23 @@ command (:mod:`arenabench.eval.runs.warm_server`), started inside the same sandb
 The server imports numpy and cv2 once; each image is a process forked from it that becomes
 the run (see the server's docstring). What a script can tell: ``docs/warm-interpreter.md``.
 
-Interface (used by :class:`~arenabench.eval.runs.command.CommandPipeline`)::
+Interface: :func:`warm_target` (is a command a Python script?) and :class:`WarmServers`, the
+warm servers of one :class:`~arenabench.eval.runs.context.RunContext` and a
+:class:`~arenabench.eval.runs.command.Runner` of its pipelines::
 
-    warm_target(argv) -> WarmTarget | None     # is the (resolved) command a Python script?
-    run_warm(pipe, target, image_path) -> Prediction | None   # None: run it cold
-    stop_warm(pipe)                            # kill the pipeline's running warm runs
-    close_warm(pipe)                           # end the pipeline's idle servers
-    close_all()                                # end every server (also at exit)
+    servers.run(pipe, image_path) -> Prediction | None   # None: the image runs cold
+    servers.stop(pipe)                                   # kill the pipeline's warm runs
+    servers.close_idle(command)                          # end a command's idle servers
+    servers.close()                                      # end every server (the context's end)
 
-Servers are shared by every pipeline with the same command, settings, folder and dataset
-folder (``grade`` makes a pipeline per image); at most :data:`MAX_IDLE_SERVERS` idle ones
-are kept. A server that cannot start, or whose runs cannot get their private namespaces,
-makes that command run cold, with one warning line.
+Servers are shared by every pipeline of the context with the same command, settings, folder
+and dataset folder (``grade`` makes a pipeline per image); at most :data:`MAX_IDLE_SERVERS`
+idle ones are kept. A server that cannot start, or whose runs cannot get their private
+namespaces, makes that command run cold, with one warning line.
 """
 
 from __future__ import annotations
 
-import atexit
 import itertools
 import marshal
 import os
@@ -44,14 +44,16 @@ from typing import TYPE_CHECKING
 
 from arenabench.eval.scoring.results import HarnessError, Prediction
 
-from .launcher import BOX_DIRS
-from .remover import remove_later, wait_removed
+from .proctools import BOX_DIRS, RUN_GRACE_S, WarmLaunch
+from .sandbox import SANDBOX_DIR, is_within, warn_once
 from .slots import Held, hold
 from .stale import WARM_PREFIX, warm_dir_prefix
 from .warm_server import recv_message, send_message
 
 if TYPE_CHECKING:
-    from .command import CommandPipeline
+    from .command import Command
+    from .context import RunContext
+    from .pipeline import CommandPipeline
 
 #: Where a server's folder of private run directories appears in the sandbox (hidden from runs).
 WARM_DIR = "/.arenabench-warm"
@@ -61,8 +63,6 @@ CGROUP_DIR = "/.arenabench-cgroup"
 MAX_IDLE_SERVERS = 4
 #: Seconds a server may take to import its modules and say it is ready.
 START_TIMEOUT_S = 120.0
-#: Seconds the harness waits for a run's end beyond the command's own timeout.
-RUN_GRACE_S = 30.0
 #: glibc tunables of the server process (inherited by its runs, as memory, not as environment).
 SERVER_MALLOC_TUNABLES = "glibc.malloc.hugetlb=1"
 #: Where glibc reads, at a process's start, whether transparent huge pages are left to
@@ -71,9 +71,11 @@ SERVER_MALLOC_TUNABLES = "glibc.malloc.hugetlb=1"
 THP_SETTINGS = "/sys/kernel/mm/transparent_hugepage"
 
 SERVER_SOURCE = Path(__file__).with_name("warm_server.py")
-LAUNCHER_SOURCE = Path(__file__).with_name("launcher.py")
 WARM_UP_SOURCE = Path(__file__).with_name("warm_up.py")
-_PYTHON_NAME = re.compile(r"python(\d+(\.\d+)*)?")
+#: The stand-alone modules the server loads from source (in this order).
+SERVER_MODULES = ("proctools", "launcher", "warm_up")
+#: What a Python interpreter's file is called (``python``, ``python3``, ``python3.12``).
+PYTHON_NAME = re.compile(r"python(\d+(\.\d+)*)?")
 _MODULE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
 KEEPER = str(Path(__file__).with_name("warm_keeper.py"))
 
@@ -92,7 +94,7 @@ def warm_target(argv: list[str]) -> WarmTarget | None:
     ``PYTHON FILE.py ...`` or ``PYTHON -m MODULE ...``."""
     if len(argv) < 2:
         return None
-    if argv[0] != "{python}" and not _PYTHON_NAME.fullmatch(os.path.basename(argv[0])):
+    if argv[0] != "{python}" and not PYTHON_NAME.fullmatch(os.path.basename(argv[0])):
         return None
     if argv[1] == "-m" and len(argv) > 2 and _MODULE_NAME.fullmatch(argv[2]):
         return WarmTarget(module=argv[2])
@@ -104,6 +106,8 @@ def warm_target(argv: list[str]) -> WarmTarget | None:
 
 
 class _Waiter:
+    """One warm run waited for: its end, its exit status, its run slot."""
+
     def __init__(self, pipe: CommandPipeline) -> None:
         self.pipe = pipe
         self.done = threading.Event()
@@ -121,12 +125,25 @@ _counter = itertools.count()
 
 
 class WarmServer:
-    """One server process (in its sandbox) and the runs it has under way."""
+    """One server process (in its sandbox) and the runs it has under way.
 
-    def __init__(self, pipe: CommandPipeline, image_path: Path, target: WarmTarget) -> None:
-        self.target = target
-        self.isolate = pipe.sandbox == "bwrap"
-        self.home = tempfile.mkdtemp(prefix=warm_dir_prefix())  # names its owner: stale_runs
+    Parameters
+    ----------
+    command : Command
+        The command whose script it runs (``command.warm`` is set).
+    image_path : Path
+        The first image (its folder is hidden in the sandbox where it lies in a visible one).
+    context : RunContext
+        Its remover (the runs' folders) and run slots.
+    """
+
+    def __init__(self, command: Command, image_path: Path, context: RunContext) -> None:
+        assert command.warm is not None
+        self.command = command
+        self.target = command.warm
+        self.context = context
+        self.isolate = command.sandboxed
+        self.home = tempfile.mkdtemp(prefix=warm_dir_prefix())  # names its owner: stale
         self.cgroup: str | None = None
         self.keep: list[str] = []
         self._lock = threading.Lock()
@@ -135,26 +152,28 @@ class WarmServer:
         self.proc: subprocess.Popen | None = None
         self.sock: socket.socket | None = None
         try:
-            self._start(pipe, image_path)
+            self._start(image_path)
         except BaseException:
             self.close()
             raise
 
-    def _start(self, pipe: CommandPipeline, image_path: Path) -> None:
+    def _start(self, image_path: Path) -> None:
+        command = self.command
         base_work, base_tmp = os.path.join(self.home, "work"), os.path.join(self.home, "tmp")
         for name in BOX_DIRS:  # the server's own folders (each run mounts its box over them)
             os.mkdir(os.path.join(self.home, name))
-        python = pipe._executable or sys.executable
+        python = command.executable or sys.executable
         ours, theirs = socket.socketpair()
         self.sock = ours
         # the folder on its command line names the server in ps (and in the tests)
         server = [python, "-c", SERVER_SOURCE.read_text(), str(theirs.fileno()), self.home]
         if self.isolate:
-            if pipe._cgroup:
-                cg = os.path.join(pipe._cgroup, f"{WARM_PREFIX}{os.getpid()}-{next(_counter)}")
+            if command.cgroup_parent:
+                cg = os.path.join(command.cgroup_parent,
+                                  f"{WARM_PREFIX}{os.getpid()}-{next(_counter)}")
                 os.mkdir(cg)
                 self.cgroup = cg
-            argv = pipe._bwrap_argv(self.home, image_path)
+            argv = command.bwrap_argv(self.home, image_path)
             extra = ["--bind", self.home, WARM_DIR]
             # read by the server's glibc at its start only; hidden from the runs again
             extra += ["--ro-bind-try", THP_SETTINGS, THP_SETTINGS]
@@ -162,11 +181,9 @@ class WarmServer:
                 extra += ["--bind", self.cgroup, CGROUP_DIR]
             at = argv.index("--remount-ro")
             argv = argv[:at] + extra + argv[at:] + server
-            from .sandbox import SANDBOX_DIR
-
-            env = pipe._env(SANDBOX_DIR, "/tmp")
+            env = command.env(SANDBOX_DIR, "/tmp")
         else:
-            argv, env = server, pipe._env(base_work, base_tmp)
+            argv, env = server, command.env(base_work, base_tmp)
         # the server's malloc (and so every run's, a fork of it) backs its big blocks with
         # transparent huge pages where the kernel leaves them to madvise: a run's fresh
         # image buffers fault in 2 MiB at a time (the runs' environment does not name it)
@@ -182,23 +199,25 @@ class WarmServer:
         finally:
             log.close()
             theirs.close()
-        self.keep = [p for p in pipe._visible_paths() if p == "/tmp" or p.startswith("/tmp/")]
-        private = sorted({os.path.dirname(a) for a in pipe._resolved_args()
+        self.keep = [p for p in command.visible if p == "/tmp" or p.startswith("/tmp/")]
+        private = sorted({os.path.dirname(a) for a in command.args
                           if os.path.isabs(a) and os.path.isfile(a)})
+        here = Path(__file__).parent
         send_message(ours, {
             "parent_pid": 0 if self.isolate else self.proc.pid, "isolate": self.isolate,
-            "launcher_source": LAUNCHER_SOURCE.read_text(), "script": self.target.script,
-            "private_dirs": private, "warm_up_source": WARM_UP_SOURCE.read_text(),
+            "sources": {name: (here / f"{name}.py").read_text() for name in SERVER_MODULES},
+            "script": self.target.script, "private_dirs": private,
         })
         ours.settimeout(START_TIMEOUT_S)
         try:
             hello = recv_message(ours)
         except OSError as exc:
-            raise RuntimeError(f"the warm server did not start: {exc}") from None
+            hello = {"error": str(exc)}
         ours.settimeout(None)
         if not hello or not hello.get("ready"):
             log_tail = Path(self.home, "server.log").read_bytes()[-300:].decode(errors="replace")
-            raise RuntimeError(f"the warm server did not start: {log_tail.strip()}")
+            why = log_tail.strip().splitlines()[-1:] or [(hello or {}).get("error", "no answer")]
+            raise RuntimeError(f"the warm server did not start: {why[0]}")
         if hello.get("isolation"):
             raise RuntimeError(f"warm runs cannot get private namespaces here: "
                                f"{hello['isolation']}")
@@ -217,6 +236,7 @@ class WarmServer:
                     waiter = self._waiting.get(msg["id"])
                 if waiter is not None:
                     waiter.ended(msg["rc"])
+                del waiter  # held till the next message, it would keep its pipeline alive
         except (OSError, ValueError):
             pass
         with self._lock:
@@ -256,27 +276,25 @@ class WarmServer:
             except OSError as exc:
                 raise HarnessError(f"cannot make a run's folder in {rundir}: "
                                    f"{exc.strerror or exc}") from None
-            problem = pipe.fill_workdir(work, Path(image_path))
+            problem = pipe.command.fill_workdir(work, Path(image_path))
             if problem:
                 raise HarnessError(problem)
             return self._run_in(pipe, image_path, token, rundir, work, tmp)
         finally:
-            remove_later(rundir)  # the worker goes on with its next image meanwhile
+            self.context.remover.remove_later(rundir)  # the worker goes on meanwhile
 
     def _run_in(self, pipe: CommandPipeline, image_path: Path, token: str, rundir: str,
                 work: str, tmp: str) -> Prediction | None:
-        from .sandbox import SANDBOX_DIR
-
-        lim = pipe.limits
+        command = pipe.command
         if self.isolate:
             view = f"{WARM_DIR}/{token}"
-            cmd, env = pipe.argv(image_path), pipe._env(SANDBOX_DIR, "/tmp")
+            cmd, env = command.argv_for(image_path), command.env(SANDBOX_DIR, "/tmp")
             env["PWD"] = SANDBOX_DIR  # as bubblewrap's --chdir sets it
             cgroup_parent = CGROUP_DIR if self.cgroup else None
         else:
             view = rundir
-            cmd, env = pipe.argv(image_path, image_dir=work), pipe._env(work, tmp)
-            cgroup_parent = pipe._cgroup
+            cmd, env = command.argv_for(image_path, image_dir=work), command.env(work, tmp)
+            cgroup_parent = command.cgroup_parent
         t = self.target
         if t.module:
             target = {"module": t.module, "script": None, "argv": [t.module, *cmd[3:]],
@@ -284,35 +302,30 @@ class WarmServer:
         else:
             target = {"module": None, "script": t.script, "argv": cmd[1:],
                       "path0": os.path.dirname(os.path.realpath(t.script or ""))}
-        cfg = {
-            "exe": cmd[0], "argv": cmd, "env": env, "cwd": f"{view}/work", "rundir": view,
-            "timeout_s": lim.timeout_s, "memory_bytes": lim.memory_bytes,
-            "max_file_size": lim.max_file_size, "max_output": lim.max_output,
-            # the run's keeper (outside its PID namespace) is one more process of the cgroup
-            "max_procs": lim.max_procs, "pids_max": lim.max_procs + int(self.isolate),
-            "cgroup_parent": cgroup_parent, "sandboxed": self.isolate,
-            "box_bytes": lim.disk_bytes if self.isolate else None,
-            "image_name": pipe.image_name(image_path),
-            "nproc_rlimit": cgroup_parent is None and os.getuid() != 0, "parent_pid": 0,
-            "warm_isolate": self.isolate,
-            "warm_hide": [WARM_DIR] + ([CGROUP_DIR] if self.cgroup else []),
-            "warm_hide_if_there": [THP_SETTINGS],
-            "warm_keep": self.keep,
-        }  # fmt: skip
+        # the run's keeper (outside its PID namespace) is one more process of the cgroup
+        cfg = command.launch_config(
+            exe=cmd[0], argv=cmd, env=env, cwd=f"{view}/work", rundir=view,
+            image_path=image_path, cgroup_parent=cgroup_parent,
+            extra_procs=int(self.isolate), parent_pid=0,
+            warm=WarmLaunch(isolate=self.isolate,
+                            hide=[WARM_DIR] + ([CGROUP_DIR] if self.cgroup else []),
+                            hide_if_there=[THP_SETTINGS], keep=self.keep))
         waiter = _Waiter(pipe)
         with self._lock:
             if self.dead:
                 return None
             self._waiting[token] = waiter
+        lim = command.limits
         try:
-            if pipe._stopped:  # stopped before its waiter was there for stop() to find
+            if pipe.stopped:  # stopped before its waiter was there for stop() to find
                 return Prediction(status="crash", message="interrupted")
-            waiter.slot = hold(pipe.slots, lambda: pipe._stopped)
+            waiter.slot = hold(self.context.slots, lambda: pipe.stopped)
             if waiter.slot is None:
                 return Prediction(status="crash", message="interrupted")
             assert self.sock is not None
             try:
-                send_message(self.sock, {"op": "run", "id": token, "cfg": cfg, "target": target})
+                send_message(self.sock, {"op": "run", "id": token, "cfg": cfg.to_dict(),
+                                         "target": target})
             except OSError:  # the server has ended: the image runs cold
                 return None
             if not waiter.done.wait(lim.timeout_s + RUN_GRACE_S):
@@ -326,7 +339,7 @@ class WarmServer:
         try:
             result = marshal.loads(Path(rundir, "result.bin").read_bytes())
         except (OSError, ValueError, EOFError, TypeError):
-            if pipe._stopped:
+            if pipe.stopped:
                 return Prediction(status="crash", message="interrupted")
             # the server or the run's manager failed (the harness's code, out of the run's
             # reach): never the script's verdict; this server ends, the image runs cold
@@ -335,7 +348,7 @@ class WarmServer:
             return None
         out = Path(rundir, "stdout").read_bytes().decode("utf-8", errors="replace")
         err = Path(rundir, "stderr").read_bytes().decode("utf-8", errors="replace")
-        return pipe._interpret(result, out, err, work)
+        return command.interpret(result, out, err, work)
 
     def kill(self, token: str) -> None:
         """End one run (its manager kills its processes and removes its directory)."""
@@ -376,122 +389,141 @@ class WarmServer:
                 pass
 
 
-_registry_lock = threading.Lock()
-_servers: OrderedDict[tuple, WarmServer] = OrderedDict()
-_cold: set[tuple] = set()
-_start_locks: dict[tuple, threading.Lock] = {}
-
-
-#: The image-folder part of a server's key, by (command key, image folder as named): finding
-#: the sandbox's visible folders reads the interpreter's site-packages (milliseconds per run).
-_folder_parts: dict[tuple, str] = {}
+#: The image-folder parts of server keys kept per context (beyond this the cache starts again).
 _MAX_FOLDER_PARTS = 4096
 
 
-def _key(pipe: CommandPipeline, image_path: Path | None) -> tuple:
-    """Servers are shared by the same command, settings and folder; under bubblewrap also
-    by the image folder when it lies inside a visible folder (the sandbox hides it)."""
-    key = (pipe.template, pipe.base_dir, pipe.settings, pipe.sandbox, pipe._executable)
-    if image_path is None:
-        return key
-    named = (key, os.path.dirname(os.path.abspath(image_path)))
-    part = _folder_parts.get(named)
-    if part is None:
-        folder = str(Path(os.path.realpath(image_path)).parent)
-        from .sandbox import is_within
+class WarmServers:
+    """The warm servers of one :class:`~arenabench.eval.runs.context.RunContext`: a
+    :class:`~arenabench.eval.runs.command.Runner` of its Python-script pipelines (see the module
+    docstring)."""
 
-        hidden = pipe.sandbox == "bwrap" and any(is_within(folder, v)
-                                                  for v in pipe._visible_paths())
-        part = folder if hidden else ""
-        if len(_folder_parts) >= _MAX_FOLDER_PARTS:
-            _folder_parts.clear()
-        _folder_parts[named] = part
-    return (*key, part)
+    def __init__(self, context: RunContext) -> None:
+        self.context = context
+        self._lock = threading.Lock()
+        self._servers: OrderedDict[tuple, WarmServer] = OrderedDict()
+        self._cold: set[tuple] = set()
+        self._start_locks: dict[tuple, threading.Lock] = {}
+        #: the image-folder part of a server's key, by (command, image folder as named):
+        #: whether the folder lies in a visible one is found once
+        self._folder_parts: dict[tuple, str] = {}
+        self._generation = 0  # close() counts: a server started across a close() ends
 
+    def servers(self) -> list[WarmServer]:
+        """The servers running now (least recently used first)."""
+        with self._lock:
+            return [s for s in self._servers.values() if not s.dead]
 
-def _live(key: tuple) -> WarmServer | None:
-    """The key's running server (marked most recently used), with the registry lock held."""
-    server = _servers.get(key)
-    if server is None or server.dead:
-        return None
-    _servers.move_to_end(key)
-    return server
+    @staticmethod
+    def _command_key(command: Command) -> tuple:
+        return (command.template, command.base_dir, command.settings, command.sandbox,
+                command.executable)
 
+    def _key(self, command: Command, image_path: Path) -> tuple:
+        """Servers are shared by the same command, settings and folder; under bubblewrap also
+        by the image folder when it lies inside a visible folder (the sandbox hides it)."""
+        key = self._command_key(command)
+        named = (key, os.path.dirname(os.path.abspath(image_path)))
+        with self._lock:
+            part = self._folder_parts.get(named)
+        if part is None:
+            folder = str(Path(os.path.realpath(image_path)).parent)
+            hidden = command.sandboxed and any(is_within(folder, v) for v in command.visible)
+            part = folder if hidden else ""
+            with self._lock:
+                if len(self._folder_parts) >= _MAX_FOLDER_PARTS:
+                    self._folder_parts.clear()
+                self._folder_parts[named] = part
+        return (*key, part)
 
-def _server_for(pipe: CommandPipeline, target: WarmTarget, image_path: Path) -> WarmServer | None:
-    key = _key(pipe, image_path)
-    with _registry_lock:
-        if key in _cold:
+    def _live(self, key: tuple) -> WarmServer | None:
+        """The key's running server (marked most recently used), with the lock held."""
+        server = self._servers.get(key)
+        if server is None or server.dead:
             return None
-        server = _live(key)
-        if server is not None:
-            return server
-        start_lock = _start_locks.setdefault(key, threading.Lock())
-    # one start per key at a time; the runs of other servers go on meanwhile (grade: a
-    # team's server starts while the other worker finishes the team before)
-    with start_lock:
-        with _registry_lock:
-            if key in _cold:
+        self._servers.move_to_end(key)
+        return server
+
+    def server_for(self, pipe: CommandPipeline, image_path: Path) -> WarmServer | None:
+        """The running server of ``pipe``'s command for this image's folder, started when
+        there is none (``None``: the command runs cold, said once)."""
+        key = self._key(pipe.command, image_path)
+        with self._lock:
+            if key in self._cold:
                 return None
-            server = _live(key)
+            server = self._live(key)
             if server is not None:
                 return server
-            dead = _servers.pop(key, None)
-        if dead is not None:
-            dead.close()
-        try:
-            server = WarmServer(pipe, image_path, target)
-        except (OSError, RuntimeError, ValueError) as exc:
-            with _registry_lock:
-                _cold.add(key)
-            from .sandbox import warn_once
+            start_lock = self._start_locks.setdefault(key, threading.Lock())
+        # one start per key at a time; the runs of other servers go on meanwhile (grade: a
+        # team's server starts while the other worker finishes the team before)
+        with start_lock:
+            with self._lock:
+                if key in self._cold:
+                    return None
+                server = self._live(key)
+                if server is not None:
+                    return server
+                dead = self._servers.pop(key, None)
+                generation = self._generation
+            if dead is not None:
+                dead.close()
+            try:
+                server = WarmServer(pipe.command, image_path, self.context)
+            except (OSError, RuntimeError, ValueError) as exc:
+                with self._lock:
+                    self._cold.add(key)
+                warn_once(f"{exc}; {pipe.name!r} runs with one Python process per image")
+                return None
+            with self._lock:
+                if self._generation != generation:  # the context closed meanwhile
+                    ends = [server]
+                    server = None
+                else:
+                    self._servers[key] = server
+                    idle = [k for k, s in self._servers.items() if k != key and not s.busy]
+                    ends = [self._servers.pop(k)
+                            for k in idle[: max(0, len(self._servers) - MAX_IDLE_SERVERS)]]
+        for old in ends:
+            old.close()
+        return server
 
-            warn_once(f"{exc}; {pipe.name!r} runs with one Python process per image")
-            return None
-        with _registry_lock:
-            _servers[key] = server
-            idle = [k for k, s in _servers.items() if k != key and not s.busy]
-            ends = [_servers.pop(k) for k in idle[: max(0, len(_servers) - MAX_IDLE_SERVERS)]]
-    for old in ends:
-        old.close()
-    return server
+    def run(self, pipe: CommandPipeline, image_path: Path) -> Prediction | None:
+        """Run one image through the command's warm server; ``None`` when it must run cold
+        (no server, or the server failed the run: its next run starts a new one).
 
+        Raises
+        ------
+        HarnessError
+            When the run's folder cannot be made or filled.
+        """
+        server = self.server_for(pipe, image_path)
+        return None if server is None else server.run(pipe, image_path)
 
-def run_warm(pipe: CommandPipeline, target: WarmTarget, image_path: Path) -> Prediction | None:
-    """Run one image through the command's warm server; ``None`` when it must run cold (no
-    server, or the server failed the run: its next run starts a new one)."""
-    server = _server_for(pipe, target, image_path)
-    return None if server is None else server.run(pipe, image_path)
+    def stop(self, pipe: CommandPipeline) -> None:
+        """Kill ``pipe``'s running warm runs."""
+        with self._lock:
+            servers = list(self._servers.values())
+        for server in servers:
+            server.stop(pipe)
 
+    def close_idle(self, command: Command) -> None:
+        """End the idle servers of ``command`` (the end of an evaluation)."""
+        prefix = self._command_key(command)
+        with self._lock:
+            ends = [k for k, s in self._servers.items()
+                    if k[: len(prefix)] == prefix and not s.busy]
+            servers = [self._servers.pop(k) for k in ends]
+        for server in servers:
+            server.close()
 
-def stop_warm(pipe: CommandPipeline) -> None:
-    """Kill ``pipe``'s running warm runs."""
-    with _registry_lock:
-        servers = list(_servers.values())
-    for server in servers:
-        server.stop(pipe)
-
-
-def close_warm(pipe: CommandPipeline) -> None:
-    """End the idle warm servers of ``pipe``'s command (the end of an evaluation)."""
-    prefix = _key(pipe, None)
-    with _registry_lock:
-        ends = [k for k, s in _servers.items() if k[: len(prefix)] == prefix and not s.busy]
-        servers = [_servers.pop(k) for k in ends]
-    for server in servers:
-        server.close()
-
-
-def close_all() -> None:
-    """End every warm server (their runs are killed, their folders removed), once the folders
-    of finished runs are removed."""
-    wait_removed()
-    with _registry_lock:
-        servers = list(_servers.values())
-        _servers.clear()
-        _cold.clear()
-    for server in servers:
-        server.close()
-
-
-atexit.register(close_all)
+    def close(self) -> None:
+        """End every server (their runs are killed, their folders removed); a later run
+        starts its server again."""
+        with self._lock:
+            self._generation += 1
+            servers = list(self._servers.values())
+            self._servers.clear()
+            self._cold.clear()
+        for server in servers:
+            server.close()

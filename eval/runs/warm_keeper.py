@@ -7,7 +7,7 @@ harness), becomes a child subreaper, starts ``COMMAND`` (bubblewrap with the ser
 or the server itself with ``--sandbox none``) with ``PR_SET_PDEATHSIG`` = SIGKILL, and when
 the command ends or the harness dies: kills it and every process left under it, then removes
 the server's folder ``HOME`` and its pids cgroup ``CGROUP`` (``-`` for none) with the runs'
-cgroups in it, killing any process still in one (:func:`launcher.kill_cgroup_tree`).
+cgroups in it, killing any process still in one (:func:`proctools.kill_cgroup_tree`).
 
 ``PR_SET_PDEATHSIG`` is sent when the *thread* that started the keeper ends, and again for
 every thread it is handed to after that (a harness killed with SIGKILL ends its threads one
@@ -15,15 +15,10 @@ by one): a SIGTERM while the harness is still the keeper's parent is one of thos
 ignored, and the clean-up runs once however many signals follow.
 """
 
-import ctypes
 import os
 import signal
 import sys
 import time
-
-PR_SET_PDEATHSIG = 1
-PR_SET_CHILD_SUBREAPER = 36
-_LIBC = ctypes.CDLL(None, use_errno=True)
 
 
 class _Stop(Exception):
@@ -32,7 +27,7 @@ class _Stop(Exception):
 
 _harness = 0
 _stopping = False
-_LAUNCHER = None
+tools = None  # proctools, loaded by main() from beside this file
 
 
 def _on_signal(signum, frame):
@@ -45,14 +40,15 @@ def _on_signal(signum, frame):
     raise _Stop()
 
 
-def _launcher():
-    """The launcher module beside this file (standard library only): its process walk and its
-    cgroup removal are the keeper's too."""
+def _load_proctools():
+    """``proctools.py`` beside this file (standard library only; the harness, the launcher and
+    the warm server share it)."""
     import importlib.util
 
-    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "launcher.py")
-    spec = importlib.util.spec_from_file_location("_arenabench_launcher", path)
+    path = os.path.join(os.path.dirname(os.path.abspath(__file__)), "proctools.py")
+    spec = importlib.util.spec_from_file_location("_arenabench_proctools", path)
     module = importlib.util.module_from_spec(spec)
+    sys.modules[spec.name] = module  # dataclasses look their module up there
     spec.loader.exec_module(module)
     return module
 
@@ -68,7 +64,7 @@ def _reap_all(deadline_s):
         if pid:
             continue
         if time.monotonic() > deadline:
-            for p in _LAUNCHER.descendants(os.getpid()):
+            for p in tools.descendants(os.getpid()):
                 try:
                     os.kill(p, signal.SIGKILL)
                 except OSError:
@@ -76,35 +72,25 @@ def _reap_all(deadline_s):
         time.sleep(0.01)
 
 
-def _rmtree(path):
-    import shutil
-
-    for _ in range(50):
-        shutil.rmtree(path, ignore_errors=True)
-        if not os.path.exists(path):
-            return
-        time.sleep(0.02)
-
-
 def main(argv):
     """Entry point (see the module docstring); returns the command's exit status."""
-    global _harness, _LAUNCHER
-    _LAUNCHER = _launcher()
+    global _harness, tools
+    tools = _load_proctools()
     parent, home, cgroup, fd, cmd = int(argv[1]), argv[2], argv[3], int(argv[4]), argv[6:]
     _harness = parent
     for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
         signal.signal(s, _on_signal)
     status, pid = 0, 0
     try:
-        _LIBC.prctl(PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
-        _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+        tools.LIBC.prctl(tools.PR_SET_CHILD_SUBREAPER, 1, 0, 0, 0)
+        tools.LIBC.prctl(tools.PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
         if os.getppid() == parent:
             pid = os.fork()
             if pid == 0:
                 try:
                     for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
                         signal.signal(s, signal.SIG_DFL)
-                    _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+                    tools.LIBC.prctl(tools.PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
                     os.execv(cmd[0], cmd)
                 finally:
                     os._exit(127)
@@ -116,9 +102,9 @@ def main(argv):
             os.kill(pid, signal.SIGKILL)
             _, status = os.waitpid(pid, 0)
     _reap_all(5.0)  # a command forked but not yet known here is among these
-    _rmtree(home)
+    tools.rmtree(home, tries=50)
     if cgroup != "-":  # the runs' cgroups, and whatever a run left in them, go too
-        _LAUNCHER.kill_cgroup_tree(cgroup)
+        tools.kill_cgroup_tree(cgroup)
     return os.waitstatus_to_exitcode(status) if status else 0
 
 

@@ -9,7 +9,8 @@ with ``--sandbox none`` without one). Standard library only, besides the modules
 
 Protocol (a socketpair passed as the inherited fd ``FD``): each message is a 4-byte big-endian
 length followed by that many bytes of JSON. Harness to server first: the configuration
-(``parent_pid``, ``isolate``, ``launcher_source``, ``script``, ``private_dirs``). Server to
+(``parent_pid``, ``isolate``, ``sources``: the source of ``proctools``, ``launcher`` and
+``warm_up`` by name, ``script``, ``private_dirs``). Server to
 harness: ``{"ready": true, "isolation": "", "cold": ""}``
 once (``isolation`` names a problem with the per-run namespaces, ``cold`` why the command must
 run cold after all (:func:`_shadowed`); ``""`` when all is well), then
@@ -52,25 +53,12 @@ import struct  # noqa: E402
 import time  # noqa: E402
 import types  # noqa: E402
 
-PR_SET_PDEATHSIG = 1
-PR_SET_DUMPABLE = 4
-CAP_SYS_PTRACE = 19
-PR_SET_CHILD_SUBREAPER = 36
-CLONE_NEWNS = 0x00020000
-CLONE_NEWUTS = 0x04000000
-CLONE_NEWIPC = 0x08000000
-CLONE_NEWUSER = 0x10000000
-CLONE_NEWNET = 0x40000000
-CLONE_NEWPID = 0x20000000
-MS_RDONLY, MS_NOSUID, MS_NODEV, MS_NOEXEC, MS_REMOUNT, MS_BIND, MS_REC = 1, 2, 4, 8, 32, 4096, 16384
-MS_PRIVATE = 1 << 18
 SANDBOX_DIR = "/sandbox"
 #: Exit status of a run that ended before its script because the harness could not prepare it
 #: (its ``harness_error`` file says why).
 HARNESS_ERROR_STATUS = 125
-#: The launcher module (sent as source by the harness; :func:`main` loads it).
-_LAUNCHER = None
-_LIBC = ctypes.CDLL(None, use_errno=True)
+#: :mod:`.proctools` (sent as source by the harness; :func:`main` loads it).
+tools = None
 
 
 class _BecomeRunManager(BaseException):
@@ -83,12 +71,6 @@ class _BecomeRunManager(BaseException):
         self.message = message
         self.request = request
         self.cgroup_parent = cgroup_parent
-
-
-def _check(result, what):
-    if result != 0:
-        err = ctypes.get_errno()
-        raise OSError(err, f"{what}: {os.strerror(err)}")
 
 
 def send_message(sock, obj):
@@ -118,9 +100,12 @@ def recv_message(sock):
 
 
 def _load_source(source, name):
-    """One of the project's modules sent as source (the launcher, the warm-up)."""
-    mod = types.ModuleType(f"_arenabench_{name.replace(' ', '_')}")
+    """One of the project's stand-alone modules sent as source (``proctools``, ``launcher``,
+    ``warm_up``), in :data:`sys.modules` as ``_arenabench_<name>`` (where the launcher finds
+    ``proctools``, and dataclasses their module)."""
+    mod = types.ModuleType(f"_arenabench_{name}")
     mod.__file__ = f"<arenabench {name}>"
+    sys.modules[mod.__name__] = mod
     exec(compile(source, mod.__file__, "exec"), mod.__dict__)
     return mod
 
@@ -298,60 +283,65 @@ def stop_library_threads():
     os.waitpid(pid, 0)
 
 
+def _mount(source, target, fstype, flags, data, what):
+    """``mount(2)`` through the C library (``OSError`` naming ``what`` when it fails)."""
+
+    def enc(v):
+        return v.encode() if isinstance(v, str) else v
+
+    tools.check(tools.LIBC.mount(enc(source), enc(target), enc(fstype), flags, enc(data)), what)
+
+
 def _enter_private_namespaces(cfg):
     """In the run (single-threaded, just forked): new user, mount, IPC, network, UTS and PID
-    namespaces; the run's box (a tmpfs of ``box_bytes``: :func:`launcher.mount_box`) at
+    namespaces; the run's box (a tmpfs of ``box_bytes``: :func:`proctools.mount_box`) at
     /sandbox, /tmp and /dev/shm, the server's folders hidden, loopback up. Then a fork: the
     child, pid 1 of the new PID namespace (as a cold run's command under ``--as-pid-1``), drops
     every capability and returns to become the script; this process stays outside the run's
     reach as its *keeper* (:func:`_keep_run`) and never returns. The run sees and can signal
     only its own processes, not its run manager, the standbys or the server; when it ends,
     every process it started dies with its PID namespace."""
-    launcher = _LAUNCHER
+    t, warm = tools, cfg.warm
     uid, gid = os.getuid(), os.getgid()
-    rundir = cfg["rundir"]
-    _LIBC.prctl(PR_SET_DUMPABLE, 1, 0, 0, 0)  # its own /proc/self/*_map stay writable
+    rundir = cfg.rundir
+    t.LIBC.prctl(t.PR_SET_DUMPABLE, 1, 0, 0, 0)  # its own /proc/self/*_map stay writable
     home = os.open(rundir, os.O_RDONLY | os.O_DIRECTORY)  # before the server's folders go
-    _check(_LIBC.unshare(CLONE_NEWUSER | CLONE_NEWNS | CLONE_NEWIPC | CLONE_NEWNET
-                         | CLONE_NEWUTS | CLONE_NEWPID), "unshare")
+    t.check(t.LIBC.unshare(t.CLONE_NEWUSER | t.CLONE_NEWNS | t.CLONE_NEWIPC | t.CLONE_NEWNET
+                           | t.CLONE_NEWUTS | t.CLONE_NEWPID), "unshare")
     for name, text in (("setgroups", "deny"), ("uid_map", f"{uid} {uid} 1"),
                        ("gid_map", f"{gid} {gid} 1")):
         with open(f"/proc/self/{name}", "w") as fh:
             fh.write(text)
-    _check(_LIBC.mount(None, b"/", None, MS_REC | MS_PRIVATE, None), "mount --make-rprivate")
+    _mount(None, "/", None, t.MS_REC | t.MS_PRIVATE, None, "mount --make-rprivate")
     try:
-        box = launcher.mount_box(rundir, cfg["box_bytes"])
+        box = t.mount_box(rundir, cfg.box_bytes)
     except OSError as exc:  # the harness's failure, not the run's: said in its folder
         _harness_error(home, f"cannot prepare the run's folder: {exc}" if exc.errno not in
                        (errno.ENOSPC, errno.EDQUOT) else
                        f"the files copied into the run's folder do not fit in its "
-                       f"{cfg['box_bytes']} bytes (--max-disk)")
+                       f"{cfg.box_bytes} bytes (--max-disk)")
     work = os.open(os.path.join(box, "work"), os.O_RDONLY | os.O_DIRECTORY)
+    bind = t.MS_BIND | t.MS_REC
     # read-only folders of the sandbox under /tmp (a submission there) stay visible on top
     # of the run's own /tmp: kept at a mount point in the run's folder meanwhile
     keep = []
-    for i, path in enumerate(cfg.get("warm_keep", ())):
+    for i, path in enumerate(warm.keep):
         spare = f"{rundir}/keep{i}"
         _mount_point(spare, os.path.isdir(path))
-        _check(_LIBC.mount(path.encode(), spare.encode(), None, MS_BIND | MS_REC, None),
-               f"keep {path}")
+        _mount(path, spare, None, bind, None, f"keep {path}")
         keep.append((spare, path))
     for src, dst in ((f"{box}/work", SANDBOX_DIR), (f"{box}/tmp", "/tmp"),
                      (f"{box}/shm", "/dev/shm")):
-        _check(_LIBC.mount(src.encode(), dst.encode(), None, MS_BIND | MS_REC, None),
-               f"bind {dst}")
+        _mount(src, dst, None, bind, None, f"bind {dst}")
     for spare, path in keep:
         _mount_point(path, os.path.isdir(spare))
-        _check(_LIBC.mount(spare.encode(), path.encode(), None, MS_BIND | MS_REC, None),
-               f"bind {path}")
-        _check(_LIBC.mount(None, path.encode(), None,
-                           MS_REMOUNT | MS_BIND | MS_RDONLY | MS_NOSUID | MS_NODEV, None),
-               f"read-only {path}")
+        _mount(spare, path, None, bind, None, f"bind {path}")
+        _mount(None, path, None, t.MS_REMOUNT | t.MS_BIND | t.MS_RDONLY | t.MS_NOSUID
+               | t.MS_NODEV, None, f"read-only {path}")
     # the server's folders always; a folder bound for the server only where it was bound
-    hide = [*cfg["warm_hide"], *filter(os.path.isdir, cfg.get("warm_hide_if_there", ()))]
-    for hidden in hide:
-        _check(_LIBC.mount(b"tmpfs", hidden.encode(), b"tmpfs",
-                           MS_RDONLY | MS_NOSUID | MS_NODEV, b"size=4k"), f"hide {hidden}")
+    for hidden in [*warm.hide, *filter(os.path.isdir, warm.hide_if_there)]:
+        _mount("tmpfs", hidden, "tmpfs", t.MS_RDONLY | t.MS_NOSUID | t.MS_NODEV, "size=4k",
+               f"hide {hidden}")
     try:
         with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as s:
             # SIOCSIFFLAGS: IFF_UP | IFF_LOOPBACK | IFF_RUNNING, as bubblewrap does
@@ -360,16 +350,16 @@ def _enter_private_namespaces(cfg):
         pass
     pid = os.fork()
     if pid:
-        _keep_run(pid, work, home, cfg.get("image_name", ""))
+        _keep_run(pid, work, home, cfg.image_name)
     os.close(work)
     os.close(home)
-    _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    t.LIBC.prctl(t.PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
     os.setsid()  # a session of its own, as bubblewrap's --new-session gives a cold run
     # a /proc of its own PID namespace where the kernel lets one be mounted (not inside a
     # bubblewrap that covered parts of its /proc: then the server's stays, read-only to it)
-    _LIBC.mount(b"proc", b"/proc", b"proc", MS_NOSUID | MS_NODEV | MS_NOEXEC, None)
+    t.LIBC.mount(b"proc", b"/proc", b"proc", t.MS_NOSUID | t.MS_NODEV | t.MS_NOEXEC, None)
     _drop_capabilities()
-    _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)  # other runs cannot read its memory or fds
+    t.LIBC.prctl(t.PR_SET_DUMPABLE, 0, 0, 0, 0)  # other runs cannot read its memory or fds
     os.chdir(SANDBOX_DIR)
 
 
@@ -386,7 +376,7 @@ def _harness_error(home, message):
 
 def _keep_run(pid, work, home, image_name):
     """The run's keeper: wait for the run (pid 1 of its PID namespace), bring its answer and
-    the images it left out of its box (:func:`launcher.copy_back`), and exit as it did. Outside
+    the images it left out of its box (:func:`proctools.copy_back`), and exit as it did. Outside
     the run's PID namespace, so the run can neither see nor signal it. Never returns."""
     null = os.open(os.devnull, os.O_RDWR)
     for fd in (0, 1, 2):  # the run's output pipes stay the run's
@@ -394,7 +384,7 @@ def _keep_run(pid, work, home, image_name):
     status = os.waitpid(pid, 0)[1]
     try:
         dst = os.open("work", os.O_RDONLY | os.O_DIRECTORY, dir_fd=home)
-        _LAUNCHER.copy_back(work, dst, skip=image_name)
+        tools.copy_back(work, dst, skip=image_name)
     except OSError:
         pass
     if os.WIFSIGNALED(status):
@@ -418,17 +408,17 @@ def _drop_capability(cap):
     cold launcher's command loses CAP_SYS_PTRACE at its exec; a warm run has no exec)."""
     header = (ctypes.c_uint32 * 2)(0x20080522, 0)  # _LINUX_CAPABILITY_VERSION_3, this thread
     data = (ctypes.c_uint32 * 6)()  # (effective, permitted, inheritable) x 2 words
-    _check(_LIBC.capget(header, data), "capget")
+    tools.check(tools.LIBC.capget(header, data), "capget")
     word, bit = divmod(cap, 32)
     for i in range(3):
         data[3 * word + i] &= ~(1 << bit) & 0xFFFFFFFF
-    _check(_LIBC.capset(header, data), "capset")
+    tools.check(tools.LIBC.capset(header, data), "capset")
 
 
 def _drop_capabilities():
     header = (ctypes.c_uint32 * 2)(0x20080522, 0)  # _LINUX_CAPABILITY_VERSION_3, this thread
     data = (ctypes.c_uint32 * 6)()  # effective, permitted, inheritable x 2: all zero
-    _check(_LIBC.capset(header, data), "capset")
+    tools.check(tools.LIBC.capset(header, data), "capset")
 
 
 def _probe_isolation():
@@ -438,9 +428,11 @@ def _probe_isolation():
     if pid == 0:
         os.close(r)
         try:
-            _check(_LIBC.unshare(CLONE_NEWUSER | CLONE_NEWNS | CLONE_NEWIPC | CLONE_NEWNET
-                                 | CLONE_NEWUTS), "unshare")
-            _check(_LIBC.mount(None, b"/", None, MS_REC | MS_PRIVATE, None), "mount")
+            t = tools
+            t.check(t.LIBC.unshare(t.CLONE_NEWUSER | t.CLONE_NEWNS | t.CLONE_NEWIPC
+                                   | t.CLONE_NEWNET | t.CLONE_NEWUTS | t.CLONE_NEWPID),
+                    "unshare")
+            _mount(None, "/", None, t.MS_REC | t.MS_PRIVATE, None, "mount")
             os._exit(0)
         except BaseException as exc:
             os.write(w, str(exc).encode(errors="replace"))
@@ -489,14 +481,14 @@ def become_script(cfg):
     script and exit as its interpreter would. Never returns."""
     import runpy
 
-    target = cfg["warm_target"]
-    if cfg.get("warm_isolate"):
+    target = cfg.warm.target
+    if cfg.warm.isolate:
         _enter_private_namespaces(cfg)  # drops every capability
-    else:
-        _drop_capability(CAP_SYS_PTRACE)  # never ptrace its run manager (nor anything else)
+    else:  # never ptrace its run manager (nor anything else)
+        _drop_capability(tools.CAP_SYS_PTRACE)
     os.environ.clear()
-    os.environ.update(cfg["env"])
-    os.environ.update(cfg["warm_env_changes"])  # what the preloaded imports set (cv2)
+    os.environ.update(cfg.env)
+    os.environ.update(cfg.warm.env_changes)  # what the preloaded imports set (cv2)
     _python_signal_defaults()
     for name, reset in (("tempfile", lambda m: setattr(m, "tempdir", None)),
                         ("random", lambda m: m.seed()),
@@ -507,7 +499,7 @@ def become_script(cfg):
             except Exception:
                 pass
     sys.argv = list(target["argv"])
-    sys.orig_argv = list(cfg["argv"])
+    sys.orig_argv = list(cfg.argv)
     sys.path[0] = target["path0"] if target["path0"] else os.getcwd()
     code = 0
     try:
@@ -547,37 +539,37 @@ def _run_manager(launcher, become, server_pid, env_changes):
     """The forked run manager: the launcher's ``main`` with the script in place of exec.
 
     A standby (``become.request``) first enters its own run cgroup
-    (:func:`launcher.enter_cgroup`), then waits for its run; the run's process is then in
+    (:func:`proctools.enter_cgroup`), then waits for its run; the run's process is then in
     that cgroup from its ``fork``."""
     for s in (signal.SIGTERM, signal.SIGINT, signal.SIGHUP):
-        signal.signal(s, launcher._on_signal)
+        signal.signal(s, launcher.on_stop_signal)
     message, own_cgroup, cfg = become.message, None, None
     try:
-        launcher._prctl(PR_SET_CHILD_SUBREAPER, 1)
-        launcher._prctl(PR_SET_PDEATHSIG, signal.SIGTERM)
+        tools.prctl(tools.PR_SET_CHILD_SUBREAPER, 1)
+        tools.prctl(tools.PR_SET_PDEATHSIG, signal.SIGTERM)
         # as the cold launcher: not ptrace-attachable by the run it manages (which would stop
         # the manager and with it the timeout)
-        _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
+        tools.LIBC.prctl(tools.PR_SET_DUMPABLE, 0, 0, 0, 0)
         if os.getppid() != server_pid:
             if message is not None:
-                launcher._rmtree(message["cfg"]["rundir"])
+                tools.rmtree(message["cfg"]["rundir"])
             return 128 + signal.SIGTERM
         if message is None:
-            own_cgroup = launcher.enter_cgroup(become.cgroup_parent)
+            own_cgroup = tools.enter_cgroup(become.cgroup_parent)
             with become.request:
                 message = recv_message(become.request)
             if message is None:  # the server has ended, or has no run for it
                 return 0
             if message["cfg"].get("cgroup_parent") != become.cgroup_parent:
                 own_cgroup = None  # a run for another parent: made and entered as usual
-        cfg = message["cfg"]
-        cfg["warm_target"] = message["target"]
-        cfg["warm_env_changes"] = env_changes
+        cfg = tools.LaunchConfig.from_dict(message["cfg"])  # read once, here
+        cfg.warm.target = message["target"]
+        cfg.warm.env_changes = env_changes
         return launcher.run(cfg, become=become_script, own_cgroup=own_cgroup)
-    except launcher._Stop:
-        launcher.kill_descendants(own_cgroup)
+    except launcher.Stopped:
+        tools.kill_descendants(own_cgroup)
         if cfg is not None:
-            launcher._rmtree(cfg["rundir"])
+            tools.rmtree(cfg.rundir)
         return 128 + signal.SIGTERM
 
 
@@ -669,7 +661,7 @@ class _Runs:
         self.by_id.pop(run_id, None)
         _, status = os.waitpid(pid, 0)
         if parent:  # a standby's cgroup, empty once it has ended
-            _remove_cgroup_dir(self.launcher.cgroup_path(parent, pid))
+            _remove_cgroup_dir(tools.cgroup_path(parent, pid))
         return run_id, (-os.WTERMSIG(status) if os.WIFSIGNALED(status)
                         else os.WEXITSTATUS(status))
 
@@ -740,15 +732,19 @@ def main():
     sock = socket.socket(fileno=int(sys.argv[1]))
     for s in (signal.SIGINT, signal.SIGHUP, signal.SIGTERM):
         signal.signal(s, signal.SIG_IGN)  # the harness ends the server by closing the socket
-    _LIBC.prctl(PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
     config = recv_message(sock)
-    if config is None or (config["parent_pid"] and os.getppid() != config["parent_pid"]):
+    if config is None:
         return 0
+    global tools, _LAUNCHER
+    sources = config["sources"]
+    tools = _load_source(sources["proctools"], "proctools")
+    tools.LIBC.prctl(tools.PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
+    if config["parent_pid"] and os.getppid() != config["parent_pid"]:
+        return 0  # the keeper ended before the death signal was set
     del sys.argv[1:]
     if config["isolate"]:
-        _LIBC.prctl(PR_SET_DUMPABLE, 0, 0, 0, 0)
-    global _LAUNCHER
-    launcher = _LAUNCHER = _load_source(config["launcher_source"], "launcher")
+        tools.LIBC.prctl(tools.PR_SET_DUMPABLE, 0, 0, 0, 0)
+    launcher = _LAUNCHER = _load_source(sources["launcher"], "launcher")
     private_dirs = config.get("private_dirs", [])
     imported = _script_imports(config["script"], private_dirs) if config.get("script") else []
     changes = _preload(["numpy", "cv2", *imported], private_dirs)
@@ -760,7 +756,7 @@ def main():
     import runpy  # noqa: F401
     import threading  # noqa: F401
 
-    _load_source(config["warm_up_source"], "warm up").warm_up()
+    _load_source(sources["warm_up"], "warm_up").warm_up()
     stop_library_threads()
     # a run gets what an import set in the environment where the script imports the module
     # itself (top level; a cold run would have it from that import)

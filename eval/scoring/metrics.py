@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 from collections.abc import Sequence
+from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -20,7 +22,11 @@ import numpy as np
 from arenabench.competition import DEFAULT_TOLERANCE as DEFAULT_TOLERANCE
 from arenabench.competition import OutputFormatError, check_area, check_count
 
-from .results import CATEGORIES, ImageScore, Prediction, Summary, Truth
+from .gt_facts import gt_facts
+from .results import CATEGORIES, ImageResult, ImageScore, Prediction, Summary, Truth
+
+if TYPE_CHECKING:
+    from arenabench.eval.datasets.reader import DatasetItem
 
 #: A GT area below this (px², a millionth of a pixel) is 0 in effect: its error is absolute.
 ZERO_AREA_PX = 1e-6
@@ -214,4 +220,26 @@ def summarize(
         # a timed-out image has no latency (nor one that never ran): undefined, not 0
         latency_ms=_stats([ms for p in predictions if (ms := p.measured_latency_ms) is not None],
                           ("median", "p95")),
+    )
+
+
+def score_sample(
+    sample: DatasetItem, pred: Prediction, *, tolerance: float, area_reference: str
+) -> ImageResult:
+    """Score one prediction against a dataset item's ground truth, as an
+    :class:`~arenabench.eval.scoring.results.ImageResult` (its ``params``: the item's, and the facts
+    :func:`~arenabench.eval.scoring.gt_facts.gt_facts` reads from its GT)."""
+    truth = sample.truth(area_reference=area_reference)
+    score = score_image(truth, pred, tolerance=tolerance)
+    if score.passed and pred.run_images:  # only a failure card shows them
+        pred = replace(pred, run_images=())
+    return ImageResult(
+        id=sample.id,
+        image=str(sample.image_path),
+        truth=truth,
+        prediction=pred,
+        score=score,
+        gt_area_visible=float(sample.gt.area.visible_px),
+        gt_area_footprint=float(sample.gt.area.footprint_px),
+        params={**sample.params, **gt_facts(sample.gt)},
     )

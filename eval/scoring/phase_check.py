@@ -32,7 +32,15 @@ import numpy as np
 from arenabench.gtrecord import GroundTruth
 from arenabench.interrupts import checkpoint
 
-from .results import SCORING_FAILURES, HarnessError, ImageResult, Prediction
+from .metrics import score_sample
+from .results import (
+    CATEGORIES,
+    SCORING_FAILURES,
+    HarnessError,
+    ImageResult,
+    PhaseResult,
+    Prediction,
+)
 
 #: Phases a check renders by default.
 DEFAULT_PHASES = 8
@@ -57,40 +65,6 @@ PHASE_DEPENDENT_MEANING = (
 CHECKED_CATEGORIES = frozenset(SCORING_FAILURES)
 #: ``--phase-check`` values besides a number.
 PHASE_CHECK_WORDS = ("auto", "off")
-
-
-@dataclass(frozen=True)
-class PhaseResult:
-    """What the phase check found for one failing image.
-
-    Parameters
-    ----------
-    passes : int
-        Phases at which the pipeline passed (``k``).
-    n : int
-        Phases tried (``N``).
-    """
-
-    passes: int
-    n: int
-
-    def __post_init__(self) -> None:
-        if not 0 <= self.passes <= self.n or self.n < 1:
-            raise ValueError(f"need 0 <= passes <= n and n >= 1, got {self.passes}/{self.n}")
-
-    @property
-    def label(self) -> str:
-        """``"robust"`` (no phase passes) or ``"phase_dependent"``."""
-        return "robust" if self.passes == 0 else "phase_dependent"
-
-    def to_dict(self) -> dict[str, Any]:
-        """JSON form (the ``phase`` object of a ``report.json`` image)."""
-        return {"passes": self.passes, "n": self.n, "class": self.label}
-
-    @classmethod
-    def from_dict(cls, d: dict[str, Any]) -> PhaseResult:
-        """Inverse of :meth:`to_dict`."""
-        return cls(passes=int(d["passes"]), n=int(d["n"]))
 
 
 # ------------------------------------------------------------------------------ the option
@@ -298,8 +272,6 @@ def checked(result: ImageResult) -> bool:
 def unchecked_text() -> str:
     """The failure categories the check leaves alone, as reports name them
     (``"markers_not_found, crash, timeout, limit, bad_output"``)."""
-    from .results import CATEGORIES
-
     return ", ".join(c for c in CATEGORIES if c not in CHECKED_CATEGORIES)
 
 
@@ -349,7 +321,6 @@ def check_phases(
         :func:`checked` (any other failure keeps ``phase=None``).
     """
     from arenabench.eval.datasets.reader import DatasetItem
-    from arenabench.eval.evaluation import score_sample
 
     if len(results) != len(gts):
         raise ValueError(f"results and gts must have the same length, got {len(results)} "
@@ -358,7 +329,7 @@ def check_phases(
     out = list(results)
     if phases < 1 or not failing:
         return out
-    from arenabench.eval.runs.stale import owned_dir_prefix
+    from arenabench.eval.runs import owned_dir_prefix
 
     tmp = tempfile.mkdtemp(prefix=owned_dir_prefix("arenabench-phase-"))
     pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="arenabench-phase")

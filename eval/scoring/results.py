@@ -6,11 +6,11 @@ keys as in docs/formats.md; extra keys are only ever added, never renamed).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import base64
+from dataclasses import dataclass, field, fields
 from typing import Any
 
 from arenabench.competition import DEFAULT_TOLERANCE
-from arenabench.eval.runs.run_images import RunImage
 
 REPORT_SCHEMA = "arenabench.report/1"
 
@@ -129,6 +129,27 @@ class Prediction:
                 f"obstacles_space must be one of {OBSTACLE_SPACES}, got {self.obstacles_space!r}"
             )
 
+    def to_json(self) -> dict[str, Any]:
+        """Every field, exactly, as JSON (``run_images`` as :meth:`RunImage.to_json`): what a
+        grade's ``partial-results.jsonl`` keeps to score the same prediction again."""
+        d = {f.name: getattr(self, f.name) for f in fields(self)}
+        d["run_images"] = [image.to_json() for image in self.run_images]
+        return d
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> Prediction:
+        """Inverse of :meth:`to_json` (keys it does not know are ignored).
+
+        Raises
+        ------
+        TypeError, ValueError, KeyError
+            When ``d`` is not a prediction.
+        """
+        names = {f.name for f in fields(cls)}
+        kept = {k: _tuples(v) for k, v in d.items() if k in names and k != "run_images"}
+        images = tuple(RunImage.from_json(i) for i in d.get("run_images") or ())
+        return cls(**kept, run_images=images)
+
     @property
     def measured_latency_ms(self) -> float | None:
         """The latency reports write and latency statistics use: ``None`` for a timed-out
@@ -178,12 +199,13 @@ class ImageScore:
     marker_ids_ok: bool | None
 
 
-def _phase_from_json(d: dict[str, Any] | None) -> Any:
-    if not d:
-        return None
-    from .phase_check import PhaseResult
+def _tuples(value: Any) -> Any:
+    """JSON lists back to the tuples of a record's fields (nested)."""
+    return tuple(_tuples(v) for v in value) if isinstance(value, list) else value
 
-    return PhaseResult.from_dict(d)
+
+def _phase_from_json(d: dict[str, Any] | None) -> PhaseResult | None:
+    return PhaseResult.from_dict(d) if d else None
 
 
 @dataclass(frozen=True)
@@ -199,7 +221,7 @@ class ImageResult:
     gt_area_footprint: float = 0.0
     params: dict[str, float] = field(default_factory=dict)
     #: The phase check's finding on a failing image (``PhaseResult``), ``None`` when not run.
-    phase: Any = None
+    phase: PhaseResult | None = None
 
     @property
     def passed(self) -> bool:
@@ -445,3 +467,74 @@ class Report:
             interpreter=(dict(d["interpreter"]) if isinstance(d.get("interpreter"), dict)
                          else None),
         )
+
+
+@dataclass(frozen=True)
+class PhaseResult:
+    """What the phase check found for one failing image.
+
+    Parameters
+    ----------
+    passes : int
+        Phases at which the pipeline passed (``k``).
+    n : int
+        Phases tried (``N``).
+    """
+
+    passes: int
+    n: int
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.passes <= self.n or self.n < 1:
+            raise ValueError(f"need 0 <= passes <= n and n >= 1, got {self.passes}/{self.n}")
+
+    @property
+    def label(self) -> str:
+        """``"robust"`` (no phase passes) or ``"phase_dependent"``."""
+        return "robust" if self.passes == 0 else "phase_dependent"
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form (the ``phase`` object of a ``report.json`` image)."""
+        return {"passes": self.passes, "n": self.n, "class": self.label}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> PhaseResult:
+        """Inverse of :meth:`to_dict`."""
+        return cls(passes=int(d["passes"]), n=int(d["n"]))
+
+
+@dataclass(frozen=True)
+class RunImage:
+    """A thumbnail of one image a run left in its working directory.
+
+    Attributes
+    ----------
+    name : str
+        Its file name (printable, at most
+        :data:`~arenabench.eval.runs.run_images.MAX_NAME_CHARS` characters).
+    jpeg : bytes
+        The thumbnail, JPEG-encoded, at most :data:`~arenabench.limits.RUN_IMAGE_THUMB_PX` px
+        on its longer side.
+    width, height : int
+        The size of the image the run wrote, px.
+    """
+
+    name: str
+    jpeg: bytes
+    width: int
+    height: int
+
+    def data_uri(self) -> str:
+        """The thumbnail as a ``data:image/jpeg;base64,...`` URI (for a self-contained page)."""
+        return "data:image/jpeg;base64," + base64.b64encode(self.jpeg).decode("ascii")
+
+    def to_json(self) -> dict[str, Any]:
+        """JSON form (a big run's temporary result file keeps thumbnails this way)."""
+        return {"name": self.name, "jpeg": base64.b64encode(self.jpeg).decode("ascii"),
+                "width": self.width, "height": self.height}
+
+    @classmethod
+    def from_json(cls, d: dict[str, Any]) -> RunImage:
+        """Inverse of :meth:`to_json`."""
+        return cls(name=str(d["name"]), jpeg=base64.b64decode(d["jpeg"]),
+                   width=int(d["width"]), height=int(d["height"]))

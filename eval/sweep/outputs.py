@@ -135,7 +135,7 @@ def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
     ValueError
         When ``sweep.json`` is not of schema ``arenabench.sweep/1``.
     """
-    from arenabench.eval.runs.limits import RunSettings
+    from arenabench.eval.runs import RunSettings
     from arenabench.generator.presets import parse_overrides
 
     from .grid import parse_vary

@@ -9,9 +9,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from arenabench.eval.datasets.reader import AREA_REFERENCES
-from arenabench.eval.runs.command import CommandPipeline
-from arenabench.eval.runs.limits import RunSettings
-from arenabench.eval.runs.predictions import OUTPUT_MODES
+from arenabench.eval.runs import OUTPUT_MODES, CommandPipeline, RunSettings
 from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE
 from arenabench.eval.scoring.results import ImageResult, Summary
 from arenabench.generator.presets import Value, format_value

@@ -18,12 +18,12 @@ from typing import Any
 
 from arenabench import workers
 from arenabench.eval.datasets.reader import DatasetItem
-from arenabench.eval.runs.stale import owned_dir_prefix
+from arenabench.eval.runs import owned_dir_prefix
 from arenabench.eval.scoring.results import Prediction
 from arenabench.imageio import IMAGE_EXTENSIONS, decode_image, encode_image
 from arenabench.interrupts import worker_task
 
-from ..evaluation import score_sample
+from ..scoring.metrics import score_sample
 from .records import PipelineSpec, SweepTask
 
 

@@ -29,7 +29,7 @@ PLACEHOLDERS: dict[str, str] = {
     "submission": "the team folder's absolute path",
 }
 #: The competition environment's interpreter (filled before any run:
-#: :func:`arenabench.eval.runs.competition_env.resolve_placeholder`).
+#: :func:`arenabench.eval.runs.competition_env.resolve_competition_python`).
 COMPETITION_PYTHON = "competition_python"
 #: The placeholders of ``eval --cmd``, ``sweep --cmd`` and ``check --python``.
 RUN_PLACEHOLDERS: tuple[str, ...] = ("image", "python", COMPETITION_PYTHON)

@@ -52,6 +52,7 @@ from dataclasses import dataclass, field
 import cv2
 import numpy as np
 
+from arenabench.aruco import aruco_dictionary
 from arenabench.frame import COMPETITION_MARKER_IDS
 from arenabench.pipeline import marker_prefilter
 
@@ -63,7 +64,6 @@ FIRST_STAGE_BUDGET = 100
 _HAS_MULTI = hasattr(cv2.aruco, "ArucoDetector") and hasattr(
     cv2.aruco.ArucoDetector, "detectMarkersMultiDict"
 )
-_DICT_CACHE: dict[str, cv2.aruco.Dictionary] = {}
 _DETECTOR_CACHE: dict[tuple[str, ...], cv2.aruco.ArucoDetector] = {}
 
 
@@ -82,15 +82,6 @@ def available_dictionaries(names: Sequence[str], *, strict: bool) -> tuple[str, 
         elif strict:
             raise ValueError(f"dictionaries: unknown ArUco dictionary {name!r}")
     return tuple(out)
-
-
-def get_dictionary(name: str) -> cv2.aruco.Dictionary:
-    """The predefined dictionary ``name`` (cached)."""
-    d = _DICT_CACHE.get(name)
-    if d is None:
-        d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, name))
-        _DICT_CACHE[name] = d
-    return d
 
 
 def plan_stages(
@@ -119,7 +110,7 @@ def plan_stages(
 def correction_bits(name: str) -> int:
     """Bits OpenCV corrects when identifying a ``name`` marker with default parameters."""
     rate = float(cv2.aruco.DetectorParameters().errorCorrectionRate)
-    return int(float(get_dictionary(name).maxCorrectionBits) * rate)
+    return int(float(aruco_dictionary(name).maxCorrectionBits) * rate)
 
 
 def extends(big: str, small: str) -> bool:
@@ -128,7 +119,7 @@ def extends(big: str, small: str) -> bool:
     True when ``small``'s codes are a prefix of ``big``'s (same marker size) and both correct
     the same number of bits.
     """
-    b, s = get_dictionary(big), get_dictionary(small)
+    b, s = aruco_dictionary(big), aruco_dictionary(small)
     n = int(s.bytesList.shape[0])
     return (
         int(b.markerSize) == int(s.markerSize)
@@ -154,16 +145,16 @@ def pass_plan(stage: Sequence[str]) -> list[tuple[str, tuple[str, ...]]]:
 
 
 def _stage_cost(stage: Sequence[str]) -> int:
-    return sum(int(get_dictionary(run).bytesList.shape[0]) for run, _ in pass_plan(stage))
+    return sum(int(aruco_dictionary(run).bytesList.shape[0]) for run, _ in pass_plan(stage))
 
 
 def _detector(stage: tuple[str, ...]) -> cv2.aruco.ArucoDetector:
     det = _DETECTOR_CACHE.get(stage)
     if det is None:
         params = cv2.aruco.DetectorParameters()
-        det = cv2.aruco.ArucoDetector(get_dictionary(stage[0]), params)
+        det = cv2.aruco.ArucoDetector(aruco_dictionary(stage[0]), params)
         if len(stage) > 1:
-            det.setDictionaries([get_dictionary(n) for n in stage])
+            det.setDictionaries([aruco_dictionary(n) for n in stage])
         _DETECTOR_CACHE[stage] = det
     return det
 
@@ -219,7 +210,7 @@ def _run_stage(
     for c, i, w in zip(corners, np.asarray(ids).ravel(), which, strict=True):
         quad = np.asarray(c, dtype=np.float64).reshape(4, 2)
         for name in plan[int(w)][1]:
-            if int(i) < int(get_dictionary(name).bytesList.shape[0]):
+            if int(i) < int(aruco_dictionary(name).bytesList.shape[0]):
                 hits[name].ids.append(int(i))
                 hits[name].corners.append(quad)
     return [hits[n] for n in stage], candidates
@@ -237,7 +228,7 @@ def _zero_code_identified(name: str) -> bool:
     """Whether dictionary ``name`` identifies an all-black inner code (default parameters)."""
     hit = _ZERO_CODE.get(name)
     if hit is None:
-        d = get_dictionary(name)
+        d = aruco_dictionary(name)
         size = int(d.markerSize)
         rate = float(cv2.aruco.DetectorParameters().errorCorrectionRate)
         hit = bool(d.identify(np.zeros((size, size), np.uint8), rate)[0])
@@ -272,7 +263,7 @@ def could_identify(image: np.ndarray, quads: Sequence[np.ndarray],
         return True
     by_size: dict[int, list[str]] = {}
     for name in names:
-        by_size.setdefault(int(get_dictionary(name).markerSize), []).append(name)
+        by_size.setdefault(int(aruco_dictionary(name).markerSize), []).append(name)
     for quad in quads:
         for size, dicts in by_size.items():
             value = _uniform_value(image, quad, size)

@@ -1,0 +1,487 @@
+"""What the run machinery's stand-alone processes share: standard library only.
+
+The launcher of a cold run (``launcher.py``, run as ``python -I -S``), the warm server and its
+run managers (``warm_server.py``, run with the team's interpreter inside the sandbox, which
+gets this module's source from the harness) and the warm server's keeper (``warm_keeper.py``)
+cannot import the project; they load this module beside them (:func:`load_sibling` in each)
+or from source. The harness imports it as ``arenabench.eval.runs.proctools``. It holds:
+
+- the Linux constants they use (``prctl`` options, clone flags, mount flags) and
+  :data:`RUN_GRACE_S`;
+- the process walk (:func:`descendants`), killing a run's processes (:func:`kill_descendants`,
+  :func:`kill_cgroup_tree`), the run's pids cgroup (:func:`cgroup_path`, :func:`new_cgroup`,
+  :func:`enter_cgroup`), removing a folder (:func:`rmtree`), a run's CPU and run-queue wait
+  (:func:`schedstat`);
+- the run's box, a size-limited tmpfs (:func:`enter_private_mounts`, :func:`mount_box`,
+  :func:`copy_back`);
+- the launch configuration (:class:`LaunchConfig`): built once by the harness, serialised once
+  (:meth:`LaunchConfig.to_dict`), read once by the launcher or a warm run manager
+  (:meth:`LaunchConfig.from_dict`).
+"""
+
+from __future__ import annotations
+
+import ctypes
+import os
+import signal
+import time
+from dataclasses import asdict, dataclass, field
+
+PR_SET_PDEATHSIG = 1
+PR_SET_DUMPABLE = 4
+PR_CAPBSET_DROP = 24
+CAP_SYS_PTRACE = 19
+PR_SET_CHILD_SUBREAPER = 36
+CLONE_NEWNS = 0x00020000
+CLONE_NEWUTS = 0x04000000
+CLONE_NEWIPC = 0x08000000
+CLONE_NEWUSER = 0x10000000
+CLONE_NEWPID = 0x20000000
+CLONE_NEWNET = 0x40000000
+MS_RDONLY, MS_NOSUID, MS_NODEV, MS_NOEXEC, MS_REMOUNT = 1, 2, 4, 8, 32
+MS_BIND, MS_REC, MS_PRIVATE = 4096, 16384, 1 << 18
+
+#: Seconds the harness waits for a run's end beyond the command's own timeout (the launcher
+#: or the warm run manager kills the run at the timeout: this covers their own exit).
+RUN_GRACE_S = 30.0
+
+#: The run's box in its folder, and the folders in it: the working directory (``/sandbox``),
+#: ``/tmp`` and ``/dev/shm`` (:func:`mount_box`).
+BOX, BOX_DIRS = "box", ("work", "tmp", "shm")
+#: What comes back out of a run's box (:func:`copy_back`): the answer file, and image files the
+#: run left (reports show them); at most this many files and bytes in all.
+ANSWER_FILE = "obstacles.txt"
+RESULT_SUFFIXES = (".png", ".jpg", ".jpeg", ".bmp", ".tif", ".tiff", ".webp")
+RESULT_FILES_MAX, RESULT_BYTES_MAX = 16, 16 << 20
+#: Bytes of ``obstacles.txt`` brought back (the harness reads at most
+#: :data:`arenabench.eval.runs.predictions.OBSTACLES_MAX_BYTES` of it, and judges its size).
+ANSWER_COPY_BYTES = 1 << 20
+
+
+LIBC = ctypes.CDLL(None, use_errno=True)
+
+
+def prctl(option: int, value: int) -> None:
+    if LIBC.prctl(option, value, 0, 0, 0) != 0:
+        err = ctypes.get_errno()
+        raise OSError(err, f"prctl({option}) failed: {os.strerror(err)}")
+
+
+def children_map() -> dict[int, list[int]]:
+    children: dict[int, list[int]] = {}
+    for entry in os.scandir("/proc"):
+        if not entry.name.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry.name}/stat", "rb") as fh:
+                stat = fh.read()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(b")") + 2 :].split()
+        if fields[0] in (b"Z", b"X"):
+            continue  # zombies: reaped below, nothing to kill
+        children.setdefault(int(fields[1]), []).append(int(entry.name))
+    return children
+
+
+def descendants(root: int) -> list[int]:
+    """Live (non-zombie) descendants of ``root``, from a scan of ``/proc``."""
+    children = children_map()
+    out: list[int] = []
+    stack = [root]
+    while stack:
+        for child in children.get(stack.pop(), ()):
+            out.append(child)
+            stack.append(child)
+    return out
+
+
+def reap() -> None:
+    while True:
+        try:
+            pid, _ = os.waitpid(-1, os.WNOHANG)
+        except ChildProcessError:
+            return
+        if pid == 0:
+            return
+
+
+def cgroup_pids(cgroup: str) -> list[int]:
+    """The processes in ``cgroup``, this one left out (a warm run's manager is in its run's
+    cgroup: :func:`enter_cgroup`)."""
+    me = os.getpid()
+    try:
+        with open(os.path.join(cgroup, "cgroup.procs")) as fh:
+            return [pid for pid in map(int, fh.read().split()) if pid != me]
+    except OSError:
+        return []
+
+
+def kill_descendants(cgroup: str | None = None, *, scan: bool = True) -> None:
+    """SIGKILL and reap every process of the run: everything in ``cgroup`` and, with
+    ``scan`` (always without a cgroup), every descendant of this process found in ``/proc``."""
+    me = os.getpid()
+    scan = scan or not cgroup
+    for _ in range(2000):
+        pids = cgroup_pids(cgroup) if cgroup else []
+        if scan:
+            pids += descendants(me)
+        if not pids:
+            reap()
+            return
+        for pid in pids:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+        reap()
+        time.sleep(0.001)
+
+
+def cgroup_path(parent: str, pid: int) -> str:
+    """The pids cgroup of the run whose launcher (or warm run manager) is ``pid``."""
+    return os.path.join(parent, f"arenabench-run-{pid}")
+
+
+def write_cgroup_file(path: str, name: str, value: str) -> bool:
+    """Write ``value`` into the file ``name`` of cgroup ``path``; whether it worked."""
+    try:
+        with open(os.path.join(path, name), "w") as fh:
+            fh.write(value)
+    except OSError:
+        return False
+    return True
+
+
+def new_cgroup(parent: str, name: str, value: str) -> str | None:
+    """Make this process's run cgroup under ``parent`` and write ``value`` into its file
+    ``name``; ``None`` (and no folder) where either fails."""
+    path = cgroup_path(parent, os.getpid())
+    try:
+        os.mkdir(path)
+    except OSError:
+        return None
+    if not write_cgroup_file(path, name, value):
+        try:
+            os.rmdir(path)
+        except OSError:
+            pass
+        return None
+    return path
+
+
+def enter_cgroup(parent: str) -> str | None:
+    """Make this process's run cgroup under ``parent`` and move this process into it, before
+    the run is asked for (a warm server's standby run manager); ``None`` where it cannot.
+
+    Moving a process between cgroups waits for an RCU grace period (``cgroup.procs`` takes
+    ``cgroup_threadgroup_rwsem`` for writing): 10-30 ms of wall time when moves are tens of
+    milliseconds apart, measured on this project's 2-core machine, against 0.3 ms back to
+    back. A standby pays it while an earlier run goes; its run then starts in the cgroup by
+    ``fork`` alone. The cgroup's ``pids.max`` stays unlimited until :func:`run` sets it,
+    before any of the run's code; :func:`run` never removes it (its manager is in it): the
+    server does, once the manager has ended.
+    """
+    return new_cgroup(parent, "cgroup.procs", "0")
+
+
+def kill_cgroup_tree(cgroup: str, *, remove: bool = True, tries: int = 200) -> bool:
+    """SIGKILL every process in ``cgroup`` and in the cgroups under it (from outside: the
+    processes are not this one's children, so nothing is reaped here) and, with ``remove``,
+    remove them, deepest first; whether none is left."""
+    for _ in range(tries):
+        try:
+            entries = list(os.scandir(cgroup))
+        except FileNotFoundError:
+            return True
+        except OSError:
+            return False
+        for entry in entries:
+            if entry.is_dir(follow_symlinks=False):
+                kill_cgroup_tree(entry.path, remove=remove, tries=1)
+        pids = cgroup_pids(cgroup)
+        for pid in pids:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
+        if not remove:
+            if not pids:
+                return True
+        else:
+            try:
+                os.rmdir(cgroup)
+                return True
+            except FileNotFoundError:
+                return True
+            except OSError:
+                pass
+        if tries > 1:
+            time.sleep(0.005)
+    return False
+
+
+def schedstat(pids: list[int]) -> tuple[float, float]:
+    """CPU time and time spent waiting for a CPU (run queue), in ms, of the threads of
+    ``pids`` summed (``/proc/PID/task/TID/schedstat``; a process gone counts nothing)."""
+    cpu = wait = 0
+    for pid in pids:
+        try:
+            tids = os.listdir(f"/proc/{pid}/task")
+        except OSError:
+            continue
+        for tid in tids:
+            try:
+                with open(f"/proc/{pid}/task/{tid}/schedstat", "rb") as fh:
+                    fields = fh.read().split()
+                cpu += int(fields[0])
+                wait += int(fields[1])
+            except (OSError, ValueError, IndexError):
+                continue
+    return cpu / 1e6, wait / 1e6
+
+
+def check(result: int, what: str) -> None:
+    if result != 0:
+        err = ctypes.get_errno()
+        raise OSError(err, f"{what}: {os.strerror(err)}")
+
+
+def enter_private_mounts() -> None:
+    """Enter a user and mount namespace of this process's own (its uid and gid mapped to
+    themselves, every mount private), where :func:`mount_box` can mount the run's tmpfs.
+
+    Raises
+    ------
+    OSError
+        Where user namespaces cannot be made (the box is then a plain folder).
+    """
+    uid, gid = os.getuid(), os.getgid()
+    check(LIBC.unshare(CLONE_NEWUSER | CLONE_NEWNS), "unshare")
+    for name, text in (("setgroups", "deny"), ("uid_map", f"{uid} {uid} 1"),
+                       ("gid_map", f"{gid} {gid} 1")):
+        with open(f"/proc/self/{name}", "w") as fh:
+            fh.write(text)
+    check(LIBC.mount(None, b"/", None, MS_REC | MS_PRIVATE, None), "mount --make-rprivate /")
+
+
+def mount_box(rundir: str, size: int | None) -> str:
+    """Make the run's box at ``RUNDIR/box``: a tmpfs of ``size`` bytes in this process's mount
+    namespace (``None``: a plain folder, where no namespace could be made), its folders
+    :data:`BOX_DIRS`, and a copy of ``RUNDIR/work`` (the image and the harness's files) in
+    ``box/work``. Returns the box's path.
+
+    Raises
+    ------
+    OSError
+        When it cannot be made, or the files do not fit (``ENOSPC``).
+    """
+    box = os.path.join(rundir, BOX)
+    os.makedirs(box, exist_ok=True)
+    if size is not None:
+        check(LIBC.mount(b"tmpfs", box.encode(), b"tmpfs", MS_NOSUID | MS_NODEV,
+                           f"size={int(size)},mode=0700".encode()), "mount tmpfs")
+    for name in BOX_DIRS:
+        os.mkdir(os.path.join(box, name), 0o700)
+    import shutil
+
+    shutil.copytree(os.path.join(rundir, "work"), os.path.join(box, "work"), symlinks=True,
+                    dirs_exist_ok=True)
+    return box
+
+
+def _result_names(src_fd: int, skip: str) -> list[str]:
+    """The answer file first, then the image files, of the folder ``src_fd`` (top level; at
+    most a few thousand entries looked at: a run may leave millions)."""
+    names = [ANSWER_FILE]
+    with os.scandir(src_fd) as entries:
+        for n, entry in enumerate(entries):
+            if n >= 4096 or len(names) > RESULT_FILES_MAX:
+                break
+            if entry.name != skip and entry.name.lower().endswith(RESULT_SUFFIXES):
+                names.append(entry.name)
+    return names[:RESULT_FILES_MAX]
+
+
+def _copy_answer(src_fd: int, dst_fd: int) -> None:
+    """Bring ``obstacles.txt`` back as the harness must judge it: a regular file's first
+    :data:`ANSWER_COPY_BYTES` bytes, at its full size (the rest a hole); a folder, a link
+    (same target) or any other kind of file as one of that kind (the harness says which)."""
+    import stat
+
+    try:
+        st = os.stat(ANSWER_FILE, dir_fd=src_fd, follow_symlinks=False)
+    except OSError:
+        return
+    try:
+        os.unlink(ANSWER_FILE, dir_fd=dst_fd)
+    except OSError:
+        pass
+    try:
+        if stat.S_ISDIR(st.st_mode):
+            os.mkdir(ANSWER_FILE, 0o700, dir_fd=dst_fd)
+        elif stat.S_ISLNK(st.st_mode):
+            os.symlink(os.readlink(ANSWER_FILE, dir_fd=src_fd), ANSWER_FILE, dir_fd=dst_fd)
+        elif not stat.S_ISREG(st.st_mode):
+            os.mkfifo(ANSWER_FILE, 0o600, dir_fd=dst_fd)
+        else:
+            fd = os.open(ANSWER_FILE, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK, dir_fd=src_fd)
+            try:
+                data = os.read(fd, ANSWER_COPY_BYTES)
+            finally:
+                os.close(fd)
+            out = os.open(ANSWER_FILE, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW,
+                          0o600, dir_fd=dst_fd)
+            try:
+                os.write(out, data)
+                os.ftruncate(out, st.st_size)  # its size, as the harness checks it
+            finally:
+                os.close(out)
+    except OSError:
+        pass
+
+
+def copy_back(src_fd: int, dst_fd: int, *, skip: str) -> None:
+    """Copy ``obstacles.txt`` (:func:`_copy_answer`) and the image files a run left in its
+    working folder (``src_fd``: its box's ``work``) into ``dst_fd`` (the run folder's ``work``
+    on the machine): regular files only, links not followed, at most
+    :data:`RESULT_FILES_MAX` files and :data:`RESULT_BYTES_MAX` bytes in all; ``skip`` (the
+    input image's name) stays."""
+    import stat
+
+    _copy_answer(src_fd, dst_fd)
+    budget = RESULT_BYTES_MAX
+    for name in _result_names(src_fd, skip)[1:]:
+        try:
+            fd = os.open(name, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK, dir_fd=src_fd)
+        except OSError:
+            continue
+        try:
+            st = os.fstat(fd)
+            if not stat.S_ISREG(st.st_mode) or st.st_size > budget:
+                continue
+            data = os.read(fd, st.st_size + 1) if st.st_size else b""
+            if len(data) > budget:
+                continue
+            budget -= len(data)
+        finally:
+            os.close(fd)
+        try:
+            os.unlink(name, dir_fd=dst_fd)
+        except OSError:
+            pass
+        try:
+            out = os.open(name, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600,
+                          dir_fd=dst_fd)
+        except OSError:
+            continue
+        try:
+            view = memoryview(data)
+            while view:
+                view = view[os.write(out, view):]
+        finally:
+            os.close(out)
+
+
+def rmtree(path: str, *, tries: int = 1) -> None:
+    """Remove the folder ``path`` and what it holds, errors ignored (``tries`` times, 20 ms
+    apart, while it is still there)."""
+    import shutil
+
+    for n in range(tries):
+        shutil.rmtree(path, ignore_errors=True)
+        if n + 1 < tries and os.path.exists(path):
+            time.sleep(0.02)
+        else:
+            return
+
+
+@dataclass
+class WarmLaunch:
+    """The warm-run part of a :class:`LaunchConfig` (``None`` for a cold run).
+
+    Parameters
+    ----------
+    isolate : bool
+        The run enters namespaces of its own (under bubblewrap).
+    hide : list of str
+        The server's folders, hidden from the run (an empty tmpfs each).
+    hide_if_there : list of str
+        Folders hidden only where they were bound for the server.
+    keep : list of str
+        Read-only folders under ``/tmp`` kept visible on top of the run's own ``/tmp``.
+    target : dict or None
+        What the run becomes (``module``, ``script``, ``argv``, ``path0``): set by the server.
+    env_changes : dict
+        What the server's preloaded imports set in the environment (set by the server).
+    """
+
+    isolate: bool = False
+    hide: list[str] = field(default_factory=list)
+    hide_if_there: list[str] = field(default_factory=list)
+    keep: list[str] = field(default_factory=list)
+    target: dict | None = None
+    env_changes: dict = field(default_factory=dict)
+
+
+@dataclass
+class LaunchConfig:
+    """How one run is launched: everything the launcher (or a warm run manager) needs.
+
+    Parameters
+    ----------
+    exe, argv, env, cwd : str, list, dict, str
+        What is executed, with which arguments and environment, from which folder.
+    rundir : str
+        The run's folder (``work``, ``tmp``, its box; ``stdout``, ``stderr``, ``result.bin``).
+    timeout_s, memory_bytes, max_file_size, max_output, max_procs : limits
+        The run's limits (:class:`arenabench.eval.runs.limits.RunLimits`).
+    pids_max : int
+        The run cgroup's ``pids.max`` (the command's processes and the sandbox's own).
+    cgroup_parent : str or None
+        Where the run's pids cgroup is made (``None``: ``RLIMIT_NPROC`` instead, except for
+        root, whom it does not bind).
+    sandboxed : bool
+        Under bubblewrap (nothing can leave the run's cgroup: reading it finds every process).
+    nproc_rlimit : bool
+        Hold the run to ``RLIMIT_NPROC`` (where no cgroup holds it and it binds).
+    parent_pid : int
+        The harness (a launcher started after the harness died runs nothing); 0 for a warm
+        run (the server sets it).
+    box_bytes : int or None
+        Size of the run's box under bubblewrap (:func:`mount_box`); ``None``: no box.
+    image_name : str
+        The input image's name in the run's folder (never brought back by :func:`copy_back`).
+    warm : WarmLaunch or None
+        The warm run's part, ``None`` for a cold run.
+    """
+
+    exe: str
+    argv: list[str]
+    env: dict
+    cwd: str
+    rundir: str
+    timeout_s: float
+    memory_bytes: int
+    max_file_size: int
+    max_output: int
+    max_procs: int
+    pids_max: int
+    cgroup_parent: str | None = None
+    sandboxed: bool = False
+    nproc_rlimit: bool = False
+    parent_pid: int = 0
+    box_bytes: int | None = None
+    image_name: str = ""
+    warm: WarmLaunch | None = None
+
+    def to_dict(self) -> dict:
+        """Plain values only (for :mod:`marshal` and JSON)."""
+        return asdict(self)
+
+    @classmethod
+    def from_dict(cls, d: dict) -> LaunchConfig:
+        """Inverse of :meth:`to_dict`."""
+        d = dict(d)
+        warm = d.pop("warm", None)
+        return cls(**d, warm=None if warm is None else WarmLaunch(**warm))
