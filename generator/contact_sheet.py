@@ -20,6 +20,7 @@ from arenabench.cliopts import (
     output_problem,
     usage_error,
 )
+from arenabench.exitcodes import ExitCode
 from arenabench.fileio import atomic_write_bytes
 from arenabench.generator.seeds import seed_argument
 from arenabench.limits import MAX_IMAGE_SIDE_PX, check_at_most
@@ -172,7 +173,7 @@ def main(argv: list[str] | None = None) -> int:
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         print(f"arenabench contact-sheet: error: --out must end in .jpg or .png, got {out}",
               file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     if problem := output_problem(out, file=True):
         return usage_error("arenabench contact-sheet", problem)
     from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
@@ -186,15 +187,15 @@ def main(argv: list[str] | None = None) -> int:
                              tile=args.tile, progress=not args.no_progress)
     except (SamplingError, ValueError, OffscreenGLError) as exc:
         print(f"arenabench contact-sheet: error: {exc}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     params = [cv2.IMWRITE_JPEG_QUALITY, 85] if out.suffix.lower() != ".png" else []
     ok, buf = cv2.imencode(out.suffix.lower(), sheet, params)
     if not ok:  # pragma: no cover - OpenCV failure
         print("arenabench contact-sheet: error: image encoding failed", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     atomic_write_bytes(out, buf.tobytes())
     print(f"contact sheet of {args.count} {args.preset} scenes (seed {args.seed}): {out}")
-    return 0
+    return ExitCode.OK
 
 
 if __name__ == "__main__":  # pragma: no cover

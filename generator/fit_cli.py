@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 from arenabench.cliopts import CommandParser, add_count, add_out, output_problem, usage_error
+from arenabench.exitcodes import ExitCode
 from arenabench.limits import MAX_REFINE_ROUNDS
 
 
@@ -56,7 +57,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:  # the arena's own rule (finite, > 0), said of the option
         why = str(exc).removeprefix("arena.side_m ")
         print(f"arenabench fit: error: --arena-side {why}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     try:
         image = load_image(args.image)
         if arena is None:
@@ -75,13 +76,13 @@ def main(argv: list[str] | None = None) -> int:
                                  refine_rounds=args.refine_rounds)
     except (ImageLoadError, ValueError) as exc:
         print(f"arenabench fit: error: {exc}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     try:
         result = fit_scene(image, options=options)
     except ValueError as exc:  # about the image's content: name the file
         why = str(exc).removeprefix("image: ")
         print(f"arenabench fit: error: {args.image}: {why}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     atomic_write_json(args.out, result.scene.to_dict())
     summary = {"fov_deg": result.fov_deg, "reprojection_px": round(result.reprojection_px, 4),
                "ssim": round(result.ssim, 4), "mad": round(result.mad, 3),
@@ -91,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
           f"SSIM {result.ssim:.4f}, MAD {result.mad:.2f} -> {args.out}", file=sys.stderr)
     if args.report:
         print(dumps_json(summary))
-    return 0
+    return ExitCode.OK
 
 
 if __name__ == "__main__":  # pragma: no cover

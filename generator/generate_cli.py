@@ -15,6 +15,7 @@ from arenabench.cliopts import (
     output_problem,
     usage_error,
 )
+from arenabench.exitcodes import ExitCode
 from arenabench.generator.presets import preset_names
 
 
@@ -79,19 +80,19 @@ def main(argv: list[str] | None = None) -> int:
             )
         except (GenerateError, SamplingError, ValueError, OffscreenGLError) as exc:
             print(f"arenabench generate: error: {exc}", file=sys.stderr)
-            return 2
+            return ExitCode.USAGE
         except Interrupted as exc:  # before or after the rendering loop
             print(f"arenabench generate: {exc}; run the same command again to resume",
                   file=sys.stderr)
             return exc.exit_code
         except OSError as exc:  # e.g. the scheduler cannot be reached
             print(f"arenabench generate: error: {type(exc).__name__}: {exc}", file=sys.stderr)
-            return 2
+            return ExitCode.USAGE
     if result.interrupted is not None:
         print(f"arenabench generate: {result.summary()}", file=sys.stderr)
         return exit_code(result.interrupted)
     print(result.summary())
-    return 0
+    return ExitCode.OK
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 from arenabench.cliopts import CommandParser
+from arenabench.exitcodes import ExitCode
 from arenabench.generator.presets import PARAMETERS, PRESETS, format_value
 from arenabench.suggest import did_you_mean
 
@@ -27,21 +28,21 @@ def main(argv: list[str] | None = None) -> int:
             print(f"arenabench presets: error: unknown preset {args.show!r}"
                   f"{did_you_mean(args.show, PRESETS)} (known: {', '.join(PRESETS)})",
                   file=sys.stderr)
-            return 2
+            return ExitCode.USAGE
         for key, value in PRESETS[args.show][1].items():
             print(f"{key}={format_value(value)}")
-        return 0
+        return ExitCode.OK
     if args.params:
         width = max(len(k) for k in PARAMETERS)
         for key, spec in PARAMETERS.items():
             bounds = f"{spec.bounds.lo:.10g}..{spec.bounds.hi:.10g}" if spec.bounds else ""
             neutral = "" if spec.neutral is None else f" (neutral {format_value(spec.neutral)})"
             print(f"{key:<{width}}  {spec.kind:<5}  {bounds:<13}  {spec.help}{neutral}")
-        return 0
+        return ExitCode.OK
     width = max(len(k) for k in PRESETS)
     for name, (desc, _) in PRESETS.items():
         print(f"{name:<{width}}  {desc}")
-    return 0
+    return ExitCode.OK
 
 
 if __name__ == "__main__":  # pragma: no cover

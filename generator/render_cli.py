@@ -13,6 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from arenabench.cliopts import CommandParser, add_out, output_problem, usage_error
+from arenabench.exitcodes import ExitCode
 from arenabench.generator.scene import Scene, load_scene
 
 __all__ = ["load_scene", "render_scene_files", "scene_gt_record"]
@@ -71,7 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     if (Path(args.out) / "dataset.json").exists():  # its manifest would be replaced
         print(f"arenabench render: error: --out {args.out}: holds a generated dataset "
               "(dataset.json); use another folder", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
 
     try:
@@ -80,11 +81,11 @@ def main(argv: list[str] | None = None) -> int:
         image = render_scene_files(scene, args.out, source=Path(args.scene).stem)
     except (ValueError, OffscreenGLError) as exc:
         print(f"arenabench render: error: {exc}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     print(f"wrote {image}, {Path(args.out) / 'gt' / '000000.json'} and "
           f"{Path(args.out) / 'manifest.jsonl'} (score it: arenabench eval {args.out} "
           "--pipeline reference)", file=sys.stderr)
-    return 0
+    return ExitCode.OK
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -20,8 +20,9 @@ import pytest
 import toy_arena
 from clirun import CliResult, run_cli
 
-from arenabench.cli import COMMANDS, EXIT_BROKEN_PIPE
+from arenabench.cli import COMMANDS
 from arenabench.cli import main as cli_main
+from arenabench.exitcodes import ExitCode
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLE = ROOT / "tests" / "data" / "task1c_image.jpg"
@@ -58,7 +59,7 @@ def test_closed_pipe_exits_quietly(tmp_path, module):
             timeout=120)
     finally:
         os.close(write_end)
-    assert proc.returncode == EXIT_BROKEN_PIPE
+    assert proc.returncode == ExitCode.BROKEN_PIPE
     assert "Traceback" not in proc.stderr and "BrokenPipe" not in proc.stderr
     assert "Exception ignored" not in proc.stderr
 
@@ -80,7 +81,7 @@ def test_every_command_goes_through_the_quiet_wrapper(tmp_path):
                               stdout=write_end, stderr=subprocess.PIPE, text=True, timeout=120)
     finally:
         os.close(write_end)
-    assert proc.returncode == EXIT_BROKEN_PIPE and proc.stderr == ""
+    assert proc.returncode == ExitCode.BROKEN_PIPE and proc.stderr == ""
 
 
 # ----------------------------------------------------------------------------- detect output

@@ -18,6 +18,7 @@ from procs_limit import GRADE_ARGS, PY_CMD, grade_settings
 from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade
 from arenabench.eval.runs import warm_client
 from arenabench.eval.runs.sandbox import bwrap_problem
+from arenabench.exitcodes import ExitCode
 from arenabench.generator.seeds import GUESSABLE_BELOW
 
 HERE = Path(__file__).resolve().parent
@@ -493,7 +494,7 @@ def test_six_teams_failing_alike_exit_non_zero(seed3_set, tmp_path):
     proc = _grade(str(seed3_set), str(subs), "--out", str(out), "--allow-guessable-seed",
                   "--cmd", PY_CMD)
     err = [line for line in proc.stderr.strip().splitlines() if "WARNING" not in line]
-    assert proc.returncode == 3, proc.stderr[-3000:]
+    assert proc.returncode == ExitCode.SYSTEMIC, proc.stderr[-3000:]
     assert len(err) == 1 and "6 of 6 teams fail alike" in err[0]
     assert "no_such_module_for_grading" in err[0] and "Traceback" not in proc.stderr
     assert (out / "leaderboard.json").is_file()

@@ -15,6 +15,7 @@ from arenabench.cliopts import (
     usage_error,
 )
 from arenabench.eval.bench.items import TARGETS, BenchConfig, BenchResult, target_met
+from arenabench.exitcodes import ExitCode
 
 #: (key, label, unit) rows of the table, in the order of docs/benchmark.md.
 ROWS: tuple[tuple[str, str, str], ...] = (
@@ -153,14 +154,14 @@ def main(argv: list[str] | None = None) -> int:
                               workers=args.workers)
     except ValueError as exc:
         print(f"arenabench bench: error: {exc}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
 
     try:
         require_offscreen_gl()  # every figure renders
     except OffscreenGLError as exc:
         print(f"arenabench bench: error: {exc}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
 
     def progress(key: str, seconds: float) -> None:
         print(f"  {key}: {seconds:.1f} s", file=sys.stderr, flush=True)
@@ -176,7 +177,7 @@ def main(argv: list[str] | None = None) -> int:
     atomic_write_json(path, data)
     print(format_table(result, quick=args.quick))
     print(f"\nwrote {path}")
-    return 0
+    return ExitCode.OK
 
 
 if __name__ == "__main__":  # pragma: no cover

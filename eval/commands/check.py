@@ -23,8 +23,6 @@ from pathlib import Path
 
 from arenabench.cachedir import cache_dir
 from arenabench.cliopts import (
-    EXIT_FAILED,
-    EXIT_HARNESS,
     CommandParser,
     add_count,
     add_no_progress,
@@ -39,6 +37,7 @@ from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, escape, template_pro
 from arenabench.eval.runs import COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER
 from arenabench.eval.scoring.metric_registry import METRIC
 from arenabench.eval.scoring.phase_check import add_phase_check_argument
+from arenabench.exitcodes import ExitCode
 from arenabench.generator.seeds import seed_argument
 
 PROG = "arenabench check"
@@ -274,7 +273,7 @@ def main(argv: list[str] | None = None) -> int:
         except HarnessError as exc:  # before any image (the interpreter's probe): nothing ran
             print(f"{PROG}: error: the harness could not run the script: {exc}",
                   file=sys.stderr)
-            return EXIT_HARNESS
+            return ExitCode.HARNESS
         except Interrupted as exc:
             print(f"{PROG}: interrupted ({exc}); nothing more written", file=sys.stderr)
             return exc.exit_code
@@ -401,7 +400,7 @@ def _main(argv: list[str] | None) -> int:
                 if isinstance(exc, EvaluationFailed):
                     print(f"{PROG}: error: {exc}; nothing of it scored; partial report in "
                           f"{out}", file=sys.stderr)
-                    return EXIT_HARNESS
+                    return ExitCode.HARNESS
                 print(f"{PROG}: interrupted after {partial.images_done} images; running "
                       f"scripts killed; partial report in {out}", file=sys.stderr)
                 return exc.exit_code
@@ -416,12 +415,12 @@ def _main(argv: list[str] | None) -> int:
         return _error(str(exc))
     except OSError as exc:  # ENOSPC: one line, no traceback (as eval and grade)
         print(f"{PROG}: error: {write_failure(exc, out)}", file=sys.stderr)
-        return EXIT_FAILED
+        return ExitCode.FAILED
     for line in verdict_lines(report, fail_under=args.fail_under, phases=phases):
         print(line)
     if written:
         print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
-    return 0 if report.summary.pass_rate >= args.fail_under else 1
+    return ExitCode.OK if report.summary.pass_rate >= args.fail_under else ExitCode.FAILED
 
 
 def _template(python: str, script: Path) -> str:

@@ -22,6 +22,7 @@ from arenabench.cliopts import (
     output_problem,
     usage_error,
 )
+from arenabench.exitcodes import ExitCode
 from arenabench.generator.seeds import seed_argument
 
 
@@ -54,7 +55,7 @@ def _example(image_path: Path, out: Path) -> int:
         image = load_image(image_path)
     except ImageLoadError as exc:
         print(f"arenabench demo: error: {exc}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     result = detect(image)
     target = out / "obstacles.txt"
     atomic_write_text(target, format_obstacles_txt(result.marker_ids, result.count,
@@ -63,7 +64,7 @@ def _example(image_path: Path, out: Path) -> int:
     print(f"   markers {list(result.marker_ids)}, {result.count} obstacles, "
           f"area {result.total_area:.1f} px^2 ({result.status})")
     print(f"   competition output: {target}")
-    return 0
+    return ExitCode.OK
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -73,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
         return args
     if args.count < 1:
         print(f"arenabench demo: error: --count must be >= 1, got {args.count}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     from arenabench.eval.pipelines import make_pipeline
 
     if problem := output_problem(args.out):
@@ -82,7 +83,7 @@ def main(argv: list[str] | None = None) -> int:
         make_pipeline(args.pipeline)  # an unknown name or import now, not after rendering
     except ValueError as exc:
         print(f"arenabench demo: error: --pipeline: {exc}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     from arenabench.cliopts import lock_out
     from arenabench.fileio import FolderLockedError
 
@@ -91,7 +92,7 @@ def main(argv: list[str] | None = None) -> int:
             return _run(args)
     except FolderLockedError as exc:
         print(f"arenabench demo: error: {exc}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
 
 
 def _run(args: argparse.Namespace) -> int:
@@ -118,7 +119,7 @@ def _run(args: argparse.Namespace) -> int:
             )
         except (GenerateError, SamplingError, ValueError, OffscreenGLError) as exc:
             print(f"arenabench demo: error: generation failed: {exc}", file=sys.stderr)
-            return 2
+            return ExitCode.USAGE
         print(f"{step}. generated {result.rendered} eyrc images (seed {args.seed}) into "
               f"{dataset_dir} in {result.seconds:.0f} s")
     step += 1
@@ -141,7 +142,7 @@ def _run(args: argparse.Namespace) -> int:
     print(f"   report files in {report_dir}/ (report.json, results.csv, report.md, junit.xml)")
     print(_on_path_hint())
     print(f"open the HTML report: {written['html'].resolve()}")  # the story ends here
-    return 0
+    return ExitCode.OK
 
 
 def _on_path_hint() -> str:

@@ -15,8 +15,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from arenabench.cliopts import (
-    EXIT_FAILED,
-    EXIT_HARNESS,
     CommandParser,
     add_area_reference,
     add_count,
@@ -33,6 +31,7 @@ from arenabench.eval.pipelines import BUILTIN_PIPELINES
 from arenabench.eval.runs import OUTPUT_MODES, run_settings_from_args
 from arenabench.eval.scoring.metric_registry import fail_under_help
 from arenabench.eval.scoring.phase_check import add_phase_check_argument
+from arenabench.exitcodes import ExitCode
 
 if TYPE_CHECKING:
     from arenabench.eval.datasets.reader import Dataset
@@ -197,7 +196,7 @@ def _run_compare(old: str, new: str, gate: list[str]) -> int:
             raise ValueError(problem)
     except ValueError as exc:
         print(f"arenabench eval: error: {exc}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     if warning:
         print(f"arenabench eval: warning: {warning}", file=sys.stderr)
     cmp = compare(a, b)
@@ -207,8 +206,8 @@ def _run_compare(old: str, new: str, gate: list[str]) -> int:
     reasons = regressions(cmp, limits)
     if reasons:
         print(f"arenabench eval: FAILED: regression: {'; '.join(reasons)}", file=sys.stderr)
-        return 1
-    return 0
+        return ExitCode.FAILED
+    return ExitCode.OK
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -370,7 +369,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             print(f"arenabench eval: error: {failed}; running commands killed, nothing of it "
                   f"scored ({report.images_done}{total} images finished before)",
                   file=sys.stderr)
-            code = EXIT_HARNESS
+            code = ExitCode.HARNESS
         if args.out is not None:  # even with no image finished: never nothing
             try:
                 with deferred_stops():  # a second stop does not cut the writing short
@@ -399,7 +398,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         pass
     except OSError as exc:  # ENOSPC: one line, no traceback
         parser.fail(write_failure(exc, args.out))
-        return EXIT_FAILED
+        return ExitCode.FAILED
     for fmt, path in written.items():
         print(f"  {fmt:<5} {path}")
     for threshold in thresholds:  # every gate applied, passing or not: the CI log shows them
@@ -407,8 +406,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     reasons = check_thresholds(report.summary, thresholds)
     if reasons:
         print(f"arenabench eval: FAILED: {'; '.join(reasons)}", file=sys.stderr)
-        return 1
-    return 0
+        return ExitCode.FAILED
+    return ExitCode.OK
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -16,7 +16,6 @@ import sys
 from pathlib import Path
 
 from arenabench.cliopts import (
-    EXIT_HARNESS,
     GIVE_UP_AFTER_RULE,
     WORKERS_RULE,
     CommandParser,
@@ -34,6 +33,7 @@ from arenabench.cliopts import (
 from arenabench.cmdtemplate import GRADE_PLACEHOLDERS, GRADE_REFUSED
 from arenabench.eval.runs import OUTPUT_MODES
 from arenabench.eval.scoring.phase_check import add_phase_check_argument
+from arenabench.exitcodes import ExitCode
 
 PROG = "arenabench grade"
 
@@ -203,7 +203,7 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{PROG}: error: the harness could not run an image: {exc}; nothing of it "
                   "was scored, finished teams stay graded (and the finished images of the "
                   "others): run the same command again to resume", file=sys.stderr)
-            return EXIT_HARNESS
+            return ExitCode.HARNESS
         except Interrupted as exc:
             print(f"{PROG}: {exc}: finished teams stay graded, and the finished images of "
                   "the others; run the same command again to resume", file=sys.stderr)
@@ -216,11 +216,11 @@ def main(argv: list[str] | None = None) -> int:
     if result.errors:
         for team, why in result.errors.items():
             print(f"{PROG}: could not grade {team}: {why}", file=sys.stderr)
-        return 1
+        return ExitCode.FAILED
     if result.systemic:
         print(f"{PROG}: error: {result.systemic}", file=sys.stderr)
-        return 3
-    return 0
+        return ExitCode.SYSTEMIC
+    return ExitCode.OK
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -12,7 +12,6 @@ import sys
 from dataclasses import replace
 
 from arenabench.cliopts import (
-    EXIT_HARNESS,
     CommandParser,
     add_area_reference,
     add_no_progress,
@@ -35,6 +34,7 @@ from arenabench.eval.runs import (
     substitute_competition_python,
 )
 from arenabench.eval.scoring.phase_check import add_phase_check_argument, resolve_phases
+from arenabench.exitcodes import ExitCode
 from arenabench.generator.seeds import seed_argument
 from arenabench.interrupts import Interrupted, stop_on_signals
 
@@ -220,7 +220,7 @@ def main(argv: list[str] | None = None) -> int:
         except HarnessError as exc:  # the harness's own failure: nothing of it is scored
             print(f"arenabench sweep: error: the harness could not run an image: {exc}; "
                   "nothing written", file=sys.stderr)
-            return EXIT_HARNESS
+            return ExitCode.HARNESS
         except Interrupted as exc:  # before the first task or after the last one
             print(f"arenabench sweep: {exc}; nothing written", file=sys.stderr)
             return exc.exit_code

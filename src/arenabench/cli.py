@@ -15,7 +15,7 @@ import os
 import sys
 from collections.abc import Callable
 
-from arenabench.cliopts import EXIT_USAGE
+from arenabench.exitcodes import ExitCode
 from arenabench.suggest import did_you_mean
 
 #: command name -> (module, one-line description)
@@ -41,8 +41,6 @@ COMMANDS: dict[str, tuple[str, str]] = {
              "generate a small eyrc set, score the reference pipeline"),
 }
 
-#: Exit status when the reader of stdout went away (128 + SIGPIPE, as a shell reports it).
-EXIT_BROKEN_PIPE = 141
 
 
 def _usage() -> str:
@@ -63,20 +61,20 @@ def _usage() -> str:
 def _unknown(name: str) -> int:
     hint = did_you_mean(name, COMMANDS)
     print(f"arenabench: error: unknown command {name!r}{hint}\n\n{_usage()}", file=sys.stderr)
-    return EXIT_USAGE
+    return ExitCode.USAGE
 
 
 def _dispatch(args: list[str]) -> int:
     if not args:
         print(_usage(), file=sys.stderr)
-        return EXIT_USAGE
+        return ExitCode.USAGE
     if args[0] in {"-h", "--help"}:
         print(_usage())
-        return 0
+        return ExitCode.OK
     if args[0] == "help":
         if len(args) == 1:
             print(_usage())
-            return 0
+            return ExitCode.OK
         if args[1] not in COMMANDS:
             return _unknown(args[1])
         args = [args[1], "--help"]
@@ -84,7 +82,7 @@ def _dispatch(args: list[str]) -> int:
         from arenabench import __version__
 
         print(f"arenabench {__version__}")
-        return 0
+        return ExitCode.OK
     name, rest = args[0], args[1:]
     if name not in COMMANDS:
         return _unknown(name)
@@ -135,7 +133,7 @@ def run(entry: Callable[[], int | None]) -> int:
             os.dup2(devnull, sys.stdout.fileno())
         except (OSError, ValueError):
             pass
-        return EXIT_BROKEN_PIPE
+        return ExitCode.BROKEN_PIPE
 
 
 def main(argv: list[str] | None = None) -> int:

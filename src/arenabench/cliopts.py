@@ -37,6 +37,7 @@ from typing import Any
 
 from arenabench.clihelp import HelpFormatter
 from arenabench.competition import DEFAULT_TOLERANCE
+from arenabench.exitcodes import ExitCode
 from arenabench.limits import (
     DEFAULT_MAX_DISK,
     DEFAULT_MAX_FILE_SIZE,
@@ -52,15 +53,6 @@ from arenabench.limits import (
     MIN_TIMEOUT_S,
 )
 from arenabench.suggest import did_you_mean
-
-#: Exit statuses shared by every command (interruptions: 128 + the signal, see
-#: :mod:`arenabench.interrupts`; a closed stdout: 141, see :mod:`arenabench.cli`).
-EXIT_OK = 0
-EXIT_FAILED = 1
-EXIT_USAGE = 2
-#: The harness itself could not run an image (no space for a run's folder, the image cannot be
-#: copied, a launcher fails): the command stopped, nothing of that image was scored.
-EXIT_HARNESS = 4
 
 #: Options that more than one command has; each is added by the builder of the same name.
 SHARED_OPTIONS: tuple[str, ...] = (
@@ -288,7 +280,7 @@ class CommandParser(argparse.ArgumentParser):
     def error(self, message: str) -> None:  # type: ignore[override]
         """Print one line naming the problem (with a hint) and exit with status 2."""
         self.fail(message + self._hint(message))
-        raise SystemExit(EXIT_USAGE)
+        raise SystemExit(ExitCode.USAGE)
 
     def fail(self, message: str) -> int:
         """Print ``<prog>: error: <message>`` (one line) on stderr; return 2."""
@@ -557,7 +549,7 @@ def usage_error(prog: str, message: str) -> int:
     2. Every command's usage error after parsing (and :meth:`CommandParser.fail`) says it so.
     """
     print(f"{prog}: error: {' '.join(str(message).split())}", file=sys.stderr)
-    return EXIT_USAGE
+    return ExitCode.USAGE
 
 
 def output_problem(path: str | Path, *, option: str = "--out", file: bool = False,

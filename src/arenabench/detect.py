@@ -21,16 +21,15 @@ import sys
 
 from arenabench.cliopts import CommandParser, output_problem, usage_error
 from arenabench.competition import (
-    EXIT_MARKERS_NOT_FOUND,
     OBSTACLES_FILE,
     format_obstacles_txt,
 )
+from arenabench.exitcodes import ExitCode
 from arenabench.fileio import write_output_text
 from arenabench.frame import FrameSpec
 from arenabench.pipeline.config import PROFILES
 
 PROG = "arenabench detect"
-EXIT_OK, EXIT_MARKERS = 0, EXIT_MARKERS_NOT_FOUND
 
 
 def build_parser() -> CommandParser:
@@ -120,8 +119,8 @@ def main(argv: list[str] | None = None) -> int:
           f"{result.count} obstacles, area {result.total_area:.1f} px^2", file=sys.stderr)
     if not result.ok:
         print(f"{PROG}: markers not found: {result.message}", file=sys.stderr)
-        return EXIT_MARKERS
-    return EXIT_OK
+        return ExitCode.MARKERS_NOT_FOUND
+    return ExitCode.OK
 
 
 if __name__ == "__main__":

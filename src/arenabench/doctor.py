@@ -23,6 +23,7 @@ from typing import Any
 
 from arenabench import glplatform
 from arenabench.cliopts import TIMEOUT_RULE, CommandParser
+from arenabench.exitcodes import ExitCode
 
 PROG = "arenabench doctor"
 #: How to install the pinned pyrender release.
@@ -358,9 +359,9 @@ def main(argv: list[str] | None = None) -> int:
         report = run_checks(context=not args.no_context, timeout=args.timeout)
     except ValueError as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
+        return ExitCode.USAGE
     print(json.dumps(report.to_dict(), indent=2) if args.json else report.to_text())
-    return 0 if report.ok else 1
+    return ExitCode.OK if report.ok else ExitCode.FAILED
 
 
 if __name__ == "__main__":
