@@ -17,12 +17,12 @@ from arenabench.cliopts import (
     add_count,
     add_no_progress,
     add_out,
+    add_seed,
     output_problem,
     usage_error,
 )
 from arenabench.exitcodes import ExitCode
 from arenabench.fileio import atomic_write_bytes
-from arenabench.generator.seeds import seed_argument
 from arenabench.limits import MAX_IMAGE_SIDE_PX, check_at_most
 
 #: Padding around a tile and height of its caption strip, in px.
@@ -153,7 +153,7 @@ def build_parser() -> CommandParser:
     )
     p.add_argument("--preset", default="eyrc", help="scene preset (default eyrc)")
     add_count(p, default=16, help="scenes")
-    p.add_argument("--seed", type=seed_argument, default=0, help="run seed (default 0)")
+    add_seed(p, help="run seed")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a preset parameter (repeatable)")
     p.add_argument("--columns", type=int, default=4, help="tiles per row (default 4)")

@@ -67,7 +67,6 @@ from arenabench.generator.make import (
     worker_renderer,
 )
 from arenabench.generator.presets import Value, format_value, get_preset, resolve
-from arenabench.generator.seeds import check_seed
 from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import IMAGE_EXTENSIONS, PNG_COMPRESSION, encode_image
 from arenabench.interrupts import (
@@ -78,6 +77,7 @@ from arenabench.interrupts import (
 from arenabench.jsonstream import atomic_text_writer
 from arenabench.limits import MAX_DATASET_SCENES, MAX_WORKERS, check_at_most
 from arenabench.local_pool import local_map
+from arenabench.seeds import check_seed
 from arenabench.workers import check_workers
 
 #: dataset.json schema id.

@@ -11,6 +11,7 @@ from arenabench.cliopts import (
     add_no_progress,
     add_out,
     add_scheduler,
+    add_seed,
     add_workers,
     output_problem,
     usage_error,
@@ -32,11 +33,8 @@ def build_parser() -> CommandParser:
     p.add_argument("--preset", default="eyrc",
                    help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
     add_count(p, required=True, help="number of scenes")
-    p.add_argument("--seed", default="0",
-                   help="run seed: an integer in [0, 2**128 - 1] (default 0), or 'random': "
-                        "128 bits from the operating system, printed and recorded in "
-                        "dataset.json (use it for a hidden grading set: a small seed lets a "
-                        "submission re-render the set and read its answers)")
+    add_seed(p, random=True, help="run seed (for a hidden grading set use 'random': a small "
+             "seed lets a submission re-render the set and read its answers)")
     add_out(p, required=True, help="output directory")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                    help="override a preset parameter, e.g. camera.tilt_deg=10:30 or "
@@ -56,16 +54,13 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.generator.gl_check import OffscreenGLError
     from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError
-    from arenabench.generator.seeds import parse_seed
     from arenabench.interrupts import Interrupted, exit_code, stop_on_signals
+    from arenabench.seeds import random_seed
 
     if problem := output_problem(args.out):
         return usage_error("arenabench generate", problem)
-    try:
-        seed = parse_seed(args.seed)
-    except ValueError as exc:
-        return usage_error("arenabench generate", str(exc))
-    if args.seed.strip().lower() == "random":
+    seed = random_seed() if args.seed == "random" else args.seed
+    if args.seed == "random":
         print(f"arenabench generate: seed {seed} (random; recorded in "
               f"{os.path.join(args.out, 'dataset.json')}, which no submission may see)",
               flush=True)

@@ -33,8 +33,9 @@ from arenabench.limits import (
 from arenabench.workers import usable_cores
 
 #: (command, option) pairs that share a name but not the meaning: doctor's --timeout is the
-#: seconds allowed for an OpenGL context, not a run's limit (it still keeps TIMEOUT_RULE).
-NOT_SHARED = {("doctor", "--timeout")}
+#: seconds allowed for an OpenGL context, not a run's limit (it still keeps TIMEOUT_RULE);
+#: detect's --output is the competition's answer file, not how a --cmd answers.
+NOT_SHARED = {("doctor", "--timeout"), ("detect", "--output")}
 
 #: What each shared option must default to: its one declaration.
 DECLARED = {
@@ -170,11 +171,11 @@ def test_timeout_is_plain_decimal_and_at_least_the_minimum(command, value, tmp_p
     (("generate", "--count", "1", "--out", "o", "--set", "obstacles.count=٣"),
      "--set obstacles.count: invalid int value '٣'"),
     (("generate", "--count", "1", "--out", "o", "--seed", "1_0"),
-     "--seed: not 'random' nor an integer in [0, 2**128 - 1]: '1_0'"),
+     "argument --seed: not 'random' nor an integer in [0, 2**128 - 1]: '1_0'"),
     (("generate", "--count", "1", "--out", "o", "--seed", "9" * 200),
-     "--seed must be an integer in [0, 2**128 - 1], got 99999"),
+     "argument --seed: must be an integer in [0, 2**128 - 1], got 99999"),
     (("generate", "--count", "1", "--out", "o", "--seed", str(2**128)),
-     "--seed must be an integer in [0, 2**128 - 1]"),
+     "argument --seed: must be an integer in [0, 2**128 - 1]"),
     (("sweep", "--out", "o", "--vary", "camera.tilt_deg=0:10", "--seed", str(2**128)),
      "argument --seed: must be an integer in [0, 2**128 - 1]"),
     (("check", "map.py", "--seed", "٣"), "argument --seed: not an integer in [0, 2**128 - 1]"),
@@ -190,7 +191,7 @@ def test_numbers_on_the_command_line_are_plain_ascii_decimal(argv, needle, tmp_p
 
 
 def test_a_random_seed_is_a_valid_seed():
-    from arenabench.generator.seeds import (
+    from arenabench.seeds import (
         GUESSABLE_BELOW,
         MAX_SEED,
         check_seed,

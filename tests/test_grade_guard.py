@@ -19,7 +19,7 @@ from arenabench.eval.grade.grading import STATE_FILE, GradeOptions, grade
 from arenabench.eval.runs import warm_client
 from arenabench.eval.runs.sandbox import bwrap_problem
 from arenabench.exitcodes import ExitCode
-from arenabench.generator.seeds import GUESSABLE_BELOW
+from arenabench.seeds import GUESSABLE_BELOW
 
 HERE = Path(__file__).resolve().parent
 ATTACKS = HERE / "grade_attacks"

@@ -622,7 +622,7 @@ def test_gt_area_1e_320_does_not_blame_the_pipeline():
 def test_empty_formats_is_refused(toy, tmp_path):
     proc = run("eval", str(toy), "--pipeline", "toy_arena:detect", "--formats", " , ",
                "--out", str(tmp_path / "o"))
-    assert_clean_error(proc, "--formats ' , ': no format named", prog="eval")
+    assert_clean_error(proc, "argument --formats: ' , ': no format named", prog="eval")
     assert not (tmp_path / "o").exists()
 
 

@@ -28,6 +28,7 @@ from arenabench.cliopts import (
     add_no_progress,
     add_out,
     add_run_options,
+    add_seed,
     add_workers,
     output_problem,
     usage_error,
@@ -38,7 +39,6 @@ from arenabench.eval.runs import COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER
 from arenabench.eval.scoring.metric_registry import METRIC
 from arenabench.eval.scoring.phase_check import add_phase_check_argument
 from arenabench.exitcodes import ExitCode
-from arenabench.generator.seeds import seed_argument
 
 PROG = "arenabench check"
 #: Twin scenes a check runs on by default.
@@ -92,8 +92,7 @@ def build_parser() -> CommandParser:
     p.add_argument("script", help="the competition script (map.py)")
     add_count(p, maximum=MAX_COUNT, default=DEFAULT_COUNT,
               help=f"twin scenes (default: {DEFAULT_COUNT})")
-    p.add_argument("--seed", type=seed_argument, default=0,
-                   help="scene seed (default: %(default)s)")
+    add_seed(p, help="scene seed")
     p.add_argument("--preset", default=DEFAULT_PRESET,
                    help="scene preset (default: %(default)s, the hidden-test twin)")
     p.add_argument("--fail-under", default=str(DEFAULT_FAIL_UNDER), metavar="RATE",

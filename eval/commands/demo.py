@@ -18,12 +18,12 @@ from arenabench.cliopts import (
     add_count,
     add_no_progress,
     add_out,
+    add_seed,
     add_workers,
     output_problem,
     usage_error,
 )
 from arenabench.exitcodes import ExitCode
-from arenabench.generator.seeds import seed_argument
 
 
 def build_parser() -> CommandParser:
@@ -36,7 +36,7 @@ def build_parser() -> CommandParser:
     )
     add_out(p, default="demo-out")
     add_count(p, default=24, help="images")
-    p.add_argument("--seed", type=seed_argument, default=0, help="generator seed (default 0)")
+    add_seed(p, help="generator seed")
     p.add_argument("--pipeline", default="reference", help="pipeline to score (default reference)")
     add_workers(p)
     p.add_argument("--example", type=Path, default=None, metavar="IMAGE",

@@ -17,9 +17,12 @@ from typing import TYPE_CHECKING
 from arenabench.cliopts import (
     CommandParser,
     add_area_reference,
+    add_cmd,
     add_count,
+    add_formats,
     add_no_progress,
     add_out,
+    add_output_mode,
     add_run_options,
     add_tolerance,
     add_workers,
@@ -67,6 +70,8 @@ exit status: 0 ok, 1 a threshold missed, 2 usage error, 130/143 interrupted (SIG
 
 def build_parser() -> CommandParser:
     """The argument parser of ``arenabench eval``."""
+    from arenabench.eval.reports import FORMATS
+
     p = CommandParser(
         prog="arenabench eval",
         description="Score an obstacle-detection pipeline on a dataset written by the generator.",
@@ -79,9 +84,7 @@ def build_parser() -> CommandParser:
         help=f"built-in ({', '.join(BUILTIN_PIPELINES)}) or a callable 'pkg.module:function' "
         "(the module is looked for in the current folder first, then on sys.path)",
     )
-    src.add_argument(
-        "--cmd", help="external command template, e.g. 'python3 map.py --image {image}'"
-    )
+    add_cmd(src)
     src.add_argument(
         "--compare", nargs=2, metavar=("OLD", "NEW"),
         help="compare two reports of the same dataset: report.json files or the --out "
@@ -96,12 +99,7 @@ def build_parser() -> CommandParser:
         "--name", default=None,
         help="the --cmd pipeline's name in reports (default: its template)",
     )
-    p.add_argument(
-        "--output",
-        choices=OUTPUT_MODES,
-        default="obstacles",
-        help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line",
-    )
+    add_output_mode(p, OUTPUT_MODES)
     add_workers(p, help="parallel workers")
     p.add_argument(
         "--executor",
@@ -113,11 +111,7 @@ def build_parser() -> CommandParser:
     add_tolerance(p)
     add_area_reference(p)
     add_out(p, help="folder for the report files")
-    p.add_argument(
-        "--formats",
-        default="json,csv,md,html,junit",
-        help="report files to write (default: json,csv,md,html,junit)",
-    )
+    add_formats(p, tuple(FORMATS))
     p.add_argument(
         "--fail-under",
         action="append",
@@ -279,13 +273,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
     except Interrupted as exc:
         early = exc
 
-    formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
-    bad = [f for f in formats if f not in FORMATS]
-    if not formats:
-        return _usage_error(parser, f"--formats {args.formats!r}: no format named (known: "
-                                    f"{', '.join(FORMATS)})")
-    if bad:
-        return _usage_error(parser, f"--formats: unknown {bad} (known: {', '.join(FORMATS)})")
+    formats = args.formats
     # the work starts here: a stop from now on writes the partial (perhaps empty) reports
     dataset = None
     locked = False

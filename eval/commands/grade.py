@@ -20,8 +20,11 @@ from arenabench.cliopts import (
     WORKERS_RULE,
     CommandParser,
     add_area_reference,
+    add_cmd,
+    add_formats,
     add_no_progress,
     add_out,
+    add_output_mode,
     add_run_options,
     add_scheduler,
     add_tolerance,
@@ -97,15 +100,11 @@ def build_parser() -> CommandParser:
     p.add_argument("dataset", help="dataset folder (holds manifest.jsonl and gt/)")
     p.add_argument("submissions", help="folder with one sub-folder per team")
     add_out(p, required=True)
-    p.add_argument("--cmd", default=DEFAULT_COMMAND,
-                   help="command template per team and image (default: %(default)r)")
-    p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
-                   help="how the command answers: obstacles.txt in its cwd (default) or a "
-                        "JSON line")
+    add_cmd(p, default=DEFAULT_COMMAND, help="command template per team and image")
+    add_output_mode(p, OUTPUT_MODES)
     add_tolerance(p)
     add_area_reference(p)
-    p.add_argument("--formats", default=",".join(FORMATS),
-                   help="report files per team (default: %(default)s)")
+    add_formats(p, tuple(FORMATS), help="report files per team")
     add_scheduler(p, help="run on an existing Dask cluster (dataset and submissions at the "
                   "same paths on every worker; see docs/scale-out.md)")
     add_workers(p, help="commands run at once here")
@@ -155,7 +154,7 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.eval.runs import run_settings_from_args
     from arenabench.eval.scoring.phase_check import resolve_phases
 
-    formats = tuple(f.strip() for f in args.formats.split(",") if f.strip())
+    formats = args.formats
     if problem := output_problem(args.out):
         return _error(problem)
     try:

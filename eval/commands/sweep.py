@@ -14,10 +14,13 @@ from dataclasses import replace
 from arenabench.cliopts import (
     CommandParser,
     add_area_reference,
+    add_cmd,
     add_no_progress,
     add_out,
+    add_output_mode,
     add_run_options,
     add_scheduler,
+    add_seed,
     add_tolerance,
     add_workers,
     lock_out,
@@ -35,7 +38,6 @@ from arenabench.eval.runs import (
 )
 from arenabench.eval.scoring.phase_check import add_phase_check_argument, resolve_phases
 from arenabench.exitcodes import ExitCode
-from arenabench.generator.seeds import seed_argument
 from arenabench.interrupts import Interrupted, stop_on_signals
 
 EPILOG = """\
@@ -97,16 +99,15 @@ def build_parser() -> CommandParser:
     p.add_argument("--random", type=int, default=None, metavar="N",
                    help="draw N random points from the ranges instead of the grid")
     p.add_argument("--per-point", type=int, default=50, help="scenes per point (default 50)")
-    p.add_argument("--seed", type=seed_argument, default=0, help="sweep seed (default 0)")
+    add_seed(p, help="sweep seed")
     p.add_argument("--independent-scenes", action="store_true",
                    help="different scenes at every point (default: the same base scenes)")
     p.add_argument("--pipeline", dest="pipes", action=_PipelineAction, metavar="NAME",
                    help=f"built-in ({', '.join(BUILTIN_PIPELINES)}) or 'pkg.module:function' "
                         "(repeatable; modules are looked for in the current folder first)")
-    p.add_argument("--cmd", dest="pipes", action=_PipelineAction, metavar="TEMPLATE",
-                   help="external command, e.g. 'python3 map.py --image {image}' (repeatable)")
-    p.add_argument("--output", choices=OUTPUT_MODES, default="obstacles",
-                   help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line")
+    add_cmd(p, dest="pipes", action=_PipelineAction,
+            help="external command, e.g. 'python3 map.py --image {image}' (repeatable)")
+    add_output_mode(p, OUTPUT_MODES)
     add_tolerance(p)
     add_area_reference(p)
     p.add_argument("--threshold", type=float, default=0.9,

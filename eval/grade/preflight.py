@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING, Any
 
 from arenabench.eval.grade.teams import team_command
 from arenabench.eval.runs import owned_dir_prefix
-from arenabench.generator.seeds import GUESSABLE_BELOW, is_guessable, seed_problem
+from arenabench.seeds import GUESSABLE_BELOW, is_guessable, seed_problem
 
 if TYPE_CHECKING:
     from arenabench.eval.datasets.reader import Dataset
@@ -236,7 +236,7 @@ def check_dataset_seed(data: Dataset, *, allow_guessable: bool) -> int | None:
     """Refuse a set whose seed is not proven unguessable: fail closed.
 
     Every place that records the seed must hold an integer of at least 2**64
-    (:func:`arenabench.generator.seeds.seed_problem`): ``dataset.json`` (its ``seed`` and
+    (:func:`arenabench.seeds.seed_problem`): ``dataset.json`` (its ``seed`` and
     ``args.seed``; a missing, unreadable or garbled file proves nothing) and every GT file's
     ``seed`` (gathered by :func:`~arenabench.eval.datasets.reader.load_dataset` while it
     validates them).

@@ -13,8 +13,8 @@ from arenabench.eval.runs import OUTPUT_MODES, CommandPipeline, RunSettings
 from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE
 from arenabench.eval.scoring.results import ImageResult, Summary
 from arenabench.generator.presets import Value, format_value
-from arenabench.generator.seeds import check_seed
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
+from arenabench.seeds import check_seed
 
 from ..pipelines import Pipeline, make_pipeline, pipeline_name_problem
 from .grid import Axis

@@ -58,7 +58,7 @@ from arenabench.suggest import did_you_mean
 SHARED_OPTIONS: tuple[str, ...] = (
     "--out", "--workers", "--scheduler", "--no-progress", "--tolerance", "--area-reference",
     "--timeout", "--memory-limit", "--max-file-size", "--max-output", "--max-disk",
-    "--max-procs", "--sandbox", "--count",
+    "--max-procs", "--sandbox", "--count", "--seed", "--cmd", "--output", "--formats",
 )
 
 
@@ -451,6 +451,78 @@ def add_count(parser: argparse.ArgumentParser, flag: str = "--count", *,
     kwargs: dict[str, Any] = {"required": True} if required else {"default": default}
     return _tag(parser.add_argument(flag, type=count_rule(maximum, minimum=minimum).argtype(flag),
                                     metavar="N", help=help, **kwargs), "add_count")
+
+
+def add_seed(parser: argparse.ArgumentParser, *, random: bool = False,
+             help: str = "seed") -> argparse.Action:
+    """``--seed N``: an integer in [0, :data:`arenabench.seeds.MAX_SEED`] in plain decimal,
+    default 0; with ``random``, also the word ``random`` (kept as the text ``"random"``: the
+    command draws the seed, :func:`arenabench.seeds.random_seed`, and says which)."""
+    from arenabench.seeds import RANDOM_SEED_BITS, parse_seed
+
+    def seed(text: str) -> int | str:
+        if random and text.strip().lower() == "random":
+            return "random"
+        try:  # "random" is taken above: here it only words the error
+            return parse_seed(text, allow_random=random)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(
+                str(exc).removeprefix("--seed: ").removeprefix("--seed ")) from None
+
+    also = (", or 'random': 128 bits from the operating system, printed and recorded"
+            if random else "")
+    return _tag(parser.add_argument(
+        "--seed", type=seed, default=0, metavar="N",
+        help=f"{help}: an integer in [0, 2**{RANDOM_SEED_BITS} - 1]{also} (default: 0)"),
+        "add_seed")
+
+
+def add_cmd(parser: argparse.ArgumentParser, *, default: str | None = None,
+            help: str = "external command per image, e.g. 'python3 map.py --image {image}'",
+            **kwargs: Any) -> argparse.Action:
+    """``--cmd TEMPLATE``: a command line per image (:mod:`arenabench.cmdtemplate`; checked
+    with the run options, :func:`cmd_template_problem`). ``kwargs`` go to ``add_argument``
+    (``sweep`` collects ``--cmd`` and ``--pipeline`` in order with an action of its own)."""
+    if default is not None:
+        help = f"{help} (default: %(default)r)"
+    return _tag(parser.add_argument("--cmd", default=default, metavar="TEMPLATE", help=help,
+                                    **kwargs), "add_cmd")
+
+
+def add_output_mode(parser: argparse.ArgumentParser, modes: Sequence[str]) -> argparse.Action:
+    """``--output MODE``: how a ``--cmd`` answers, one of ``modes``
+    (:data:`arenabench.eval.runs.OUTPUT_MODES`), the first by default."""
+    return _tag(parser.add_argument(
+        "--output", choices=tuple(modes), default=modes[0],
+        help="how --cmd answers: obstacles.txt in its cwd (default) or a JSON line on stdout"),
+        "add_output_mode")
+
+
+def formats_rule(known: Sequence[str]) -> Callable[[str], tuple[str, ...]]:
+    """The ``type=`` of ``--formats``: a comma-separated, non-empty list of ``known`` names,
+    as a tuple in the order given (a name given twice counts once)."""
+    def formats(text: str) -> tuple[str, ...]:
+        names = tuple(dict.fromkeys(f.strip() for f in text.split(",") if f.strip()))
+        bad = [f for f in names if f not in known]
+        if not names:
+            raise argparse.ArgumentTypeError(
+                f"{text!r}: no format named (known: {', '.join(known)})")
+        if bad:
+            raise argparse.ArgumentTypeError(
+                f"unknown {', '.join(map(repr, bad))}{did_you_mean(bad[0], known)} "
+                f"(known: {', '.join(known)})")
+        return names
+
+    return formats
+
+
+def add_formats(parser: argparse.ArgumentParser, known: Sequence[str], *,
+                help: str = "report files to write") -> argparse.Action:
+    """``--formats a,b``: which of the ``known`` report files to write (all by default),
+    parsed by :func:`formats_rule`."""
+    return _tag(parser.add_argument(
+        "--formats", type=formats_rule(known), default=tuple(known), metavar="LIST",
+        help=f"{help}, comma-separated, of {','.join(known)} (default: all)"), "add_formats")
 
 
 def _cmd_templates(ns: argparse.Namespace) -> list[str]:

@@ -70,18 +70,6 @@ def parse_seed(text: str, *, allow_random: bool = True, name: str = "--seed") ->
     return check_seed(value, name=name)
 
 
-def seed_argument(text: str) -> int:
-    """The ``type=`` of an integer ``--seed`` option (``sweep``, ``check``): :func:`parse_seed`
-    without ``random``."""
-    import argparse
-
-    try:
-        return parse_seed(text, allow_random=False)
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(
-            str(exc).removeprefix("--seed: ").removeprefix("--seed ")) from None
-
-
 def seed_problem(seed: Any) -> str | None:
     """Why ``seed``, as a file records it (parsed JSON), does not prove a set unguessable, or
     ``None`` when it does: an integer (not a boolean, a float or a string) of at least
