@@ -179,13 +179,20 @@ class MarkerSpec:
         object.__setattr__(self, "ids", ids)
         if not isinstance(self.dictionary, str):
             raise ValueError(f"markers.dictionary must be a name, got {self.dictionary!r}")
-        from arenabench.generator.textures import aruco_dictionary  # imports this module
+        from arenabench.generator.textures import (  # imports this module
+            aruco_dictionary,
+            symmetric_turn,
+        )
 
         size = aruco_dictionary(self.dictionary).bytesList.shape[0]
         for marker_id in ids:
             if not 0 <= marker_id < size:
                 raise ValueError(f"markers.ids: id {marker_id} is not in {self.dictionary} "
                                  f"(ids 0..{size - 1})")
+            if (turn := symmetric_turn(self.dictionary, marker_id)) is not None:
+                raise ValueError(f"markers.ids: id {marker_id} of {self.dictionary} looks the "
+                                 f"same turned {turn} deg, so no detector can tell its first "
+                                 f"corner (choose another id)")
         _positive(self.side_m, "markers.side_m")
         if self.quiet_zone_m < 0:
             raise ValueError(f"markers.quiet_zone_m must be >= 0, got {self.quiet_zone_m!r}")
