@@ -75,6 +75,11 @@ def test_one_and_two_samples_render_the_former_bytes(example, renderer, grey):
     with Renderer(antialias=False) as hard:  # antialias=False stays hard whatever the scene
         assert np.array_equal(cv2.cvtColor(hard.render(four).rgb, cv2.COLOR_RGB2GRAY),
                               grey["hard"])
+        for preset in ("eyrc-jitter", "eyrc-oblique", "warehouse"):  # tilted, lit, textured
+            one = sample_scene(preset, seed=4, index=1,
+                               overrides={"render.edge_samples": 1}).scene
+            assert np.array_equal(renderer.render(one).rgb,
+                                  hard.render(replace(one, render=RenderSpec())).rgb), preset
 
 
 def test_the_edge_models_differ_only_along_the_boxes(example, grey):
