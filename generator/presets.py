@@ -14,10 +14,10 @@ import math
 from pathlib import Path
 from typing import Any
 
-from arenabench.cliopts import plain_number
 from arenabench.frame import COMPETITION_DICTIONARY
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.params import DEFAULTS, NEUTRAL, PARAMETERS, Param, Range, Value
+from arenabench.plain_numbers import plain_number
 from arenabench.suggest import did_you_mean
 
 #: The competition example's look, widened: a procedural 8 m arena, the camera, light, box greys

@@ -102,10 +102,10 @@ class Metric:
         ------
         ValueError
             One line naming ``option``, the metric and the value: not a plain decimal number
-            (:func:`arenabench.cliopts.plain_number`), or outside :attr:`limits` (a rate given
+            (:func:`arenabench.plain_numbers.plain_number`), or outside :attr:`limits` (a rate given
             as a percentage gets its fraction as a hint).
         """
-        from arenabench.cliopts import plain_number
+        from arenabench.plain_numbers import plain_number
 
         lo, hi = self.limits
         what = "a fraction in [0, 1]" if self.kind == "rate" else "a finite number >= 0"

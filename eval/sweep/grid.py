@@ -23,7 +23,6 @@ from typing import Any
 
 import numpy as np
 
-from arenabench.cliopts import plain_number
 from arenabench.generator.presets import (
     PARAMETERS,
     Range,
@@ -31,6 +30,7 @@ from arenabench.generator.presets import (
     format_value,
     validate_value,
 )
+from arenabench.plain_numbers import plain_number
 
 #: Values a two-part ``a:b`` range gives in a grid sweep.
 DEFAULT_RANGE_STEPS = 5

@@ -52,6 +52,7 @@ from arenabench.limits import (
     MAX_WORKERS,
     MIN_TIMEOUT_S,
 )
+from arenabench.plain_numbers import plain_number
 from arenabench.suggest import did_you_mean
 
 #: Options that more than one command has; each is added by the builder of the same name.
@@ -63,29 +64,6 @@ SHARED_OPTIONS: tuple[str, ...] = (
 
 
 # ------------------------------------------------------------------------------------ rules
-
-#: How a number is written on the command line: plain ASCII decimal digits, a sign, a point
-#: and an exponent; no underscores (``1_0``), no other scripts' digits (``٣``), no spaces.
-_INT_TEXT = re.compile(r"[+-]?[0-9]+")
-_FLOAT_TEXT = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
-
-
-def plain_number(text: str, kind: str = "float") -> int | float:
-    """``text`` as a number when it is written as plain ASCII decimal (:data:`_FLOAT_TEXT`;
-    ``kind="int"``: digits only). Python's ``int()`` and ``float()`` also read ``1_0``,
-    ``٣`` (an Arabic-Indic three), surrounding white space, ``inf`` and ``nan``; a command line
-    does not.
-
-    Raises
-    ------
-    ValueError
-        When ``text`` is not such a number.
-    """
-    pattern = _INT_TEXT if kind == "int" else _FLOAT_TEXT
-    if not isinstance(text, str) or not pattern.fullmatch(text):
-        raise ValueError(f"not a plain decimal number: {text!r}")
-    return int(text) if kind == "int" else float(text)
-
 
 @dataclass(frozen=True)
 class Rule:

@@ -57,7 +57,7 @@ def parse_seed(text: str, *, allow_random: bool = True, name: str = "--seed") ->
     ValueError
         For anything else, one line naming ``name`` (argparse turns it into one usage line).
     """
-    from arenabench.cliopts import plain_number
+    from arenabench.plain_numbers import plain_number
 
     if allow_random and text.strip().lower() == "random":
         return random_seed()
