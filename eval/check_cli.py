@@ -28,6 +28,7 @@ from arenabench.cliopts import (
     add_count,
     add_no_progress,
     add_out,
+    add_preset,
     add_run_options,
     add_workers,
     output_problem,
@@ -35,6 +36,8 @@ from arenabench.cliopts import (
     write_failure,
 )
 from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, escape, template_problem
+from arenabench.generator.preset_files import resolve_preset
+from arenabench.generator.presets import DEFAULT_PRESET, preset_names
 from arenabench.generator.seeds import seed_argument
 
 from .competition_env import OWN_PLACEHOLDER, PLACEHOLDER
@@ -44,7 +47,6 @@ from .phase_check import add_phase_check_argument
 PROG = "arenabench check"
 #: Twin scenes a check runs on by default.
 DEFAULT_COUNT = 200
-DEFAULT_PRESET = "eyrc"
 #: Pass rate a script must reach (``--fail-under``).
 DEFAULT_FAIL_UNDER = 0.95
 #: Environment variable naming the cache folder (default: ``$XDG_CACHE_HOME/arenabench``, else
@@ -98,8 +100,8 @@ def build_parser() -> CommandParser:
               help=f"twin scenes (default: {DEFAULT_COUNT})")
     p.add_argument("--seed", type=seed_argument, default=0,
                    help="scene seed (default: %(default)s)")
-    p.add_argument("--preset", default=DEFAULT_PRESET,
-                   help="scene preset (default: %(default)s, the hidden-test twin)")
+    add_preset(p, resolve=resolve_preset, default=DEFAULT_PRESET, names=preset_names(),
+               help="scene preset (default: the hidden-test twin)")
     p.add_argument("--fail-under", default=str(DEFAULT_FAIL_UNDER), metavar="RATE",
                    help="pass rate needed for exit status 0, a fraction in [0, 1] "
                    "(default: %(default)s)")
@@ -130,10 +132,13 @@ def twin_set_dir(*, preset: str, seed: int, count: int) -> Path:
     return cache_dir() / "sets" / f"{preset}-{seed}-{count}-v{GENERATOR_VERSION}"
 
 
-def larger_twin_set(*, preset: str, seed: int, count: int) -> tuple[Path, int] | None:
+def larger_twin_set(*, preset: str, seed: int, count: int,
+                    name: str | None = None) -> tuple[Path, int] | None:
     """The smallest complete cached twin set of ``preset`` and ``seed`` (this generator
     version, no ``--set``) with more than ``count`` scenes, and its size; ``None`` when there
-    is none.
+    is none. ``preset`` is the preset's key (its folders' names,
+    :attr:`arenabench.generator.preset_files.ResolvedPreset.key`), ``name`` the name its
+    ``dataset.json`` records (default: ``preset``).
 
     Its first ``count`` scenes are the scenes of a ``count``-scene set: scene ``i`` draws
     only from the streams of ``(seed, i)`` (:func:`arenabench.generator.sampler.stream_rng`),
@@ -163,7 +168,8 @@ def larger_twin_set(*, preset: str, seed: int, count: int) -> tuple[Path, int] |
         args = meta.get("args") if isinstance(meta, dict) else None
         n = int(pattern.fullmatch(path.name).group(1))  # type: ignore[union-attr]
         if (isinstance(args, dict) and meta.get("complete") is True
-                and args == {"preset": preset, "count": n, "seed": seed, "overrides": {},
+                and args == {"preset": name or preset, "count": n, "seed": seed,
+                             "overrides": {},
                              "generator_version": GENERATOR_VERSION}):
             found.append((n, path))
     if not found:
@@ -207,8 +213,6 @@ def _python_problem(python: str) -> str | None:
 
 def _validate(args: argparse.Namespace) -> str | None:
     """The first bad input, as one line; ``None`` when all is well."""
-    from arenabench.generator.presets import get_preset
-
     script = Path(args.script)
     if not script.exists():
         return f"{args.script}: no such file"
@@ -224,10 +228,6 @@ def _validate(args: argparse.Namespace) -> str | None:
                                                           option="--fail-under")
     except ValueError as exc:
         return str(exc)
-    try:
-        get_preset(args.preset)
-    except ValueError as exc:
-        return f"--preset: {exc}"
     return _python_problem(args.python)
 
 
@@ -304,7 +304,8 @@ def _main(argv: list[str] | None) -> int:
     script = Path(args.script).resolve()
     from .reports import FORMATS
 
-    twin = twin_set_dir(preset=args.preset, seed=args.seed, count=args.count)
+    preset = args.preset  # a ResolvedPreset: sets and reports are named by its key
+    twin = twin_set_dir(preset=preset.key, seed=args.seed, count=args.count)
 
     def out_problem(out: Path) -> str | None:
         return output_problem(out, own=FORMATS.values(), what="'arenabench check' report",
@@ -329,7 +330,7 @@ def _main(argv: list[str] | None) -> int:
         make_pipeline(_template(OWN_PLACEHOLDER, script), str(script.parent))  # the options
     except ValueError as exc:
         return _error(str(exc))
-    phases = resolve_phases(args.phase_check, [args.preset])
+    phases = resolve_phases(args.phase_check, [preset.name])
     progress = not args.no_progress
 
     interpreter = _interpreter(python, progress=progress)
@@ -341,7 +342,7 @@ def _main(argv: list[str] | None) -> int:
     except ValueError as exc:  # PreflightError: the interpreter lacks numpy, cv2 or aruco
         return _error(str(exc))
     out = args.out if args.out is not None else report_dir(
-        script, preset=args.preset, seed=args.seed, count=args.count,
+        script, preset=preset.key, seed=args.seed, count=args.count,
         interpreter=interpreter.executable, settings=settings.to_dict(), phases=phases)
     if problem := out_problem(out):
         return _error(problem)
@@ -353,15 +354,15 @@ def _main(argv: list[str] | None) -> int:
     from .evaluation import EvaluationInterrupted, evaluate
     from .reports import write_reports
 
-    larger = None if twin.exists() else larger_twin_set(preset=args.preset, seed=args.seed,
-                                                         count=args.count)
+    larger = None if twin.exists() else larger_twin_set(preset=preset.key, seed=args.seed,
+                                                         count=args.count, name=preset.name)
     try:
         if larger is not None:  # its first scenes are this set's: nothing to render
             twin = larger[0]
             made = None
             what = f"reused twin set {twin} (its first {args.count} of {larger[1]} scenes"
         else:
-            made = generate_dataset(twin, preset=args.preset, count=args.count, seed=args.seed,
+            made = generate_dataset(twin, preset=preset, count=args.count, seed=args.seed,
                                     workers=min(args.workers or _cores(), 8),
                                     progress=progress)
             what = (("reused" if made.rendered == 0 else f"generated {made.rendered} scenes of")
@@ -386,7 +387,7 @@ def _main(argv: list[str] | None) -> int:
                     dataset = load_dataset(twin, limit=args.count if larger else None)
                 except (DatasetError, ValueError) as exc:
                     return _error(f"twin set {twin}: {exc}")
-                print(f"{PROG}: {what} of {args.preset}, seed {args.seed}); report folder {out}")
+                print(f"{PROG}: {what} of {preset.name}, seed {args.seed}); report folder {out}")
                 report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
                                   phases=phases)
             except (EvaluationInterrupted, EvaluationFailed, Interrupted) as exc:

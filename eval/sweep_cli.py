@@ -17,6 +17,7 @@ from arenabench.cliopts import (
     add_area_reference,
     add_no_progress,
     add_out,
+    add_preset,
     add_run_options,
     add_scheduler,
     add_tolerance,
@@ -77,7 +78,8 @@ class _PipelineAction(argparse.Action):
 
 def build_parser() -> CommandParser:
     """The argument parser of ``arenabench sweep``."""
-    from arenabench.generator.presets import preset_names
+    from arenabench.generator.preset_files import resolve_preset
+    from arenabench.generator.presets import DEFAULT_PRESET, preset_names
 
     p = CommandParser(
         prog="arenabench sweep",
@@ -85,8 +87,7 @@ def build_parser() -> CommandParser:
                     "render and score every point in memory, report breakdown points.",
         epilog=EPILOG,
     )
-    p.add_argument("--preset", default="eyrc",
-                   help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
+    add_preset(p, resolve=resolve_preset, default=DEFAULT_PRESET, names=preset_names())
     p.add_argument("--vary", action="append", default=[], metavar="KEY=SPEC",
                    help="parameter to vary (repeatable; see below)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -136,7 +137,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_or_status(argv)
     if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
         return args
-    from arenabench.generator.presets import get_preset, parse_overrides
+    from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError
 
     from .cmd_script import missing_script_problem
@@ -154,7 +155,6 @@ def main(argv: list[str] | None = None) -> int:
     if not args.pipes:
         return _error("give --pipeline NAME|pkg.module:function and/or --cmd TEMPLATE")
     try:
-        get_preset(args.preset)
         axes = parse_varies(args.vary)
         overrides = parse_overrides(args.overrides)
         clash = sorted(set(overrides) & {a.key for a in axes})
@@ -182,7 +182,7 @@ def main(argv: list[str] | None = None) -> int:
             threshold=args.threshold, breakdown_mode=args.breakdown_mode,
             keep="all" if args.keep_images else "failures" if args.keep_failures else "none",
             independent_scenes=args.independent_scenes,
-            phases=resolve_phases(args.phase_check, [args.preset]),
+            phases=resolve_phases(args.phase_check, [args.preset.name]),
         )
     except ValueError as exc:
         return _error(str(exc))

@@ -66,7 +66,8 @@ from arenabench.generator.make import (
     worker_gl_info,
     worker_renderer,
 )
-from arenabench.generator.presets import Value, format_value, get_preset, resolve
+from arenabench.generator.preset_files import RESERVED_KEYS, ResolvedPreset, builtin_preset
+from arenabench.generator.presets import Value, format_value, resolve
 from arenabench.generator.seeds import check_seed
 from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import IMAGE_EXTENSIONS, PNG_COMPRESSION, encode_image
@@ -90,15 +91,20 @@ class GenerateError(ValueError):
 
 @dataclass(frozen=True)
 class DatasetArgs:
-    """The arguments that define a dataset's content."""
+    """The arguments that define a dataset's content.
 
-    preset: str
+    ``preset`` is given as a built-in preset's name or a preset file's
+    :class:`~arenabench.generator.preset_files.ResolvedPreset`, and kept as the latter.
+    """
+
+    preset: ResolvedPreset
     count: int
     seed: int
     overrides: dict[str, Value] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        get_preset(self.preset)
+        if not isinstance(self.preset, ResolvedPreset):
+            object.__setattr__(self, "preset", builtin_preset(str(self.preset)))
         if int(self.count) != self.count or self.count < 0:
             raise ValueError(f"count must be an integer >= 0, got {self.count!r}")
         check_at_most(int(self.count), MAX_DATASET_SCENES, "count")
@@ -119,7 +125,7 @@ class DatasetArgs:
     def to_dict(self) -> dict[str, Any]:
         """JSON form stored under ``dataset.json["args"]``."""
         return {
-            "preset": self.preset, "count": int(self.count), "seed": int(self.seed),
+            "preset": self.preset.name, "count": int(self.count), "seed": int(self.seed),
             "overrides": {k: format_value(v) for k, v in sorted(self.overrides.items())},
             "generator_version": GENERATOR_VERSION,
         }
@@ -203,6 +209,9 @@ class RenderTask:
         ``output.format`` (``png`` or ``jpeg``).
     jpeg_quality : int
         ``output.jpeg_quality``.
+    preset : ResolvedPreset
+        The preset (a preset file's parameters travel with the task); ``None``: the built-in
+        preset ``args["preset"]``.
     """
 
     args: dict[str, Any]
@@ -211,6 +220,7 @@ class RenderTask:
     out: str
     image_format: str = "png"
     jpeg_quality: int = 95
+    preset: ResolvedPreset | None = None
 
     @property
     def image_ext(self) -> str:
@@ -224,7 +234,8 @@ class RenderTask:
 
 
 def _render(task: RenderTask):
-    return make_sample(task.args["preset"], seed=task.seed, index=task.index,
+    preset = task.preset if task.preset is not None else task.args["preset"]
+    return make_sample(preset, seed=task.seed, index=task.index,
                        overrides=_parse_stored(task.args["overrides"]),
                        renderer=worker_renderer(), image_ext=task.image_ext)
 
@@ -365,7 +376,37 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
                 f"{out} was generated with different arguments: {name} was "
                 f"{old.get(key)!r}, now {new[key]!r} (use another --out)"
             )
+    _check_same_preset(out, meta, args.preset)
     return meta
+
+
+def _parameters(definition: Any) -> dict[str, Any]:
+    """The parameter sections of a preset file's document (``dataset.json``'s
+    ``preset_definition``)."""
+    if not isinstance(definition, dict):
+        return {}
+    return {k: v for k, v in definition.items() if k not in RESERVED_KEYS}
+
+
+def _check_same_preset(out: Path, meta: dict[str, Any], preset: ResolvedPreset) -> None:
+    """Refuse to add to a set made from a preset of the same name but other parameters (a
+    set made before ``preset_definition`` was recorded is checked by name only)."""
+    if "preset_definition" not in meta:
+        return
+    old, new = _parameters(meta["preset_definition"]), _parameters(preset.document())
+    if old == new:
+        return
+    for section in sorted(set(old) | set(new)):
+        was, now = old.get(section) or {}, new.get(section) or {}
+        for key in sorted(set(was) | set(now)):
+            if was.get(key) != now.get(key):
+                raise GenerateError(
+                    f"{out} was generated from another preset {preset.name!r}: "
+                    f"{section}.{key} was {was.get(key)!r}, now {now.get(key)!r} (use another "
+                    "--out; the set's own preset is --preset "
+                    f"{out / 'dataset.json'})")
+    raise GenerateError(f"{out} was generated from another preset {preset.name!r} (use "
+                        "another --out)")  # pragma: no cover - differing sections are keys
 
 
 def _present(out: Path, sid: str, ext: str) -> bool:
@@ -523,10 +564,11 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
                 gl: dict[str, str] | None = None, finished: int | None = None) -> None:
     params = resolve(args.preset, args.overrides)
     meta = {
-        "schema": DATASET_SCHEMA, "args": args.to_dict(), "preset": args.preset,
+        "schema": DATASET_SCHEMA, "args": args.to_dict(), "preset": args.preset.name,
         "overrides": args.to_dict()["overrides"], "seed": int(args.seed),
         "count": int(args.count), "complete": complete,
         "params": {k: format_value(v) for k, v in sorted(params.items())},
+        "preset_definition": args.preset.document(),
         "versions": _versions(gl) if complete else {},
         "render": {"mode": "flat, Lambertian shading baked", "edges": EDGE_MODEL,
                    **_image_format_meta(*args.output)},
@@ -543,7 +585,7 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
 def generate_dataset(
     out: str | os.PathLike[str],
     *,
-    preset: str,
+    preset: str | ResolvedPreset,
     count: int,
     seed: int,
     overrides: dict[str, Value] | None = None,
@@ -557,8 +599,10 @@ def generate_dataset(
     ----------
     out : path-like
         Dataset directory (created).
-    preset : str, keyword-only
-        Preset name.
+    preset : str or ResolvedPreset, keyword-only
+        A built-in preset's name, or a preset file's
+        :class:`~arenabench.generator.preset_files.ResolvedPreset`
+        (:func:`~arenabench.generator.preset_files.resolve_preset`).
     count, seed : int, keyword-only
         Number of scenes, run seed.
     overrides : dict, keyword-only
@@ -691,7 +735,8 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
     stored = args.to_dict()
     image_format, jpeg_quality = args.output
     tasks = [RenderTask(args=stored, seed=args.seed, index=i, out=str(root),
-                        image_format=image_format, jpeg_quality=jpeg_quality) for i in todo]
+                        image_format=image_format, jpeg_quality=jpeg_quality,
+                        preset=args.preset) for i in todo]
     results: list[dict[str, Any]] = []
     parts = CocoParts()  # the scenes' COCO parts wait on disk, not in results
     bar = _progress(len(tasks), progress)

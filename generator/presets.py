@@ -184,6 +184,16 @@ PRESETS: Mapping[str, tuple[str, dict[str, Value]]] = _Presets(
     (*PRESET_FILES, *_IN_CODE), _IN_CODE)
 
 
+#: The preset every command uses unless told otherwise: the hidden-test twin.
+DEFAULT_PRESET = "eyrc"
+
+
+def preset_name(preset: Any) -> str:
+    """The name GT files and reports record for ``preset`` (a name, or a
+    :class:`~arenabench.generator.preset_files.ResolvedPreset`)."""
+    return preset if isinstance(preset, str) else str(preset.name)
+
+
 def preset_names() -> list[str]:
     """Names of the built-in presets."""
     return list(PRESETS)

@@ -363,6 +363,7 @@ def test_wheel_builds_without_warnings_and_holds_the_package_data(tmp_path):
     wheel = next((tmp_path / "dist").glob("arenabench-*.whl"))
     names = set(zipfile.ZipFile(wheel).namelist())
     for required in ("arenabench/generator/scenes/task1c_example.json",
+                     "arenabench/generator/assets/presets/eyrc.toml",
                      "arenabench/pipeline/detection.py", "arenabench/eval/sweep/html.py",
                      "arenabench/eval/reports/html_report.py", "arenabench/progress.py"):
         assert required in names, required

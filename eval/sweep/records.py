@@ -8,7 +8,7 @@ import os
 from dataclasses import dataclass, field
 from typing import Any
 
-from arenabench.generator.presets import Value, format_value
+from arenabench.generator.presets import Value, format_value, preset_name
 from arenabench.generator.seeds import check_seed
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 
@@ -92,8 +92,9 @@ class SweepSpec:
 
     Parameters
     ----------
-    preset : str
-        Scene preset.
+    preset : str or ResolvedPreset
+        Scene preset: a built-in name or a preset file's
+        :class:`~arenabench.generator.preset_files.ResolvedPreset`.
     axes : tuple of Axis
         Varied parameters (``--vary``).
     pipelines : tuple of PipelineSpec
@@ -124,7 +125,7 @@ class SweepSpec:
         worker that rendered it; 0 = off.
     """
 
-    preset: str
+    preset: Any
     axes: tuple[Axis, ...]
     pipelines: tuple[PipelineSpec, ...]
     per_point: int = 50
@@ -179,7 +180,9 @@ class SweepSpec:
     def to_dict(self) -> dict[str, Any]:
         """JSON form of the settings (``sweep.json`` top level)."""
         return {
-            "preset": self.preset,
+            "preset": preset_name(self.preset),
+            **({} if isinstance(self.preset, str)  # a preset file: what it held
+               else {"preset_definition": self.preset.document()}),
             "seed": int(self.seed),
             "per_point": int(self.per_point),
             "mode": "grid" if self.random is None else "random",
@@ -212,7 +215,7 @@ class SweepTask:
     point: int
     scene: int
     index: int
-    preset: str
+    preset: Any
     seed: int
     overrides: dict[str, Value]
     pipelines: tuple[PipelineSpec, ...]
