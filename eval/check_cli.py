@@ -39,6 +39,7 @@ from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, escape, template_pro
 from arenabench.generator.preset_files import resolve_preset
 from arenabench.generator.presets import DEFAULT_PRESET, preset_names
 from arenabench.generator.seeds import seed_argument
+from arenabench.usercache import CACHE_ENV, cache_dir  # noqa: F401 - CACHE_ENV: importable here
 
 from .competition_env import OWN_PLACEHOLDER, PLACEHOLDER
 from .metric_registry import METRIC
@@ -49,9 +50,6 @@ PROG = "arenabench check"
 DEFAULT_COUNT = 200
 #: Pass rate a script must reach (``--fail-under``).
 DEFAULT_FAIL_UNDER = 0.95
-#: Environment variable naming the cache folder (default: ``$XDG_CACHE_HOME/arenabench``, else
-#: ``~/.cache/arenabench``).
-CACHE_ENV = "ARENABENCH_CACHE_DIR"
 #: Largest ``--count``.
 MAX_COUNT = 10000
 
@@ -115,14 +113,6 @@ def build_parser() -> CommandParser:
     add_phase_check_argument(p)
     add_run_options(p)
     return p
-
-
-def cache_dir() -> Path:
-    """The user cache folder of arenabench (see :data:`CACHE_ENV`)."""
-    if os.environ.get(CACHE_ENV):
-        return Path(os.environ[CACHE_ENV])
-    base = os.environ.get("XDG_CACHE_HOME") or str(Path.home() / ".cache")
-    return Path(base) / "arenabench"
 
 
 def twin_set_dir(*, preset: str, seed: int, count: int) -> Path:

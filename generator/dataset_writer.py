@@ -57,6 +57,7 @@ from arenabench.fileio import (
     sha256_bytes,
     sha256_file,
 )
+from arenabench.generator import texture_store
 from arenabench.generator.coco_export import CocoParts, write_coco
 from arenabench.generator.edges import EDGE_MODEL
 from arenabench.generator.make import (
@@ -66,7 +67,12 @@ from arenabench.generator.make import (
     worker_gl_info,
     worker_renderer,
 )
-from arenabench.generator.preset_files import RESERVED_KEYS, ResolvedPreset, builtin_preset
+from arenabench.generator.preset_files import (
+    RESERVED_KEYS,
+    ResolvedPreset,
+    builtin_preset,
+    texture_refs,
+)
 from arenabench.generator.presets import Value, format_value, resolve
 from arenabench.generator.seeds import check_seed
 from arenabench.gtrecord import GroundTruth
@@ -121,6 +127,13 @@ class DatasetArgs:
     def image_ext(self) -> str:
         """File extension of the images (``png`` or ``jpg``)."""
         return IMAGE_EXTENSIONS[self.output[0]]
+
+    @property
+    def textures(self) -> list[str]:
+        """References of the texture images the set uses (``textures/<sha256>.png``): the
+        preset's and the overrides' (:mod:`arenabench.generator.texture_store`)."""
+        return sorted({*texture_refs(self.preset.params),
+                       *texture_refs(resolve(self.preset, self.overrides))})
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form stored under ``dataset.json["args"]``."""
@@ -212,6 +225,9 @@ class RenderTask:
     preset : ResolvedPreset
         The preset (a preset file's parameters travel with the task); ``None``: the built-in
         preset ``args["preset"]``.
+    textures : tuple of (str, bytes)
+        The texture images the scene needs, ``(reference, bytes)``: only in a cluster's
+        tasks (local workers find them in this machine's texture cache).
     """
 
     args: dict[str, Any]
@@ -221,6 +237,7 @@ class RenderTask:
     image_format: str = "png"
     jpeg_quality: int = 95
     preset: ResolvedPreset | None = None
+    textures: tuple[tuple[str, bytes], ...] = ()
 
     @property
     def image_ext(self) -> str:
@@ -298,9 +315,13 @@ def render_on_cluster(task: RenderTask) -> dict[str, Any]:
     (:func:`write_rendered`).
 
     The renderer is created on first use, one per worker thread (an OpenGL context is current
-    in one thread only; :func:`arenabench.generator.make.worker_renderer`), and reused.
+    in one thread only; :func:`arenabench.generator.make.worker_renderer`), and reused. The
+    task's texture images go into the worker's texture cache first (it may be on another
+    machine).
     """
     c0 = time.process_time()
+    for ref, data in task.textures:
+        texture_store.add_bytes(ref, data)
     sample = _render(task)
     t1 = time.perf_counter()
     image = task.encode(sample.bgr)
@@ -573,7 +594,8 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
         "render": {"mode": "flat, Lambertian shading baked", "edges": EDGE_MODEL,
                    **_image_format_meta(*args.output)},
         "files": {"images": "images/", "gt": "gt/", "manifest": "manifest.jsonl",
-                  "coco": "coco.json"},
+                  "coco": "coco.json",
+                  **({"textures": args.textures} if args.textures else {})},
     }
     if finished is not None:  # an interrupted run: the manifest lists these scenes only
         meta["finished"] = int(finished)
@@ -707,7 +729,7 @@ def _generate_locked(out: str | os.PathLike[str], args: DatasetArgs, *, workers:
                            client=client, progress=progress)
     except ValueError:  # a scene's values fail at render time: undo what this run began
         if old_meta is None:  # a new set: leave nothing
-            for name in ("images", "gt"):
+            for name in ("images", "gt", texture_store.TEXTURES_FOLDER):
                 shutil.rmtree(root / name, ignore_errors=True)
             for name in ("dataset.json", "manifest.jsonl", "coco.json"):
                 (root / name).unlink(missing_ok=True)
@@ -720,7 +742,7 @@ def _generate_locked(out: str | os.PathLike[str], args: DatasetArgs, *, workers:
 def _remove_temp_files(root: Path) -> None:
     """Remove the half-written files of the set's writers (this process holds the lock, and
     its workers have ended)."""
-    for folder in (root, root / "images", root / "gt"):
+    for folder in (root, root / "images", root / "gt", root / texture_store.TEXTURES_FOLDER):
         remove_temp_files(folder)
 
 
@@ -730,13 +752,17 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
     """Render the scenes ``todo`` of ``args`` into ``root`` and finish the set."""
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
+    for ref in args.textures:  # the set needs no file outside it (docs/architecture.md)
+        texture_store.export_texture(ref, root)
     if meta is None or meta["args"].get("count") != args.count:
         _write_meta(root, args, complete=False)
     stored = args.to_dict()
     image_format, jpeg_quality = args.output
+    textures = tuple((ref, texture_store.texture_bytes(ref)) for ref in args.textures
+                     ) if client is not None else ()
     tasks = [RenderTask(args=stored, seed=args.seed, index=i, out=str(root),
                         image_format=image_format, jpeg_quality=jpeg_quality,
-                        preset=args.preset) for i in todo]
+                        preset=args.preset, textures=textures) for i in todo]
     results: list[dict[str, Any]] = []
     parts = CocoParts()  # the scenes' COCO parts wait on disk, not in results
     bar = _progress(len(tasks), progress)

@@ -50,6 +50,7 @@ from pathlib import Path
 from typing import Any
 
 from arenabench.fileio import atomic_write_text, dumps_json, read_regular, sha256_bytes
+from arenabench.generator import texture_store
 from arenabench.generator.params import PARAMETERS, PARAMS, Range, Value
 from arenabench.generator.presets import (
     ALIASES,
@@ -405,6 +406,8 @@ _KIND_FORMS = {
     "str": "a string",
     "rgb": "three integers [r, g, b] (or \"r,g,b\")",
     "ids": "four integers [nw, ne, se, sw] (or \"nw,ne,se,sw\")",
+    "size": "two numbers [width, height] (or \"w,h\")",
+    "file": "a file's path (relative to this file)",
 }
 
 
@@ -441,17 +444,37 @@ def _param_value(ctx: _Context, key: str, raw: Any, *, spelled_as: str,
         return _raise(bad(f"a {_toml_type(raw)} where true or false belongs"))
     elif spec.kind == "str" and not isinstance(raw, str):
         return _raise(bad(f"a {_toml_type(raw)} where a string belongs"))
-    elif spec.kind in ("rgb", "ids"):
+    elif spec.kind in ("rgb", "ids", "size"):
+        kinds = (int,) if spec.kind != "size" else (int, float)
         if isinstance(raw, list):
-            if not all(isinstance(v, int) and not isinstance(v, bool) for v in raw):
+            if not all(isinstance(v, kinds) and not isinstance(v, bool) for v in raw):
                 return _raise(bad(f"expected {forms}"))
         elif not isinstance(raw, str):
             return _raise(bad(f"a {_toml_type(raw)} where {forms} belongs"))
+    elif spec.kind == "file":
+        if not isinstance(raw, str):
+            return _raise(bad(f"a {_toml_type(raw)} where {forms} belongs"))
+        try:
+            value = _texture_ref(ctx, raw)
+        except ValueError as exc:
+            raise bad(str(exc)) from None
     try:
         return validate_value(key, value)
     except ValueError as exc:
         why = str(exc).removeprefix(f"--set {key}: ").removeprefix("--set: ")
         raise bad(why) from None
+
+
+def _texture_ref(ctx: _Context, raw: str) -> str:
+    """An image file named in a preset file, as its reference (read into the texture cache):
+    a path relative to the file's folder, or a reference whose copy lies there
+    (``textures/<sha256>.png``) or in the cache."""
+    if not raw:
+        return ""
+    if texture_store.is_ref(raw):
+        return texture_store.import_ref(raw, ctx.base, where=str(ctx.base / raw))
+    path = Path(raw).expanduser()
+    return texture_store.import_texture(path if path.is_absolute() else ctx.base / path)
 
 
 def _raise(exc: Exception) -> Any:
@@ -783,7 +806,9 @@ def write_preset_file(path: str | os.PathLike[str], params: Mapping[str, Value],
 
     Parameters are as :func:`preset_document`'s; :func:`load_preset_file` reads the file
     back to a :class:`ResolvedPreset` with the same parameters, so a set generated from the
-    file is byte-identical to one generated from ``params`` under ``name``.
+    file is byte-identical to one generated from ``params`` under ``name``. A texture image
+    (``arena.texture_file``: a path, or a reference the texture cache holds) is copied beside
+    the file, to ``textures/<sha256>.png``, the path the file names it by.
 
     Returns
     -------
@@ -799,8 +824,15 @@ def write_preset_file(path: str | os.PathLike[str], params: Mapping[str, Value],
     as_json = p.suffix.lower() == ".json"
     write = preset_to_json if as_json else preset_to_toml
     text = write(params, name=name, description=description, evidence=evidence, open=open)
+    for ref in texture_refs(resolve(dict(params))):
+        texture_store.export_texture(ref, p.parent)
     atomic_write_text(p, text)
     return p
+
+
+def texture_refs(params: Mapping[str, Value]) -> list[str]:
+    """The texture images (references, ``textures/<sha256>.png``) of resolved ``params``."""
+    return sorted({v for k, v in params.items() if PARAMETERS[k].kind == "file" and v})
 
 
 def show_lines(preset: ResolvedPreset) -> list[str]:

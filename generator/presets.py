@@ -297,6 +297,10 @@ def validate_value(key: str, value: Value) -> Value:
         if text in ("0", "false", "no", "off"):
             return False
         raise ValueError(f"--set {key}: invalid bool value {value!r} (true/false)")
+    if spec.kind == "size":
+        return _size(key, value, spec)
+    if spec.kind == "file":
+        return _file(key, value)
     if spec.kind in ("rgb", "ids"):
         parts = value.split(",") if isinstance(value, str) else list(value)
         want = 3 if spec.kind == "rgb" else 4
@@ -320,6 +324,36 @@ def validate_value(key: str, value: Value) -> Value:
         raise ValueError(f"--set {key}: invalid value {text!r} (choices: "
                          f"{', '.join(spec.choices)})")
     return text
+
+
+def _size(key: str, value: Value, spec: Param) -> tuple[float, float]:
+    """A width and a height: ``"w,h"`` or two numbers, each within the parameter's bounds."""
+    parts = value.split(",") if isinstance(value, str) else value
+    if isinstance(parts, Range) or not isinstance(parts, (list, tuple)) or len(parts) != 2:
+        raise ValueError(f"--set {key}: expected a width and a height (w,h), got {value!r}")
+    if any(isinstance(p, bool) for p in parts):
+        raise ValueError(f"--set {key}: invalid size {value!r}")
+    sides = tuple(float(_number(key, str(p), "float")) for p in parts)
+    for side in sides:
+        _check_bounds(key, side, spec, value)
+    return sides  # type: ignore[return-value]
+
+
+def _file(key: str, value: Value) -> str:
+    """An image file's reference (``textures/<sha256>.png``): a reference the texture cache
+    holds, or a path (relative to the working folder), read into the cache; ``""``: none."""
+    from arenabench.generator import texture_store
+
+    if not isinstance(value, str):
+        raise ValueError(f"--set {key}: expected a file's path, got {value!r}")
+    if not value:
+        return ""
+    try:
+        if texture_store.is_ref(value):  # the cache's (or a textures/ folder here)
+            return texture_store.import_ref(value, Path.cwd(), where=value)
+        return texture_store.import_texture(value)
+    except ValueError as exc:
+        raise ValueError(f"--set {key}: {exc}") from None
 
 
 def parse_override(text: str) -> tuple[str, Value]:

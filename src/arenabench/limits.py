@@ -45,6 +45,10 @@ MAX_DATASET_META_BYTES = 1024**2
 #: ``dataset.json`` given as a preset is held to :data:`MAX_DATASET_META_BYTES` too.
 MAX_PRESET_FILE_BYTES = MAX_DATASET_META_BYTES
 
+#: Largest arena texture image file read (``arena.texture_file``); its sides are at most
+#: :data:`MAX_IMAGE_SIDE_PX` too (an 8192 px square RGBA upload is 256 MiB of GPU memory).
+MAX_TEXTURE_BYTES = 256 * 1024**2
+
 #: Largest magnitude of any number in a scene (metres, degrees, pixels, intrinsics): beyond
 #: it the camera and geometry arithmetic loses all precision (``inf`` and ``nan`` never pass).
 MAX_SCENE_NUMBER = 1e6
