@@ -295,7 +295,7 @@ def test_check_takes_a_preset_file(tmp_path, own_cache):
 
 
 @pytest.mark.slow
-def test_sweep_takes_a_preset_file(tmp_path):
+def test_sweep_takes_a_preset_file(tmp_path, monkeypatch):
     preset = _image_preset(tmp_path / "p")
     _texture(tmp_path / "p" / "floor/lab.png")
     out = tmp_path / "sweep"
@@ -307,6 +307,13 @@ def test_sweep_takes_a_preset_file(tmp_path):
     assert doc["preset"] == "lab"
     assert doc["preset_definition"]["arena"]["texture"] == "image"
     assert sum(p["summary"]["n"] for p in doc["points"]) == 4
+    # read back without the preset file or a cache that saw its texture: the same sweep.json
+    shutil.rmtree(tmp_path / "p")
+    monkeypatch.setenv(CACHE_ENV, str(tmp_path / "elsewhere"))
+    from arenabench.eval.sweep.outputs import load_sweep, write_sweep
+
+    write_sweep(load_sweep(out), tmp_path / "again", plots=False)
+    assert (tmp_path / "again" / "sweep.json").read_bytes() == (out / "sweep.json").read_bytes()
 
 
 def test_pytest_plugin_keys_a_preset_file_by_name_and_parameters(tmp_path):
