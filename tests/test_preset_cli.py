@@ -258,6 +258,57 @@ def test_a_set_needs_no_texture_file_afterwards(tmp_path, monkeypatch):
     assert floor is not None and floor.std() > 10  # the textured floor, not a blank one
 
 
+@pytest.mark.slow
+def test_cluster_workers_get_the_texture_with_their_tasks(tmp_path, monkeypatch):
+    """Dask workers whose cache never saw the texture (as on another machine) render the same
+    bytes as local workers: the tasks carry it."""
+    import os
+    import subprocess
+    import sys
+
+    distributed = pytest.importorskip("distributed")
+    folder = tmp_path / "p"
+    _texture(folder / "floor/lab.png")
+    preset = _image_preset(folder)
+    common = ["--count", "2", "--seed", "3", "--no-progress"]
+    local = run_cli("generate", "--preset", str(preset), "--out", str(tmp_path / "local"),
+                    "--workers", "1", *common)
+    assert local.returncode == 0, local.stderr
+    workers_cache = tmp_path / "workers-cache"
+    monkeypatch.setenv(CACHE_ENV, str(workers_cache))  # what the worker processes inherit
+    with distributed.LocalCluster(n_workers=1, threads_per_worker=1, processes=True,
+                                  host="127.0.0.1", dashboard_address=None) as cluster:
+        proc = subprocess.run(
+            [sys.executable, "-m", "arenabench", "generate", "--preset", str(preset), "--out",
+             str(tmp_path / "dask"), "--scheduler", cluster.scheduler_address, *common],
+            capture_output=True, text=True, timeout=300,
+            env={**os.environ, CACHE_ENV: str(tmp_path / "client-cache")})
+    assert proc.returncode == 0, proc.stderr
+    _same_files(tmp_path / "dask", tmp_path / "local")
+    ref = json.loads((tmp_path / "local" / "dataset.json").read_text())["files"]["textures"][0]
+    assert (workers_cache / ref).is_file()
+
+
+def test_a_scene_file_names_its_texture_relative_to_itself(tmp_path):
+    from arenabench.generator.sampler import sample_scene
+
+    folder = tmp_path / "p"
+    _texture(folder / "floor/lab.png")
+    scene = sample_scene(load_preset_file(_image_preset(folder)), seed=0, index=0).scene
+    doc = scene.to_dict()
+    ref = doc["arena"]["texture_file"]
+    doc["arena"]["texture_file"] = "floor/lab.png"
+    (folder / "scene.json").write_text(json.dumps(doc))
+    proc = run_cli("render", str(folder / "scene.json"), "--out", str(tmp_path / "r"))
+    assert proc.returncode == 0, proc.stderr
+    gt = json.loads((tmp_path / "r" / "gt" / "000000.json").read_text())
+    assert gt["scene"]["arena"]["texture_file"] == ref
+    doc["arena"]["texture_file"] = "floor/none.png"
+    (folder / "scene.json").write_text(json.dumps(doc))
+    _one_line_error(run_cli("render", str(folder / "scene.json"), "--out",
+                            str(tmp_path / "r2")), "none.png: cannot read it")
+
+
 def test_a_written_preset_carries_its_texture(tmp_path):
     folder = tmp_path / "p"
     _texture(folder / "floor/lab.png")
@@ -267,6 +318,37 @@ def test_a_written_preset_carries_its_texture(tmp_path):
     assert (out.parent / ref).read_bytes() == (folder / "floor/lab.png").read_bytes()
     shutil.rmtree(folder)
     assert load_preset_file(out).params == loaded.params
+
+
+def test_phase_images_keep_the_jpeg_quality_of_a_preset_file(tmp_path):
+    """A JPEG set whose quality is not the built-in preset's (a preset file): the phase check
+    writes its re-rendered images at the original's quality, read from its tables."""
+    from arenabench.eval.dataset_reader import load_dataset
+    from arenabench.eval.evaluation import evaluate
+    from arenabench.eval.phase_check import check_phases
+    from arenabench.eval.results import Prediction
+    from arenabench.generator.dataset_writer import generate_dataset
+    from arenabench.imageio import jpeg_quality
+
+    p = builtin_preset("eyrc")
+    preset = load_preset_file(write_preset_file(
+        tmp_path / "q80.toml", {**p.params, "output.jpeg_quality": 80}, name="q80"))
+    generate_dataset(tmp_path / "set", preset=preset, count=1, seed=0, workers=1,
+                     progress=False)
+    dataset = load_dataset(tmp_path / "set")
+    image = tmp_path / "set" / dataset.samples[0].gt.image
+    assert jpeg_quality(image.read_bytes()) == 80
+    report = evaluate(lambda bgr: {"count": 99, "area": 1.0, "marker_ids": [80, 85, 90, 95]},
+                      dataset, workers=1, phases=0)
+    seen = []
+
+    def run(path):
+        seen.append(jpeg_quality(path.read_bytes()))
+        return Prediction(status="ok", count=99, area=1.0)
+
+    checked = check_phases(list(report.images), [s.gt for s in dataset.samples], run,
+                           phases=2, tolerance=0.05, area_reference="visible")
+    assert checked[0].phase is not None and seen == [80, 80]
 
 
 # ------------------------------------------------------------------- check, sweep, plugin
