@@ -350,6 +350,8 @@ def _file(key: str, value: Value) -> str:
         return ""
     try:
         if texture_store.is_ref(value):  # the cache's (or a textures/ folder here)
+            if texture_store.has(value):  # every scene's resolve() comes here: a stat
+                return value
             return texture_store.import_ref(value, Path.cwd(), where=value)
         return texture_store.import_texture(value)
     except ValueError as exc:

@@ -54,7 +54,8 @@ def main(argv: list[str] | None = None) -> int:
         width = max(len(k) for k in PARAMETERS)
         for key, spec in PARAMETERS.items():
             bounds = f"{spec.bounds.lo:.10g}..{spec.bounds.hi:.10g}" if spec.bounds else ""
-            neutral = "" if spec.neutral is None else f" (neutral {format_value(spec.neutral)})"
+            neutral = "" if spec.neutral is None else (
+                f" (neutral {format_value(spec.neutral) or repr('')})")
             print(f"{key:<{width}}  {spec.kind:<5}  {bounds:<13}  {spec.help}{neutral}")
         return 0
     width = max(len(k) for k in PRESETS)
