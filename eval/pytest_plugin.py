@@ -12,8 +12,9 @@ pytest's cache folder (``.pytest_cache/d/arenabench/``) and keyed by preset, cou
 the generator's version (``GENERATOR_VERSION``: an update that changes the images or the ground
 truth renders a new set), so it is rendered once and reused by later runs (under
 ``-p no:cacheprovider``: in a temporary folder, rendered again each session). Options:
-``--arenabench-preset`` (default ``eyrc``), ``--arenabench-count`` (default 12),
-``--arenabench-seed`` (default 0), or ``--arenabench-dataset DIR`` to use an existing dataset.
+``--arenabench-preset`` (default ``eyrc``; a name or a preset file),
+``--arenabench-count`` (default 12), ``--arenabench-seed`` (default 0), or
+``--arenabench-dataset DIR`` to use an existing dataset.
 
 This module imports only the standard library and pytest at start-up; the generator is
 imported when the fixture is first used.
@@ -30,7 +31,8 @@ import pytest
 
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("arenabench", "arenabench dataset fixture")
-    group.addoption("--arenabench-preset", default="eyrc", help="generator preset (default eyrc)")
+    group.addoption("--arenabench-preset", default="eyrc",
+                    help="generator preset: a built-in name or a preset file (default eyrc)")
     group.addoption("--arenabench-count", type=int, default=12, help="images (default 12)")
     group.addoption("--arenabench-seed", type=int, default=0, help="generator seed (default 0)")
     group.addoption(
@@ -40,10 +42,22 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 
 def dataset_key(preset: str, count: int, seed: int) -> str:
     """Cache folder name of a generated dataset: ``<preset>-n<count>-s<seed>-v<generator
-    version>`` (imports the generator)."""
-    from arenabench.generator.make import GENERATOR_VERSION
+    version>`` (imports the generator); a preset file is named by its preset's name and a
+    hash of its parameters (:attr:`~arenabench.generator.preset_files.ResolvedPreset.key`).
 
-    return f"{preset}-n{count}-s{seed}-v{GENERATOR_VERSION}"
+    Raises
+    ------
+    pytest.UsageError
+        For an unknown preset or a bad preset file (one line).
+    """
+    from arenabench.generator.make import GENERATOR_VERSION
+    from arenabench.generator.preset_files import resolve_preset
+
+    try:
+        key = resolve_preset(preset).key
+    except ValueError as exc:
+        raise pytest.UsageError(f"--arenabench-preset: {exc}") from None
+    return f"{key}-n{count}-s{seed}-v{GENERATOR_VERSION}"
 
 
 def _generate(out: Path, *, preset: str, count: int, seed: int) -> None:

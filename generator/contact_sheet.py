@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
+from typing import Any
 
 import cv2
 import numpy as np
@@ -17,12 +18,15 @@ from arenabench.cliopts import (
     add_count,
     add_no_progress,
     add_out,
+    add_preset,
     add_seed,
     output_problem,
     usage_error,
 )
 from arenabench.exitcodes import ExitCode
 from arenabench.fileio import atomic_write_bytes
+from arenabench.generator.preset_files import resolve_preset
+from arenabench.generator.presets import DEFAULT_PRESET, preset_names
 from arenabench.limits import MAX_IMAGE_SIDE_PX, check_at_most
 
 #: Padding around a tile and height of its caption strip, in px.
@@ -100,15 +104,16 @@ def sheet_size(count: int, *, columns: int, tile: int) -> tuple[int, int]:
     return width, height
 
 
-def render_sheet(preset: str, *, count: int = 16, seed: int = 0,
+def render_sheet(preset: Any, *, count: int = 16, seed: int = 0,
                  overrides: dict | None = None, columns: int = 4, tile: int = 320,
                  progress: bool = False) -> np.ndarray:
     """Render scenes ``0..count-1`` of ``preset`` with ``seed`` and tile them.
 
     Parameters
     ----------
-    preset : str
-        Preset name.
+    preset : str or ResolvedPreset
+        Preset name, or a preset file's
+        :class:`~arenabench.generator.preset_files.ResolvedPreset`.
     count, seed : int, keyword-only
         Scenes to render and the run seed (scene i is scene i of ``arenabench generate``).
     overrides : dict, keyword-only
@@ -151,7 +156,7 @@ def build_parser() -> CommandParser:
         prog="arenabench contact-sheet",
         description="Render the first COUNT scenes of a preset and tile them into one image.",
     )
-    p.add_argument("--preset", default="eyrc", help="scene preset (default eyrc)")
+    add_preset(p, resolve=resolve_preset, default=DEFAULT_PRESET, names=preset_names())
     add_count(p, default=16, help="scenes")
     add_seed(p, help="run seed")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -165,11 +170,13 @@ def build_parser() -> CommandParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench contact-sheet``; returns 0, or 2 on a usage error."""
-    args = build_parser().parse_args(argv)
-    from arenabench.generator.presets import get_preset, parse_overrides
+    args = build_parser().parse_or_status(argv)
+    if isinstance(args, int):  # --help (0) or a usage error (2, its line printed)
+        return args
+    from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError
 
-    out = args.out or Path(f"contact-{args.preset}.jpg")
+    out = args.out or Path(f"contact-{args.preset.name}.jpg")
     if out.suffix.lower() not in (".jpg", ".jpeg", ".png"):
         print(f"arenabench contact-sheet: error: --out must end in .jpg or .png, got {out}",
               file=sys.stderr)
@@ -179,7 +186,6 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
 
     try:
-        get_preset(args.preset)
         overrides = parse_overrides(args.overrides)
         require_offscreen_gl()
         sheet = render_sheet(args.preset, count=args.count, seed=args.seed,
@@ -194,7 +200,7 @@ def main(argv: list[str] | None = None) -> int:
         print("arenabench contact-sheet: error: image encoding failed", file=sys.stderr)
         return ExitCode.USAGE
     atomic_write_bytes(out, buf.tobytes())
-    print(f"contact sheet of {args.count} {args.preset} scenes (seed {args.seed}): {out}")
+    print(f"contact sheet of {args.count} {args.preset.name} scenes (seed {args.seed}): {out}")
     return ExitCode.OK
 
 

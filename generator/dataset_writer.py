@@ -57,6 +57,7 @@ from arenabench.fileio import (
     sha256_bytes,
     sha256_file,
 )
+from arenabench.generator import texture_store
 from arenabench.generator.coco_export import CocoParts, write_coco
 from arenabench.generator.edges import EDGE_RESOLVES, edge_model
 from arenabench.generator.make import (
@@ -66,7 +67,13 @@ from arenabench.generator.make import (
     worker_gl_info,
     worker_renderer,
 )
-from arenabench.generator.presets import Range, Value, format_value, get_preset, resolve
+from arenabench.generator.preset_files import (
+    RESERVED_KEYS,
+    ResolvedPreset,
+    builtin_preset,
+    texture_refs,
+)
+from arenabench.generator.presets import Range, Value, format_value, resolve
 from arenabench.generator.scene import RenderSpec
 from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import (
@@ -97,15 +104,20 @@ class GenerateError(ValueError):
 
 @dataclass(frozen=True)
 class DatasetArgs:
-    """The arguments that define a dataset's content."""
+    """The arguments that define a dataset's content.
 
-    preset: str
+    ``preset`` is given as a built-in preset's name or a preset file's
+    :class:`~arenabench.generator.preset_files.ResolvedPreset`, and kept as the latter.
+    """
+
+    preset: ResolvedPreset
     count: int
     seed: int
     overrides: dict[str, Value] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        get_preset(self.preset)
+        if not isinstance(self.preset, ResolvedPreset):
+            object.__setattr__(self, "preset", builtin_preset(str(self.preset)))
         if int(self.count) != self.count or self.count < 0:
             raise ValueError(f"count must be an integer >= 0, got {self.count!r}")
         check_at_most(int(self.count), MAX_DATASET_SCENES, "count")
@@ -127,10 +139,17 @@ class DatasetArgs:
         """File extension of the images (``png`` or ``jpg``)."""
         return IMAGE_EXTENSIONS[self.output[0]]
 
+    @property
+    def textures(self) -> list[str]:
+        """References of the texture images the set uses (``textures/<sha256>.png``): the
+        preset's and the overrides' (:mod:`arenabench.generator.texture_store`)."""
+        return sorted({*texture_refs(self.preset.params),
+                       *texture_refs(resolve(self.preset, self.overrides))})
+
     def to_dict(self) -> dict[str, Any]:
         """JSON form stored under ``dataset.json["args"]``."""
         return {
-            "preset": self.preset, "count": int(self.count), "seed": int(self.seed),
+            "preset": self.preset.name, "count": int(self.count), "seed": int(self.seed),
             "overrides": {k: format_value(v) for k, v in sorted(self.overrides.items())},
             "generator_version": GENERATOR_VERSION,
         }
@@ -216,6 +235,12 @@ class RenderTask:
         ``output.jpeg_quality``.
     jpeg_subsampling : str
         ``output.jpeg_subsampling``.
+    preset : ResolvedPreset
+        The preset (a preset file's parameters travel with the task); ``None``: the built-in
+        preset ``args["preset"]``.
+    textures : tuple of (str, bytes)
+        The texture images the scene needs, ``(reference, bytes)``: only in a cluster's
+        tasks (local workers find them in this machine's texture cache).
     """
 
     args: dict[str, Any]
@@ -225,6 +250,8 @@ class RenderTask:
     image_format: str = "png"
     jpeg_quality: int = 95
     jpeg_subsampling: str = DEFAULT_JPEG_SUBSAMPLING
+    preset: ResolvedPreset | None = None
+    textures: tuple[tuple[str, bytes], ...] = ()
 
     @property
     def image_ext(self) -> str:
@@ -239,7 +266,8 @@ class RenderTask:
 
 
 def _render(task: RenderTask):
-    return make_sample(task.args["preset"], seed=task.seed, index=task.index,
+    preset = task.preset if task.preset is not None else task.args["preset"]
+    return make_sample(preset, seed=task.seed, index=task.index,
                        overrides=_parse_stored(task.args["overrides"]),
                        renderer=worker_renderer(), image_ext=task.image_ext)
 
@@ -302,9 +330,13 @@ def render_on_cluster(task: RenderTask) -> dict[str, Any]:
     (:func:`write_rendered`).
 
     The renderer is created on first use, one per worker thread (an OpenGL context is current
-    in one thread only; :func:`arenabench.generator.make.worker_renderer`), and reused.
+    in one thread only; :func:`arenabench.generator.make.worker_renderer`), and reused. The
+    task's texture images go into the worker's texture cache first (it may be on another
+    machine).
     """
     c0 = time.process_time()
+    for ref, data in task.textures:
+        texture_store.add_bytes(ref, data)
     sample = _render(task)
     t1 = time.perf_counter()
     image = task.encode(sample.bgr)
@@ -380,7 +412,37 @@ def _check_existing(out: Path, args: DatasetArgs) -> dict[str, Any] | None:
                 f"{out} was generated with different arguments: {name} was "
                 f"{old.get(key)!r}, now {new[key]!r} (use another --out)"
             )
+    _check_same_preset(out, meta, args.preset)
     return meta
+
+
+def _parameters(definition: Any) -> dict[str, Any]:
+    """The parameter sections of a preset file's document (``dataset.json``'s
+    ``preset_definition``)."""
+    if not isinstance(definition, dict):
+        return {}
+    return {k: v for k, v in definition.items() if k not in RESERVED_KEYS}
+
+
+def _check_same_preset(out: Path, meta: dict[str, Any], preset: ResolvedPreset) -> None:
+    """Refuse to add to a set made from a preset of the same name but other parameters (a
+    set made before ``preset_definition`` was recorded is checked by name only)."""
+    if "preset_definition" not in meta:
+        return
+    old, new = _parameters(meta["preset_definition"]), _parameters(preset.document())
+    if old == new:
+        return
+    for section in sorted(set(old) | set(new)):
+        was, now = old.get(section) or {}, new.get(section) or {}
+        for key in sorted(set(was) | set(now)):
+            if was.get(key) != now.get(key):
+                raise GenerateError(
+                    f"{out} was generated from another preset {preset.name!r}: "
+                    f"{section}.{key} was {was.get(key)!r}, now {now.get(key)!r} (use another "
+                    "--out; the set's own preset is --preset "
+                    f"{out / 'dataset.json'})")
+    raise GenerateError(f"{out} was generated from another preset {preset.name!r} (use "
+                        "another --out)")  # pragma: no cover - differing sections are keys
 
 
 def _present(out: Path, sid: str, ext: str) -> bool:
@@ -548,15 +610,17 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
                 gl: dict[str, str] | None = None, finished: int | None = None) -> None:
     params = resolve(args.preset, args.overrides)
     meta = {
-        "schema": DATASET_SCHEMA, "args": args.to_dict(), "preset": args.preset,
+        "schema": DATASET_SCHEMA, "args": args.to_dict(), "preset": args.preset.name,
         "overrides": args.to_dict()["overrides"], "seed": int(args.seed),
         "count": int(args.count), "complete": complete,
         "params": {k: format_value(v) for k, v in sorted(params.items())},
+        "preset_definition": args.preset.document(),
         "versions": _versions(gl) if complete else {},
         "render": {"mode": "flat, Lambertian shading baked", "edges": _edges_meta(params),
                    **_image_format_meta(*args.output)},
         "files": {"images": "images/", "gt": "gt/", "manifest": "manifest.jsonl",
-                  "coco": "coco.json"},
+                  "coco": "coco.json",
+                  **({"textures": args.textures} if args.textures else {})},
     }
     if finished is not None:  # an interrupted run: the manifest lists these scenes only
         meta["finished"] = int(finished)
@@ -568,7 +632,7 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
 def generate_dataset(
     out: str | os.PathLike[str],
     *,
-    preset: str,
+    preset: str | ResolvedPreset,
     count: int,
     seed: int,
     overrides: dict[str, Value] | None = None,
@@ -582,8 +646,10 @@ def generate_dataset(
     ----------
     out : path-like
         Dataset directory (created).
-    preset : str, keyword-only
-        Preset name.
+    preset : str or ResolvedPreset, keyword-only
+        A built-in preset's name, or a preset file's
+        :class:`~arenabench.generator.preset_files.ResolvedPreset`
+        (:func:`~arenabench.generator.preset_files.resolve_preset`).
     count, seed : int, keyword-only
         Number of scenes, run seed.
     overrides : dict, keyword-only
@@ -688,7 +754,7 @@ def _generate_locked(out: str | os.PathLike[str], args: DatasetArgs, *, workers:
                            client=client, progress=progress)
     except ValueError:  # a scene's values fail at render time: undo what this run began
         if old_meta is None:  # a new set: leave nothing
-            for name in ("images", "gt"):
+            for name in ("images", "gt", texture_store.TEXTURES_FOLDER):
                 shutil.rmtree(root / name, ignore_errors=True)
             for name in ("dataset.json", "manifest.jsonl", "coco.json"):
                 (root / name).unlink(missing_ok=True)
@@ -701,7 +767,7 @@ def _generate_locked(out: str | os.PathLike[str], args: DatasetArgs, *, workers:
 def _remove_temp_files(root: Path) -> None:
     """Remove the half-written files of the set's writers (this process holds the lock, and
     its workers have ended)."""
-    for folder in (root, root / "images", root / "gt"):
+    for folder in (root, root / "images", root / "gt", root / texture_store.TEXTURES_FOLDER):
         remove_temp_files(folder)
 
 
@@ -711,13 +777,18 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
     """Render the scenes ``todo`` of ``args`` into ``root`` and finish the set."""
     (root / "images").mkdir(parents=True, exist_ok=True)
     (root / "gt").mkdir(parents=True, exist_ok=True)
+    for ref in args.textures:  # the set needs no file outside it (docs/architecture.md)
+        texture_store.export_texture(ref, root)
     if meta is None or meta["args"].get("count") != args.count:
         _write_meta(root, args, complete=False)
     stored = args.to_dict()
     image_format, jpeg_quality, jpeg_subsampling = args.output
+    textures = tuple((ref, texture_store.texture_bytes(ref)) for ref in args.textures
+                     ) if client is not None else ()
     tasks = [RenderTask(args=stored, seed=args.seed, index=i, out=str(root),
                         image_format=image_format, jpeg_quality=jpeg_quality,
-                        jpeg_subsampling=jpeg_subsampling) for i in todo]
+                        jpeg_subsampling=jpeg_subsampling, preset=args.preset,
+                        textures=textures) for i in todo]
     results: list[dict[str, Any]] = []
     parts = CocoParts()  # the scenes' COCO parts wait on disk, not in results
     bar = _progress(len(tasks), progress)

@@ -10,6 +10,7 @@ from arenabench.cliopts import (
     add_count,
     add_no_progress,
     add_out,
+    add_preset,
     add_scheduler,
     add_seed,
     add_workers,
@@ -17,7 +18,8 @@ from arenabench.cliopts import (
     usage_error,
 )
 from arenabench.exitcodes import ExitCode
-from arenabench.generator.presets import preset_names
+from arenabench.generator.preset_files import resolve_preset
+from arenabench.generator.presets import DEFAULT_PRESET, preset_names
 
 
 def build_parser() -> CommandParser:
@@ -30,8 +32,8 @@ def build_parser() -> CommandParser:
                     "extends the set (the same files as generating the larger count at once); "
                     "other changes are refused.",
     )
-    p.add_argument("--preset", default="eyrc",
-                   help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
+    add_preset(p, resolve=resolve_preset, default=DEFAULT_PRESET, names=preset_names(),
+               help="scene preset (a set's dataset.json: the preset it was made from)")
     add_count(p, required=True, help="number of scenes")
     add_seed(p, random=True, help="run seed (for a hidden grading set use 'random': a small "
              "seed lets a submission re-render the set and read its answers)")
@@ -49,7 +51,9 @@ def build_parser() -> CommandParser:
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench generate``; returns 0 on success, 2 on a usage or argument error,
     130 / 143 when stopped by SIGINT / SIGTERM (what finished is kept; re-running resumes)."""
-    args = build_parser().parse_args(argv)
+    args = build_parser().parse_or_status(argv)
+    if isinstance(args, int):  # --help (0) or a usage error (2, its line printed)
+        return args
     from arenabench.generator.dataset_writer import GenerateError, generate_dataset
     from arenabench.generator.gl_check import OffscreenGLError
     from arenabench.generator.presets import parse_overrides

@@ -14,6 +14,7 @@ import numpy as np
 
 from arenabench.frame import CORNER_ORDER, FrameSpec
 from arenabench.generator.scene import ArenaSpec, FloorPatch, MarkerSpec, Obstacle
+from arenabench.generator.texture_store import IMAGE_TEXTURE
 
 #: Height (m) of the marker sheets above the floor: keeps them off the floor's depth values.
 MARKER_Z = 0.0005
@@ -91,6 +92,17 @@ def world_to_frame(
 def floor_extent(arena: ArenaSpec) -> float:
     """Half side (m) of the floor square (border square plus margin)."""
     return arena.side_m / 2.0 + arena.margin_m
+
+
+def floor_corners(arena: ArenaSpec) -> np.ndarray:
+    """World (x, y) of the textured floor's corners, in the texture's TL, TR, BR, BL order
+    (its first row north): the floor square, or the rectangle an image texture covers
+    (``arena.texture_size_m``, centred on the arena)."""
+    if arena.texture == IMAGE_TEXTURE:
+        hx, hy = (s / 2.0 for s in arena.texture_size_m)
+    else:
+        hx = hy = floor_extent(arena)
+    return np.array([[-hx, hy], [hx, hy], [hx, -hy], [-hx, -hy]])
 
 
 def box_footprint(obstacle: Obstacle | FloorPatch) -> np.ndarray:

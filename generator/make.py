@@ -9,7 +9,7 @@ use this directly with one :class:`~arenabench.generator.render.Renderer` per pr
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
@@ -22,6 +22,7 @@ from arenabench.frame import FrameSpec
 from arenabench.generator.degrade import Degradations, apply_degradations
 from arenabench.generator.groundtruth import compute_ground_truth
 from arenabench.generator.params import Range, Value
+from arenabench.generator.presets import preset_name as _name_of
 from arenabench.generator.render import Renderer
 from arenabench.generator.renderer_api import RenderOutput, SceneRenderer
 from arenabench.generator.sampler import sample_scene, stream_rng
@@ -129,7 +130,7 @@ def degrade_rng(seed: int, index: int) -> np.random.Generator:
 
 
 def make_sample(
-    preset: str | dict[str, Value],
+    preset: Any,
     *,
     seed: int,
     index: int,
@@ -146,8 +147,9 @@ def make_sample(
 
     Parameters
     ----------
-    preset : str or dict
-        Preset name or parameter mapping.
+    preset : str, dict or ResolvedPreset
+        Preset name, parameter mapping, or a preset file's
+        :class:`~arenabench.generator.preset_files.ResolvedPreset`.
     seed, index : int, keyword-only
         Run seed and scene index.
     overrides : dict, keyword-only
@@ -156,7 +158,7 @@ def make_sample(
         Reused renderer; a temporary :class:`~arenabench.generator.render.Renderer` is
         created (slow) when omitted.
     preset_name : str, keyword-only
-        Name recorded in the GT when ``preset`` is a mapping.
+        Name recorded in the GT (default: the preset's name; ``custom`` for a mapping).
     depth, masks : bool, keyword-only
         Also render depth / instance masks.
     frame : FrameSpec, keyword-only
@@ -190,9 +192,10 @@ def make_sample(
             out.rgb = np.ascontiguousarray(degrade(out.rgb, rng))
     t2 = time.perf_counter()
     sid = scene_id(index)
+    if preset_name is None:  # a name, a ResolvedPreset's name, or "custom" for a mapping
+        preset_name = "custom" if isinstance(preset, Mapping) else _name_of(preset)
     record = ground_truth_record(
-        sampled.scene, sid=sid, preset=preset_name or (preset if isinstance(preset, str)
-                                                      else "custom"),
+        sampled.scene, sid=sid, preset=preset_name,
         seed=seed, index=index, params=rounded(sampled.params), overrides=overrides,
         frame=frame, image_ext=image_ext,
     )

@@ -19,11 +19,14 @@ from dataclasses import dataclass
 from typing import Any
 
 from arenabench.generator import competition_arena as comp
+from arenabench.generator.texture_store import IMAGE_TEXTURE
 from arenabench.imageio import DEFAULT_JPEG_SUBSAMPLING, JPEG_SUBSAMPLINGS
 from arenabench.limits import MAX_IMAGE_SIDE_PX
 
-#: Value kinds of a parameter; only "float" and "int" accept ranges.
-KINDS = ("float", "int", "str", "rgb", "ids", "bool")
+#: Value kinds of a parameter; only "float" and "int" accept ranges. "size" is a width and a
+#: height (two numbers, each within the bounds); "file" an image file kept by its content
+#: (:mod:`arenabench.generator.texture_store`: the value becomes ``textures/<sha256>.png``).
+KINDS = ("float", "int", "str", "rgb", "ids", "bool", "size", "file")
 #: When a parameter is drawn: once per scene (and recorded in the GT's ``params``), once per
 #: obstacle, or only when a preset or ``--set`` gives it as a range ("fixed").
 DRAWS = ("scene", "box", "fixed")
@@ -76,8 +79,8 @@ class Param:
     ----------
     name : str
         Dotted name (``camera.tilt_deg``) used by presets, ``--set``, ``--vary`` and the GT.
-    kind : {"float", "int", "str", "rgb", "ids", "bool"}
-        How values are parsed; only "float" and "int" accept ranges.
+    kind : {"float", "int", "str", "rgb", "ids", "bool", "size", "file"}
+        How values are parsed (:data:`KINDS`); only "float" and "int" accept ranges.
     help : str
         One line for ``arenabench presets --params``.
     bounds : Range or None
@@ -158,10 +161,18 @@ PARAMS: tuple[Param, ...] = (
     Param("arena.margin_m", "float", "floor beyond the border line (m)", _b(0, 100),
           lands="arena.margin_m"),
     Param("arena.floor_rgb", "rgb", "floor albedo R,G,B", lands="arena.floor_rgb"),
-    Param("arena.texture", "str", "floor texture (competition: the e-Yantra arena image)",
-          choices=("plain", "speckle", "concrete", comp.TEXTURE_NAME), lands="arena.texture"),
+    Param("arena.texture", "str", "floor texture (competition: the e-Yantra arena image; "
+          "image: arena.texture_file)",
+          choices=("plain", "speckle", "concrete", comp.TEXTURE_NAME, IMAGE_TEXTURE),
+          lands="arena.texture"),
     Param("arena.texture_seed", "int", "seed of the procedural floor texture",
           _b(0, 1_000_000), lands="arena.texture_seed"),
+    Param("arena.texture_file", "file", "arena.texture=image: PNG or JPEG of the floor (a "
+          "path relative to the preset file; kept by its SHA-256)", neutral="",
+          lands="arena.texture_file"),
+    Param("arena.texture_size_m", "size", "arena.texture=image: the image's width, height on "
+          "the floor (m), centred on the arena, row 0 north", _b(0, 1000), neutral=(0.0, 0.0),
+          lands="arena.texture_size_m"),
     Param("arena.border_width_m", "float", "border line width (m), 0 = none", _b(0, 1),
           lands="arena.border_width_m"),
     Param("arena.border_rgb", "rgb", "border line colour R,G,B", lands="arena.border_rgb"),

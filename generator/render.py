@@ -38,7 +38,7 @@ from arenabench.generator.edges import EDGE_PATTERNS, obstacle_region, resolve_s
 from arenabench.generator.layout import (
     MARKER_Z,
     box_footprint,
-    floor_extent,
+    floor_corners,
     marker_corners_world,
 )
 from arenabench.generator.lens import distort_image, has_distortion, lens_canvas
@@ -226,8 +226,7 @@ class Renderer(SceneRenderer):
         if scene.arena != self._floor_key:
             for node in self._floor_nodes:
                 self._scene.remove_node(node)
-            e = floor_extent(scene.arena)
-            floor = np.array([[-e, e], [e, e], [e, -e], [-e, -e]])
+            floor = floor_corners(scene.arena)
             self._floor_nodes = [
                 self._scene.add(_textured_quad(
                     pr, floor, 0.0, self._cached_texture(floor_texture(scene.arena)), f),
@@ -522,8 +521,7 @@ class NaiveRenderer(SceneRenderer):
         pr = self._pr
         pr_scene = pr.Scene(bg_color=[*(np.asarray(scene.background_rgb) / 255.0), 1.0],
                             ambient_light=[0.3, 0.3, 0.3])
-        e = floor_extent(scene.arena)
-        floor = np.array([[-e, e], [e, e], [e, -e], [-e, -e]])
+        floor = floor_corners(scene.arena)
         pr_scene.add(_textured_quad(pr, floor, 0.0, floor_texture(scene.arena), 1.0))
         mk = scene.markers
         for corner, marker_id in zip(CORNER_ORDER, mk.ids, strict=True):

@@ -221,14 +221,15 @@ def _place_obstacles(streams: Streams, p: dict[str, Any], count: int,
     return tuple(placed)
 
 
-def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
+def sample_scene(preset: Any, *, seed: int, index: int,
                  overrides: dict[str, Value] | None = None) -> SampledScene:
     """Draw scene ``index`` of a run with ``seed`` from a preset.
 
     Parameters
     ----------
-    preset : str or dict
-        Preset name or resolved parameter mapping.
+    preset : str, dict or ResolvedPreset
+        Preset name, parameter mapping or a preset file's
+        :class:`~arenabench.generator.preset_files.ResolvedPreset`.
     seed, index : int, keyword-only
         Run seed and scene index (both >= 0).
     overrides : dict, keyword-only

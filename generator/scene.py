@@ -16,6 +16,7 @@ from arenabench.aruco import aruco_dictionary, symmetric_turn
 from arenabench.frame import COMPETITION_DICTIONARY
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.params import PARAMETERS
+from arenabench.generator.texture_store import IMAGE_TEXTURE, is_ref
 from arenabench.limits import (
     MAX_IMAGE_SIDE_PX,
     MAX_SCENE_NUMBER,
@@ -26,8 +27,11 @@ from arenabench.limits import (
 Rgb = tuple[int, int, int]
 
 
-#: Floor textures: procedural ones, and the competition's own arena image.
-FLOOR_TEXTURES = ("plain", "speckle", "concrete", comp.TEXTURE_NAME)
+#: Floor textures: procedural ones, the competition's own arena image, and an image file.
+FLOOR_TEXTURES = ("plain", "speckle", "concrete", comp.TEXTURE_NAME, IMAGE_TEXTURE)
+#: Arena fields of an image texture: left out of :meth:`Scene.to_dict` for other textures
+#: (where they are empty), so those scenes' files are as they were before these fields.
+IMAGE_TEXTURE_FIELDS = ("texture_file", "texture_size_m")
 
 
 def _rgb(value: Any, name: str) -> Rgb:
@@ -84,12 +88,15 @@ class ArenaSpec:
         Width of floor beyond the border line on every side.
     floor_rgb : tuple of int
         Floor albedo (0..255).
-    texture : {"plain", "speckle", "concrete", "competition"}
+    texture : {"plain", "speckle", "concrete", "competition", "image"}
         Plain colour, a faint procedural speckle, or warehouse concrete (mottling, stains and
         painted lane lines in the margin), seeded by ``texture_seed``; or the competition's
         own arena image (border line, markers 80/85/90/95 and logo printed on it, tinted by
         ``floor_rgb``), which fixes ``side_m`` and ``margin_m`` to its geometry
-        (:mod:`arenabench.generator.competition_arena`).
+        (:mod:`arenabench.generator.competition_arena`); or an image file (``texture_file``,
+        tinted by ``floor_rgb``) covering ``texture_size_m``, which is then the floor: drawn
+        as it is (no border line, grid or logo over it), sampled as the competition's
+        texture is.
     texture_seed : int
         Seed of the procedural texture.
     border_width_m : float
@@ -104,6 +111,12 @@ class ArenaSpec:
         Text distractor drawn centred just outside the south border ("" = none).
     logo_rgb : tuple of int
         Colour of the text distractor.
+    texture_file : str
+        ``texture="image"``: the image's reference, ``textures/<sha256>.png`` (or ``.jpg``),
+        found in the texture cache (:mod:`arenabench.generator.texture_store`).
+    texture_size_m : tuple of float
+        ``texture="image"``: width and height (m) the image covers, centred on the arena, its
+        first row north.
     """
 
     side_m: float = 8.0
@@ -117,9 +130,12 @@ class ArenaSpec:
     grid_rgb: Rgb = (200, 200, 200)
     logo_text: str = ""
     logo_rgb: Rgb = (220, 50, 50)
+    texture_file: str = ""
+    texture_size_m: tuple[float, float] = (0.0, 0.0)
 
     def __post_init__(self) -> None:
         _finite_fields(self, "arena")
+        self._check_image_texture()
         _positive(self.side_m, "arena.side_m")
         if self.margin_m < 0:
             raise ValueError(f"arena.margin_m must be >= 0, got {self.margin_m!r}")
@@ -142,6 +158,39 @@ class ArenaSpec:
             raise ValueError(f"arena.grid_step_m must be >= 0, got {self.grid_step_m!r}")
         for name in ("floor_rgb", "border_rgb", "grid_rgb", "logo_rgb"):
             object.__setattr__(self, name, _rgb(getattr(self, name), f"arena.{name}"))
+
+    def _check_image_texture(self) -> None:
+        """``texture="image"`` needs a texture reference and a size, and draws nothing over
+        the image; other textures leave both fields empty."""
+        try:
+            size = tuple(float(s) for s in self.texture_size_m)
+        except (TypeError, ValueError):
+            size = ()
+        if len(size) != 2:
+            raise ValueError(f"arena.texture_size_m must be a width and a height (m), got "
+                             f"{self.texture_size_m!r}")
+        object.__setattr__(self, "texture_size_m", size)
+        if self.texture != IMAGE_TEXTURE:
+            if self.texture_file or any(size):
+                raise ValueError(f"arena.texture_file and arena.texture_size_m need "
+                                 f"arena.texture={IMAGE_TEXTURE}, got arena.texture="
+                                 f"{self.texture}")
+            return
+        if not is_ref(self.texture_file):
+            raise ValueError(f"arena.texture={IMAGE_TEXTURE} needs arena.texture_file (a PNG "
+                             f"or JPEG file), got {self.texture_file!r}")
+        if not all(s > 0 for s in size):
+            raise ValueError(f"arena.texture={IMAGE_TEXTURE} needs arena.texture_size_m, its "
+                             f"width and height on the floor (m) > 0, got {self.texture_size_m!r}")
+        drawn = {name: value for name, value in (
+            ("arena.border_width_m", self.border_width_m),
+            ("arena.grid_step_m", self.grid_step_m),
+            ("arena.logo_text", self.logo_text)) if value}
+        if drawn:
+            fix = ", ".join(f"{k}={'' if isinstance(v, str) else 0}" for k, v in drawn.items())
+            got = ", ".join(f"{k}={v!r}" for k, v in drawn.items())
+            raise ValueError(f"arena.texture={IMAGE_TEXTURE} draws the image as it is: set "
+                             f"{fix} (got {got})")
 
 
 @dataclass(frozen=True)
@@ -474,6 +523,9 @@ class Scene:
         out = _listify(asdict(self))
         if self.render == RenderSpec():
             del out["render"]
+        if out["arena"]["texture"] != IMAGE_TEXTURE:
+            for name in IMAGE_TEXTURE_FIELDS:
+                del out["arena"][name]
         camera = out["camera"]
         for name in CAMERA_INTRINSIC_FIELDS[camera["K"] is None]:
             del camera[name]
@@ -541,8 +593,27 @@ SCENE_KEYS = frozenset(
 )
 
 
+def _texture_of_file(data: dict[str, Any], folder: Path) -> None:
+    """A scene file's ``arena.texture_file`` as a texture reference: a path relative to the
+    file's folder, or a reference whose copy lies there or in the texture cache
+    (:mod:`arenabench.generator.texture_store`)."""
+    from arenabench.generator import texture_store
+
+    arena = data.get("arena")
+    value = arena.get("texture_file") if isinstance(arena, dict) else None
+    if not isinstance(value, str) or not value:
+        return
+    if texture_store.is_ref(value):
+        ref = texture_store.import_ref(value, folder, where=str(folder / value))
+    else:
+        path = Path(value).expanduser()
+        ref = texture_store.import_texture(path if path.is_absolute() else folder / path)
+    data["arena"] = {**arena, "texture_file": ref}
+
+
 def load_scene(path: str | Path) -> Scene:
-    """Read a scene file (JSON of :meth:`Scene.to_dict`).
+    """Read a scene file (JSON of :meth:`Scene.to_dict`; an image texture's
+    ``arena.texture_file`` is a path relative to the file, or a texture reference).
 
     Raises
     ------
@@ -566,6 +637,7 @@ def load_scene(path: str | Path) -> Scene:
     if unknown:
         raise ValueError(f"scene file {str(p)!r}: unknown field(s) {', '.join(unknown)}")
     try:
+        _texture_of_file(data, p.parent)
         return Scene.from_dict(data)
     except ValueError as exc:
         raise ValueError(f"scene file {str(p)!r}: {exc}") from None

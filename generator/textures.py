@@ -16,6 +16,7 @@ from arenabench.generator import competition_arena as comp
 from arenabench.generator.edges import linear_to_srgb, srgb_to_linear
 from arenabench.generator.layout import floor_extent
 from arenabench.generator.scene import ArenaSpec
+from arenabench.generator.texture_store import IMAGE_TEXTURE, texture_rgb
 
 #: Floor texture side in texels.
 FLOOR_TEXELS = 2048
@@ -71,8 +72,25 @@ def halve_in_linear_light(image: np.ndarray) -> np.ndarray:
 
 
 def floor_texture(arena: ArenaSpec, *, texels: int = FLOOR_TEXELS) -> np.ndarray:
-    """The floor texture (albedo, unlit) covering the floor square; cached by ``arena``."""
+    """The floor texture (albedo, unlit) covering the floor square, or an image texture's
+    rectangle (:func:`arenabench.generator.layout.floor_corners`); cached by ``arena``."""
+    if arena.texture == IMAGE_TEXTURE:
+        return _image_texture(arena.texture_file, tuple(arena.floor_rgb))
     return _floor_texture(arena, texels)
+
+
+@functools.lru_cache(maxsize=4)
+def _image_texture(ref: str, floor_rgb: tuple[int, int, int]) -> np.ndarray:
+    """An image texture at its own resolution (the renderer builds its mip chain as ogre2
+    does, in linear light), tinted by the floor colour as the competition's texture is."""
+    rgb = texture_rgb(ref)
+    if floor_rgb == (255, 255, 255):
+        return rgb
+    levels = np.arange(256, dtype=np.float64)[:, None] * np.asarray(floor_rgb) / 255.0
+    lut = np.rint(levels).astype(np.uint8).reshape(256, 1, 3)
+    img = cv2.LUT(rgb, lut)
+    img.setflags(write=False)
+    return img
 
 
 @functools.lru_cache(maxsize=8)

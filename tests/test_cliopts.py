@@ -20,6 +20,7 @@ from arenabench.cliopts import (
     parse_size,
 )
 from arenabench.competition import DEFAULT_TOLERANCE
+from arenabench.generator.presets import DEFAULT_PRESET
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 from arenabench.limits import (
     DEFAULT_MAX_DISK,
@@ -50,6 +51,7 @@ DECLARED = {
     "--sandbox": DEFAULT_SANDBOX,
     "--no-progress": False,
     "--scheduler": None,
+    "--preset": DEFAULT_PRESET,
 }
 
 

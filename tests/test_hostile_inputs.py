@@ -1041,8 +1041,8 @@ def test_out_equal_to_or_inside_the_dataset_is_refused(toy, tmp_path, command, w
 
 
 def test_check_out_inside_its_twin_set_is_refused(tmp_path, monkeypatch):
-    from arenabench.cachedir import CACHE_ENV
     from arenabench.eval.commands.check import twin_set_dir
+    from arenabench.usercache import CACHE_ENV
 
     cache = tmp_path / "cache"
     monkeypatch.setenv(CACHE_ENV, str(cache))

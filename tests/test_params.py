@@ -11,6 +11,7 @@ from arenabench.generator.lens import LENS_PARAMS
 from arenabench.generator.params import NEUTRAL, PARAMETERS, PARAMS, Param, Range, assemble
 from arenabench.generator.presets import format_value, parse_override, resolve, validate_value
 from arenabench.generator.sampler import sample_scene
+from arenabench.generator.scene import IMAGE_TEXTURE_FIELDS
 
 
 @pytest.mark.parametrize(("lo", "hi", "needle"), [
@@ -55,7 +56,8 @@ def test_tables_are_derived_from_the_declarations():
         assert PARAMETERS[name].neutral == fields[field] == NEUTRAL[name], name
     assert LENS_PARAMS == ("camera.k1", "camera.k2", "camera.p1", "camera.p2", "camera.k3")
     for p in PARAMS:
-        assert p.help and (p.bounds is None) != p.numeric, p.name
+        # numbers have bounds, and so does each side of a size
+        assert p.help and (p.bounds is None) != (p.numeric or p.kind == "size"), p.name
         if p.neutral is not None:
             validate_value(p.name, p.neutral)
 
@@ -69,6 +71,9 @@ def test_every_value_lands_where_it_is_declared():
     sections = assemble(values)
     for p in PARAMS:
         if not p.lands or p.lands.startswith("degrade."):
+            continue
+        if p.lands.split(".")[-1] in IMAGE_TEXTURE_FIELDS:  # written for image textures only
+            assert scene["arena"]["texture"] != "image" and values[p.name] == p.neutral
             continue
         node = scene
         for part in p.lands.split("."):

@@ -21,12 +21,12 @@ import shutil
 import sys
 from pathlib import Path
 
-from arenabench.cachedir import cache_dir
 from arenabench.cliopts import (
     CommandParser,
     add_count,
     add_no_progress,
     add_out,
+    add_preset,
     add_run_options,
     add_seed,
     add_workers,
@@ -39,11 +39,13 @@ from arenabench.eval.runs import COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER
 from arenabench.eval.scoring.metric_registry import METRIC
 from arenabench.eval.scoring.phase_check import add_phase_check_argument
 from arenabench.exitcodes import ExitCode
+from arenabench.generator.preset_files import resolve_preset
+from arenabench.generator.presets import DEFAULT_PRESET, preset_names
+from arenabench.usercache import cache_dir
 
 PROG = "arenabench check"
 #: Twin scenes a check runs on by default.
 DEFAULT_COUNT = 200
-DEFAULT_PRESET = "eyrc"
 #: Pass rate a script must reach (``--fail-under``).
 DEFAULT_FAIL_UNDER = 0.95
 #: Largest ``--count``.
@@ -93,8 +95,8 @@ def build_parser() -> CommandParser:
     add_count(p, maximum=MAX_COUNT, default=DEFAULT_COUNT,
               help=f"twin scenes (default: {DEFAULT_COUNT})")
     add_seed(p, help="scene seed")
-    p.add_argument("--preset", default=DEFAULT_PRESET,
-                   help="scene preset (default: %(default)s, the hidden-test twin)")
+    add_preset(p, resolve=resolve_preset, default=DEFAULT_PRESET, names=preset_names(),
+               help="scene preset (default: the hidden-test twin)")
     p.add_argument("--fail-under", default=str(DEFAULT_FAIL_UNDER), metavar="RATE",
                    help="pass rate needed for exit status 0, a fraction in [0, 1] "
                    "(default: %(default)s)")
@@ -118,10 +120,13 @@ def twin_set_dir(*, preset: str, seed: int, count: int) -> Path:
     return cache_dir() / "sets" / f"{preset}-{seed}-{count}-v{GENERATOR_VERSION}"
 
 
-def larger_twin_set(*, preset: str, seed: int, count: int) -> tuple[Path, int] | None:
+def larger_twin_set(*, preset: str, seed: int, count: int,
+                    name: str | None = None) -> tuple[Path, int] | None:
     """The smallest complete cached twin set of ``preset`` and ``seed`` (this generator
     version, no ``--set``) with more than ``count`` scenes, and its size; ``None`` when there
-    is none.
+    is none. ``preset`` is the preset's key (its folders' names,
+    :attr:`arenabench.generator.preset_files.ResolvedPreset.key`), ``name`` the name its
+    ``dataset.json`` records (default: ``preset``).
 
     Its first ``count`` scenes are the scenes of a ``count``-scene set: scene ``i`` draws
     only from the streams of ``(seed, i)`` (:func:`arenabench.generator.sampler.stream_rng`),
@@ -151,7 +156,8 @@ def larger_twin_set(*, preset: str, seed: int, count: int) -> tuple[Path, int] |
         args = meta.get("args") if isinstance(meta, dict) else None
         n = int(pattern.fullmatch(path.name).group(1))  # type: ignore[union-attr]
         if (isinstance(args, dict) and meta.get("complete") is True
-                and args == {"preset": preset, "count": n, "seed": seed, "overrides": {},
+                and args == {"preset": name or preset, "count": n, "seed": seed,
+                             "overrides": {},
                              "generator_version": GENERATOR_VERSION}):
             found.append((n, path))
     if not found:
@@ -195,8 +201,6 @@ def _python_problem(python: str) -> str | None:
 
 def _validate(args: argparse.Namespace) -> str | None:
     """The first bad input, as one line; ``None`` when all is well."""
-    from arenabench.generator.presets import get_preset
-
     script = Path(args.script)
     if not script.exists():
         return f"{args.script}: no such file"
@@ -212,10 +216,6 @@ def _validate(args: argparse.Namespace) -> str | None:
                                                           option="--fail-under")
     except ValueError as exc:
         return str(exc)
-    try:
-        get_preset(args.preset)
-    except ValueError as exc:
-        return f"--preset: {exc}"
     return _python_problem(args.python)
 
 
@@ -294,7 +294,8 @@ def _main(argv: list[str] | None) -> int:
     script = Path(args.script).resolve()
     from arenabench.eval.reports import FORMATS
 
-    twin = twin_set_dir(preset=args.preset, seed=args.seed, count=args.count)
+    preset = args.preset  # a ResolvedPreset: sets and reports are named by its key
+    twin = twin_set_dir(preset=preset.key, seed=args.seed, count=args.count)
 
     def out_problem(out: Path) -> str | None:
         return output_problem(out, own=FORMATS.values(), what="'arenabench check' report",
@@ -320,7 +321,7 @@ def _main(argv: list[str] | None) -> int:
         make_pipeline(_template(OWN_PYTHON_PLACEHOLDER, script), str(script.parent)).close()
     except ValueError as exc:
         return _error(str(exc))
-    phases = resolve_phases(args.phase_check, [args.preset])
+    phases = resolve_phases(args.phase_check, [preset.name])
     progress = not args.no_progress
 
     interpreter = _interpreter(python, progress=progress)
@@ -337,7 +338,7 @@ def _main(argv: list[str] | None) -> int:
         pipeline.close()
         return _error(str(exc))
     out = args.out if args.out is not None else report_dir(
-        script, preset=args.preset, seed=args.seed, count=args.count,
+        script, preset=preset.key, seed=args.seed, count=args.count,
         interpreter=interpreter.executable, settings=settings.to_dict(), phases=phases)
     if problem := out_problem(out):
         return _error(problem)
@@ -348,15 +349,15 @@ def _main(argv: list[str] | None) -> int:
     from arenabench.eval.reports import write_reports
     from arenabench.generator.dataset_writer import GenerateError, generate_dataset
 
-    larger = None if twin.exists() else larger_twin_set(preset=args.preset, seed=args.seed,
-                                                         count=args.count)
+    larger = None if twin.exists() else larger_twin_set(preset=preset.key, seed=args.seed,
+                                                         count=args.count, name=preset.name)
     try:
         if larger is not None:  # its first scenes are this set's: nothing to render
             twin = larger[0]
             made = None
             what = f"reused twin set {twin} (its first {args.count} of {larger[1]} scenes"
         else:
-            made = generate_dataset(twin, preset=args.preset, count=args.count, seed=args.seed,
+            made = generate_dataset(twin, preset=preset, count=args.count, seed=args.seed,
                                     workers=min(args.workers or _cores(), 8),
                                     progress=progress)
             what = (("reused" if made.rendered == 0 else f"generated {made.rendered} scenes of")
@@ -380,7 +381,7 @@ def _main(argv: list[str] | None) -> int:
                     dataset = load_dataset(twin, limit=args.count if larger else None)
                 except (DatasetError, ValueError) as exc:
                     return _error(f"twin set {twin}: {exc}")
-                print(f"{PROG}: {what} of {args.preset}, seed {args.seed}); report folder {out}")
+                print(f"{PROG}: {what} of {preset.name}, seed {args.seed}); report folder {out}")
                 report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
                                   phases=phases)
             except (EvaluationInterrupted, EvaluationFailed, Interrupted) as exc:

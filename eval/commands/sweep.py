@@ -18,6 +18,7 @@ from arenabench.cliopts import (
     add_no_progress,
     add_out,
     add_output_mode,
+    add_preset,
     add_run_options,
     add_scheduler,
     add_seed,
@@ -82,7 +83,8 @@ class _PipelineAction(argparse.Action):
 
 def build_parser() -> CommandParser:
     """The argument parser of ``arenabench sweep``."""
-    from arenabench.generator.presets import preset_names
+    from arenabench.generator.preset_files import resolve_preset
+    from arenabench.generator.presets import DEFAULT_PRESET, preset_names
 
     p = CommandParser(
         prog="arenabench sweep",
@@ -90,8 +92,7 @@ def build_parser() -> CommandParser:
                     "render and score every point in memory, report breakdown points.",
         epilog=EPILOG,
     )
-    p.add_argument("--preset", default="eyrc",
-                   help=f"scene preset (default eyrc; one of {', '.join(preset_names())})")
+    add_preset(p, resolve=resolve_preset, default=DEFAULT_PRESET, names=preset_names())
     p.add_argument("--vary", action="append", default=[], metavar="KEY=SPEC",
                    help="parameter to vary (repeatable; see below)")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
@@ -146,7 +147,7 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.eval.sweep.grid import parse_varies
     from arenabench.eval.sweep.outputs import FILES, KeptImageWriter, write_sweep
     from arenabench.eval.sweep.records import PipelineSpec, SweepSpec
-    from arenabench.generator.presets import get_preset, parse_overrides
+    from arenabench.generator.presets import parse_overrides
     from arenabench.generator.sampler import SamplingError
 
     if problem := output_problem(args.out, own=FILES.values(), what="'arenabench sweep' output"):
@@ -156,7 +157,6 @@ def main(argv: list[str] | None = None) -> int:
     if not args.pipes:
         return _error("give --pipeline NAME|pkg.module:function and/or --cmd TEMPLATE")
     try:
-        get_preset(args.preset)
         axes = parse_varies(args.vary)
         overrides = parse_overrides(args.overrides)
         clash = sorted(set(overrides) & {a.key for a in axes})
@@ -185,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
             threshold=args.threshold, breakdown_mode=args.breakdown_mode,
             keep="all" if args.keep_images else "failures" if args.keep_failures else "none",
             independent_scenes=args.independent_scenes,
-            phases=resolve_phases(args.phase_check, [args.preset]),
+            phases=resolve_phases(args.phase_check, [args.preset.name]),
         )
     except ValueError as exc:
         return _error(str(exc))

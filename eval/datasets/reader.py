@@ -345,6 +345,21 @@ def load_dataset(
         raise DatasetError(f"{where}: {os_problem(exc)}") from None
 
 
+def _import_textures(base: Path) -> None:
+    """Put the set's texture images (``textures/``, arena textures given as image files) into
+    this machine's texture cache, so that its GT scenes can be re-rendered (the phase check)
+    wherever the set was made (:mod:`arenabench.generator.texture_store`)."""
+    folder = base / "textures"
+    if not folder.is_dir():
+        return
+    from arenabench.generator.texture_store import import_folder
+
+    try:
+        import_folder(folder)
+    except (ValueError, OSError) as exc:
+        raise DatasetError(f"dataset damaged: {exc}") from None
+
+
 def _load_dataset(
     root: str | Path, *, limit: int | None = None, verify: bool = True,
     skip_damaged: bool = False, workers: int | None = None,
@@ -400,6 +415,7 @@ def _load_dataset(
     if not manifest.is_file():
         raise DatasetError(f"{manifest}: missing (is {base} a dataset written by the generator?)")
     meta = read_dataset_meta(shown)
+    _import_textures(base)
     entries: list[tuple[str, str, str, str | None]] = []
     skipped: list[tuple[str, str]] = []
     presets: set[str] = set()

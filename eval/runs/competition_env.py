@@ -11,7 +11,7 @@ module into the user cache and reused afterwards::
 
 How it is made
 --------------
-- In ``<cache>/envs/`` (:func:`arenabench.cachedir.cache_dir`), in a folder named after
+- In ``<cache>/envs/`` (:func:`arenabench.usercache.cache_dir`), in a folder named after
   the base interpreter and the pins (:func:`env_folder`): ``python -m venv`` of the running
   Python, then its own ``pip install --only-binary :all:`` of the pins from the package index
   (pip's own settings apply: ``PIP_INDEX_URL``, ``PIP_FIND_LINKS``, a ``pip.conf``), then a
@@ -48,7 +48,6 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
-from arenabench.cachedir import cache_dir
 from arenabench.cmdtemplate import (
     COMPETITION_PYTHON,
     TemplateError,
@@ -57,6 +56,7 @@ from arenabench.cmdtemplate import (
     replace_placeholder,
 )
 from arenabench.limits import COMPETITION_ENV_BUILD_TIMEOUT_S
+from arenabench.usercache import cache_dir
 
 
 @dataclass(frozen=True)
@@ -330,7 +330,7 @@ def competition_python(
     Parameters
     ----------
     cache : path-like, optional, keyword-only
-        The cache folder (default: :func:`arenabench.cachedir.cache_dir`).
+        The cache folder (default: :func:`arenabench.usercache.cache_dir`).
     progress : bool, keyword-only
         Show pip's steps while it is made (a first and a last line are always shown).
     prog : str, keyword-only

@@ -187,15 +187,18 @@ class PhaseImage:
     gt: GroundTruth
 
 
-def _encode(bgr: np.ndarray, suffix: str, *, preset: str | None) -> bytes:
+def _encode(bgr: np.ndarray, suffix: str, *, preset: str | None,
+            quality: int | None = None) -> bytes:
     """Encode a phase image as the dataset's writer encodes the scene's preset (PNG, or JPEG at
-    the preset's ``output.jpeg_quality``)."""
+    ``quality``: the original image's, else the built-in preset's ``output.jpeg_quality``)."""
     from arenabench.imageio import IMAGE_EXTENSIONS, encode_image
 
     ext = suffix.lower().lstrip(".")
     image_format = next((f for f, e in IMAGE_EXTENSIONS.items() if ext in (e, f)), None)
     if image_format is None:
         raise ValueError(f"cannot encode an image as {suffix!r}")
+    if quality is not None:
+        return encode_image(bgr, image_format=image_format, jpeg_quality=quality)
     quality = 95
     if image_format == "jpeg" and preset:
         from arenabench.generator.presets import get_preset
@@ -208,7 +211,8 @@ def _encode(bgr: np.ndarray, suffix: str, *, preset: str | None) -> bytes:
 
 
 def render_phases(gt: GroundTruth, *, phases: int, folder: Path, suffix: str = ".png",
-                  renderer: Any = None) -> Iterator[PhaseImage]:
+                  renderer: Any = None, jpeg_quality: int | None = None
+                  ) -> Iterator[PhaseImage]:
     """Render the scene of ``gt`` at ``phases`` sub-pixel offsets into ``folder``
     (:func:`phase_offsets`, each box rotated by :func:`box_offsets`).
 
@@ -227,6 +231,9 @@ def render_phases(gt: GroundTruth, *, phases: int, folder: Path, suffix: str = "
         Image file type, that of the original image.
     renderer : SceneRenderer, keyword-only
         Default: this thread's :func:`arenabench.generator.make.worker_renderer`.
+    jpeg_quality : int, keyword-only
+        The original JPEG's quality (:func:`original_jpeg_quality`); default: the built-in
+        preset's.
     """
     import cv2
 
@@ -255,13 +262,29 @@ def render_phases(gt: GroundTruth, *, phases: int, folder: Path, suffix: str = "
             rgb = apply_degradations(rgb, degradations, degrade_rng(gt.seed, gt.index))
         path = folder / f"phase-{i:02d}{suffix}"
         path.write_bytes(_encode(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), suffix,
-                                 preset=gt.preset))
+                                 preset=gt.preset, quality=jpeg_quality))
         record = ground_truth_record(moved, sid=gt.id, preset=gt.preset, seed=gt.seed,
                                      index=gt.index, params=sampled, frame=frame)
         yield PhaseImage(path=path, gt=record)
 
 
 # ------------------------------------------------------------------------------ the check
+
+def original_jpeg_quality(image: str | Path) -> int | None:
+    """The quality the JPEG file ``image`` was written at (its tables,
+    :func:`arenabench.imageio.jpeg_quality`); ``None`` for another file or none found."""
+    from arenabench.fileio import open_regular
+    from arenabench.imageio import ImageLoadError, jpeg_quality
+
+    if Path(image).suffix.lower() not in (".jpg", ".jpeg"):
+        return None
+    try:
+        with open_regular(image) as fh:
+            head = fh.read(1 << 20)  # the tables come before the scan
+        return jpeg_quality(head)
+    except (OSError, ImageLoadError):
+        return None
+
 
 def checked(result: ImageResult) -> bool:
     """Whether the phase check re-runs this image: a failure of a category in
@@ -343,7 +366,9 @@ def check_phases(
                 pending = []
                 try:
                     for image in render_phases(gts[i], phases=phases, folder=folder,
-                                               suffix=suffix, renderer=renderer):
+                                               suffix=suffix, renderer=renderer,
+                                               jpeg_quality=original_jpeg_quality(
+                                                   results[i].image)):
                         pending.append((image, pool.submit(_safe_run, run, image.path)))
                 except Exception as exc:  # a scene that cannot be re-rendered stays unchecked
                     _warn(f"phase check of {results[i].id} skipped: {type(exc).__name__}: {exc}")

@@ -6,6 +6,8 @@ from __future__ import annotations
 import base64
 import html
 
+from arenabench.generator.presets import preset_name
+
 from ..reports.html_report import CSS
 from ..reports.incomplete import banner_html
 from ..reports.summary_rows import fmt
@@ -42,9 +44,9 @@ def sweep_page(result: SweepResult, figures: list[tuple[str, str, bytes]]) -> st
         "<!DOCTYPE html>",
         '<html lang="en"><head><meta charset="utf-8">',
         '<link rel="icon" href="data:,">',
-        f"<title>arenabench sweep: {e(spec.preset)}</title>"
+        f"<title>arenabench sweep: {e(preset_name(spec.preset))}</title>"
         f"<style>{CSS}{SWEEP_CSS}</style></head><body>",
-        f"<h1>arenabench sweep: preset {e(spec.preset)}</h1>",
+        f"<h1>arenabench sweep: preset {e(preset_name(spec.preset))}</h1>",
         "" if result.complete else banner_html(int(result.run.get("samples_done", 0)),
                                                result.run.get("samples")),
         "<table>",

@@ -114,6 +114,7 @@ def write_sweep(
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
+    _export_textures(result, out)
     written = {
         "json": atomic_write_text(out / FILES["json"], dumps_json(result.to_dict())),
         "csv": atomic_write_text(out / FILES["csv"], sweep_csv(result)),
@@ -125,6 +126,21 @@ def write_sweep(
             written[f"plot:{name}"] = atomic_write_bytes(out / "plots" / name, png)
         written["html"] = atomic_write_text(out / FILES["html"], sweep_page(result, figures))
     return written
+
+
+def _export_textures(result: SweepResult, out: Path) -> None:
+    """Copy the preset's texture images (``arena.texture_file``) into ``out/textures``: the
+    sweep's ``preset_definition`` names them there, as a set's does."""
+    from arenabench.generator import texture_store
+    from arenabench.generator.preset_files import texture_refs
+    from arenabench.generator.presets import resolve
+
+    spec = result.spec
+    if isinstance(spec.preset, str):
+        return
+    for ref in sorted({*texture_refs(spec.preset.params),
+                       *texture_refs(resolve(spec.preset, spec.overrides))}):
+        texture_store.export_texture(ref, out)
 
 
 def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
@@ -146,8 +162,14 @@ def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
     if doc.get("schema") != SWEEP_SCHEMA:
         raise ValueError(f"{out / FILES['json']}: schema must be {SWEEP_SCHEMA!r}, "
                          f"got {doc.get('schema')!r}")
+    preset: Any = doc["preset"]
+    if isinstance(doc.get("preset_definition"), dict):  # the preset, as it was
+        from arenabench.generator.preset_files import preset_from_document
+
+        preset = preset_from_document(doc["preset_definition"], base=out,
+                                      where=f"{out / FILES['json']} preset_definition")
     spec = SweepSpec(
-        preset=doc["preset"],
+        preset=preset,
         axes=tuple(parse_vary(f"{a['key']}={a['spec']}") for a in doc["vary"]),
         pipelines=tuple(
             PipelineSpec("cmd" if p["kind"] == "cmd" else "pipeline", p["name"],

@@ -12,7 +12,7 @@ from arenabench.eval.datasets.reader import AREA_REFERENCES
 from arenabench.eval.runs import OUTPUT_MODES, CommandPipeline, RunSettings
 from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE
 from arenabench.eval.scoring.results import ImageResult, Summary
-from arenabench.generator.presets import Value, format_value
+from arenabench.generator.presets import Value, format_value, preset_name
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 from arenabench.seeds import check_seed
 
@@ -90,8 +90,9 @@ class SweepSpec:
 
     Parameters
     ----------
-    preset : str
-        Scene preset.
+    preset : str or ResolvedPreset
+        Scene preset: a built-in name or a preset file's
+        :class:`~arenabench.generator.preset_files.ResolvedPreset`.
     axes : tuple of Axis
         Varied parameters (``--vary``).
     pipelines : tuple of PipelineSpec
@@ -122,7 +123,7 @@ class SweepSpec:
         worker that rendered it; 0 = off.
     """
 
-    preset: str
+    preset: Any
     axes: tuple[Axis, ...]
     pipelines: tuple[PipelineSpec, ...]
     per_point: int = 50
@@ -177,7 +178,9 @@ class SweepSpec:
     def to_dict(self) -> dict[str, Any]:
         """JSON form of the settings (``sweep.json`` top level)."""
         return {
-            "preset": self.preset,
+            "preset": preset_name(self.preset),
+            **({} if isinstance(self.preset, str)  # a preset file: what it held
+               else {"preset_definition": self.preset.document()}),
             "seed": int(self.seed),
             "per_point": int(self.per_point),
             "mode": "grid" if self.random is None else "random",
@@ -210,7 +213,7 @@ class SweepTask:
     point: int
     scene: int
     index: int
-    preset: str
+    preset: Any
     seed: int
     overrides: dict[str, Value]
     pipelines: tuple[PipelineSpec, ...]

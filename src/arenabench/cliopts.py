@@ -60,6 +60,7 @@ SHARED_OPTIONS: tuple[str, ...] = (
     "--out", "--workers", "--scheduler", "--no-progress", "--tolerance", "--area-reference",
     "--timeout", "--memory-limit", "--max-file-size", "--max-output", "--max-disk",
     "--max-procs", "--sandbox", "--count", "--seed", "--cmd", "--output", "--formats",
+    "--preset",
 )
 
 
@@ -501,6 +502,42 @@ def add_formats(parser: argparse.ArgumentParser, known: Sequence[str], *,
     return _tag(parser.add_argument(
         "--formats", type=formats_rule(known), default=tuple(known), metavar="LIST",
         help=f"{help}, comma-separated, of {','.join(known)} (default: all)"), "add_formats")
+
+
+def add_preset(parser: Any, *, resolve: Callable[[str], Any], default: str | None,
+               names: Sequence[str] = (), flag: str = "--preset",
+               help: str = "scene preset") -> argparse.Action:
+    """``--preset NAME|FILE``: a built-in preset's name or a preset file (TOML or JSON,
+    docs/formats.md "Preset files"), turned into the preset by ``resolve`` when parsed (the
+    generator's :func:`arenabench.generator.preset_files.resolve_preset`: a value naming an
+    existing file is a preset file, anything else a name). Its refusal (an unknown name with
+    "did you mean", a missing file, a file's bad key or value) is the usage error's one line.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser or argument group
+        Where the option goes (a mutually exclusive group too).
+    resolve : callable, keyword-only
+        ``str -> preset``; raises ``ValueError`` with the one line.
+    default : str or None, keyword-only
+        The default preset's name (resolved too when the option is not given), or ``None``.
+    names : sequence of str, keyword-only
+        The built-in presets' names, for the help.
+    flag : str, keyword-only
+        The option (``presets --show`` takes a preset the same way).
+    """
+    def convert(text: str) -> Any:
+        try:
+            return resolve(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(" ".join(str(exc).split())) from None
+
+    convert.__name__ = "preset"
+    known = f"a built-in preset ({', '.join(names)}) or " if names else ""
+    return _tag(parser.add_argument(
+        flag, type=convert, default=default, metavar="NAME|FILE",
+        help=f"{help}: {known}a preset file (.toml or .json; docs/formats.md)"
+        + (f" (default: {default})" if default else "")), "add_preset")
 
 
 def _cmd_templates(ns: argparse.Namespace) -> list[str]:

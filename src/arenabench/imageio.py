@@ -101,6 +101,13 @@ def declared_size(path: str | os.PathLike[str]) -> tuple[int, int] | None:
         return _header_size(fh)
 
 
+def declared_size_of(data: bytes) -> tuple[int, int] | None:
+    """:func:`declared_size` of an image file's bytes."""
+    import io
+
+    return _header_size(io.BytesIO(data))
+
+
 def _header_size(fh: Any) -> tuple[int, int] | None:
     """:func:`declared_size` of the open binary file ``fh`` (read from its start)."""
     import struct

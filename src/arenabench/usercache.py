@@ -1,5 +1,5 @@
-"""The user cache folder of arenabench (``check``'s twin sets and reports, the competition's
-Python environments)."""
+"""The user cache folder of arenabench: twin sets and reports of ``arenabench check``, the
+competition's Python environment, and texture images kept by their content."""
 
 from __future__ import annotations
 
