@@ -43,7 +43,7 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def dataset_key(preset: str, count: int, seed: int) -> str:
     """Cache folder name of a generated dataset: ``<preset>-n<count>-s<seed>-v<generator
     version>`` (imports the generator); a preset file is named by its preset's name and a
-    hash of its parameters (:attr:`~arenabench.generator.preset_files.ResolvedPreset.key`).
+    hash of its parameters (:func:`~arenabench.generator.presets.preset_key`).
 
     Raises
     ------
@@ -51,10 +51,10 @@ def dataset_key(preset: str, count: int, seed: int) -> str:
         For an unknown preset or a bad preset file (one line).
     """
     from arenabench.generator.make import GENERATOR_VERSION
-    from arenabench.generator.preset_files import resolve_preset
+    from arenabench.generator.presets import preset_key, resolve_preset
 
     try:
-        key = resolve_preset(preset).key
+        key = preset_key(resolve_preset(preset))
     except ValueError as exc:
         raise pytest.UsageError(f"--arenabench-preset: {exc}") from None
     return f"{key}-n{count}-s{seed}-v{GENERATOR_VERSION}"

@@ -25,7 +25,7 @@ _EXPORTS = {
     "DirectionalLight": "scene",
     "sample_scene": "sampler",
     "SamplingError": "sampler",
-    "parse_overrides": "presets",
+    "parse_overrides": "param_values",
     "PRESETS": "presets",
     "Renderer": "render",
     "NaiveRenderer": "render",

@@ -25,8 +25,7 @@ from arenabench.cliopts import (
 )
 from arenabench.exitcodes import ExitCode
 from arenabench.fileio import atomic_write_bytes
-from arenabench.generator.preset_files import resolve_preset
-from arenabench.generator.presets import DEFAULT_PRESET, preset_names
+from arenabench.generator.presets import DEFAULT_PRESET, preset_names, resolve_preset
 from arenabench.limits import MAX_IMAGE_SIDE_PX, check_at_most
 
 #: Padding around a tile and height of its caption strip, in px.
@@ -173,7 +172,7 @@ def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_or_status(argv)
     if isinstance(args, int):  # --help (0) or a usage error (2, its line printed)
         return args
-    from arenabench.generator.presets import parse_overrides
+    from arenabench.generator.param_values import parse_overrides
     from arenabench.generator.sampler import SamplingError
 
     out = args.out or Path(f"contact-{args.preset.name}.jpg")

@@ -67,13 +67,10 @@ from arenabench.generator.make import (
     worker_gl_info,
     worker_renderer,
 )
-from arenabench.generator.preset_files import (
-    RESERVED_KEYS,
-    ResolvedPreset,
-    builtin_preset,
-    texture_refs,
-)
-from arenabench.generator.presets import Range, Value, format_value, resolve
+from arenabench.generator.param_values import format_value
+from arenabench.generator.params import Range, Value
+from arenabench.generator.preset_files import RESERVED_KEYS, ResolvedPreset, texture_refs
+from arenabench.generator.presets import builtin_preset, resolve
 from arenabench.generator.scene import RenderSpec
 from arenabench.gtrecord import GroundTruth
 from arenabench.imageio import (
@@ -364,7 +361,7 @@ def write_rendered(out: Path, res: dict[str, Any]) -> dict[str, Any]:
 
 
 def _parse_stored(overrides: dict[str, str]) -> dict[str, Value]:
-    from arenabench.generator.presets import parse_override
+    from arenabench.generator.param_values import parse_override
 
     return dict(parse_override(f"{k}={v}") for k, v in overrides.items())
 
@@ -649,7 +646,7 @@ def generate_dataset(
     preset : str or ResolvedPreset, keyword-only
         A built-in preset's name, or a preset file's
         :class:`~arenabench.generator.preset_files.ResolvedPreset`
-        (:func:`~arenabench.generator.preset_files.resolve_preset`).
+        (:func:`~arenabench.generator.presets.resolve_preset`).
     count, seed : int, keyword-only
         Number of scenes, run seed.
     overrides : dict, keyword-only

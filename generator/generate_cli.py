@@ -18,8 +18,7 @@ from arenabench.cliopts import (
     usage_error,
 )
 from arenabench.exitcodes import ExitCode
-from arenabench.generator.preset_files import resolve_preset
-from arenabench.generator.presets import DEFAULT_PRESET, preset_names
+from arenabench.generator.presets import DEFAULT_PRESET, preset_names, resolve_preset
 
 
 def build_parser() -> CommandParser:
@@ -56,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         return args
     from arenabench.generator.dataset_writer import GenerateError, generate_dataset
     from arenabench.generator.gl_check import OffscreenGLError
-    from arenabench.generator.presets import parse_overrides
+    from arenabench.generator.param_values import parse_overrides
     from arenabench.generator.sampler import SamplingError
     from arenabench.interrupts import Interrupted, exit_code, stop_on_signals
     from arenabench.seeds import random_seed

@@ -25,16 +25,17 @@ Public API (everything a command or another module needs; the rest is private):
 - :func:`load_preset_file` (path -> :class:`ResolvedPreset`): read and validate a file; every
   problem is a :class:`PresetFileError` (a ``ValueError``) of one line naming the file, the
   key and the value.
-- :func:`resolve_preset` (the ``--preset NAME|FILE`` rule): an existing file is a preset file
-  (a ``dataset.json`` gives the preset its set was made from), anything else a built-in name
-  (``"did you mean"`` for a mistyped one).
-- :func:`builtin_preset` (name -> :class:`ResolvedPreset`).
+- :func:`preset_hash`: 10 hex digits naming a preset's parameters.
 - :func:`write_preset_file`, :func:`preset_to_toml`, :func:`preset_to_json`,
   :func:`preset_document`: write a preset (every parameter after the defaults, with the
   ``[preset]`` and ``[open]`` tables) that :func:`load_preset_file` reads back to the same
   :class:`ResolvedPreset`, so generating from the file gives the same bytes as from the
   preset it was written from.
 - :class:`ResolvedPreset`, :class:`OpenParam`: a preset after validation and defaults.
+
+The ``--preset NAME|FILE`` rule and the built-in presets are
+:func:`arenabench.generator.presets.resolve_preset` and
+:func:`~arenabench.generator.presets.builtin_preset`.
 """
 
 from __future__ import annotations
@@ -51,15 +52,14 @@ from typing import Any
 
 from arenabench.fileio import atomic_write_text, dumps_json, read_regular, sha256_bytes
 from arenabench.generator import texture_store
-from arenabench.generator.params import PARAMETERS, PARAMS, Range, Value
-from arenabench.generator.presets import (
+from arenabench.generator.param_values import (
     ALIASES,
-    PRESETS,
     canonical_key,
     format_value,
-    resolve,
+    resolve_params,
     validate_value,
 )
+from arenabench.generator.params import PARAMETERS, PARAMS, Range, Value
 from arenabench.limits import MAX_PRESET_FILE_BYTES
 from arenabench.suggest import did_you_mean
 
@@ -160,14 +160,6 @@ class ResolvedPreset:
     open: dict[str, OpenParam] = field(default_factory=dict)
     source: Path | None = None
 
-    @property
-    def key(self) -> str:
-        """A name for folders of sets made from it: :attr:`name` when the parameters are the
-        built-in preset's of that name, else ``<name>-<10 hex digits of their hash>``."""
-        if self.name in PRESETS and builtin_preset(self.name).params == self.params:
-            return self.name
-        text = dumps_json(_param_sections(self.params))
-        return f"{self.name}-{sha256_bytes(text.encode('utf-8'))[:10]}"
 
     def document(self) -> dict[str, Any]:
         """The preset file's content (:func:`preset_document`)."""
@@ -303,7 +295,7 @@ def preset_from_document(doc: Mapping[str, Any], *, where: str, base: Path | Non
             given[canonical] = _param_value(ctx, canonical, raw, spelled_as=key)
             spelled[canonical] = key
     try:
-        params = resolve(given)
+        params = resolve_params(given)
     except ValueError as exc:
         missing = str(exc).removeprefix("preset lacks parameters: ").split(", ")
         shown = ", ".join(missing[:6]) + (f" and {len(missing) - 6} more"
@@ -418,7 +410,7 @@ def _number(value: Any) -> bool:
 def _param_value(ctx: _Context, key: str, raw: Any, *, spelled_as: str,
                  fixed_only: bool = False) -> Value:
     """``raw`` (a parsed TOML/JSON value) as parameter ``key``'s value, validated as ``--set``
-    validates it (:func:`arenabench.generator.presets.validate_value`)."""
+    validates it (:func:`arenabench.generator.param_values.validate_value`)."""
     spec = PARAMETERS[key]
     forms = _KIND_FORMS.get(spec.kind, "a value")
     if fixed_only and spec.numeric:
@@ -564,60 +556,14 @@ def _open_table(ctx: _Context, table: Any, params: dict[str, Value]) -> dict[str
 # --------------------------------------------------------------------------- the --preset rule
 
 
-def resolve_preset(value: str | ResolvedPreset) -> ResolvedPreset:
-    """What ``--preset VALUE`` names: a value naming an existing file is a preset file
-    (:func:`load_preset_file`), anything else a built-in preset's name.
-
-    Raises
-    ------
-    ValueError
-        One line: an unknown name (with "did you mean" and the known names), a path that
-        does not exist, or the preset file's problem (:class:`PresetFileError`).
-    """
-    if isinstance(value, ResolvedPreset):
-        return value
-    text = str(value)
-    if text in PRESETS and not os.path.isfile(text):
-        return builtin_preset(text)
-    if text and os.path.lexists(text):
-        if os.path.isdir(text):
-            raise ValueError(f"preset file {text}: a folder, not a preset file (a set's "
-                             "preset: give its dataset.json)")
-        return load_preset_file(text)
-    if os.sep in text or Path(text).suffix.lower() in (".toml", ".json"):
-        raise ValueError(f"preset file {text}: no such file")
-    raise ValueError(f"unknown preset {text!r}{did_you_mean(text, PRESETS)} (known: "
-                     f"{', '.join(PRESETS)}; or the path of a preset file)")
-
-
-_BUILTIN: dict[str, ResolvedPreset] = {}
-
-
-def builtin_preset(name: str) -> ResolvedPreset:
-    """The built-in preset ``name`` (:data:`arenabench.generator.presets.PRESETS`), resolved.
-
-    Raises
-    ------
-    ValueError
-        For an unknown name (the message lists the known ones).
-    """
-    from arenabench.generator.presets import PRESET_FILES, get_preset
-
-    if name in _BUILTIN:
-        return _BUILTIN[name]
-    if name in PRESET_FILES:
-        made = load_preset_file(PRESET_FILES[name])
-        if made.name != name:  # pragma: no cover - a packaging error
-            raise ValueError(f"{PRESET_FILES[name]}: [preset] name is {made.name!r}, not "
-                             f"{name!r}")
-    else:
-        params = resolve(get_preset(name))
-        made = ResolvedPreset(name=name, params=params, description=PRESETS[name][0])
-    _BUILTIN[name] = made
-    return made
-
-
 # ------------------------------------------------------------------------------- writing
+
+
+def preset_hash(params: Mapping[str, Value]) -> str:
+    """10 hex digits of the SHA-256 of ``params`` as a preset file's sections hold them (the
+    same parameters, the same digits)."""
+    text = dumps_json(_param_sections(params))
+    return sha256_bytes(text.encode("utf-8"))[:10]
 
 
 def _file_value(value: Value) -> Any:
@@ -647,7 +593,7 @@ def _param_sections(params: Mapping[str, Value]) -> dict[str, dict[str, Any]]:
 
 def _complete(params: Mapping[str, Value]) -> dict[str, Value]:
     """Every parameter after the defaults, validated (a ``ValueError`` names the problem)."""
-    return resolve(dict(params))
+    return resolve_params(dict(params))
 
 
 def _open_params(open: Mapping[str, OpenParam | Mapping[str, Any]] | None,
@@ -824,7 +770,7 @@ def write_preset_file(path: str | os.PathLike[str], params: Mapping[str, Value],
     as_json = p.suffix.lower() == ".json"
     write = preset_to_json if as_json else preset_to_toml
     text = write(params, name=name, description=description, evidence=evidence, open=open)
-    for ref in texture_refs(resolve(dict(params))):
+    for ref in texture_refs(resolve_params(dict(params))):
         texture_store.export_texture(ref, p.parent)
     atomic_write_text(p, text)
     return p

@@ -7,13 +7,10 @@ import sys
 
 from arenabench.cliopts import CommandParser, add_preset
 from arenabench.exitcodes import ExitCode
-from arenabench.generator.preset_files import (
-    preset_to_json,
-    preset_to_toml,
-    resolve_preset,
-    show_lines,
-)
-from arenabench.generator.presets import PARAMETERS, PRESETS, format_value, preset_names
+from arenabench.generator.param_values import format_value
+from arenabench.generator.params import PARAMETERS
+from arenabench.generator.preset_files import preset_to_json, preset_to_toml, show_lines
+from arenabench.generator.presets import PRESETS, preset_names, resolve_preset
 
 #: ``--format`` of ``--show``: ``KEY=VALUE`` lines, or a preset file.
 SHOW_FORMATS = ("text", "toml", "json")

@@ -233,7 +233,7 @@ def sample_scene(preset: Any, *, seed: int, index: int,
     seed, index : int, keyword-only
         Run seed and scene index (both >= 0).
     overrides : dict, keyword-only
-        Parsed ``--set`` values (see :func:`arenabench.generator.presets.parse_overrides`).
+        Parsed ``--set`` values (see :func:`arenabench.generator.param_values.parse_overrides`).
 
     Returns
     -------

@@ -9,7 +9,8 @@ import pytest
 from clirun import run_cli
 
 from arenabench.generator.contact_sheet import tile_images
-from arenabench.generator.presets import PRESETS, Range, resolve
+from arenabench.generator.params import Range
+from arenabench.generator.presets import PRESETS, resolve
 
 
 def test_tiles_keep_aspect_and_layout():

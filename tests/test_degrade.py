@@ -14,7 +14,9 @@ import pytest
 from arenabench.generator.degrade import Degradations, apply_degradations, standard_normal
 from arenabench.generator.lens import densify, distort_points, lens_canvas, undistort_points
 from arenabench.generator.make import degrade_rng, make_sample
-from arenabench.generator.presets import NEUTRAL, PARAMETERS, parse_overrides, resolve
+from arenabench.generator.param_values import parse_overrides
+from arenabench.generator.params import NEUTRAL, PARAMETERS
+from arenabench.generator.presets import resolve
 from arenabench.generator.render import Renderer
 
 

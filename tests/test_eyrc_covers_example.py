@@ -10,7 +10,8 @@ import pytest
 
 from arenabench.generator import Renderer, make_sample
 from arenabench.generator import competition_arena as comp
-from arenabench.generator.presets import PRESETS, Range
+from arenabench.generator.params import Range
+from arenabench.generator.presets import PRESETS
 
 SCENE = Path(__file__).resolve().parents[1] / "generator" / "scenes" / "task1c_example.json"
 IMAGE = Path(__file__).resolve().parent / "data" / "task1c_image.jpg"

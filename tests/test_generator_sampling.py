@@ -9,15 +9,9 @@ import pytest
 from shapely.geometry import Polygon
 
 from arenabench.generator.layout import box_footprint, reference_corners_world
-from arenabench.generator.presets import (
-    PARAMETERS,
-    PRESETS,
-    Range,
-    format_value,
-    parse_override,
-    parse_overrides,
-    resolve,
-)
+from arenabench.generator.param_values import format_value, parse_override, parse_overrides
+from arenabench.generator.params import PARAMETERS, Range
+from arenabench.generator.presets import PRESETS, resolve
 from arenabench.generator.sampler import SamplingError, sample_scene
 from arenabench.generator.scene import CameraSpec, Obstacle, Scene
 

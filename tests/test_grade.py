@@ -380,7 +380,7 @@ def test_leaderboard_csv_escapes_formulas_and_rounds_floats():
         (["--tolerance", "inf"], "--tolerance"),
         (["--tolerance", "1e309"], "--tolerance"),
         (["--reference", "/nonexistent/ref"], "--reference /nonexistent/ref: not a folder"),
-        (["--formats", "html,pdf"], "--formats must be"),
+        (["--formats", "html,pdf"], "argument --formats: unknown 'pdf'"),
         (["--cmd", "python3 'unclosed"], "--cmd cannot be split"),
         (["--memory-limit", "lots"], "--memory-limit: not a size"),
         (["--workers", "2", "--scheduler", "tcp://127.0.0.1:1"], "exclude each other"),

@@ -14,7 +14,7 @@ import pytest
 from shapely.geometry import Polygon
 
 from arenabench.generator.make import make_sample
-from arenabench.generator.presets import parse_overrides
+from arenabench.generator.param_values import parse_overrides
 from arenabench.generator.render import Renderer
 
 #: 50 renders with instance masks (about 8 s): `make test`, not `make test-fast`

@@ -8,8 +8,9 @@ import pytest
 
 from arenabench.generator.degrade import PARAM_NAMES, Degradations
 from arenabench.generator.lens import LENS_PARAMS
+from arenabench.generator.param_values import format_value, parse_override, validate_value
 from arenabench.generator.params import NEUTRAL, PARAMETERS, PARAMS, Param, Range, assemble
-from arenabench.generator.presets import format_value, parse_override, resolve, validate_value
+from arenabench.generator.presets import resolve
 from arenabench.generator.sampler import sample_scene
 from arenabench.generator.scene import IMAGE_TEXTURE_FIELDS
 

@@ -15,13 +15,8 @@ import pytest
 from clirun import run_cli
 
 from arenabench.generator.params import PARAMETERS, Range
-from arenabench.generator.preset_files import (
-    builtin_preset,
-    load_preset_file,
-    preset_to_toml,
-    write_preset_file,
-)
-from arenabench.generator.presets import PRESETS
+from arenabench.generator.preset_files import load_preset_file, preset_to_toml, write_preset_file
+from arenabench.generator.presets import PRESETS, builtin_preset, preset_key
 from arenabench.usercache import CACHE_ENV
 
 PIPELINES = Path(__file__).resolve().parent / "pipelines"
@@ -360,7 +355,7 @@ def test_check_takes_a_preset_file(tmp_path, own_cache):
     p = builtin_preset("eyrc")
     write_preset_file(preset, {**p.params, "obstacles.count": 2}, name="eyrc",
                       description=p.description)
-    key = load_preset_file(preset).key
+    key = preset_key(load_preset_file(preset))
     assert key.startswith("eyrc-") and key != "eyrc"
     proc = run_cli("check", str(PIPELINES / "style_blur127.py"), "--preset", str(preset),
                    "--count", "3", "--python", "{python}", "--phase-check", "off",

@@ -18,14 +18,20 @@ from arenabench.generator.preset_files import (
     OpenParam,
     PresetFileError,
     ResolvedPreset,
-    builtin_preset,
     load_preset_file,
     preset_document,
     preset_to_toml,
-    resolve_preset,
     write_preset_file,
 )
-from arenabench.generator.presets import EXAMPLE_SCENE, PRESET_FILES, PRESETS, resolve
+from arenabench.generator.presets import (
+    EXAMPLE_SCENE,
+    PRESET_FILES,
+    PRESETS,
+    builtin_preset,
+    preset_key,
+    resolve,
+    resolve_preset,
+)
 from arenabench.limits import MAX_PRESET_FILE_BYTES
 
 
@@ -167,12 +173,12 @@ def test_the_preset_rule_names_and_files(tmp_path, monkeypatch):
 
 
 def test_key_is_the_name_for_the_builtin_values_else_name_and_hash(tmp_path):
-    assert builtin_preset("eyrc").key == "eyrc"
+    assert preset_key(builtin_preset("eyrc")) == "eyrc"
     same = load_preset_file(_write(tmp_path, _eyrc_text()))
-    assert same.key == "eyrc"
+    assert preset_key(same) == "eyrc"
     other = load_preset_file(_write(tmp_path, _set_line(_eyrc_text(), "tilt_deg",
                                                         "tilt_deg = 5.0")))
-    assert re.fullmatch(r"eyrc-[0-9a-f]{10}", other.key)
+    assert re.fullmatch(r"eyrc-[0-9a-f]{10}", preset_key(other))
 
 
 # ------------------------------------------------------------------------ one line per problem

@@ -16,7 +16,7 @@ from clirun import run_cli
 
 from arenabench.generator.edges import obstacle_region
 from arenabench.generator.lights import fill_lights, shadow_mesh_arrays
-from arenabench.generator.presets import parse_overrides
+from arenabench.generator.param_values import parse_overrides
 from arenabench.generator.render import Renderer
 from arenabench.generator.sampler import sample_scene
 from arenabench.generator.scene import (

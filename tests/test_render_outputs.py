@@ -11,7 +11,7 @@ import pytest
 from arenabench.generator import camera as cam
 from arenabench.generator.groundtruth import compute_ground_truth
 from arenabench.generator.make import make_sample
-from arenabench.generator.presets import parse_overrides
+from arenabench.generator.param_values import parse_overrides
 from arenabench.generator.render import Renderer
 from arenabench.generator.sampler import sample_scene
 from arenabench.generator.scene import Scene

@@ -18,7 +18,7 @@ from arenabench.generator.layout import marker_square
 from arenabench.generator.lens import undistort_points
 from arenabench.generator.lights import shadow_alpha
 from arenabench.generator.make import make_sample
-from arenabench.generator.presets import parse_overrides
+from arenabench.generator.param_values import parse_overrides
 from arenabench.generator.render import Renderer
 from arenabench.generator.scene import Scene
 

@@ -203,7 +203,7 @@ def test_antialiased_render_does_not_depend_on_earlier_scenes():
     """Edge samples on depth ties (a box's bottom edge on the floor) follow the draw order, and
     a renderer may reuse its static layer: neither may depend on what it drew before."""
     from arenabench.generator import make_sample
-    from arenabench.generator.presets import parse_overrides
+    from arenabench.generator.param_values import parse_overrides
 
     overrides = parse_overrides(["camera.tilt_deg=20"])
     with Renderer() as r:

@@ -39,8 +39,12 @@ from arenabench.eval.runs import COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER
 from arenabench.eval.scoring.metric_registry import METRIC
 from arenabench.eval.scoring.phase_check import add_phase_check_argument
 from arenabench.exitcodes import ExitCode
-from arenabench.generator.preset_files import resolve_preset
-from arenabench.generator.presets import DEFAULT_PRESET, preset_names
+from arenabench.generator.presets import (
+    DEFAULT_PRESET,
+    preset_key,
+    preset_names,
+    resolve_preset,
+)
 from arenabench.usercache import cache_dir
 
 PROG = "arenabench check"
@@ -125,7 +129,7 @@ def larger_twin_set(*, preset: str, seed: int, count: int,
     """The smallest complete cached twin set of ``preset`` and ``seed`` (this generator
     version, no ``--set``) with more than ``count`` scenes, and its size; ``None`` when there
     is none. ``preset`` is the preset's key (its folders' names,
-    :attr:`arenabench.generator.preset_files.ResolvedPreset.key`), ``name`` the name its
+    :func:`arenabench.generator.presets.preset_key`), ``name`` the name its
     ``dataset.json`` records (default: ``preset``).
 
     Its first ``count`` scenes are the scenes of a ``count``-scene set: scene ``i`` draws
@@ -295,7 +299,7 @@ def _main(argv: list[str] | None) -> int:
     from arenabench.eval.reports import FORMATS
 
     preset = args.preset  # a ResolvedPreset: sets and reports are named by its key
-    twin = twin_set_dir(preset=preset.key, seed=args.seed, count=args.count)
+    twin = twin_set_dir(preset=preset_key(preset), seed=args.seed, count=args.count)
 
     def out_problem(out: Path) -> str | None:
         return output_problem(out, own=FORMATS.values(), what="'arenabench check' report",
@@ -338,7 +342,7 @@ def _main(argv: list[str] | None) -> int:
         pipeline.close()
         return _error(str(exc))
     out = args.out if args.out is not None else report_dir(
-        script, preset=preset.key, seed=args.seed, count=args.count,
+        script, preset=preset_key(preset), seed=args.seed, count=args.count,
         interpreter=interpreter.executable, settings=settings.to_dict(), phases=phases)
     if problem := out_problem(out):
         return _error(problem)
@@ -349,7 +353,7 @@ def _main(argv: list[str] | None) -> int:
     from arenabench.eval.reports import write_reports
     from arenabench.generator.dataset_writer import GenerateError, generate_dataset
 
-    larger = None if twin.exists() else larger_twin_set(preset=preset.key, seed=args.seed,
+    larger = None if twin.exists() else larger_twin_set(preset=preset_key(preset), seed=args.seed,
                                                          count=args.count, name=preset.name)
     try:
         if larger is not None:  # its first scenes are this set's: nothing to render

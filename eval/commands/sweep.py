@@ -83,8 +83,7 @@ class _PipelineAction(argparse.Action):
 
 def build_parser() -> CommandParser:
     """The argument parser of ``arenabench sweep``."""
-    from arenabench.generator.preset_files import resolve_preset
-    from arenabench.generator.presets import DEFAULT_PRESET, preset_names
+    from arenabench.generator.presets import DEFAULT_PRESET, preset_names, resolve_preset
 
     p = CommandParser(
         prog="arenabench sweep",
@@ -147,7 +146,7 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.eval.sweep.grid import parse_varies
     from arenabench.eval.sweep.outputs import FILES, KeptImageWriter, write_sweep
     from arenabench.eval.sweep.records import PipelineSpec, SweepSpec
-    from arenabench.generator.presets import parse_overrides
+    from arenabench.generator.param_values import parse_overrides
     from arenabench.generator.sampler import SamplingError
 
     if problem := output_problem(args.out, own=FILES.values(), what="'arenabench sweep' output"):

@@ -23,13 +23,8 @@ from typing import Any
 
 import numpy as np
 
-from arenabench.generator.presets import (
-    PARAMETERS,
-    Range,
-    canonical_key,
-    format_value,
-    validate_value,
-)
+from arenabench.generator.param_values import canonical_key, format_value, validate_value
+from arenabench.generator.params import PARAMETERS, Range
 from arenabench.plain_numbers import plain_number
 
 #: Values a two-part ``a:b`` range gives in a grid sweep.

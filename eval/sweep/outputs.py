@@ -26,7 +26,7 @@ from arenabench.fileio import (
     dumps_json,
     dumps_json_line,
 )
-from arenabench.generator.presets import format_value
+from arenabench.generator.param_values import format_value
 
 from .html import sweep_page
 from .plots import sweep_figures
@@ -152,7 +152,7 @@ def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
         When ``sweep.json`` is not of schema ``arenabench.sweep/1``.
     """
     from arenabench.eval.runs import RunSettings
-    from arenabench.generator.presets import parse_overrides
+    from arenabench.generator.param_values import parse_overrides
 
     from .grid import parse_vary
     from .records import SWEEP_SCHEMA, PipelineSpec, PointSummary, SweepSpec

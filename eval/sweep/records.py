@@ -12,7 +12,9 @@ from arenabench.eval.datasets.reader import AREA_REFERENCES
 from arenabench.eval.runs import OUTPUT_MODES, CommandPipeline, RunSettings
 from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE
 from arenabench.eval.scoring.results import ImageResult, Summary
-from arenabench.generator.presets import Value, format_value, preset_name
+from arenabench.generator.param_values import format_value
+from arenabench.generator.params import Value
+from arenabench.generator.presets import preset_name
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 from arenabench.seeds import check_seed
 

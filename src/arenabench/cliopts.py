@@ -509,7 +509,7 @@ def add_preset(parser: Any, *, resolve: Callable[[str], Any], default: str | Non
                help: str = "scene preset") -> argparse.Action:
     """``--preset NAME|FILE``: a built-in preset's name or a preset file (TOML or JSON,
     docs/formats.md "Preset files"), turned into the preset by ``resolve`` when parsed (the
-    generator's :func:`arenabench.generator.preset_files.resolve_preset`: a value naming an
+    generator's :func:`arenabench.generator.presets.resolve_preset`: a value naming an
     existing file is a preset file, anything else a name). Its refusal (an unknown name with
     "did you mean", a missing file, a file's bad key or value) is the usage error's one line.
 
