@@ -183,7 +183,7 @@ def test_counting_the_markers_as_obstacles_is_named_as_an_offset(tmp_path):
     assert report.summary.n_passed == 0 and report.causes == ()
     text = "answered GT + 4 on 8 of 8 answered images"
     assert [s["text"] for s in report.systematic if s["kind"] == "count_offset"] == [text]
-    lines = verdict_lines(report, fail_under=0.95, phases=0)
+    lines = verdict_lines(report, min_pass_rate=0.95, phases=0)
     assert f"  systematic error: {text}" in lines
     write_reports(report, tmp_path / "out", formats=("md", "html", "json"))
     for name in ("report.md", "report.html"):

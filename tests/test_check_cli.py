@@ -67,7 +67,7 @@ def test_a_canny_script_fails_by_luck(cache, tmp_path):
     assert [i["phase"]["passes"] for i in failing] == [8, 4, 5]
     assert report["summary"]["phase_dependent_failure_rate"] == 0.375
     # passing with a lower threshold
-    ok = _check(str(PIPELINES / "style_canny.py"), "--count", str(COUNT), "--fail-under",
+    ok = _check(str(PIPELINES / "style_canny.py"), "--count", str(COUNT), "--min-pass-rate",
                 "0.5", "--phase-check", "off", "--out", str(tmp_path / "off"), cache=cache)
     assert ok.returncode == 0 and "phase-dependent" not in ok.stdout
 
@@ -90,9 +90,10 @@ def test_a_crashing_script_fails_with_its_message(cache, tmp_path):
     (["{pipelines}/crash.py", "--count", "0"], "argument --count: must be an integer in [1, "),
     (["{pipelines}/crash.py", "--workers", "0"], "argument --workers: must be an integer in [1, "),
     (["{pipelines}/crash.py", "--preset", "nope"], "--preset: unknown preset 'nope'"),
-    (["{pipelines}/crash.py", "--fail-under", "1.5"],
-     "--fail-under pass_rate=1.5: must be a fraction in [0, 1]"),
-    (["{pipelines}/crash.py", "--fail-under", "95"], "must be a fraction in [0, 1]; 95 % is 0.95"),
+    (["{pipelines}/crash.py", "--min-pass-rate", "1.5"],
+     "--min-pass-rate 1.5: must be a fraction in [0, 1]"),
+    (["{pipelines}/crash.py", "--min-pass-rate", "95"],
+     "must be a fraction in [0, 1]; 95 % is 0.95"),
     (["{pipelines}/crash.py", "--phase-check", "zero"], "--phase-check"),
 ])
 def test_bad_input_exits_2_before_any_work(args, needle, tmp_path):
@@ -100,6 +101,17 @@ def test_bad_input_exits_2_before_any_work(args, needle, tmp_path):
     proc = _check(*(a.format(pipelines=PIPELINES) for a in args), cache=cache)
     assert proc.returncode == 2, proc.stdout + proc.stderr
     assert needle in proc.stderr.strip().splitlines()[-1]
+    assert not cache.exists()
+
+
+@pytest.mark.parametrize("value", ["1.5", "pass_rate=1.5"])
+def test_the_gates_former_name_still_works_and_says_the_new_one(value, tmp_path):
+    cache = tmp_path / "cache"
+    proc = _check(str(PIPELINES / "crash.py"), "--fail-under", value, cache=cache)
+    lines = proc.stderr.strip().splitlines()
+    assert proc.returncode == 2 and len(lines) == 2, proc.stderr
+    assert lines[0] == "arenabench check: --fail-under is now --min-pass-rate (the same pass rate)"
+    assert "--min-pass-rate 1.5: must be a fraction in [0, 1]" in lines[1]
     assert not cache.exists()
 
 

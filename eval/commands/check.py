@@ -8,7 +8,7 @@ hidden-test twin scenes, runs the script on each as the competition did (``pytho
 machinery), phase-checks the failures, and prints a short verdict with the versions that ran the
 script and the report's path (docs/phase-check.md).
 
-Exit status: 0 the pass rate reaches ``--fail-under``; 1 it does not; 2 bad input (before any
+Exit status: 0 the pass rate reaches ``--min-pass-rate``; 1 it does not; 2 bad input (before any
 work); 130/143 stopped by SIGINT/SIGTERM.
 """
 
@@ -20,6 +20,7 @@ import os
 import shutil
 import sys
 from pathlib import Path
+from typing import Any
 
 from arenabench.cliopts import (
     CommandParser,
@@ -50,15 +51,15 @@ from arenabench.usercache import cache_dir
 PROG = "arenabench check"
 #: Twin scenes a check runs on by default.
 DEFAULT_COUNT = 200
-#: Pass rate a script must reach (``--fail-under``).
-DEFAULT_FAIL_UNDER = 0.95
+#: Pass rate a script must reach (``--min-pass-rate``).
+DEFAULT_MIN_PASS_RATE = 0.95
 #: Largest ``--count``.
 MAX_COUNT = 10000
 
 EPILOG = """\
 examples:
   arenabench check map.py                       # 200 eyrc twin scenes, threshold 95 %
-  arenabench check map.py --count 50 --fail-under 0.9
+  arenabench check map.py --count 50 --min-pass-rate 0.9
   arenabench check src/map.py --preset eyrc-jitter --seed 3 --out check-report/
   arenabench check map.py --python ~/teams-venv/bin/python
 
@@ -82,9 +83,19 @@ own folder visible read-only and, as its working directory, a private copy of th
 another's obstacles.txt); it writes obstacles.txt there; its own exit status 0 means an answer,
 3 means markers not found, any other status a crash.
 
-arenabench's exit status: 0 pass rate >= --fail-under, 1 below it, 2 bad input (before any
+arenabench's exit status: 0 pass rate >= --min-pass-rate, 1 below it, 2 bad input (before any
 work), 130/143 interrupted.
 """
+
+
+class _OldFailUnder(argparse.Action):
+    """``--fail-under RATE``: the gate's former name, kept working; says the new one once."""
+
+    def __call__(self, parser: argparse.ArgumentParser, namespace: argparse.Namespace,
+                 values: Any, option_string: str | None = None) -> None:
+        print(f"{PROG}: --fail-under is now --min-pass-rate (the same pass rate)",
+              file=sys.stderr)
+        setattr(namespace, self.dest, values)
 
 
 def build_parser() -> CommandParser:
@@ -101,9 +112,13 @@ def build_parser() -> CommandParser:
     add_seed(p, help="scene seed")
     add_preset(p, resolve=resolve_preset, default=DEFAULT_PRESET, names=preset_names(),
                help="scene preset (default: the hidden-test twin)")
-    p.add_argument("--fail-under", default=str(DEFAULT_FAIL_UNDER), metavar="RATE",
+    p.add_argument("--min-pass-rate", default=str(DEFAULT_MIN_PASS_RATE), metavar="RATE",
                    help="pass rate needed for exit status 0, a fraction in [0, 1] "
                    "(default: %(default)s)")
+    # the name this gate had before (it read like eval's --fail-under METRIC=VALUE, which it
+    # is not): still taken, as a rate or pass_rate=RATE, with one line saying the new name
+    p.add_argument("--fail-under", dest="min_pass_rate", action=_OldFailUnder,
+                   metavar="RATE", help=argparse.SUPPRESS)
     p.add_argument("--python", default=COMPETITION_PLACEHOLDER, metavar="PYTHON",
                    help=f"interpreter that runs the script: {COMPETITION_PLACEHOLDER} (the "
                    f"competition's numpy and OpenCV, made once into the cache), "
@@ -216,14 +231,15 @@ def _validate(args: argparse.Namespace) -> str | None:
     if problem:
         return f"--python {args.python!r}: {problem}"
     try:  # the pass rate's range, as eval's --fail-under pass_rate=RATE
-        args.fail_under = METRIC["pass_rate"].check_limit(args.fail_under,
-                                                          option="--fail-under")
+        args.min_pass_rate = METRIC["pass_rate"].check_limit(
+            str(args.min_pass_rate).removeprefix("pass_rate="), option="--min-pass-rate",
+            named=False)
     except ValueError as exc:
         return str(exc)
     return _python_problem(args.python)
 
 
-def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
+def verdict_lines(report, *, min_pass_rate: float, phases: int) -> list[str]:
     """The verdict: pass rate, robust and phase-dependent failures, the strongest cause
     (:func:`arenabench.eval.scoring.breakdown.strongest_cause_text`), a systematic error of the
     answers (:func:`arenabench.eval.scoring.breakdown.systematic_text`)."""
@@ -235,9 +251,9 @@ def verdict_lines(report, *, fail_under: float, phases: int) -> list[str]:
     )
 
     s = report.summary
-    ok = s.pass_rate >= fail_under
+    ok = s.pass_rate >= min_pass_rate
     lines = [f"{'PASS' if ok else 'FAIL'}: pass rate {rate_text(s.pass_rate)} "
-             f"({s.n_passed}/{s.n}; needed {rate_text(fail_under)})"]
+             f"({s.n_passed}/{s.n}; needed {rate_text(min_pass_rate)})"]
     n_fail = s.n - s.n_passed
     if n_fail:
         fails = ", ".join(f"{c} {v}" for c, v in s.failures.items() if v)
@@ -420,11 +436,11 @@ def _main(argv: list[str] | None) -> int:
     except OSError as exc:  # ENOSPC: one line, no traceback (as eval and grade)
         print(f"{PROG}: error: {write_failure(exc, out)}", file=sys.stderr)
         return ExitCode.FAILED
-    for line in verdict_lines(report, fail_under=args.fail_under, phases=phases):
+    for line in verdict_lines(report, min_pass_rate=args.min_pass_rate, phases=phases):
         print(line)
     if written:
         print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
-    return ExitCode.OK if report.summary.pass_rate >= args.fail_under else ExitCode.FAILED
+    return ExitCode.OK if report.summary.pass_rate >= args.min_pass_rate else ExitCode.FAILED
 
 
 def _template(python: str, script: Path) -> str:

@@ -95,8 +95,9 @@ class Metric:
         """The range of a limit (or a delta) on this metric: :data:`KIND_RANGES` of its kind."""
         return KIND_RANGES[self.kind]
 
-    def check_limit(self, raw: str, *, option: str) -> float:
-        """``raw`` (what follows ``metric=`` in ``option``) as a limit this metric can reach.
+    def check_limit(self, raw: str, *, option: str, named: bool = True) -> float:
+        """``raw`` (what follows ``metric=`` in ``option``; with ``named=False`` the option's
+        whole value, as ``check --min-pass-rate 0.9``) as a limit this metric can reach.
 
         Raises
         ------
@@ -109,14 +110,15 @@ class Metric:
 
         lo, hi = self.limits
         what = "a fraction in [0, 1]" if self.kind == "rate" else "a finite number >= 0"
+        shown = f"{option} {self.name}={raw}" if named else f"{option} {raw}"
         try:
             value = plain_number(raw.strip(" "))
         except ValueError:
-            raise ValueError(f"{option} {self.name}={raw}: not a number ({what})") from None
+            raise ValueError(f"{shown}: not a number ({what})") from None
         if not (math.isfinite(value) and lo <= value <= hi):
             hint = (f"; {value:g} % is {value / 100:g}"
                     if self.kind == "rate" and 1 < value <= 100 else "")
-            raise ValueError(f"{option} {self.name}={raw}: must be {what}{hint}")
+            raise ValueError(f"{shown}: must be {what}{hint}")
         return value
 
     def format(self, value: Any) -> str:
