@@ -33,7 +33,7 @@ test: $(STAMP) system-deps
 	  exit $$rc
 
 test-fast: $(STAMP) system-deps
-	@$(PY) -m pytest -m "not slow" -n auto --dist loadfile $(PYTEST_ARGS); rc=$$?; \
+	@$(PY) -m pytest -m "not slow" -n auto --dist loadfile --durations=10 $(PYTEST_ARGS); rc=$$?; \
 	  if [ $$rc -eq 5 ]; then echo "make test-fast: pytest collected no tests - failing" >&2; exit 1; fi; \
 	  exit $$rc
 

@@ -359,7 +359,7 @@ def test_ranking_keys_and_deterministic_ties():
 
 def test_leaderboard_csv_escapes_formulas_and_rounds_floats():
     from arenabench.eval.grade.leaderboard import leaderboard_dict
-    from arenabench.eval.reports.leaderboard_report import leaderboard_csv
+    from arenabench.eval.grade.leaderboard_report import leaderboard_csv
 
     rows = rank_rows([_row(name, 3, 0.1 + 0.2, 0.30000000000000004, 1.0)
                       for name in ("=HYPERLINK(1)", "+1", "-2", "@SUM(A1)", "plain")])

@@ -923,7 +923,7 @@ def write_leaderboard_files(root: Path, rows: list[LeaderboardRow], *, data: Dat
                             unfinished: Sequence[dict[str, Any]] = ()) -> dict[str, Path]:
     """Write ``leaderboard.json``, ``.csv`` and ``.html`` into ``root`` (atomically);
     ``unfinished``: the teams an interrupted grade did not finish, with how far each got."""
-    from ..reports.leaderboard_report import write_leaderboard
+    from .leaderboard_report import write_leaderboard
 
     doc = leaderboard_dict(
         rows,

@@ -2,19 +2,14 @@
 
 from __future__ import annotations
 
-from arenabench.eval.scoring.metric_registry import METRIC, ROW_SEPARATORS, summary_row_groups
+from arenabench.eval.scoring.metric_registry import (
+    METRIC,
+    ROW_SEPARATORS,
+    fmt,
+    summary_row_groups,
+)
 from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING
 from arenabench.eval.scoring.results import Report, Summary
-
-
-def fmt(value: object, *, pct: bool = False, digits: int = 4) -> str:
-    """Human form of a metric value (``-`` for missing)."""
-    if value is None:
-        return "-"
-    if isinstance(value, float):
-        return f"{100 * value:.1f} %" if pct else f"{value:.{digits}g}"
-    return str(value)
-
 
 #: Columns of a breakdown table (a row per bin of a scene parameter; report.json's
 #: ``breakdown``).

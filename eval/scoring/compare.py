@@ -5,9 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
-from arenabench.eval.reports.summary_rows import fmt
-
-from .metric_registry import GATED, METRIC, Metric, lookup, split_metric_specs
+from .metric_registry import GATED, METRIC, Metric, fmt, lookup, split_metric_specs
 from .results import Report
 
 #: The metrics compared, in report order (the registry's gated metrics).

@@ -295,3 +295,12 @@ def split_metric_specs(specs: Iterable[str], *, option: str, known: Sequence[str
             seen[name] = part
             out.append((name, raw))
     return out
+
+
+def fmt(value: object, *, pct: bool = False, digits: int = 4) -> str:
+    """Human form of a metric value (``-`` for missing)."""
+    if value is None:
+        return "-"
+    if isinstance(value, float):
+        return f"{100 * value:.1f} %" if pct else f"{value:.{digits}g}"
+    return str(value)

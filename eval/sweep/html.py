@@ -10,7 +10,7 @@ from arenabench.generator.presets import preset_name
 
 from ..reports.html_report import CSS
 from ..reports.incomplete import banner_html
-from ..reports.summary_rows import fmt
+from ..scoring.metric_registry import fmt
 from .breakdown import breakdown_texts
 from .grid import point_label
 from .records import SweepResult

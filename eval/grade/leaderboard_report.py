@@ -22,8 +22,8 @@ from urllib.parse import quote
 from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING
 from arenabench.fileio import atomic_write_json, atomic_write_text
 
-from ..grade.leaderboard import LEADERBOARD_METRICS
 from .incomplete import banner_html, partial
+from .leaderboard import LEADERBOARD_METRICS
 
 CSS = """
 body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:24px;color:#222}
