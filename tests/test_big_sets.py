@@ -1,4 +1,4 @@
-"""Big sets stream (issue 23): the reader keeps ids and paths only, a run keeps its results in a
+"""Big sets stream: the reader keeps ids and paths only, a run keeps its results in a
 temporary file, the report files and coco.json are written as streams, with the same bytes as
 when everything is held in memory; and a 100,000-image set evaluates under 1 GB."""
 

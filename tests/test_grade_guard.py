@@ -1,4 +1,4 @@
-"""Organiser grading that cannot go silently wrong or be gamed (issue 21), end to end with
+"""Organiser grading that cannot go silently wrong or be gamed, end to end with
 real subprocesses and real bubblewrap: unguessable sets, the preflight, any interpreter in
 the sandbox, fail closed, hidden GT wherever the images live, symlinked teams, systemic
 failures, null latency, the INCOMPLETE banner and what /proc shows inside the sandbox."""

@@ -1,4 +1,4 @@
-"""``--max-procs`` fails closed in ``grade`` (issue 22): as root, where no pids cgroup can be
+"""``--max-procs`` fails closed in ``grade``: as root, where no pids cgroup can be
 created, the kernel does not enforce RLIMIT_NPROC, so ``grade`` stops before any team runs
 (exit 2, one line naming ``--max-procs 0``); ``--max-procs 0`` is no process limit, said so in
 the leaderboard's sandbox record; ``eval --cmd`` keeps its warning.

@@ -1,4 +1,4 @@
-"""No marker, no wait (issue 23): a marker search of a grey (or a busy thresholded) image is
+"""No marker, no wait: a marker search of a grey (or a busy thresholded) image is
 skipped when the adaptive threshold shows no dark square next to a light one
 (src/arenabench/pipeline/marker_prefilter.py).
 

@@ -48,7 +48,6 @@ BURNER = f"arenabench-test-burner-{uuid.uuid4().hex[:12]}"
 
 HONEST = textwrap.dedent("""\
     import os, sys, time
-    sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
     import cv2
     from toy_arena import detect, obstacles_text
 

@@ -6,6 +6,7 @@ server single-threaded when it says it is ready (the libraries' spinning threads
 from __future__ import annotations
 
 import json
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -20,8 +21,7 @@ from arenabench.eval.runs.warm_client import WARM_UP_SOURCE
 PROBE = r"""
 import json, random, sys
 import argparse, cv2, numpy
-sys.path.insert(0, sys.argv[1])
-import warm_up
+import warm_up  # the helper script's folder is on PYTHONPATH
 
 def threads():
     for line in open("/proc/self/status"):
@@ -47,7 +47,8 @@ print(json.dumps({"done": done, "threads": [before[0], threads()],
 
 
 def test_warm_up_exercises_the_libraries_and_leaves_threads_and_generators_alone():
-    out = subprocess.run([sys.executable, "-c", PROBE, str(WARM_UP_SOURCE.parent)],
+    env = {**os.environ, "PYTHONPATH": str(WARM_UP_SOURCE.parent)}
+    out = subprocess.run([sys.executable, "-c", PROBE], env=env,
                          capture_output=True, text=True, check=True, timeout=120)
     seen = json.loads(out.stdout.strip().splitlines()[-1])
     assert seen["done"] == ["argparse", "numpy", "cv2"]

@@ -22,7 +22,7 @@ from urllib.parse import quote
 from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING
 from arenabench.fileio import atomic_write_json, atomic_write_text
 
-from .incomplete import banner_html, partial
+from ..reports.incomplete import banner_html, partial
 from .leaderboard import LEADERBOARD_METRICS
 
 CSS = """

@@ -24,9 +24,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+#: This folder (a script's own folder is on its path; pytest puts it there for the tests).
 HERE = Path(__file__).resolve().parent
-if str(HERE) not in sys.path:
-    sys.path.insert(0, str(HERE))
 
 #: The seven competition-style test pipelines (modules in this folder).
 STYLES = ("style_detection_index", "style_blur127", "style_grey_band", "style_canny",

@@ -6,7 +6,7 @@ THRESH_BINARY_INV)`` (boxes white), ``RETR_TREE`` and no minimum area: every con
 obstacle; the area is the sum of their ``cv2.contourArea`` scaled to the 1000 px frame
 ((1000 / 1030)^2).
 
-Seen in public e-Yantra 2024-25 Task 1C ``map.py`` solutions (issue 19): an 11 x 11 blur and
+Seen in public e-Yantra 2024-25 Task 1C ``map.py`` solutions: an 11 x 11 blur and
 ``threshold(blur, 127, 255, THRESH_BINARY_INV)`` after a warp to 1030 px. As with
 ``style_otsu_every_contour``, a dark speck where a marker's pixels reach into the warp's
 corner counts as an obstacle, so it notices the marker pixels of a render.

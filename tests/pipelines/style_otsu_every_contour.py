@@ -5,7 +5,7 @@ Corners by id (corner 0 of 80, 1 of 85, 2 of 90, 3 of 95 -> the four frame corne
 ``RETR_TREE`` and *no minimum area*: every contour found is an obstacle, and the area is the sum
 of their ``cv2.contourArea``.
 
-Seen in public e-Yantra 2024-25 Task 1C ``map.py`` solutions (issue 19): ``threshold(gray, 0,
+Seen in public e-Yantra 2024-25 Task 1C ``map.py`` solutions: ``threshold(gray, 0,
 255, THRESH_BINARY_INV + THRESH_OTSU)``, ``findContours(..., RETR_TREE, ...)`` and
 ``len(contours)``, after a warp of the markers' inner corners and a 2 px crop. It is right on
 the published example (2 obstacles) only because the warped image's corner pixels there are

@@ -42,7 +42,6 @@ for place in places:
     except OSError:
         pass
 os.remove(os.path.join(os.getcwd(), "warm-probe-mark"))
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import cv2  # noqa: E402
 from toy_arena import detect, obstacles_text  # noqa: E402
 

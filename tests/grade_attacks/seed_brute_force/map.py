@@ -1,5 +1,5 @@
 """A hostile submission: re-renders the set for candidate seeds until an image matches its
-own byte for byte, then copies that scene's ground truth (issue 21: found every scene of a
+own byte for byte, then copies that scene's ground truth (found every scene of a
 seed-1 set after 26 renders). Tries seeds 0..3, scene 0 only, to keep the test short."""
 
 import argparse

@@ -3,9 +3,7 @@ command, both holding stdout open, sleeping 600 s with $MARKER on their command 
 
 import os
 import subprocess
-import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import answer, daemonize, sleeper
 
 marker = os.environ["MARKER"]

@@ -2,9 +2,7 @@
 working directory. Prints one line per attempt; answers 0 obstacles."""
 
 import os
-import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import answer
 
 here = os.path.dirname(os.path.abspath(__file__))

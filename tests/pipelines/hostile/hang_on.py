@@ -5,10 +5,8 @@ command line, and sleeps 600 s itself."""
 import hashlib
 import os
 import subprocess
-import sys
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import answer, daemonize, image_arg, sleeper
 
 digest = hashlib.sha256(open(image_arg(), "rb").read()).hexdigest()

@@ -4,7 +4,6 @@ import os
 import socket
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import answer
 
 try:

@@ -8,7 +8,6 @@ import json
 import os
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from common import answer, image_arg
 
 image = os.path.abspath(image_arg())
