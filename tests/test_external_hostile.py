@@ -307,11 +307,11 @@ def test_sandbox_bwrap_where_it_does_not_work_is_a_usage_error(toy, capsys, monk
     from arenabench.eval.runs import sandbox
 
     monkeypatch.setenv("PATH", str(Path(PY).parent))  # no bwrap on this PATH
-    sandbox.bwrap_problem.cache_clear()
+    sandbox.forget_probes()
     try:
         rc = main([str(toy), "--cmd", f"{PY} {__file__} {{image}}", "--sandbox", "bwrap"])
     finally:
-        sandbox.bwrap_problem.cache_clear()
+        sandbox.forget_probes()
     assert rc == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "bubblewrap (bwrap) is not installed" in err[0]
@@ -323,12 +323,11 @@ def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
     from arenabench.eval.runs import sandbox
 
     monkeypatch.setenv("PATH", str(Path(PY).parent))  # no bwrap on this PATH
-    monkeypatch.setattr(sandbox, "_warned_once", [])
-    sandbox.bwrap_problem.cache_clear()
+    sandbox.forget_probes()
     try:
         pipes = [_pipe("snoop.py", "auto") for _ in range(3)]
     finally:
-        sandbox.bwrap_problem.cache_clear()
+        sandbox.forget_probes()
     assert {p.sandbox for p in pipes} == {"none"}
     err = capsys.readouterr().err.strip().splitlines()
     assert len([line for line in err if "WITHOUT a sandbox" in line]) == 1
@@ -463,7 +462,7 @@ def test_pids_cgroup_probe_is_thread_safe(monkeypatch):
     if first is None:
         pytest.skip("no writable pids cgroup here")
     for _ in range(5):  # grade constructs its pipelines from many threads at once
-        monkeypatch.setattr(sandbox, "_CGROUP_PARENT", [])
+        sandbox.forget_probes()
         with ThreadPoolExecutor(16) as pool:
             found = list(pool.map(lambda _: sandbox.pids_cgroup_parent(), range(32)))
         assert set(found) == {first}

@@ -37,7 +37,7 @@ import shutil
 import subprocess
 import sys
 import threading
-from functools import lru_cache
+from functools import cache, lru_cache
 from pathlib import Path
 
 #: Where the private directory appears inside the bubblewrap sandbox.
@@ -58,17 +58,18 @@ _NAMESPACE_ARGS = (
 #: Top folders never bound as a whole (a file directly in one is bound alone).
 _TOP_FOLDERS = ("/", "/proc", "/dev", "/sys", "/tmp", "/run", "/var", "/home", "/root", "/mnt")
 
-_warned = threading.Lock()
-_warned_once: list[str] = []
+_WARNING_LOCK = threading.Lock()
+
+
+@cache
+def _warn(message: str) -> None:
+    print(f"arenabench: WARNING: {message}", file=sys.stderr, flush=True)
 
 
 def warn_once(message: str) -> None:
     """Print ``arenabench: WARNING: message`` on stderr, once per process."""
-    with _warned:
-        if message in _warned_once:
-            return
-        _warned_once.append(message)
-    print(f"arenabench: WARNING: {message}", file=sys.stderr, flush=True)
+    with _WARNING_LOCK:
+        _warn(message)
 
 
 @lru_cache(maxsize=1)
@@ -111,7 +112,6 @@ def resolve_sandbox(mode: str) -> str:
 
 
 _CGROUP_PROBE_LOCK = threading.Lock()
-_CGROUP_PARENT: list[str | None] = []  # the probe's answer, once found
 
 
 def pids_cgroup_parent() -> str | None:
@@ -121,11 +121,20 @@ def pids_cgroup_parent() -> str | None:
     with a probe folder of a name no other thread or process uses.
     """
     with _CGROUP_PROBE_LOCK:
-        if not _CGROUP_PARENT:
-            _CGROUP_PARENT.append(_probe_pids_cgroup_parent())
-        return _CGROUP_PARENT[0]
+        return _probe_pids_cgroup_parent()
 
 
+def forget_probes() -> None:
+    """Forget what this process found out once (bubblewrap, the pids cgroup parent, the
+    warnings printed), so that the next call looks again: for tests that change the
+    machine's state (``PATH``) under a running process."""
+    with _CGROUP_PROBE_LOCK, _WARNING_LOCK:
+        bwrap_problem.cache_clear()
+        _probe_pids_cgroup_parent.cache_clear()
+        _warn.cache_clear()
+
+
+@lru_cache(maxsize=1)
 def _probe_pids_cgroup_parent() -> str | None:
     import uuid
 

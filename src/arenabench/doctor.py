@@ -175,12 +175,18 @@ def check_opencv() -> list[Check]:
     return checks
 
 
-def check_pyrender() -> Check:
+def check_pyrender(installed: str | None = None) -> Check:
     """pyrender installed, the pinned release (not imported here: importing it would fix the
-    GL platform)."""
-    if importlib.util.find_spec("pyrender") is None:
+    GL platform).
+
+    Parameters
+    ----------
+    installed : str, optional
+        The release to check; by default the one installed here.
+    """
+    if installed is None and importlib.util.find_spec("pyrender") is None:
         return Check("pyrender", False, "not installed", PYRENDER_FIX)
-    version = _version("pyrender")
+    version = installed or _version("pyrender")
     if version is not None and version != glplatform.PYRENDER_VERSION:
         return Check("pyrender", False, f"{version} installed; arenabench needs "
                      f"{glplatform.PYRENDER_VERSION} exactly", PYRENDER_FIX)
