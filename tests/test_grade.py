@@ -419,9 +419,9 @@ def test_bad_inputs_exit_2_naming_them(dataset, tmp_path, capsys):
 
 @pytest.mark.slow
 def test_leaderboard_page_sorts_in_headless_chromium(graded, tmp_path):
-    from test_report_html import CHROMIUM_FLAGS, _find_chromium
+    from browser import CHROMIUM_FLAGS, find_chromium
 
-    chromium = _find_chromium()
+    chromium = find_chromium()
     if chromium is None:
         pytest.skip("chromium is not installed (apt-get install -y chromium)")
     out, _ = graded

@@ -545,9 +545,9 @@ def _settings(**limits):
 
 
 def _dom(page: Path, tmp_path: Path) -> str:
-    from test_report_html import CHROMIUM_FLAGS, _find_chromium
+    from browser import CHROMIUM_FLAGS, find_chromium
 
-    chromium = _find_chromium()
+    chromium = find_chromium()
     if chromium is None:
         pytest.skip("chromium is not installed (apt-get install -y chromium)")
     proc = subprocess.run([chromium, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'prof'}",

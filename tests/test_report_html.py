@@ -1,78 +1,23 @@
 """The HTML report in a real headless browser (Debian's chromium): it renders with no console
 errors, references nothing outside itself, and the screenshot is not blank."""
 
-import os
 import re
-import shutil
-import subprocess
 from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
 import toy_arena
+from browser import chromium_or_skip, console_messages, render_page
 
 from arenabench.eval.evaluation import evaluate
 from arenabench.eval.reports import write_reports
 
-CHROMIUM_FLAGS = [
-    "--headless",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-    "--enable-logging=stderr",
-    "--v=0",
-    "--window-size=1280,2000",
-]
-
-
-def _find_chromium() -> str | None:
-    for name in ("chromium", "chromium-browser"):
-        if path := shutil.which(name):
-            return path
-    return None
-
 
 @pytest.fixture(scope="module")
 def chromium() -> str:
-    """The chromium binary. Never installs anything: `make test` installs chromium when
-    system installs are allowed (tools/ensure-system-deps.sh: ARENABENCH_INSTALL_SYSTEM_DEPS=1
-    or CI=true, as root). Skips when it is missing, except in CI, where that is a failure."""
-    path = _find_chromium()
-    if path:
-        return path
-    why = (
-        "chromium is not installed: sudo apt-get install -y chromium (or run `make test` as "
-        "root with ARENABENCH_INSTALL_SYSTEM_DEPS=1)"
-    )
-    if os.environ.get("CI") == "true":
-        pytest.fail(f"{why}; in CI `make test` should have installed it")
-    pytest.skip(why)
-
-
-def _render(chromium: str, page: Path, shot: Path, tmp: Path) -> str:
-    proc = subprocess.run(
-        [
-            chromium,
-            *CHROMIUM_FLAGS,
-            f"--user-data-dir={tmp / 'profile'}",
-            f"--screenshot={shot}",
-            page.resolve().as_uri(),
-        ],
-        capture_output=True,
-        text=True,
-        timeout=120,
-    )
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    return proc.stderr
-
-
-def _console_messages(log: str) -> list[str]:
-    return [line for line in log.splitlines() if ":CONSOLE" in line or "Uncaught" in line]
+    """The chromium binary (skips where missing, fails in CI)."""
+    return chromium_or_skip()
 
 
 @pytest.fixture(scope="module")
@@ -113,8 +58,8 @@ def test_html_report_is_self_contained(report_page):
 def test_html_report_renders_in_headless_chromium(chromium, report_page, tmp_path):
     page, _ = report_page
     shot = tmp_path / "report.png"
-    log = _render(chromium, page, shot, tmp_path)
-    assert _console_messages(log) == []
+    log = render_page(chromium, page, shot, tmp_path)
+    assert console_messages(log) == []
     image = cv2.imread(str(shot))
     assert image is not None and image.shape[:2] == (2000, 1280)
     # not blank: plenty of non-white pixels and many distinct colours (plots, thumbnails)
@@ -129,8 +74,8 @@ def test_console_error_detection_works(chromium, tmp_path):
     bad.write_text(
         "<html><body><script>console.error('boom'); undefinedFn();</script>x</body></html>"
     )
-    log = _render(chromium, bad, tmp_path / "bad.png", tmp_path)
-    messages = _console_messages(log)
+    log = render_page(chromium, bad, tmp_path / "bad.png", tmp_path)
+    messages = console_messages(log)
     assert any("boom" in m for m in messages) and any("Uncaught" in m for m in messages)
 
 
@@ -175,7 +120,7 @@ def test_thumbnails_draw_the_builtin_pipelines_contours(chromium, builtin_pages,
 def _shot(chromium: str, page: Path, tmp: Path) -> Path:
     tmp.mkdir()
     shot = tmp / "shot.png"
-    assert _console_messages(_render(chromium, page, shot, tmp)) == []
+    assert console_messages(render_page(chromium, page, shot, tmp)) == []
     return shot
 
 

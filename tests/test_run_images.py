@@ -182,11 +182,11 @@ def test_the_failure_card_shows_the_warp_the_script_saved(twin8, tmp_path, warm)
 
 @pytest.mark.slow
 def test_the_card_renders_in_headless_chromium(twin8, tmp_path):
-    from test_report_html import _console_messages, _find_chromium, _render
+    from browser import console_messages, find_chromium, render_page
 
     from arenabench.eval.commands.eval import main as eval_main
 
-    chromium = _find_chromium()
+    chromium = find_chromium()
     if chromium is None:
         pytest.skip("chromium is not installed")
     out = tmp_path / "out"
@@ -194,8 +194,8 @@ def test_the_card_renders_in_headless_chromium(twin8, tmp_path):
                       "--image {image}", "--no-progress", "--workers", "2", "--phase-check",
                       "off", "--out", str(out), "--formats", "html"]) == 0
     shot = tmp_path / "shot.png"
-    log = _render(chromium, out / "report.html", shot, tmp_path)
-    assert _console_messages(log) == []
+    log = render_page(chromium, out / "report.html", shot, tmp_path)
+    assert console_messages(log) == []
     assert cv2.imread(str(shot)) is not None
 
 
