@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
+from arenabench.eval.scoring.metric_registry import METRIC
 from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING
 from arenabench.fileio import atomic_write_json, atomic_write_text
 
@@ -68,7 +69,8 @@ SCRIPT = """
 #: The pass rate comes first with its interval; the other metric columns are the leaderboard's
 #: metrics (:data:`~arenabench.eval.grade.leaderboard.LEADERBOARD_METRICS`) in their order.
 CSV_COLUMNS: tuple[str, ...] = (
-    "rank", "team", "n", "n_passed", "pass_rate", "pass_rate_ci95_lo", "pass_rate_ci95_hi",
+    "rank", "team", "n", "n_passed", "pass_rate",
+    METRIC["pass_rate_ci95.0"].key, METRIC["pass_rate_ci95.1"].key,
     *(m.key for m in LEADERBOARD_METRICS if m.key != "pass_rate"),
 )
 #: Leading characters by which a spreadsheet reads a cell as a formula (and tab / CR,
