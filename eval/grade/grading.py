@@ -64,6 +64,7 @@ from arenabench.workers import init_worker, process_state, usable_cores
 from ..evaluation import build_report
 from ..reports import FORMATS, write_reports
 from ..reports.feedback_report import FEEDBACK_FILES, write_feedback
+from ..reports.leaderboard_report import LEADERBOARD_FILES, write_leaderboard
 from ..scoring.metrics import score_sample
 from .give_up import GiveUp, first_timeout_run, timeout_run
 from .leaderboard import LeaderboardRow, leaderboard_dict, rank_rows
@@ -74,7 +75,6 @@ from .teams import DEFAULT_COMMAND, TEAM_ENV, team_command
 STATE_FILE = "grade-state.json"
 STATE_SCHEMA = "arenabench.grade-state/1"
 TEAMS_DIR = "teams"
-LEADERBOARD_FILES: tuple[str, ...] = ("leaderboard.json", "leaderboard.csv", "leaderboard.html")
 
 
 @dataclass(frozen=True)
@@ -923,8 +923,6 @@ def write_leaderboard_files(root: Path, rows: list[LeaderboardRow], *, data: Dat
                             unfinished: Sequence[dict[str, Any]] = ()) -> dict[str, Path]:
     """Write ``leaderboard.json``, ``.csv`` and ``.html`` into ``root`` (atomically);
     ``unfinished``: the teams an interrupted grade did not finish, with how far each got."""
-    from ..reports.leaderboard_report import write_leaderboard
-
     doc = leaderboard_dict(
         rows,
         dataset={"path": str(data.root), "manifest_sha256": manifest_sha256,

@@ -11,7 +11,7 @@ from typing import Any
 from arenabench.eval.datasets.reader import AREA_REFERENCES
 from arenabench.eval.runs import OUTPUT_MODES, CommandPipeline, RunSettings
 from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE
-from arenabench.eval.scoring.results import ImageResult, Summary
+from arenabench.eval.scoring.results import Summary
 from arenabench.generator.param_values import format_value
 from arenabench.generator.params import Value
 from arenabench.generator.presets import preset_name
@@ -308,10 +308,6 @@ class SweepResult:
     def complete(self) -> bool:
         """False when a stop signal ended the sweep early (``run`` says how far it got)."""
         return bool(self.run.get("complete", True))
-
-    def image_results(self, pipeline: str) -> list[ImageResult]:
-        """Per-image results of one pipeline as harness records."""
-        return [ImageResult.from_dict(r) for r in self.images if r["pipeline"] == pipeline]
 
     def to_dict(self) -> dict[str, Any]:
         """``sweep.json`` content (schema ``arenabench.sweep/1``)."""
