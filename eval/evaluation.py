@@ -28,6 +28,7 @@ from arenabench.eval.datasets.result_store import ResultStore
 from arenabench.eval.scoring.breakdown import breakdown, rank_causes, systematic_errors
 from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE, score_sample, summarize
 from arenabench.eval.scoring.results import HarnessError, ImageResult, Prediction, Report
+from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 from arenabench.interrupts import checkpoint, deferred_stops
 from arenabench.workers import process_state, usable_cores
 
@@ -108,7 +109,7 @@ def build_report(
     *,
     pipeline: str,
     dataset: str,
-    area_reference: str = "visible",
+    area_reference: str = DEFAULT_AREA_REFERENCE,
     tolerance: float = DEFAULT_TOLERANCE,
     complete: bool = True,
     n_total: int | None = None,
@@ -147,7 +148,7 @@ def evaluate(
     *,
     workers: int | None = None,
     tolerance: float = DEFAULT_TOLERANCE,
-    area_reference: str = "visible",
+    area_reference: str = DEFAULT_AREA_REFERENCE,
     executor: str = "thread",
     progress: bool = False,
     limit: int | None = None,
@@ -357,7 +358,7 @@ def _pipeline_name(pipeline: Any) -> str:
                or type(pipeline).__name__)
 
 
-def empty_report(*, pipeline: str, dataset: str, area_reference: str = "visible",
+def empty_report(*, pipeline: str, dataset: str, area_reference: str = DEFAULT_AREA_REFERENCE,
                  tolerance: float = DEFAULT_TOLERANCE, n_total: int | None = None) -> Report:
     """The report of a run stopped before any image finished (``complete=False``, no image):
     what a stop while the dataset is read or the pipeline is made leaves, so that a stopped

@@ -70,6 +70,7 @@ from typing import Any
 
 import numpy as np
 
+from arenabench.generator.presets import DEFAULT_PRESET
 from arenabench.workers import init_worker, llvmpipe_threads, usable_cores
 
 #: bench.json schema id.
@@ -147,7 +148,7 @@ class BenchConfig:
     markerless_runs: int = 5
     bigset_entries: int = 10_000
     workers: int | None = None
-    preset: str = "eyrc"
+    preset: str = DEFAULT_PRESET
     seed: int = 0
 
     def __post_init__(self) -> None:

@@ -57,6 +57,7 @@ from arenabench.fileio import (
     sha256_bytes,
     sha256_file,
 )
+from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 from arenabench.interrupts import checkpoint, deferred_stops, stop_workers, worker_task
 from arenabench.limits import DEFAULT_GIVE_UP_AFTER
 from arenabench.workers import init_worker, process_state, usable_cores
@@ -108,7 +109,7 @@ class GradeOptions:
     command: str = DEFAULT_COMMAND
     output: str = "obstacles"
     tolerance: float = DEFAULT_TOLERANCE
-    area_reference: str = "visible"
+    area_reference: str = DEFAULT_AREA_REFERENCE
     settings: RunSettings = field(default_factory=RunSettings)
     formats: tuple[str, ...] = tuple(FORMATS)
     phases: int = 0

@@ -15,6 +15,7 @@ from arenabench.eval.scoring.results import Summary
 from arenabench.generator.param_values import format_value
 from arenabench.generator.params import Value
 from arenabench.generator.presets import preset_name
+from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 from arenabench.seeds import check_seed
 
@@ -133,7 +134,7 @@ class SweepSpec:
     random: int | None = None
     overrides: dict[str, Value] = field(default_factory=dict)
     tolerance: float = DEFAULT_TOLERANCE
-    area_reference: str = "visible"
+    area_reference: str = DEFAULT_AREA_REFERENCE
     threshold: float = DEFAULT_THRESHOLD
     breakdown_mode: str = "marginal"
     keep: str = "none"
