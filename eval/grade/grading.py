@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from arenabench import __version__
-from arenabench.cliopts import GIVE_UP_AFTER_RULE
+from arenabench.cliopts import GIVE_UP_AFTER_RULE, formats_problem
 from arenabench.cmdtemplate import (
     GRADE_PLACEHOLDERS,
     GRADE_REFUSED,
@@ -124,10 +124,9 @@ class GradeOptions:
         if self.area_reference not in AREA_REFERENCES:
             raise ValueError(f"area_reference must be one of {sorted(AREA_REFERENCES)}, "
                              f"got {self.area_reference!r}")
-        bad = [f for f in self.formats if f not in FORMATS]
-        if bad or not self.formats:
-            raise ValueError(f"formats must be a non-empty subset of {sorted(FORMATS)}, "
-                             f"got {list(self.formats)!r}")
+        problem = formats_problem(self.formats, tuple(FORMATS))
+        if problem:
+            raise ValueError(f"formats: {problem}")
         try:
             argv = shlex.split(self.command)
         except ValueError as exc:
