@@ -8,14 +8,12 @@ string spec (``"reference"``, ``"pkg.module:function"``), which each worker re-i
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import (
     FIRST_COMPLETED,
     Executor,
     Future,
-    ProcessPoolExecutor,
     ThreadPoolExecutor,
     wait,
 )
@@ -30,6 +28,7 @@ from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE, score_sample, sum
 from arenabench.eval.scoring.results import HarnessError, ImageResult, Prediction, Report
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 from arenabench.interrupts import checkpoint, deferred_stops
+from arenabench.local_pool import local_executor
 from arenabench.workers import process_state, usable_cores
 
 from .pipelines import Pipeline, make_pipeline
@@ -253,12 +252,8 @@ def evaluate(
         use_process = executor == "process" and pipe.in_process and isinstance(pipeline, str)
         pool: Executor
         if use_process:
-            pool = ProcessPoolExecutor(
-                max_workers=n_workers,
-                mp_context=multiprocessing.get_context("spawn"),
-                initializer=_worker_pipeline,
-                initargs=(pipeline,),
-            )
+            pool = local_executor(n_workers, initializer=_worker_pipeline,
+                                  initargs=(pipeline,))
             submit = lambda s: pool.submit(  # noqa: E731
                 run_in_worker, PipelineRun(spec=pipeline, image_path=str(s.image_path)))
         else:

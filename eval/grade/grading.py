@@ -58,8 +58,9 @@ from arenabench.fileio import (
     sha256_file,
 )
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
-from arenabench.interrupts import checkpoint, deferred_stops, stop_workers, worker_task
+from arenabench.interrupts import checkpoint, deferred_stops, worker_task
 from arenabench.limits import DEFAULT_GIVE_UP_AFTER
+from arenabench.local_pool import end_executor, local_executor
 from arenabench.workers import init_worker, process_state, usable_cores
 
 from ..evaluation import build_report
@@ -829,12 +830,7 @@ class _Finisher:
         n = min(workers, n_teams)
         self._pool = None
         if n > 1:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            self._pool = ProcessPoolExecutor(
-                max_workers=n, mp_context=multiprocessing.get_context("spawn"),
-                initializer=init_worker, initargs=(None, os.getpid()))
+            self._pool = local_executor(n, initializer=init_worker, initargs=(None, os.getpid()))
 
     def submit(self, job: _FinishJob, data: Dataset) -> Future:
         """Start writing ``job``'s reports (inline when there is no usable pool)."""
@@ -859,9 +855,7 @@ class _Finisher:
         if wait:
             self._pool.shutdown(wait=True)
             return
-        processes = list((getattr(self._pool, "_processes", None) or {}).values())
-        self._pool.shutdown(wait=False, cancel_futures=True)
-        stop_workers(processes=processes)
+        end_executor(self._pool)
 
 
 def _passed(state: dict[str, Any]) -> str:
