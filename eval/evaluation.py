@@ -8,14 +8,12 @@ string spec (``"reference"``, ``"pkg.module:function"``), which each worker re-i
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import (
     FIRST_COMPLETED,
     Executor,
     Future,
-    ProcessPoolExecutor,
     ThreadPoolExecutor,
     wait,
 )
@@ -28,7 +26,9 @@ from arenabench.eval.datasets.result_store import ResultStore
 from arenabench.eval.scoring.breakdown import breakdown, rank_causes, systematic_errors
 from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE, score_sample, summarize
 from arenabench.eval.scoring.results import HarnessError, ImageResult, Prediction, Report
+from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 from arenabench.interrupts import checkpoint, deferred_stops
+from arenabench.local_pool import local_executor
 from arenabench.workers import process_state, usable_cores
 
 from .pipelines import Pipeline, make_pipeline
@@ -108,7 +108,7 @@ def build_report(
     *,
     pipeline: str,
     dataset: str,
-    area_reference: str = "visible",
+    area_reference: str = DEFAULT_AREA_REFERENCE,
     tolerance: float = DEFAULT_TOLERANCE,
     complete: bool = True,
     n_total: int | None = None,
@@ -147,7 +147,7 @@ def evaluate(
     *,
     workers: int | None = None,
     tolerance: float = DEFAULT_TOLERANCE,
-    area_reference: str = "visible",
+    area_reference: str = DEFAULT_AREA_REFERENCE,
     executor: str = "thread",
     progress: bool = False,
     limit: int | None = None,
@@ -252,12 +252,8 @@ def evaluate(
         use_process = executor == "process" and pipe.in_process and isinstance(pipeline, str)
         pool: Executor
         if use_process:
-            pool = ProcessPoolExecutor(
-                max_workers=n_workers,
-                mp_context=multiprocessing.get_context("spawn"),
-                initializer=_worker_pipeline,
-                initargs=(pipeline,),
-            )
+            pool = local_executor(n_workers, initializer=_worker_pipeline,
+                                  initargs=(pipeline,))
             submit = lambda s: pool.submit(  # noqa: E731
                 run_in_worker, PipelineRun(spec=pipeline, image_path=str(s.image_path)))
         else:
@@ -357,7 +353,7 @@ def _pipeline_name(pipeline: Any) -> str:
                or type(pipeline).__name__)
 
 
-def empty_report(*, pipeline: str, dataset: str, area_reference: str = "visible",
+def empty_report(*, pipeline: str, dataset: str, area_reference: str = DEFAULT_AREA_REFERENCE,
                  tolerance: float = DEFAULT_TOLERANCE, n_total: int | None = None) -> Report:
     """The report of a run stopped before any image finished (``complete=False``, no image):
     what a stop while the dataset is read or the pipeline is made leaves, so that a stopped

@@ -31,8 +31,11 @@ import pytest
 
 def pytest_addoption(parser: pytest.Parser) -> None:
     group = parser.getgroup("arenabench", "arenabench dataset fixture")
-    group.addoption("--arenabench-preset", default="eyrc",
-                    help="generator preset: a built-in name or a preset file (default eyrc)")
+    # default None: the generator's default preset, looked up when the fixture is used (the
+    # plugin imports no generator at start-up)
+    group.addoption("--arenabench-preset", default=None,
+                    help="generator preset: a built-in name or a preset file (default: the "
+                         "generator's default preset, eyrc)")
     group.addoption("--arenabench-count", type=int, default=12, help="images (default 12)")
     group.addoption("--arenabench-seed", type=int, default=0, help="generator seed (default 0)")
     group.addoption(
@@ -80,6 +83,10 @@ def arenabench_dataset(request: pytest.FixtureRequest) -> Path:
             raise pytest.UsageError(f"--arenabench-dataset {path}: no manifest.jsonl there")
         return path
     preset = config.getoption("--arenabench-preset")
+    if preset is None:
+        from arenabench.generator.presets import DEFAULT_PRESET
+
+        preset = DEFAULT_PRESET
     count = config.getoption("--arenabench-count")
     seed = config.getoption("--arenabench-seed")
     cache = getattr(config, "cache", None)  # no attribute under -p no:cacheprovider

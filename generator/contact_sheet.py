@@ -20,6 +20,7 @@ from arenabench.cliopts import (
     add_out,
     add_preset,
     add_seed,
+    add_set,
     output_problem,
     usage_error,
 )
@@ -158,8 +159,7 @@ def build_parser() -> CommandParser:
     add_preset(p, resolve=resolve_preset, default=DEFAULT_PRESET, names=preset_names())
     add_count(p, default=16, help="scenes")
     add_seed(p, help="run seed")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a preset parameter (repeatable)")
+    add_set(p)
     p.add_argument("--columns", type=int, default=4, help="tiles per row (default 4)")
     p.add_argument("--tile", type=int, default=320, help="tile side in px (default 320)")
     add_out(p, help="output image (.jpg or .png; default contact-PRESET.jpg)")

@@ -20,7 +20,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from arenabench.generator.params import lands_in
+from arenabench.generator.params import PARAMETERS, lands_in
 
 #: Preset parameter name of each :class:`Degradations` field (declared in the registry).
 PARAM_NAMES: dict[str, str] = lands_in("degrade")
@@ -28,6 +28,9 @@ PARAM_NAMES: dict[str, str] = lands_in("degrade")
 @dataclass(frozen=True)
 class Degradations:
     """Photometric degradations of one image (all neutral by default).
+
+    Each field is the ``degrade.*`` parameter of :data:`PARAM_NAMES` and takes the values its
+    declaration allows (:data:`arenabench.generator.params.PARAMS`: bounds, integer or not).
 
     Parameters
     ----------
@@ -67,23 +70,17 @@ class Degradations:
     def __post_init__(self) -> None:
         for f in fields(self):
             value = getattr(self, f.name)
+            spec = PARAMETERS[PARAM_NAMES[f.name]]  # its bounds and kind: declared once
             if isinstance(value, bool) or not isinstance(value, (int, float, np.number)):
-                raise ValueError(f"{PARAM_NAMES[f.name]} must be a number, got {value!r}")
+                raise ValueError(f"{spec.name} must be a number, got {value!r}")
             if not math.isfinite(float(value)):
-                raise ValueError(f"{PARAM_NAMES[f.name]} must be finite, got {value!r}")
-        checks = {
-            "vignetting": 0.0 <= self.vignetting <= 1.0,
-            "motion_blur_px": self.motion_blur_px >= 0,
-            "defocus_px": self.defocus_px >= 0,
-            "noise_sigma": self.noise_sigma >= 0,
-            "poisson_photons": self.poisson_photons >= 0,
-            "gamma": self.gamma > 0,
-            "jpeg_quality": 0 <= self.jpeg_quality <= 100
-            and int(self.jpeg_quality) == self.jpeg_quality,
-        }
-        for name, ok in checks.items():
-            if not ok:
-                raise ValueError(f"{PARAM_NAMES[name]}: invalid value {getattr(self, name)!r}")
+                raise ValueError(f"{spec.name} must be finite, got {value!r}")
+            b = spec.bounds
+            if b is not None and not b.lo <= value <= b.hi:
+                raise ValueError(f"{spec.name}: value {value!r} out of range "
+                                 f"[{b.lo:g}, {b.hi:g}]")
+            if spec.kind == "int" and int(value) != value:
+                raise ValueError(f"{spec.name}: value {value!r} is not an integer")
         object.__setattr__(self, "jpeg_quality", int(self.jpeg_quality))
 
     @classmethod

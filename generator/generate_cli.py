@@ -13,6 +13,7 @@ from arenabench.cliopts import (
     add_preset,
     add_scheduler,
     add_seed,
+    add_set,
     add_workers,
     output_problem,
     usage_error,
@@ -37,9 +38,8 @@ def build_parser() -> CommandParser:
     add_seed(p, random=True, help="run seed (for a hidden grading set use 'random': a small "
              "seed lets a submission re-render the set and read its answers)")
     add_out(p, required=True, help="output directory")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="override a preset parameter, e.g. camera.tilt_deg=10:30 or "
-                        "obstacles.count=3 (repeatable; see 'arenabench presets --params')")
+    add_set(p, help="override a preset parameter, e.g. camera.tilt_deg=10:30 or "
+                    "obstacles.count=3")
     add_workers(p, help="rendering processes; the output does not depend on it")
     add_scheduler(p, help="render on this Dask cluster instead (files are written here, the "
                   "same bytes as a local run; see docs/scale-out.md)")

@@ -5,7 +5,10 @@ keeps one rule, refused with one line naming the option and the value (exit 2)."
 from __future__ import annotations
 
 import argparse
+import ast
 import importlib
+import re
+from pathlib import Path
 
 import pytest
 from clirun import run_cli
@@ -17,6 +20,7 @@ from arenabench.cliopts import (
     SHARED_OPTIONS,
     CommandParser,
     format_size,
+    formats_problem,
     parse_size,
 )
 from arenabench.competition import DEFAULT_TOLERANCE
@@ -33,10 +37,12 @@ from arenabench.limits import (
 )
 from arenabench.workers import usable_cores
 
-#: (command, option) pairs that share a name but not the meaning: doctor's --timeout is the
-#: seconds allowed for an OpenGL context, not a run's limit (it still keeps TIMEOUT_RULE);
-#: detect's --output is the competition's answer file, not how a --cmd answers.
-NOT_SHARED = {("doctor", "--timeout"), ("detect", "--output")}
+#: (command, option) pairs that share a name but not the meaning: detect's --output is the
+#: competition's answer file, not how a --cmd answers.
+NOT_SHARED = {("detect", "--output")}
+#: (command, option) pairs built by the shared builder with a default of their own: doctor's
+#: --timeout is the seconds a check may take, not a run's limit.
+OWN_DEFAULT = {("doctor", "--timeout")}
 
 #: What each shared option must default to: its one declaration.
 DECLARED = {
@@ -71,8 +77,26 @@ def test_every_command_uses_the_shared_parser_and_builders(name):
                 continue
             assert getattr(action, "shared_option", None), \
                 f"{name} {option}: declared by hand, not by a cliopts builder"
-            if option in DECLARED:
+            if option in DECLARED and (name, option) not in OWN_DEFAULT:
                 assert action.default == DECLARED[option], (name, option, action.default)
+
+
+def test_the_shared_options_are_declared_only_in_cliopts():
+    """No module of the three packages calls ``add_argument`` with a shared option's flag:
+    each is declared by its builder in arenabench.cliopts (detect's own --output aside)."""
+    root = Path(__file__).resolve().parents[1]
+    cliopts = root / "src" / "arenabench" / "cliopts.py"
+    found = []
+    for path in sorted(p for pkg in ("src/arenabench", "generator", "eval")
+                       for p in (root / pkg).rglob("*.py")):
+        if path == cliopts:
+            continue
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                    and node.func.attr == "add_argument"):
+                flags = [a.value for a in node.args if isinstance(a, ast.Constant)]
+                found += [f"{path.relative_to(root)} {f}" for f in flags if f in SHARED_OPTIONS]
+    assert found == ["src/arenabench/detect.py --output"], "\n".join(found)
 
 
 @pytest.mark.parametrize("name", ["eval", "grade", "sweep", "generate", "bench", "demo"])
@@ -206,3 +230,19 @@ def test_a_random_seed_is_a_valid_seed():
         assert GUESSABLE_BELOW <= seed <= MAX_SEED and check_seed(seed) == seed
     assert parse_seed(str(MAX_SEED)) == MAX_SEED
     assert GUESSABLE_BELOW <= parse_seed("random") <= MAX_SEED
+
+
+@pytest.mark.parametrize("names", [("htm",), ()])
+def test_formats_are_one_rule_on_the_command_line_and_in_the_harness(names, capsys):
+    """``--formats``, ``GradeOptions(formats=)`` and ``write_reports(formats=)`` refuse the
+    same choices with the same words (:func:`arenabench.cliopts.formats_problem`)."""
+    from arenabench.eval.grade.grading import GradeOptions
+    from arenabench.eval.reports import FORMATS
+
+    problem = formats_problem(names, tuple(FORMATS))
+    assert problem and ("did you mean 'html'" in problem if names else "no format" in problem)
+    with pytest.raises(ValueError, match=re.escape(f"formats: {problem}")):
+        GradeOptions(formats=names)
+    with pytest.raises(SystemExit) as exc:
+        _parser("eval").parse_args(["--formats", ",".join(names) or ",", "DATASET"])
+    assert exc.value.code == 2 and problem in capsys.readouterr().err

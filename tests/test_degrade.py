@@ -7,11 +7,18 @@ it the intended way. The lens helpers are checked against OpenCV's own model.
 
 from __future__ import annotations
 
+import re
+
 import cv2
 import numpy as np
 import pytest
 
-from arenabench.generator.degrade import Degradations, apply_degradations, standard_normal
+from arenabench.generator.degrade import (
+    PARAM_NAMES,
+    Degradations,
+    apply_degradations,
+    standard_normal,
+)
 from arenabench.generator.lens import densify, distort_points, lens_canvas, undistort_points
 from arenabench.generator.make import degrade_rng, make_sample
 from arenabench.generator.param_values import parse_overrides
@@ -179,6 +186,31 @@ def test_invalid_values_are_refused_with_the_parameter_name():
         parse_overrides(["degrade.noise_sigma=-1"])
     with pytest.raises(ValueError, match="rgb"):
         apply_degradations(np.zeros((4, 4), np.uint8), Degradations(noise_sigma=1.0), _rng())
+
+
+@pytest.mark.parametrize("field", sorted(PARAM_NAMES))
+def test_degradation_bounds_are_the_declared_parameter_bounds(field):
+    """Each field takes exactly its parameter's declared range: both ends pass, a step beyond
+    either end is refused with one message naming the parameter and the value."""
+    spec = PARAMETERS[PARAM_NAMES[field]]
+    lo, hi = spec.bounds.lo, spec.bounds.hi
+    step = 1 if spec.kind == "int" else 1e-6 * max(1.0, abs(hi))
+    assert getattr(Degradations(**{field: lo}), field) == lo
+    assert getattr(Degradations(**{field: hi}), field) == hi
+    for bad in (lo - step, hi + step):
+        with pytest.raises(ValueError, match=rf"{re.escape(spec.name)}.*{re.escape(repr(bad))}"):
+            Degradations(**{field: bad})
+
+
+@pytest.mark.parametrize(("field", "bad"), [
+    ("noise_sigma", 128.5), ("gamma", 0.05), ("gamma", 10.5), ("jpeg_quality", 50.5),
+])
+def test_degradations_refuse_what_the_parameter_refuses(field, bad):
+    key = PARAM_NAMES[field]
+    with pytest.raises(ValueError, match=re.escape(key)):
+        parse_overrides([f"{key}={bad}"])
+    with pytest.raises(ValueError, match=rf"{re.escape(key)}.*{re.escape(repr(bad))}"):
+        Degradations(**{field: bad})
 
 
 def test_set_degradations_through_make_sample(renderer, clean):

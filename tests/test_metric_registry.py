@@ -4,6 +4,8 @@ it, and the summary rows read as before the registry existed."""
 
 from __future__ import annotations
 
+import csv
+import io
 import re
 from dataclasses import replace
 from pathlib import Path
@@ -24,11 +26,16 @@ from arenabench.eval.scoring.metric_registry import (
     KINDS,
     METRIC,
     METRICS,
+    Metric,
+    column_metrics,
     lookup,
     metrics_table_markdown,
 )
 from arenabench.eval.scoring.results import CATEGORIES, STATUSES, Report, Summary
 from arenabench.eval.scoring.thresholds import check_thresholds, parse_thresholds
+from arenabench.eval.sweep.grid import parse_varies
+from arenabench.eval.sweep.outputs import sweep_csv
+from arenabench.eval.sweep.records import PipelineSpec, PointSummary, SweepResult, SweepSpec
 
 DOCS = Path(__file__).resolve().parents[1] / "docs"
 
@@ -213,3 +220,49 @@ def test_eval_help_lists_every_gated_metric(capsys):
             assert "failures.<category>" in text
         else:
             assert (m.name in text) or (f"{head}." in text and tail in text), m.name
+
+
+#: The columns ``sweep.csv`` had before they came from the registry (a varied tilt).
+SWEEP_CSV_HEADER = (
+    "point,camera.tilt_deg,pipeline,n,n_passed,skipped,pass_rate,pass_rate_ci95_lo,"
+    "pass_rate_ci95_hi,count_exact_rate,count_mae,area_rel_err_median,area_rel_err_p95,"
+    "area_rel_err_max,marker_id_accuracy,"
+    + ",".join(f"failures_{c}" for c in CATEGORIES)
+    + ",latency_ms_median,latency_ms_p95"
+)
+
+
+def _sweep_result() -> SweepResult:
+    spec = SweepSpec(preset="eyrc", axes=parse_varies(["camera.tilt_deg=0:40:20"]),
+                     pipelines=(PipelineSpec("pipeline", "seed"),), per_point=6)
+    summaries = tuple(PointSummary(index=i, params={"camera.tilt_deg": t}, pipeline="seed",
+                                   summary=_summary(), skipped=i)
+                      for i, t in enumerate((0, 20, 40)))
+    return SweepResult(spec=spec, points=tuple(s.params for s in summaries),
+                       summaries=summaries, images=(), breakdown={})
+
+
+def test_sweep_csv_columns_come_from_the_registry():
+    rows = list(csv.reader(io.StringIO(sweep_csv(_sweep_result()))))
+    header = rows[0]
+    assert header == ["point", "camera.tilt_deg", "pipeline", "n", "n_passed", "skipped",
+                      *(m.key for m in column_metrics())]
+    assert ",".join(header) == SWEEP_CSV_HEADER
+    d = _summary().to_dict()
+    for row in rows[1:]:
+        cells = dict(zip(header, row, strict=True))
+        assert cells["pass_rate_ci95_lo"] == str(d["pass_rate_ci95"][0])
+        assert cells["failures_area_off"] == "4" and cells["latency_ms_p95"] == str(
+            d["latency_ms"]["p95"])
+    assert [r[5] for r in rows[1:]] == ["0", "1", "2"]
+
+
+def test_a_newly_registered_metric_becomes_a_sweep_csv_column():
+    new = Metric("count_mae_weighted", "weighted count MAE", "lower", "count", "weighted")
+    hidden = Metric("count_bias", "count bias", "nearer_zero", "count", "bias", column=False)
+    metrics = (*METRICS, new, hidden)
+    header = sweep_csv(_sweep_result(), metrics=metrics).splitlines()[0].split(",")
+    assert "count_mae_weighted" in header and "count_bias" not in header
+    # a quality metric comes before the failure counts, the timings stay last
+    assert header.index("count_mae_weighted") < header.index("failures_crash")
+    assert header[-2:] == ["latency_ms_median", "latency_ms_p95"]

@@ -56,7 +56,6 @@ commands do; item 7 runs in a process of its own. Figures are throughputs of the
 from __future__ import annotations
 
 import json
-import multiprocessing
 import os
 import platform
 import shutil
@@ -64,12 +63,15 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
+from contextlib import AbstractContextManager
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
+from arenabench.generator.presets import DEFAULT_PRESET
+from arenabench.local_pool import local_pool
 from arenabench.workers import init_worker, llvmpipe_threads, usable_cores
 
 #: bench.json schema id.
@@ -147,7 +149,7 @@ class BenchConfig:
     markerless_runs: int = 5
     bigset_entries: int = 10_000
     workers: int | None = None
-    preset: str = "eyrc"
+    preset: str = DEFAULT_PRESET
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -377,9 +379,10 @@ def _rss_run(task: RssTask) -> dict[str, float]:
 
 # ----------------------------------------------------------------------------- driver
 
-def _pool(workers: int):
-    ctx = multiprocessing.get_context("spawn")
-    return ctx.Pool(workers, initializer=init_worker, initargs=(llvmpipe_threads(workers),))
+def _pool(workers: int) -> AbstractContextManager[Any]:
+    """The workers of a timed measure (:func:`arenabench.local_pool.local_pool`), initialised
+    with their llvmpipe threads only."""
+    return local_pool(workers, initializer=init_worker, initargs=(llvmpipe_threads(workers),))
 
 
 def _timed_map(pool, func: Callable, tasks: list, workers: int) -> tuple[float, list]:
@@ -515,8 +518,7 @@ def run_bench(
             notify("pipeline_ips", sec)
 
             gl_info = pool.apply(_gl_info)
-            pool.close()  # let the workers exit on their own (no signal to an idle worker)
-            pool.join()
+        # (leaving the block closes and joins the pool: the workers exit on their own)
 
         # 3. the naive baseline (own processes: pyrender's clean-up ends their EGL display)
         naive_dir = scratch / "naive"
@@ -527,8 +529,6 @@ def run_bench(
             naive_tasks = [NaiveTask(cfg.preset, cfg.seed, i, str(naive_dir))
                            for i in range(cfg.naive_count)]
             sec, _ = _timed_map(pool, _naive_one, naive_tasks, workers)
-            pool.close()
-            pool.join()
         figures["naive_ips"] = cfg.naive_count / sec
         details["naive"] = {"images": cfg.naive_count, "seconds": sec,
                             "cpu_ms_per_image_with_startup":
@@ -574,8 +574,6 @@ def run_bench(
         # 7. memory of one rendering worker over rss_renders consecutive renders
         with _pool(1) as pool:
             rss = pool.apply(_rss_run, (RssTask(cfg.preset, cfg.seed, cfg.rss_renders),))
-            pool.close()
-            pool.join()
         figures["worker_peak_rss_mb"] = rss["peak_rss_mb"]
         figures["worker_rss_growth_mb"] = max(0.0, rss["rss_after_mb"]
                                               - rss["rss_after_warmup_mb"])

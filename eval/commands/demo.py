@@ -24,6 +24,7 @@ from arenabench.cliopts import (
     usage_error,
 )
 from arenabench.exitcodes import ExitCode
+from arenabench.generator.presets import DEFAULT_PRESET
 
 
 def build_parser() -> CommandParser:
@@ -103,9 +104,9 @@ def _run(args: argparse.Namespace) -> int:
         if rc:
             return rc
         step = 2
-    dataset_dir = args.out / f"dataset-eyrc-n{args.count}-s{args.seed}"
+    dataset_dir = args.out / f"dataset-{DEFAULT_PRESET}-n{args.count}-s{args.seed}"
     if (dataset_dir / "manifest.jsonl").is_file():
-        print(f"{step}. reusing dataset {dataset_dir} ({args.count} eyrc images)")
+        print(f"{step}. reusing dataset {dataset_dir} ({args.count} {DEFAULT_PRESET} images)")
     else:
         from arenabench.generator.dataset_writer import GenerateError, generate_dataset
         from arenabench.generator.gl_check import OffscreenGLError
@@ -113,7 +114,7 @@ def _run(args: argparse.Namespace) -> int:
 
         try:
             result = generate_dataset(
-                dataset_dir, preset="eyrc", count=args.count, seed=args.seed,
+                dataset_dir, preset=DEFAULT_PRESET, count=args.count, seed=args.seed,
                 workers=args.workers or _cores(),
                 progress=not args.no_progress,
             )

@@ -22,6 +22,7 @@ from arenabench.cliopts import (
     add_run_options,
     add_scheduler,
     add_seed,
+    add_set,
     add_tolerance,
     add_workers,
     lock_out,
@@ -94,8 +95,7 @@ def build_parser() -> CommandParser:
     add_preset(p, resolve=resolve_preset, default=DEFAULT_PRESET, names=preset_names())
     p.add_argument("--vary", action="append", default=[], metavar="KEY=SPEC",
                    help="parameter to vary (repeatable; see below)")
-    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                   help="fixed override at every point, as for 'arenabench generate'")
+    add_set(p, help="fixed override at every point, as for 'arenabench generate'")
     p.add_argument("--random", type=int, default=None, metavar="N",
                    help="draw N random points from the ranges instead of the grid")
     p.add_argument("--per-point", type=int, default=50, help="scenes per point (default 50)")

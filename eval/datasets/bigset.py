@@ -24,6 +24,7 @@ import cv2
 import numpy as np
 
 from arenabench.fileio import dumps_json, sha256_bytes
+from arenabench.generator.presets import DEFAULT_PRESET
 
 #: What :func:`fixed_answer` reports for every image.
 FIXED_COUNT = 2
@@ -66,7 +67,8 @@ class BigSet:
     passes: int
 
 
-def template_records(n: int, *, preset: str = "eyrc", seed: int = 0) -> list[dict[str, Any]]:
+def template_records(n: int, *, preset: str = DEFAULT_PRESET,
+                     seed: int = 0) -> list[dict[str, Any]]:
     """GT records (JSON form) of scenes ``0 .. n-1`` of ``preset``, computed without rendering."""
     from arenabench.fileio import rounded
     from arenabench.generator.make import ground_truth_record, scene_id
@@ -88,7 +90,7 @@ def tiny_png() -> bytes:
 
 
 def write_big_set(out: str | os.PathLike[str], count: int, *, templates: int = 16,
-                  preset: str = "eyrc", seed: int = 0) -> BigSet:
+                  preset: str = DEFAULT_PRESET, seed: int = 0) -> BigSet:
     """Write a synthetic dataset of ``count`` entries into the new folder ``out``.
 
     Parameters

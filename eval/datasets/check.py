@@ -15,6 +15,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from arenabench.local_pool import local_executor
+
 from .entries import DatasetError, checked_entry, gt_facts
 
 #: Manifests larger than this (about 20,000 entries of the generator's ~250-byte lines) are
@@ -67,16 +69,12 @@ def check_manifest(entries: Iterator[tuple[int, dict[str, Any]]],
     at a time, and give each outcome to ``accept(entry, "ok" | "damaged", value)`` in
     manifest order; the first error found (a file's, or the manifest's own when every entry
     before it is fine) is raised as a :class:`~.entries.DatasetError`."""
-    import multiprocessing
-    from concurrent.futures import ProcessPoolExecutor
-
     def chunk(items: list[tuple[int, dict[str, Any]]]) -> Chunk:
         return Chunk(items=tuple(items), manifest=str(manifest), base=str(base),
                      shown=str(shown), verify=verify, area_keys=area_keys)
 
     manifest_error: DatasetError | None = None
-    with ProcessPoolExecutor(max_workers=workers,
-                             mp_context=multiprocessing.get_context("spawn")) as pool:
+    with local_executor(workers) as pool:
         while manifest_error is None:
             window: list[tuple[int, dict[str, Any]]] = []
             try:

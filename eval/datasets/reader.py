@@ -56,7 +56,7 @@ class DatasetItem:
         if not isinstance(self.gt, GroundTruth):
             object.__setattr__(self, "gt", GroundTruth.from_dict(self.gt))
 
-    def truth(self, *, area_reference: str = "visible") -> Truth:
+    def truth(self, *, area_reference: str = DEFAULT_AREA_REFERENCE) -> Truth:
         """Ground truth to score against (area per ``area_reference``)."""
         if area_reference not in AREA_REFERENCES:
             raise ValueError(

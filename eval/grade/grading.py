@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from arenabench import __version__
-from arenabench.cliopts import GIVE_UP_AFTER_RULE
+from arenabench.cliopts import GIVE_UP_AFTER_RULE, formats_problem
 from arenabench.cmdtemplate import (
     GRADE_PLACEHOLDERS,
     GRADE_REFUSED,
@@ -57,8 +57,10 @@ from arenabench.fileio import (
     sha256_bytes,
     sha256_file,
 )
-from arenabench.interrupts import checkpoint, deferred_stops, stop_workers, worker_task
+from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
+from arenabench.interrupts import checkpoint, deferred_stops, worker_task
 from arenabench.limits import DEFAULT_GIVE_UP_AFTER
+from arenabench.local_pool import end_executor, local_executor
 from arenabench.workers import init_worker, process_state, usable_cores
 
 from ..evaluation import build_report
@@ -67,6 +69,7 @@ from ..reports.feedback_report import FEEDBACK_FILES, write_feedback
 from ..scoring.metrics import score_sample
 from .give_up import GiveUp, first_timeout_run, timeout_run
 from .leaderboard import LeaderboardRow, leaderboard_dict, rank_rows
+from .leaderboard_report import LEADERBOARD_FILES, write_leaderboard
 from .partial import PARTIAL_FILE, PartialLog, read_partial
 from .submissions import SubmissionsError, Team, find_teams, submission_hash
 from .teams import DEFAULT_COMMAND, TEAM_ENV, team_command
@@ -74,7 +77,6 @@ from .teams import DEFAULT_COMMAND, TEAM_ENV, team_command
 STATE_FILE = "grade-state.json"
 STATE_SCHEMA = "arenabench.grade-state/1"
 TEAMS_DIR = "teams"
-LEADERBOARD_FILES: tuple[str, ...] = ("leaderboard.json", "leaderboard.csv", "leaderboard.html")
 
 
 @dataclass(frozen=True)
@@ -108,7 +110,7 @@ class GradeOptions:
     command: str = DEFAULT_COMMAND
     output: str = "obstacles"
     tolerance: float = DEFAULT_TOLERANCE
-    area_reference: str = "visible"
+    area_reference: str = DEFAULT_AREA_REFERENCE
     settings: RunSettings = field(default_factory=RunSettings)
     formats: tuple[str, ...] = tuple(FORMATS)
     phases: int = 0
@@ -123,10 +125,9 @@ class GradeOptions:
         if self.area_reference not in AREA_REFERENCES:
             raise ValueError(f"area_reference must be one of {sorted(AREA_REFERENCES)}, "
                              f"got {self.area_reference!r}")
-        bad = [f for f in self.formats if f not in FORMATS]
-        if bad or not self.formats:
-            raise ValueError(f"formats must be a non-empty subset of {sorted(FORMATS)}, "
-                             f"got {list(self.formats)!r}")
+        problem = formats_problem(self.formats, tuple(FORMATS))
+        if problem:
+            raise ValueError(f"formats: {problem}")
         try:
             argv = shlex.split(self.command)
         except ValueError as exc:
@@ -829,12 +830,7 @@ class _Finisher:
         n = min(workers, n_teams)
         self._pool = None
         if n > 1:
-            import multiprocessing
-            from concurrent.futures import ProcessPoolExecutor
-
-            self._pool = ProcessPoolExecutor(
-                max_workers=n, mp_context=multiprocessing.get_context("spawn"),
-                initializer=init_worker, initargs=(None, os.getpid()))
+            self._pool = local_executor(n, initializer=init_worker, initargs=(None, os.getpid()))
 
     def submit(self, job: _FinishJob, data: Dataset) -> Future:
         """Start writing ``job``'s reports (inline when there is no usable pool)."""
@@ -859,9 +855,7 @@ class _Finisher:
         if wait:
             self._pool.shutdown(wait=True)
             return
-        processes = list((getattr(self._pool, "_processes", None) or {}).values())
-        self._pool.shutdown(wait=False, cancel_futures=True)
-        stop_workers(processes=processes)
+        end_executor(self._pool)
 
 
 def _passed(state: dict[str, Any]) -> str:
@@ -923,8 +917,6 @@ def write_leaderboard_files(root: Path, rows: list[LeaderboardRow], *, data: Dat
                             unfinished: Sequence[dict[str, Any]] = ()) -> dict[str, Path]:
     """Write ``leaderboard.json``, ``.csv`` and ``.html`` into ``root`` (atomically);
     ``unfinished``: the teams an interrupted grade did not finish, with how far each got."""
-    from .leaderboard_report import write_leaderboard
-
     doc = leaderboard_dict(
         rows,
         dataset={"path": str(data.root), "manifest_sha256": manifest_sha256,

@@ -19,6 +19,7 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
+from arenabench.eval.scoring.metric_registry import METRIC
 from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING
 from arenabench.fileio import atomic_write_json, atomic_write_text
 
@@ -64,11 +65,15 @@ SCRIPT = """
 """
 
 
+#: The files :func:`write_leaderboard` writes: JSON, CSV, HTML.
+LEADERBOARD_FILES: tuple[str, str, str] = ("leaderboard.json", "leaderboard.csv",
+                                           "leaderboard.html")
 #: Columns of ``leaderboard.csv``; ``failures_CATEGORY`` columns and ``report`` follow.
 #: The pass rate comes first with its interval; the other metric columns are the leaderboard's
 #: metrics (:data:`~arenabench.eval.grade.leaderboard.LEADERBOARD_METRICS`) in their order.
 CSV_COLUMNS: tuple[str, ...] = (
-    "rank", "team", "n", "n_passed", "pass_rate", "pass_rate_ci95_lo", "pass_rate_ci95_hi",
+    "rank", "team", "n", "n_passed", "pass_rate",
+    METRIC["pass_rate_ci95.0"].key, METRIC["pass_rate_ci95.1"].key,
     *(m.key for m in LEADERBOARD_METRICS if m.key != "pass_rate"),
 )
 #: Leading characters by which a spreadsheet reads a cell as a formula (and tab / CR,
@@ -212,10 +217,12 @@ def leaderboard_csv(doc: dict[str, Any]) -> str:
 
 
 def write_leaderboard(doc: dict[str, Any], out_dir: str | os.PathLike[str]) -> dict[str, Path]:
-    """Write the three leaderboard files into ``out_dir``; returns name -> path."""
+    """Write the three leaderboard files (:data:`LEADERBOARD_FILES`) into ``out_dir``; returns
+    name -> path."""
     out = Path(out_dir)
+    json_name, csv_name, html_name = LEADERBOARD_FILES
     return {
-        "leaderboard.json": atomic_write_json(out / "leaderboard.json", doc),
-        "leaderboard.csv": atomic_write_text(out / "leaderboard.csv", leaderboard_csv(doc)),
-        "leaderboard.html": atomic_write_text(out / "leaderboard.html", leaderboard_html(doc)),
+        json_name: atomic_write_json(out / json_name, doc),
+        csv_name: atomic_write_text(out / csv_name, leaderboard_csv(doc)),
+        html_name: atomic_write_text(out / html_name, leaderboard_html(doc)),
     }

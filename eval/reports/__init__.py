@@ -6,6 +6,7 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
+from arenabench.cliopts import formats_problem
 from arenabench.eval.datasets.reader import Dataset
 from arenabench.eval.scoring.results import Report
 
@@ -49,9 +50,9 @@ def write_reports(
     dict
         Format -> written path.
     """
-    unknown = [f for f in formats if f not in FORMATS]
-    if unknown:
-        raise ValueError(f"formats must be among {sorted(FORMATS)}, got {unknown!r}")
+    problem = formats_problem(formats, tuple(FORMATS)) if formats else None
+    if problem:
+        raise ValueError(f"formats: {problem}")
     out = Path(out_dir)
     writers = {
         "json": write_json,

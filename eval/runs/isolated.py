@@ -12,7 +12,6 @@ gets a fresh child.
 
 from __future__ import annotations
 
-import multiprocessing
 import os
 import signal
 import threading
@@ -27,6 +26,7 @@ from arenabench.eval.scoring.answers import not_a_mapping, short_repr
 from arenabench.eval.scoring.results import Prediction
 from arenabench.frame import COMPETITION_DICTIONARY, COMPETITION_MARKER_IDS, CORNER_ORDER
 from arenabench.interrupts import children_ignore_sigint
+from arenabench.local_pool import spawn_context
 from arenabench.workers import init_worker
 
 from . import proctools
@@ -203,7 +203,7 @@ class IsolatedCallablePipeline:
         return None
 
     def _start(self) -> _Child:
-        ctx = multiprocessing.get_context("spawn")
+        ctx = spawn_context()
         ours, theirs = ctx.Pipe()
         with children_ignore_sigint():
             # not a daemon, so the function may start processes of its own; it dies with

@@ -6,7 +6,8 @@ in the ``summary`` object (``pass_rate``, ``pass_rate_ci95.0``, ``area_rel_err.p
 each is a minimum or a maximum (:mod:`arenabench.eval.scoring.thresholds`), the metrics
 ``--compare`` lists and ``--fail-on-regression`` judges, and which way is better
 (:mod:`arenabench.eval.scoring.compare`), the summary rows of the Markdown/HTML reports and the CLI
-(:mod:`arenabench.eval.reports.summary_rows`), the leaderboard's metric columns
+(:mod:`arenabench.eval.reports.summary_rows`), the metric columns of ``sweep.csv``
+(:func:`column_metrics`), the leaderboard's metric columns
 (:mod:`arenabench.eval.grade.leaderboard`) and the metrics table of docs/formats.md
 (:func:`metrics_table_markdown`).
 
@@ -61,6 +62,11 @@ class Metric:
         The part of the summary it belongs to.
     digits : int
         Significant digits when not a rate.
+    flat : str
+        Its CSV column name when not the dotted name with ``_`` for ``.`` (:attr:`key`).
+    column : bool
+        Whether flat tables of many summaries (``sweep.csv``) give it a column
+        (:func:`column_metrics`).
     """
 
     name: str
@@ -70,6 +76,8 @@ class Metric:
     row: str
     group: str = "summary"
     digits: int = 4
+    flat: str = ""
+    column: bool = True
 
     def __post_init__(self) -> None:
         if self.direction not in DIRECTIONS:
@@ -82,7 +90,7 @@ class Metric:
     @property
     def key(self) -> str:
         """The flat spelling (``area_rel_err_median``) of CSV and leaderboard columns."""
-        return self.name.replace(".", "_")
+        return self.flat or self.name.replace(".", "_")
 
     @property
     def minimum(self) -> bool:
@@ -167,29 +175,32 @@ _LATENCY = "latency ms median / p95"
 #: Every summary metric, in the order reports list them.
 METRICS: tuple[Metric, ...] = (
     Metric("pass_rate", "pass rate", "higher", "rate", "pass rate"),
-    Metric("pass_rate_ci95.0", "pass rate 95 % CI low", "higher", "rate", _CI),
-    Metric("pass_rate_ci95.1", "pass rate 95 % CI high", "higher", "rate", _CI),
+    Metric("pass_rate_ci95.0", "pass rate 95 % CI low", "higher", "rate", _CI,
+           flat="pass_rate_ci95_lo"),
+    Metric("pass_rate_ci95.1", "pass rate 95 % CI high", "higher", "rate", _CI,
+           flat="pass_rate_ci95_hi"),
     Metric("count_exact_rate", "count exact rate", "higher", "rate", "count exact rate"),
     Metric("count_mae", "count MAE", "lower", "count", "count MAE"),
     Metric("area_rel_err.median", "|area rel err| median", "lower", "ratio", _AREA),
     Metric("area_rel_err.p95", "|area rel err| p95", "lower", "ratio", _AREA),
     Metric("area_rel_err.max", "|area rel err| max", "lower", "ratio", _AREA),
     Metric("area_rel_err_signed.median", "signed area rel err median", "nearer_zero", "ratio",
-           _SIGNED),
-    Metric("area_rel_err_signed.p5", "signed area rel err p5", "nearer_zero", "ratio", _SIGNED),
+           _SIGNED, column=False),
+    Metric("area_rel_err_signed.p5", "signed area rel err p5", "nearer_zero", "ratio", _SIGNED,
+           column=False),
     Metric("area_rel_err_signed.p95", "signed area rel err p95", "nearer_zero", "ratio",
-           _SIGNED),
+           _SIGNED, column=False),
     Metric("area_rel_err_signed.min", "signed area rel err min", "nearer_zero", "ratio",
-           _SIGNED_EXTREMES),
+           _SIGNED_EXTREMES, column=False),
     Metric("area_rel_err_signed.max", "signed area rel err max", "nearer_zero", "ratio",
-           _SIGNED_EXTREMES),
+           _SIGNED_EXTREMES, column=False),
     Metric("marker_id_accuracy", "marker id accuracy", "higher", "rate", "marker id accuracy"),
     Metric("latency_ms.median", "latency median (ms)", "lower", "ms", _LATENCY, digits=3),
     Metric("latency_ms.p95", "latency p95 (ms)", "lower", "ms", _LATENCY, digits=3),
     Metric("robust_failure_rate", "robust failure rate", "lower", "rate",
-           "robust failures (fail at every phase)", group="phase"),
+           "robust failures (fail at every phase)", group="phase", column=False),
     Metric("phase_dependent_failure_rate", "phase-dependent failure rate", "lower", "rate",
-           "phase-dependent failures", group="phase"),
+           "phase-dependent failures", group="phase", column=False),
     *(Metric(f"failures.{c}", f"failures: {c}", "lower", "count", f"failures: {c}",
              group="failures") for c in CATEGORIES),
 )
@@ -217,6 +228,13 @@ def metric(name: str) -> Metric:
         return METRIC[name]
     except KeyError:
         raise KeyError(f"unknown metric {name!r}") from None
+
+
+def column_metrics(metrics: Sequence[Metric] = METRICS) -> tuple[Metric, ...]:
+    """The metrics of flat tables of many summaries (``sweep.csv``), in column order: those
+    with :attr:`Metric.column`, in registry order by group, timings (kind ``ms``) last."""
+    chosen = [m for m in metrics if m.column]
+    return tuple(sorted(chosen, key=lambda m: (m.kind == "ms", GROUPS.index(m.group))))
 
 
 def summary_row_groups(group: str) -> list[tuple[str, tuple[Metric, ...]]]:

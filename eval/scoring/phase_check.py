@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
 import shutil
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
@@ -49,8 +48,6 @@ MAX_PHASES = 64
 #: Presets whose runs check failures' phases unless told ``--phase-check off``: the
 #: hidden-test twin, whose renderer blends box edges only at some sub-pixel phases.
 DEFAULT_ON_PRESETS = frozenset({"eyrc"})
-#: The classes of a checked failure, in the order reports list them.
-PHASE_CLASSES: tuple[str, ...] = ("robust", "phase_dependent")
 #: The one sentence every report prints beside the rates.
 PHASE_DEPENDENT_MEANING = (
     "phase-dependent: passes at some sub-pixel positions of the boxes and fails at others: on "
@@ -63,8 +60,6 @@ PHASE_DEPENDENT_MEANING = (
 #: phase (only the boxes move; the marker squares are byte-identical), so re-running any of
 #: them N times would only cost.
 CHECKED_CATEGORIES = frozenset(SCORING_FAILURES)
-#: ``--phase-check`` values besides a number.
-PHASE_CHECK_WORDS = ("auto", "off")
 
 
 # ------------------------------------------------------------------------------ the option
@@ -450,8 +445,3 @@ def phase_summary(results: Sequence[ImageResult]) -> dict[str, Any]:
 def rate_text(value: float | None) -> str:
     """A rate as the reports print it (``-`` when the phase check did not run)."""
     return "-" if value is None or not math.isfinite(value) else f"{100 * value:.1f} %"
-
-
-def default_workers() -> int:
-    """Pipeline runs in parallel during a check when the caller gives none."""
-    return max(1, min(4, os.cpu_count() or 1))

@@ -11,6 +11,7 @@ from dataclasses import dataclass, field, fields
 from typing import Any
 
 from arenabench.competition import DEFAULT_TOLERANCE
+from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 
 REPORT_SCHEMA = "arenabench.report/1"
 
@@ -452,7 +453,7 @@ class Report:
         return cls(
             pipeline=str(d.get("pipeline", "")),
             dataset=str(d.get("dataset", "")),
-            area_reference=str(d.get("area_reference", "visible")),
+            area_reference=str(d.get("area_reference", DEFAULT_AREA_REFERENCE)),
             tolerance=float(d.get("tolerance", DEFAULT_TOLERANCE)),
             summary=Summary.from_dict(d["summary"]),
             images=tuple(ImageResult.from_dict(i) for i in d.get("images", [])),

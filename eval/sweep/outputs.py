@@ -16,10 +16,11 @@ import csv
 import io
 import json
 import os
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-from arenabench.eval.scoring.results import CATEGORIES
+from arenabench.eval.scoring.metric_registry import METRICS, Metric, column_metrics
 from arenabench.fileio import (
     atomic_write_bytes,
     atomic_write_text,
@@ -45,26 +46,36 @@ def _cell(value: Any) -> Any:
     return "" if value is None else value
 
 
-def sweep_csv(result: SweepResult) -> str:
-    """``sweep.csv`` text: one row per point and pipeline."""
+def sweep_csv(result: SweepResult, *, metrics: Sequence[Metric] = METRICS) -> str:
+    """``sweep.csv`` text: one row per point and pipeline.
+
+    Parameters
+    ----------
+    result : SweepResult
+    metrics : sequence of Metric, keyword-only
+        The registry whose :func:`~arenabench.eval.scoring.metric_registry.column_metrics`
+        are the metric columns (after ``point``, the varied parameters, ``pipeline``, ``n``,
+        ``n_passed`` and ``skipped``).
+    """
     keys = [a.key for a in result.spec.axes]
-    stats = ("median", "p95", "max")
-    header = ["point", *keys, "pipeline", "n", "n_passed", "skipped", "pass_rate",
-              "pass_rate_ci95_lo", "pass_rate_ci95_hi", "count_exact_rate", "count_mae",
-              *(f"area_rel_err_{s}" for s in stats), "marker_id_accuracy",
-              *(f"failures_{c}" for c in CATEGORIES), "latency_ms_median", "latency_ms_p95"]
+    columns = column_metrics(metrics)
+    header = ["point", *keys, "pipeline", "n", "n_passed", "skipped", *(m.key for m in columns)]
     buf = io.StringIO()
     writer = csv.writer(buf, lineterminator="\n")
     writer.writerow(header)
     for ps in result.summaries:
         s = ps.summary
+        d = s.to_dict()
         row = [ps.index, *(format_value(ps.params[k]) for k in keys), ps.pipeline, s.n,
-               s.n_passed, ps.skipped, s.pass_rate, *s.pass_rate_ci95, s.count_exact_rate,
-               s.count_mae, *(s.area_rel_err.get(k) for k in stats), s.marker_id_accuracy,
-               *(s.failures.get(c, 0) for c in CATEGORIES),
-               *(s.latency_ms.get(k) for k in ("median", "p95"))]
+               s.n_passed, ps.skipped, *(_metric_cell(m, d) for m in columns)]
         writer.writerow([_cell(v) for v in row])
     return buf.getvalue()
+
+
+def _metric_cell(m: Metric, summary: dict[str, Any]) -> Any:
+    """``m``'s value in ``summary``; a failure category no image fell into counts 0."""
+    value = m.value(summary)
+    return 0 if value is None and m.group == "failures" else value
 
 
 def results_jsonl(result: SweepResult) -> str:

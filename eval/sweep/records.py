@@ -11,10 +11,11 @@ from typing import Any
 from arenabench.eval.datasets.reader import AREA_REFERENCES
 from arenabench.eval.runs import OUTPUT_MODES, CommandPipeline, RunSettings
 from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE
-from arenabench.eval.scoring.results import ImageResult, Summary
+from arenabench.eval.scoring.results import Summary
 from arenabench.generator.param_values import format_value
 from arenabench.generator.params import Value
 from arenabench.generator.presets import preset_name
+from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 from arenabench.seeds import check_seed
 
@@ -133,7 +134,7 @@ class SweepSpec:
     random: int | None = None
     overrides: dict[str, Value] = field(default_factory=dict)
     tolerance: float = DEFAULT_TOLERANCE
-    area_reference: str = "visible"
+    area_reference: str = DEFAULT_AREA_REFERENCE
     threshold: float = DEFAULT_THRESHOLD
     breakdown_mode: str = "marginal"
     keep: str = "none"
@@ -308,10 +309,6 @@ class SweepResult:
     def complete(self) -> bool:
         """False when a stop signal ended the sweep early (``run`` says how far it got)."""
         return bool(self.run.get("complete", True))
-
-    def image_results(self, pipeline: str) -> list[ImageResult]:
-        """Per-image results of one pipeline as harness records."""
-        return [ImageResult.from_dict(r) for r in self.images if r["pipeline"] == pipeline]
 
     def to_dict(self) -> dict[str, Any]:
         """``sweep.json`` content (schema ``arenabench.sweep/1``)."""

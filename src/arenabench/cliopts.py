@@ -60,7 +60,7 @@ SHARED_OPTIONS: tuple[str, ...] = (
     "--out", "--workers", "--scheduler", "--no-progress", "--tolerance", "--area-reference",
     "--timeout", "--memory-limit", "--max-file-size", "--max-output", "--max-disk",
     "--max-procs", "--sandbox", "--count", "--seed", "--cmd", "--output", "--formats",
-    "--preset",
+    "--preset", "--set",
 )
 
 
@@ -477,19 +477,28 @@ def add_output_mode(parser: argparse.ArgumentParser, modes: Sequence[str]) -> ar
         "add_output_mode")
 
 
+def formats_problem(names: Sequence[str], known: Sequence[str]) -> str | None:
+    """Why ``names`` is no choice of report formats among ``known`` (none named, or one
+    unknown, with a "did you mean"), or ``None``: the one rule of ``--formats``
+    (:func:`formats_rule`) and of the harness's ``formats=`` arguments."""
+    if not names:
+        return f"no format named (known: {', '.join(known)})"
+    bad = [f for f in names if f not in known]
+    if bad:
+        return (f"unknown {', '.join(map(repr, bad))}{did_you_mean(bad[0], known)} "
+                f"(known: {', '.join(known)})")
+    return None
+
+
 def formats_rule(known: Sequence[str]) -> Callable[[str], tuple[str, ...]]:
-    """The ``type=`` of ``--formats``: a comma-separated, non-empty list of ``known`` names,
-    as a tuple in the order given (a name given twice counts once)."""
+    """The ``type=`` of ``--formats``: a comma-separated, non-empty list of ``known`` names
+    (:func:`formats_problem`), as a tuple in the order given (a name given twice counts
+    once)."""
     def formats(text: str) -> tuple[str, ...]:
         names = tuple(dict.fromkeys(f.strip() for f in text.split(",") if f.strip()))
-        bad = [f for f in names if f not in known]
-        if not names:
-            raise argparse.ArgumentTypeError(
-                f"{text!r}: no format named (known: {', '.join(known)})")
-        if bad:
-            raise argparse.ArgumentTypeError(
-                f"unknown {', '.join(map(repr, bad))}{did_you_mean(bad[0], known)} "
-                f"(known: {', '.join(known)})")
+        problem = formats_problem(names, known)
+        if problem:
+            raise argparse.ArgumentTypeError(problem if names else f"{text!r}: {problem}")
         return names
 
     return formats
@@ -540,6 +549,26 @@ def add_preset(parser: Any, *, resolve: Callable[[str], Any], default: str | Non
         + (f" (default: {default})" if default else "")), "add_preset")
 
 
+def add_set(parser: argparse.ArgumentParser, *,
+            help: str = "override a preset parameter") -> argparse.Action:
+    """``--set KEY=VALUE`` (repeatable) into ``overrides``: the raw texts, parsed and checked
+    by the generator against each parameter's declaration
+    (:func:`arenabench.generator.param_values.parse_overrides`)."""
+    return _tag(parser.add_argument(
+        "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+        help=f"{help} (repeatable; 'arenabench presets --params' lists them)"), "add_set")
+
+
+def add_timeout(parser: Any, *, default: float = DEFAULT_TIMEOUT_S,
+                help: str = "wall-clock seconds per image") -> argparse.Action:
+    """``--timeout SECONDS``: a plain decimal number in the range of
+    :data:`TIMEOUT_RULE` (at most :data:`arenabench.limits.MAX_TIMEOUT_S`); ``parser`` may be
+    an argument group."""
+    return _tag(parser.add_argument(
+        "--timeout", type=TIMEOUT_RULE.argtype("--timeout"), default=default,
+        help=f"{help}, at most {MAX_TIMEOUT_S:g} (default: %(default)s)"), "add_timeout")
+
+
 def _cmd_templates(ns: argparse.Namespace) -> list[str]:
     cmd = getattr(ns, "cmd", None)
     pipes = getattr(ns, "pipes", None) or ()  # sweep: (kind, value) in the order given
@@ -586,10 +615,7 @@ def add_run_options(parser: CommandParser, *, placeholders: Collection[str] | No
     parser.add_check(lambda ns: cmd_template_problem(ns, placeholders=placeholders,
                                                      refused=refused))
     g = parser.add_argument_group("external command runs (--cmd)")
-    _tag(g.add_argument("--timeout", type=TIMEOUT_RULE.argtype("--timeout"),
-                        default=DEFAULT_TIMEOUT_S,
-                        help=f"wall-clock seconds per image, at most {MAX_TIMEOUT_S:g} "
-                        "(default: %(default)s)"), "add_run_options")
+    add_timeout(g)
     _tag(g.add_argument("--memory-limit", type=_size_type("--memory-limit"),
                         default=format_size(DEFAULT_MEMORY_BYTES),
                         help="address space per process, e.g. 2G, 512M (default: %(default)s)"),

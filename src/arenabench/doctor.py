@@ -22,10 +22,13 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from arenabench import glplatform
-from arenabench.cliopts import TIMEOUT_RULE, CommandParser
+from arenabench.cliopts import CommandParser, add_timeout
 from arenabench.exitcodes import ExitCode
 
 PROG = "arenabench doctor"
+#: Seconds a check that starts a process (the OpenGL context, the sandbox, the browser) may
+#: take before it counts as failed (``--timeout``).
+CHECK_TIMEOUT_S = 60.0
 #: How to install the pinned pyrender release.
 PYRENDER_FIX = f"pip install 'pyrender=={glplatform.PYRENDER_VERSION}'"
 OPENCV_FIX = (
@@ -224,7 +227,7 @@ def _context_fix(platform: str | None) -> str:
             f"pip install {glplatform.OSMESA_PYOPENGL})")
 
 
-def check_offscreen_context(platform: str | None, *, timeout: float = 60.0) -> Check:
+def check_offscreen_context(platform: str | None, *, timeout: float = CHECK_TIMEOUT_S) -> Check:
     """Create an off-screen context and render one scene, in a subprocess with a timeout."""
     name = "offscreen context"
     if platform is None:
@@ -265,7 +268,7 @@ _SANDBOX_PROBE = ("from arenabench.eval.runs.sandbox import bwrap_problem; "
                   "print('ARENABENCH_PROBE ' + (bwrap_problem() or 'ok'))")
 
 
-def check_sandbox(*, timeout: float = 60.0) -> Check:
+def check_sandbox(*, timeout: float = CHECK_TIMEOUT_S) -> Check:
     """bubblewrap: a real run in new user, PID and network namespaces (``grade`` refuses
     to run teams without it unless ``--sandbox none``)."""
     import shutil
@@ -289,7 +292,7 @@ def check_sandbox(*, timeout: float = 60.0) -> Check:
     return Check(name, False, err[-1][:300], BWRAP_FIX)
 
 
-def check_browser(*, timeout: float = 60.0) -> Check:
+def check_browser(*, timeout: float = CHECK_TIMEOUT_S) -> Check:
     """A headless browser that loads a page (a warning only: the HTML screenshot tests
     need it, nothing else does)."""
     import shutil
@@ -314,7 +317,7 @@ def check_browser(*, timeout: float = 60.0) -> Check:
     return Check(name, False, f"{exe}: {err[-1][:300]}", BROWSER_FIX, required=False)
 
 
-def run_checks(*, context: bool = True, timeout: float = 60.0) -> DoctorReport:
+def run_checks(*, context: bool = True, timeout: float = CHECK_TIMEOUT_S) -> DoctorReport:
     """Run every check.
 
     Parameters
@@ -348,8 +351,8 @@ def build_parser() -> CommandParser:
         "bubblewrap sandbox that 'grade' requires and (a warning only) a headless browser; "
         "exit status 0 when every required check passes, 1 otherwise.")
     parser.add_argument("--json", action="store_true", help="print the report as JSON")
-    parser.add_argument("--timeout", type=TIMEOUT_RULE.argtype("--timeout"), default=60.0,
-                        help="seconds allowed for creating the OpenGL context (default 60)")
+    add_timeout(parser, default=CHECK_TIMEOUT_S,
+                help="seconds allowed for creating the OpenGL context")
     parser.add_argument("--no-context", action="store_true",
                         help="skip creating an off-screen OpenGL context")
     return parser

@@ -1,10 +1,21 @@
-"""One local process pool for every command that renders or runs pipelines in parallel.
+"""The local process pools: every worker process a command starts on this machine comes from
+here.
 
-``generate`` (:mod:`arenabench.generator.dataset_writer`) and ``sweep``
-(:mod:`arenabench.eval.sweep.execution`) map their tasks with :func:`local_map`; a Dask cluster
-(``--scheduler``) goes through :func:`arenabench.cluster.cluster_map` instead.
+- :func:`local_map`: ``generate`` (:mod:`arenabench.generator.dataset_writer`) and ``sweep``
+  (:mod:`arenabench.eval.sweep.execution`) map their tasks with it; a Dask cluster
+  (``--scheduler``) goes through :func:`arenabench.cluster.cluster_map` instead;
+- :func:`local_pool`: the same pool for a caller that maps several times on the same workers
+  (``bench``: warm-up, then timed maps);
+- :func:`local_executor`: a :class:`~concurrent.futures.ProcessPoolExecutor` for callers that
+  submit work as it comes and read the futures (``eval``'s in-process pipelines, ``check``'s
+  dataset check, ``grade``'s report writers); :func:`end_executor` ends one at a stop;
+- :func:`spawn_context`: the start method of every worker, and of the child processes of
+  isolated callables (:mod:`arenabench.eval.runs.isolated`).
 
-The pool's rules, stated here once:
+Every worker is spawned (:data:`START_METHOD`), never forked: a fork of a process holding an
+OpenGL context or threads can deadlock.
+
+The rules of :func:`local_map` and :func:`local_pool`, stated here once:
 
 - spawned workers (no fork of a process holding an OpenGL context or threads), started with
   SIGINT ignored (:func:`arenabench.interrupts.children_ignore_sigint`) and initialised with
@@ -31,9 +42,13 @@ The pool's rules, stated here once:
 from __future__ import annotations
 
 import multiprocessing
+import multiprocessing.context
+import multiprocessing.pool
 import os
 import threading
 from collections.abc import Callable, Iterable, Iterator
+from concurrent.futures import ProcessPoolExecutor
+from contextlib import contextmanager
 from typing import Any
 
 from arenabench.interrupts import (
@@ -43,6 +58,93 @@ from arenabench.interrupts import (
     stop_workers,
 )
 from arenabench.workers import check_workers, init_worker, llvmpipe_threads
+
+#: How every local worker process starts (:func:`spawn_context`).
+START_METHOD = "spawn"
+
+
+def spawn_context() -> multiprocessing.context.BaseContext:
+    """The :mod:`multiprocessing` context of every local worker (:data:`START_METHOD`)."""
+    return multiprocessing.get_context(START_METHOD)
+
+
+@contextmanager
+def local_pool(
+    workers: int,
+    *,
+    initializer: Callable[..., None] = init_worker,
+    initargs: tuple[Any, ...] | None = None,
+) -> Iterator[multiprocessing.pool.Pool]:
+    """A :class:`multiprocessing.pool.Pool` of ``workers`` spawned processes, for the body of
+    a ``with`` block.
+
+    The workers start with SIGINT ignored. Leaving the block normally closes the pool and
+    joins it (the workers exit on their own); leaving it by an exception (a stop signal, a
+    task's error) ends the pool within a bound (:func:`_end_pool`) and re-raises.
+
+    Parameters
+    ----------
+    workers : int
+        Processes, an integer >= 1.
+    initializer : callable, keyword-only
+        Each worker's initializer (default :func:`arenabench.workers.init_worker`).
+    initargs : tuple, keyword-only
+        Its arguments; default ``(llvmpipe threads for `workers`, this process's pid)``.
+
+    Raises
+    ------
+    ValueError
+        When ``workers`` is not an integer >= 1.
+    """
+    workers = check_workers(workers)
+    if initargs is None:
+        initargs = (llvmpipe_threads(workers), os.getpid())
+    with children_ignore_sigint():
+        pool = spawn_context().Pool(workers, initializer=initializer, initargs=initargs)
+    with pool:
+        try:
+            yield pool
+        except BaseException:  # a task failed, a stop signal, or the caller closed early
+            _end_pool(pool)
+            raise
+        pool.close()
+        pool.join()
+
+
+def local_executor(
+    workers: int,
+    *,
+    initializer: Callable[..., None] | None = None,
+    initargs: tuple[Any, ...] = (),
+) -> ProcessPoolExecutor:
+    """A :class:`~concurrent.futures.ProcessPoolExecutor` of at most ``workers`` spawned
+    processes, started as work is submitted. Its owner shuts it down (``with``, or
+    :func:`end_executor` at a stop).
+
+    Parameters
+    ----------
+    workers : int
+        Most processes at once, an integer >= 1.
+    initializer : callable or None, keyword-only
+        Each worker's initializer (none by default).
+    initargs : tuple, keyword-only
+        Its arguments.
+
+    Raises
+    ------
+    ValueError
+        When ``workers`` is not an integer >= 1.
+    """
+    return ProcessPoolExecutor(max_workers=check_workers(workers), mp_context=spawn_context(),
+                               initializer=initializer, initargs=initargs)
+
+
+def end_executor(pool: ProcessPoolExecutor, *, grace_s: float = WORKER_GRACE_S) -> None:
+    """End ``pool`` at a stop: its queued work is cancelled and its processes ended (SIGTERM
+    unwinds a task, SIGKILL after ``grace_s``: :func:`arenabench.interrupts.stop_workers`)."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    stop_workers(grace_s=grace_s, processes=processes)
 
 
 def local_map(
@@ -82,20 +184,10 @@ def local_map(
             checkpoint()
             yield func(item)
         return
-    lp = llvmpipe_threads(workers)
-    ctx = multiprocessing.get_context("spawn")
-    with children_ignore_sigint():
-        pool = ctx.Pool(workers, initializer=initializer, initargs=(lp, os.getpid()))
-    with pool:
-        try:
-            for result in pool.imap_unordered(func, items, chunksize=1):
-                checkpoint()
-                yield result
-        except BaseException:  # a task failed, a stop signal, or the caller closed early
-            _end_pool(pool)
-            raise
-        pool.close()
-        pool.join()
+    with local_pool(workers, initializer=initializer) as pool:
+        for result in pool.imap_unordered(func, items, chunksize=1):
+            checkpoint()
+            yield result
 
 
 def _end_pool(pool: Any, *, grace_s: float = WORKER_GRACE_S) -> None:
