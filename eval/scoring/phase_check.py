@@ -352,7 +352,7 @@ def render_phases(gt: GroundTruth, *, phases: int, folder: Path, output: Any = N
                  Scene.from_dict(rounded(shifted_scene(scene, shift).to_dict())))
         made = scene_image(moved, sid=gt.id, preset=gt.preset, seed=gt.seed, index=gt.index,
                            params=params or {}, renderer=renderer, output=output,
-                           frame=frame)
+                           overrides=dict(gt.overrides or {}), frame=frame)
         path = folder / f"phase-{i:02d}.{output.ext}"
         path.write_bytes(made.image_bytes)
         yield PhaseImage(path=path, gt=made.record)
