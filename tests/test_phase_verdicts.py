@@ -178,6 +178,30 @@ def test_a_failure_that_flips_with_an_open_parameter_names_it(east_open, tmp_pat
     assert f"depends on open {EAST}" in files["md"].read_text()
     assert f"depends on open {EAST}" in files["html"].read_text()
     assert f"passes with another {EAST}" in files["junit"].read_text()
+    from arenabench.eval.commands.check import verdict_lines
+
+    verdict = verdict_lines(report, min_pass_rate=0.95, phases=PHASES)
+    n = pc["depends_on_open"]
+    assert f"  depends on open parameters: {n} ({EAST} {n})" in verdict
+    # and the leaderboard
+    from arenabench.eval.grade.leaderboard import (
+        LEADERBOARD_JSON_SCHEMA,
+        LeaderboardRow,
+        leaderboard_dict,
+        rank_rows,
+    )
+    from arenabench.eval.reports.leaderboard_report import leaderboard_html
+
+    rows = rank_rows([LeaderboardRow("team", report.summary, "teams/team/report.html",
+                                     "0" * 64)])
+    board = leaderboard_dict(rows, dataset={"path": str(east_open), "n": 3,
+                                            "manifest_sha256": "0" * 64}, options={})
+    assert board["teams"][0]["phase_check"]["depends_on_open"] == n
+    jsonschema = pytest.importorskip("jsonschema")
+    jsonschema.validate(board, LEADERBOARD_JSON_SCHEMA)
+    page = leaderboard_html(board)
+    assert "Depend on open parameters" in page
+    assert f'<td data-key="depends_on_open" data-v="{n}">{n}</td>' in page
 
 
 # ----------------------------------------------------------------------- a loaded machine

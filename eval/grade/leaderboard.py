@@ -53,12 +53,12 @@ RANKING: tuple[str, ...] = (
     "count_exact_rate desc",
     "area_rel_err_median asc (null last)",
 )
-#: The summary metrics of a team's row, under their flat keys (:attr:`Metric.key`:
-#: ``area_rel_err_median``); ``null`` when undefined.
 #: The phase check's counts a leaderboard entry carries (``phase_check``, when it ran):
 #: images labelled depends-on-open and unchecked (no run completed), runs tried and runs that
 #: did not complete (docs/phase-check.md).
 PHASE_CHECK_COUNTS = ("depends_on_open", "none_completed", "runs", "not_completed")
+#: The summary metrics of a team's row, under their flat keys (:attr:`Metric.key`:
+#: ``area_rel_err_median``); ``null`` when undefined.
 LEADERBOARD_METRICS: tuple[Metric, ...] = tuple(METRIC[n] for n in (
     "pass_rate", "count_exact_rate", "count_mae", "area_rel_err.median", "latency_ms.median",
     "robust_failure_rate", "phase_dependent_failure_rate",
