@@ -1,13 +1,20 @@
-"""The phase check: does a failure depend on where the box edges fall within a pixel?
+"""The phase check: does a failure depend on where the box edges fall within a pixel, or on
+what the evidence behind the preset leaves open?
 
 For each failing image, the same scene is rendered again ``N`` times with every obstacle moved
 by a sub-pixel amount (phases spread over one image pixel in x and y, each box at its own
-phase), its ground truth
-computed analytically as always, and the pipeline run again on each (docs/phase-check.md).
-``k`` of the ``N`` phases pass:
+phase), through the generator's one image recipe
+(:func:`arenabench.generator.make.scene_image`: the set's degradations, encoding and GT), and
+the pipeline run again on each (docs/phase-check.md). When no phase passes, the same is done
+under each other value the preset's open parameters allow (:func:`open_variants`). A run that
+does not complete (:data:`NOT_COMPLETED`, a harness error) is not a failed run; over the
+completed runs the image is (:data:`arenabench.eval.scoring.results.PHASE_LABELS`):
 
-- ``k = 0``: a **robust** failure (the method is wrong on this scene);
-- ``k > 0``: a **phase-dependent** failure (:data:`PHASE_DEPENDENT_MEANING`).
+- **phase-dependent** when some phase of its own scene passes
+  (:data:`PHASE_DEPENDENT_MEANING`);
+- **depends on open** when only another value of an open parameter passes;
+- **robust** when no completed run passes (the method is wrong on this scene);
+- **unchecked** when no run completed.
 
 A passing image is never re-run, and nothing of the generator is imported while nothing
 fails. The pipeline is the run's own adapter (an external command keeps its limits and
@@ -51,8 +58,6 @@ MAX_PHASES = 64
 #: Presets whose runs check failures' phases unless told ``--phase-check off``: the
 #: hidden-test twin, whose renderer blends box edges only at some sub-pixel phases.
 DEFAULT_ON_PRESETS = frozenset({"eyrc"})
-#: The classes of a checked failure, in the order reports list them.
-PHASE_CLASSES: tuple[str, ...] = ("robust", "phase_dependent")
 #: The one sentence every report prints beside the rates.
 PHASE_DEPENDENT_MEANING = (
     "phase-dependent: passes at some sub-pixel positions of the boxes and fails at others: on "
@@ -100,8 +105,10 @@ def add_phase_check_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--phase-check", type=parse_phase_check, default="auto", metavar="N|off|auto",
         help=f"re-render each failing image's scene with the boxes moved by N sub-pixel "
-        f"amounts and re-run the pipeline: a failure that passes at none is 'robust', one that "
-        f"passes at some 'phase-dependent' (luck). auto (default): {DEFAULT_PHASES} phases on "
+        f"amounts and re-run the pipeline: a failure that passes at some is 'phase-dependent' "
+        f"(luck); one that passes at none is re-run under the other values of the preset's "
+        f"open parameters: 'depends-on-open' when one passes, else 'robust'; runs that crash, "
+        f"time out or hit a limit do not count. auto (default): {DEFAULT_PHASES} phases on "
         f"{', '.join(sorted(DEFAULT_ON_PRESETS))} scenes, off otherwise",
     )
 
