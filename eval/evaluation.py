@@ -367,17 +367,18 @@ def _check_phases(results: list[ImageResult], data: Dataset, pipe: Pipeline,
                   *, phases: int, tolerance: float, area_reference: str, workers: int,
                   progress: bool) -> list[ImageResult]:
     """The phase check of a run's failing images (docs/phase-check.md)."""
-    from arenabench.eval.scoring.phase_check import check_phases, checked
+    from arenabench.eval.scoring.phase_check import check_phases, checked, dataset_scene_source
     from arenabench.progress import progress as progress_bar
 
     failing = sum(1 for r in results if checked(r))
     if not failing:
         return results
     by_id = data.items_by_id(r.id for r in results)
+    source = dataset_scene_source(data.root, None if data.meta is None else data.meta.doc)
     with progress_bar(failing, desc=f"phase check {pipe.name}", enabled=progress) as bar:
         return check_phases(results, [by_id[r.id].gt for r in results], pipe.run,
                             phases=phases, tolerance=tolerance, area_reference=area_reference,
-                            workers=workers, on_image=lambda: bar.update(1),
+                            workers=workers, source=source, on_image=lambda: bar.update(1),
                             stop=pipe.stop)
 
 

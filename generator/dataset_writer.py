@@ -62,6 +62,7 @@ from arenabench.generator.coco_export import CocoParts, write_coco
 from arenabench.generator.edges import EDGE_RESOLVES, edge_model
 from arenabench.generator.make import (
     GENERATOR_VERSION,
+    ImageFormat,
     make_sample,
     scene_id,
     worker_gl_info,
@@ -77,7 +78,6 @@ from arenabench.imageio import (
     DEFAULT_JPEG_SUBSAMPLING,
     IMAGE_EXTENSIONS,
     PNG_COMPRESSION,
-    encode_image,
     jpeg_subsampling_problem,
 )
 from arenabench.interrupts import (
@@ -255,18 +255,21 @@ class RenderTask:
         """File extension of the image."""
         return IMAGE_EXTENSIONS[self.image_format]
 
-    def encode(self, bgr: np.ndarray) -> bytes:
-        """The image file's bytes."""
-        return encode_image(bgr, image_format=self.image_format,
-                            jpeg_quality=self.jpeg_quality,
-                            jpeg_subsampling=self.jpeg_subsampling)
+    @property
+    def output(self) -> ImageFormat:
+        """How the image is encoded."""
+        return ImageFormat(self.image_format, self.jpeg_quality, self.jpeg_subsampling)
 
 
 def _render(task: RenderTask):
     preset = task.preset if task.preset is not None else task.args["preset"]
-    return make_sample(preset, seed=task.seed, index=task.index,
-                       overrides=_parse_stored(task.args["overrides"]),
-                       renderer=worker_renderer(), image_ext=task.image_ext)
+    sample = make_sample(preset, seed=task.seed, index=task.index,
+                         overrides=_parse_stored(task.args["overrides"]),
+                         renderer=worker_renderer())
+    if sample.output != task.output:  # pragma: no cover - the task is made from the preset
+        raise RuntimeError(f"scene {task.index}: encoded as {sample.output}, the set as "
+                           f"{task.output}")
+    return sample
 
 
 def image_file(sid: str, ext: str) -> str:
@@ -290,7 +293,7 @@ def render_task(task: RenderTask) -> dict[str, Any]:
         out = Path(task.out)
         sample = _render(task)
         t1 = time.perf_counter()
-        image = task.encode(sample.bgr)
+        image = sample.image_bytes
         t2 = time.perf_counter()
         gt_bytes = sample.record.to_json().encode("utf-8")
         atomic_write_bytes(out / image_file(sample.id, task.image_ext), image)
@@ -336,7 +339,7 @@ def render_on_cluster(task: RenderTask) -> dict[str, Any]:
         texture_store.add_bytes(ref, data)
     sample = _render(task)
     t1 = time.perf_counter()
-    image = task.encode(sample.bgr)
+    image = sample.image_bytes
     t2 = time.perf_counter()
     return {**sample.timings_ms, "id": sample.id, "image_bytes": image,
             "image_ext": task.image_ext,

@@ -1,9 +1,12 @@
 """One call from (preset, seed, index) to an image and its ground truth, in memory.
 
-``render -> RGB array -> [degrade] -> encode``: :func:`make_sample` returns the RGB array
-(after the optional ``degrade`` hook) and the GT record; writers encode it. Streaming sweeps
-use this directly with one :class:`~arenabench.generator.render.Renderer` per process
-(any :class:`~arenabench.generator.renderer_api.SceneRenderer` will do).
+The image recipe is one function, :func:`scene_image`: ``scene -> render -> [degrade] ->
+encode`` (the preset's ``output.*``, :class:`ImageFormat`) and the GT record. Everything that
+makes an image of a scene goes through it: :func:`make_sample` (the dataset writer, sweeps,
+contact sheets) after drawing the scene, and the phase check on its moved scenes, so a
+re-rendered image is encoded exactly as the set's own. Streaming sweeps use this directly with
+one :class:`~arenabench.generator.render.Renderer` per process (any
+:class:`~arenabench.generator.renderer_api.SceneRenderer` will do).
 """
 
 from __future__ import annotations
@@ -23,11 +26,13 @@ from arenabench.generator.degrade import Degradations, apply_degradations
 from arenabench.generator.groundtruth import compute_ground_truth
 from arenabench.generator.params import Range, Value
 from arenabench.generator.presets import preset_name as _name_of
+from arenabench.generator.presets import resolve
 from arenabench.generator.render import Renderer
 from arenabench.generator.renderer_api import RenderOutput, SceneRenderer
 from arenabench.generator.sampler import sample_scene, stream_rng
 from arenabench.generator.scene_facts import derived_facts
 from arenabench.gtrecord import GroundTruth
+from arenabench.imageio import DEFAULT_JPEG_SUBSAMPLING, IMAGE_EXTENSIONS, encode_image
 from arenabench.schemas import GT_SCHEMA
 from arenabench.workers import thread_state
 
@@ -78,14 +83,65 @@ GENERATOR_VERSION = "8"
 Degrade = Callable[[np.ndarray, np.random.Generator], np.ndarray]
 
 
+@dataclass(frozen=True)
+class ImageFormat:
+    """How an image file is encoded: a preset's ``output.format``, ``output.jpeg_quality`` and
+    ``output.jpeg_subsampling``.
+
+    Attributes
+    ----------
+    image_format : str
+        ``png`` or ``jpeg`` (:data:`arenabench.imageio.IMAGE_EXTENSIONS`).
+    jpeg_quality : int
+        JPEG quality of ``jpeg``.
+    jpeg_subsampling : str
+        JPEG chroma subsampling of ``jpeg`` (:data:`arenabench.imageio.JPEG_SUBSAMPLINGS`).
+    """
+
+    image_format: str = "png"
+    jpeg_quality: int = 95
+    jpeg_subsampling: str = DEFAULT_JPEG_SUBSAMPLING
+
+    def __post_init__(self) -> None:
+        if self.image_format not in IMAGE_EXTENSIONS:
+            raise ValueError(f"output.format must be one of {', '.join(IMAGE_EXTENSIONS)}, got "
+                             f"{self.image_format!r}")
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> ImageFormat:
+        """The ``output.*`` parameters of a resolved preset (:func:`resolve`)."""
+        return cls(image_format=str(params["output.format"]),
+                   jpeg_quality=int(params["output.jpeg_quality"]),
+                   jpeg_subsampling=str(params["output.jpeg_subsampling"]))
+
+    @classmethod
+    def of_preset(cls, preset: Any, overrides: dict[str, Value] | None = None) -> ImageFormat:
+        """The format of a preset's images (a name, mapping or ResolvedPreset) with
+        ``overrides``."""
+        return cls.from_params(resolve(preset, overrides))
+
+    @property
+    def ext(self) -> str:
+        """File extension of the images (``png`` or ``jpg``)."""
+        return IMAGE_EXTENSIONS[self.image_format]
+
+    def encode(self, bgr: np.ndarray) -> bytes:
+        """The image file's bytes of a BGR image."""
+        return encode_image(bgr, image_format=self.image_format,
+                            jpeg_quality=self.jpeg_quality,
+                            jpeg_subsampling=self.jpeg_subsampling)
+
+
 @dataclass
 class Sample:
-    """A rendered scene and its ground truth (``record``; ``gt`` is the GT file's content)."""
+    """A rendered scene and its ground truth (``record``; ``gt`` is the GT file's content),
+    encoded as ``output`` says (:attr:`image_bytes`)."""
 
     id: str
     record: GroundTruth
     render: RenderOutput
     timings_ms: dict[str, float] = field(default_factory=dict)
+    output: ImageFormat = field(default_factory=ImageFormat)
 
     @cached_property
     def gt(self) -> dict[str, Any]:
@@ -101,6 +157,11 @@ class Sample:
     def bgr(self) -> np.ndarray:
         """The image in OpenCV's BGR order."""
         return cv2.cvtColor(self.render.rgb, cv2.COLOR_RGB2BGR)  # 30x faster than numpy
+
+    @cached_property
+    def image_bytes(self) -> bytes:
+        """The image file's bytes (``output``), encoded once, when first asked for."""
+        return self.output.encode(self.bgr)
 
 
 def worker_renderer() -> Renderer:
@@ -141,9 +202,9 @@ def make_sample(
     masks: bool = False,
     frame: FrameSpec | None = None,
     degrade: Degrade | None = None,
-    image_ext: str = "png",
+    image_ext: str | None = None,
 ) -> Sample:
-    """Sample, render and annotate scene ``index`` of a run.
+    """Sample scene ``index`` of a run, then make its image and GT (:func:`scene_image`).
 
     Parameters
     ----------
@@ -168,40 +229,101 @@ def make_sample(
         degradations (:func:`arenabench.generator.degrade.apply_degradations`), with the
         same random generator.
     image_ext : str, keyword-only
-        Extension of the image path recorded in the GT.
+        Extension of the image path recorded in the GT (default: the preset's
+        ``output.format``'s).
+
+    Returns
+    -------
+    Sample
+        Encoded as the preset's ``output.*`` say (:class:`ImageFormat`).
+    """
+    t0 = time.perf_counter()
+    sampled = sample_scene(preset, seed=seed, index=index, overrides=overrides)
+    t1 = time.perf_counter()
+    if preset_name is None:  # a name, a ResolvedPreset's name, or "custom" for a mapping
+        preset_name = "custom" if isinstance(preset, Mapping) else _name_of(preset)
+    sample = scene_image(
+        sampled.scene, sid=scene_id(index), preset=preset_name, seed=seed, index=index,
+        params=sampled.params, overrides=overrides, renderer=renderer,
+        output=ImageFormat.of_preset(preset, overrides), depth=depth, masks=masks,
+        frame=frame, degrade=degrade, image_ext=image_ext)
+    sample.timings_ms = {"sample": (t1 - t0) * 1e3, **sample.timings_ms}
+    return sample
+
+
+def scene_image(
+    scene: Any,
+    *,
+    sid: str,
+    preset: str,
+    seed: int,
+    index: int,
+    params: Mapping[str, Any],
+    renderer: SceneRenderer | None = None,
+    output: ImageFormat | None = None,
+    overrides: dict[str, Value] | None = None,
+    depth: bool = False,
+    masks: bool = False,
+    frame: FrameSpec | None = None,
+    degrade: Degrade | None = None,
+    image_ext: str | None = None,
+) -> Sample:
+    """The image recipe: render ``scene``, degrade it, and annotate it (GT), to be encoded as
+    ``output`` says (:attr:`Sample.image_bytes`).
+
+    The one function that makes an image of a scene: the dataset writer (through
+    :func:`make_sample`) and the phase check (on its moved scenes) both call it.
+
+    Parameters
+    ----------
+    scene : Scene
+        The scene.
+    sid : str, keyword-only
+        Image id recorded in the GT (``"000042"``).
+    preset : str, keyword-only
+        Preset name recorded in the GT.
+    seed, index : int, keyword-only
+        Run seed and scene index: the degradations' random stream (:func:`degrade_rng`).
+    params : mapping, keyword-only
+        The scene's drawn parameter values: its ``degrade.*`` give the degradations; the GT
+        records them rounded (derived facts are computed anew).
+    renderer : SceneRenderer, keyword-only
+        Reused renderer; a temporary one is created (slow) when omitted.
+    output : ImageFormat, keyword-only
+        How the image is encoded (default: PNG).
+    overrides : dict, keyword-only
+        The ``--set`` values recorded in the GT.
+    depth, masks, frame, degrade, image_ext : keyword-only
+        As :func:`make_sample`'s.
 
     Returns
     -------
     Sample
     """
-    t0 = time.perf_counter()
-    sampled = sample_scene(preset, seed=seed, index=index, overrides=overrides)
+    output = output or ImageFormat()
     own = renderer is None
     renderer = renderer or Renderer()
     t1 = time.perf_counter()
     try:
-        out = renderer.render(sampled.scene, depth=depth, masks=masks)
+        out = renderer.render(scene, depth=depth, masks=masks)
     finally:
         if own:
             renderer.close()
-    degradations = Degradations.from_params(sampled.params)
+    degradations = Degradations.from_params(params)
     if degrade is not None or not degradations.is_neutral:
         rng = degrade_rng(seed, index)
         out.rgb = apply_degradations(out.rgb, degradations, rng)
         if degrade is not None:
             out.rgb = np.ascontiguousarray(degrade(out.rgb, rng))
     t2 = time.perf_counter()
-    sid = scene_id(index)
-    if preset_name is None:  # a name, a ResolvedPreset's name, or "custom" for a mapping
-        preset_name = "custom" if isinstance(preset, Mapping) else _name_of(preset)
+    recorded = {k: v for k, v in params.items() if not k.startswith("derived.")}
     record = ground_truth_record(
-        sampled.scene, sid=sid, preset=preset_name,
-        seed=seed, index=index, params=rounded(sampled.params), overrides=overrides,
-        frame=frame, image_ext=image_ext,
+        scene, sid=sid, preset=preset, seed=seed, index=index, params=rounded(recorded),
+        overrides=overrides, frame=frame, image_ext=image_ext or output.ext,
     )
     t3 = time.perf_counter()
-    timings = {"sample": (t1 - t0) * 1e3, "render": (t2 - t1) * 1e3, "gt": (t3 - t2) * 1e3}
-    return Sample(id=sid, record=record, render=out, timings_ms=timings)
+    timings = {"render": (t2 - t1) * 1e3, "gt": (t3 - t2) * 1e3}
+    return Sample(id=sid, record=record, render=out, timings_ms=timings, output=output)
 
 
 def gt_record(scene: Any, **options: Any) -> dict[str, Any]:

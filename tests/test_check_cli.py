@@ -63,7 +63,7 @@ def test_a_canny_script_fails_by_luck(cache, tmp_path):
     for image in failing:
         phase = image["phase"]
         assert image["category"] == "wrong_count"
-        assert phase["n"] == 8 and 0 < phase["passes"] and phase["class"] == "phase_dependent"
+        assert phase["phases"] == 8 and 0 < phase["passes"] and phase["class"] == "phase_dependent"
     assert [i["phase"]["passes"] for i in failing] == [8, 4, 5]
     assert report["summary"]["phase_dependent_failure_rate"] == 0.375
     # passing with a lower threshold

@@ -21,7 +21,7 @@ from arenabench.eval.scoring.phase_check import (
     resolve_phases,
     shifted_scene,
 )
-from arenabench.eval.scoring.results import Report
+from arenabench.eval.scoring.results import Report, VariantResult
 from arenabench.generator.camera import intrinsics, project, world_from_camera
 from arenabench.generator.dataset_writer import generate_dataset
 from arenabench.generator.sampler import sample_scene
@@ -107,8 +107,9 @@ def test_phase_dependent_failures_get_some_passes_and_passing_images_are_not_rer
         PHASE_DEPENDENT_MEANING)
     # JSON round trip keeps the per-image record
     doc = json.loads(json.dumps(report.to_dict()))
-    assert doc["images"][0]["phase"] == {"passes": failing[0].phase.passes, "n": PHASES,
-                                         "class": "phase_dependent"}
+    assert doc["images"][0]["phase"] == {"runs": PHASES, "completed": PHASES,
+                                         "passes": failing[0].phase.passes,
+                                         "class": "phase_dependent", "phases": PHASES}
     again = Report.from_dict(doc)
     assert again.images[0].phase == failing[0].phase
     assert again.summary.phase_dependent_failure_rate == s.phase_dependent_failure_rate
@@ -131,10 +132,17 @@ def test_an_always_wrong_pipeline_fails_every_phase(twin):
     pipe = Counting(edge_phase.always_wrong)
     report = evaluate(pipe, twin, workers=2, limit=1, phases=PHASES)
     (r,) = report.images
-    assert r.phase == PhaseResult(passes=0, n=PHASES) and r.phase.label == "robust"
+    # no phase passes, so each open parameter of eyrc (the unseen east and west faces' fill)
+    # is tried at its other end too, at the same phases: it fails under every one
+    opened = ("lighting.east_fill", "lighting.west_fill")
+    assert r.phase == PhaseResult(
+        phases=PHASES, runs=PHASES, completed=PHASES, passes=0,
+        variants=tuple(VariantResult(k, 0.4, PHASES, PHASES, 0) for k in opened))
+    assert r.phase.label == "robust" and r.phase.depends_on == ()
     assert report.summary.robust_failure_rate == 1.0
     assert report.summary.phase_dependent_failure_rate == 0.0
-    assert pipe.calls == 1 + PHASES
+    assert report.summary.phase_check["not_completed"] == 0
+    assert pipe.calls == 1 + PHASES * (1 + len(opened))
 
 
 def test_nothing_is_rerun_when_nothing_fails_or_the_check_is_off(twin):
@@ -183,7 +191,8 @@ def test_a_sweep_phase_checks_its_failures_in_the_worker():
     assert [s for s in range(COUNT) if not rows[(edge, s)]["pass"]] == [0, 3]
     for s in (0, 3):
         phase = rows[(edge, s)]["phase"]
-        assert phase["n"] == PHASES and 0 < phase["passes"] < PHASES
+        assert phase["phases"] == PHASES and 0 < phase["passes"] < PHASES
+        assert phase["class"] == "phase_dependent" and phase["completed"] == phase["runs"]
     assert all("phase" not in r for r in result.images if r["pass"])
     summaries = {p.pipeline: p.summary for p in result.summaries}
     assert summaries[edge].phase_dependent_failure_rate == pytest.approx(0.5)

@@ -247,7 +247,7 @@ def test_a_set_needs_no_texture_file_afterwards(tmp_path, monkeypatch):
     rgb = worker_renderer().render(scene).rgb
     assert encode_png(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR)) == (part / item.gt.image
                                                                 ).read_bytes()
-    phases = list(render_phases(item.gt, phases=2, folder=tmp_path, suffix=".png"))
+    phases = list(render_phases(item.gt, phases=2, folder=tmp_path))
     assert len(phases) == 2 and all(p.path.is_file() for p in phases)
     floor = cv2.imread(str(phases[0].path))
     assert floor is not None and floor.std() > 10  # the textured floor, not a blank one

@@ -243,11 +243,13 @@ def verdict_lines(report, *, min_pass_rate: float, phases: int) -> list[str]:
     """The verdict: pass rate, robust and phase-dependent failures, the strongest cause
     (:func:`arenabench.eval.scoring.breakdown.strongest_cause_text`), a systematic error of the
     answers (:func:`arenabench.eval.scoring.breakdown.systematic_text`)."""
+    from arenabench.eval.reports.summary_rows import first_failure_line
     from arenabench.eval.scoring.breakdown import strongest_cause_text, systematic_text
     from arenabench.eval.scoring.phase_check import (
         PHASE_DEPENDENT_MEANING,
         rate_text,
         unchecked_text,
+        verdict_words,
     )
 
     s = report.summary
@@ -265,6 +267,7 @@ def verdict_lines(report, *, min_pass_rate: float, phases: int) -> list[str]:
             lines.append(f"  phase-dependent failures: {pc['phase_dependent']} "
                          f"({rate_text(s.phase_dependent_failure_rate)}): "
                          f"{PHASE_DEPENDENT_MEANING.split(': ', 1)[1]}")
+            lines += [f"  {text}" for text in verdict_words(pc)]
         unchecked = pc["unchecked"] if pc is not None else n_fail
         if phases and unchecked:
             lines.append(f"  not phase-checked ({unchecked_text()}): {unchecked}")
@@ -273,11 +276,7 @@ def verdict_lines(report, *, min_pass_rate: float, phases: int) -> list[str]:
         if report.causes:
             text = strongest_cause_text(report.causes)
             lines.append(f"  {text[0].lower()}{text[1:]}")
-        first = next(r for r in report.images if not r.passed)
-        detail = first.prediction.message or (
-            f"gt {first.truth.count} obstacles / {first.truth.area:.0f} px, answered "
-            f"{first.prediction.count} / {first.prediction.area}")
-        lines.append(f"  first failure: {first.id}: {first.category}: {detail[:200]}")
+        lines.append(f"  {first_failure_line(report)}")
     return lines
 
 

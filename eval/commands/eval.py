@@ -259,7 +259,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                 evaluate,
             )
             from arenabench.eval.pipelines import make_pipeline
-            from arenabench.eval.reports.summary_rows import headline
+            from arenabench.eval.reports.summary_rows import first_failure_line, headline
             from arenabench.eval.runs import (
                 OWN_PYTHON_PLACEHOLDER,
                 CommandPipeline,
@@ -380,6 +380,8 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         # and the exit status says it came (arenabench.cli.run)
         with deferred_stops():
             print(headline(report))
+            if (first := first_failure_line(report)) is not None:
+                print(f"  {first}")
             if args.out is not None:
                 written = write_reports(report, args.out, formats=formats, dataset=dataset)
     except Interrupted:

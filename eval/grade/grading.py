@@ -871,15 +871,16 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
         for s, p in zip(data.samples, job.preds, strict=True)
     ]
     if opts.phases and not all(r.passed for r in results):
-        from arenabench.eval.scoring.phase_check import check_phases
+        from arenabench.eval.scoring.phase_check import check_phases, dataset_scene_source
 
         pipe = _team_pipeline(team_command(opts.command, team.path), settings=opts.settings,
                               output=opts.output, team=team.name, base_dir=str(team.path))
+        source = dataset_scene_source(data.root, None if data.meta is None else data.meta.doc)
         try:
             results = check_phases(results, [s.gt for s in data.samples[:len(results)]],
                                    pipe.run, phases=opts.phases, tolerance=opts.tolerance,
                                    area_reference=opts.area_reference, workers=2,
-                                   stop=pipe.stop)
+                                   source=source, stop=pipe.stop)
         finally:
             pipe.close()
     report = build_report(results, pipeline=team.name, dataset=str(data.root),

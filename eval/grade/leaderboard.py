@@ -53,6 +53,10 @@ RANKING: tuple[str, ...] = (
     "count_exact_rate desc",
     "area_rel_err_median asc (null last)",
 )
+#: The phase check's counts a leaderboard entry carries (``phase_check``, when it ran):
+#: images labelled depends-on-open and unchecked (no run completed), runs tried and runs that
+#: did not complete (docs/phase-check.md).
+PHASE_CHECK_COUNTS = ("depends_on_open", "none_completed", "runs", "not_completed")
 #: The summary metrics of a team's row, under their flat keys (:attr:`Metric.key`:
 #: ``area_rel_err_median``); ``null`` when undefined.
 LEADERBOARD_METRICS: tuple[Metric, ...] = tuple(METRIC[n] for n in (
@@ -122,6 +126,8 @@ class LeaderboardRow:
             "pass_rate_ci95": [float(v) for v in s.pass_rate_ci95],
             **{m.key: _finite(m.value(d)) for m in LEADERBOARD_METRICS},
             "failures": {c: int(s.failures.get(c, 0)) for c in categories},
+            **({} if s.phase_check is None else {"phase_check": {
+                k: s.phase_check.get(k, 0) for k in PHASE_CHECK_COUNTS}}),
             "report": self.report,
             "submission_sha256": self.submission_sha256,
         }
@@ -259,6 +265,8 @@ LEADERBOARD_JSON_SCHEMA: dict[str, Any] = {
                                             "maximum": 1},
                     "phase_dependent_failure_rate": {"type": ["number", "null"], "minimum": 0,
                                                      "maximum": 1},
+                    "phase_check": {"type": "object", "properties": {
+                        k: {"type": "integer", "minimum": 0} for k in PHASE_CHECK_COUNTS}},
                     "report": {"type": "string"},
                     "submission_sha256": {"type": "string", "pattern": "^[0-9a-f]{64}$"},
                 },

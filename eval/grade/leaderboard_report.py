@@ -131,7 +131,9 @@ def leaderboard_html(doc: dict[str, Any]) -> str:
     phased = any(t.get("phase_dependent_failure_rate") is not None for t in teams)
     if phased:
         cols[3:3] = [("robust_failure_rate", "Robust failures", False),
-                     ("phase_dependent_failure_rate", "Phase-dependent failures", False)]
+                     ("phase_dependent_failure_rate", "Phase-dependent failures", False),
+                     ("depends_on_open", "Depend on open parameters", False),
+                     ("not_completed", "Phase runs not completed", False)]
     cols += [(f"failures_{c}", c, True) for c in cats]
     head = "".join(
         f'<th data-key="{html.escape(k)}" data-desc="{int(d)}" data-num="{int(k != "team")}"'
@@ -151,6 +153,9 @@ def leaderboard_html(doc: dict[str, Any]) -> str:
             *([_cell(k, t.get(k), _fmt(t.get(k), "pct"))
                for k in ("robust_failure_rate", "phase_dependent_failure_rate")]
               if phased else []),
+            *([_cell(k, (t.get("phase_check") or {}).get(k),
+                     str((t.get("phase_check") or {}).get(k, "-")))
+               for k in ("depends_on_open", "not_completed")] if phased else []),
             _cell("count_exact_rate", t["count_exact_rate"],
                   _fmt(t["count_exact_rate"], "pct")),
             _cell("area_rel_err_median", t["area_rel_err_median"],

@@ -18,7 +18,7 @@ from pathlib import Path
 
 from arenabench.eval.scoring.breakdown import systematic_text
 from arenabench.eval.scoring.metric_registry import summary_row_groups
-from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING
+from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING, verdict_words
 from arenabench.eval.scoring.results import HARNESS_STATUSES, Report
 from arenabench.fileio import atomic_write_text
 
@@ -50,6 +50,7 @@ def _summary_rows(report: Report) -> list[tuple[str, str]]:
                     rows.append((m.label, m.format(m.value(d))))
     if s.phase_check is not None:
         rows.append(("phase-dependent means", PHASE_DEPENDENT_MEANING.split(": ", 1)[1]))
+        rows += [("phase check", text) for text in verdict_words(s.phase_check)]
     return rows
 
 

@@ -74,7 +74,7 @@ def _case(report: Report, r: ImageResult) -> ET.Element:
         msg = f"{sc.category}: {p.message or detail}"
         if r.phase is not None:  # the phase check's verdict first: it is cut last
             msg = (f"{r.phase.label.replace('_', '-')} (passes {r.phase.passes}/"
-                   f"{r.phase.n} sub-pixel phases): {msg}")
+                   f"{r.phase.n} sub-pixel phases{_phase_more(r.phase)}): {msg}")
         fail = ET.SubElement(
             case, "failure", type=str(sc.category), message=xml_safe(msg[:1000])
         )
@@ -111,3 +111,14 @@ def write_junit(report: Report, path: str | os.PathLike[str]) -> Path:
             first = False
         fh.write(tail + "\n")
     return Path(path)
+
+
+def _phase_more(phase) -> str:
+    """What a phase record adds beyond the phases: the open parameters a pass needed, the runs
+    that did not complete."""
+    more = ""
+    if phase.depends_on:
+        more += f"; passes with another {', '.join(phase.depends_on)}"
+    if missing := phase.total_runs - phase.total_completed:
+        more += f"; {missing} of {phase.total_runs} runs did not complete"
+    return more

@@ -25,10 +25,10 @@ TOP_CAUSES = 5
 
 
 def phase_cell(phase) -> str:
-    """``k/N robust`` or ``k/N phase-dependent``; ``-`` when not checked."""
-    if phase is None:
-        return "-"
-    return f"{phase.passes}/{phase.n} {phase.label.replace('_', '-')}"
+    """The phase check's verdict of an image (:meth:`PhaseResult.text`: ``k/N robust``,
+    ``k/N phase-dependent``, ``0/N depends on open PARAM``, ``0/0 unchecked``, with the runs
+    that did not complete); ``-`` when not checked."""
+    return "-" if phase is None else phase.text()
 
 
 def _esc(text: str) -> str:

@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+from typing import Any
+
 from arenabench.eval.scoring.metric_registry import (
     METRIC,
     ROW_SEPARATORS,
     fmt,
     summary_row_groups,
 )
-from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING
+from arenabench.eval.scoring.phase_check import PHASE_DEPENDENT_MEANING, verdict_words
 from arenabench.eval.scoring.results import Report, Summary
 
 #: Columns of a breakdown table (a row per bin of a scene parameter; report.json's
@@ -55,6 +57,8 @@ def phase_rows(summary: Summary) -> list[tuple[str, str]]:
          f"{dependent.format(summary.phase_dependent_failure_rate)} "
          f"({pc['phase_dependent']}/{summary.n}; {pc['phases']} phases per failure)"),
         ("phase-dependent means", PHASE_DEPENDENT_MEANING.split(": ", 1)[1]),
+        *((f"phase check: {text.split(': ', 1)[0]}", text.split(": ", 1)[1]) if ": " in text
+          else ("phase check", text) for text in verdict_words(pc)),
     ]
 
 
@@ -67,6 +71,7 @@ def headline(report: Report) -> str:
     if s.phase_check is not None:
         phase = (f"; robust failures {fmt(s.robust_failure_rate, pct=True)}, phase-dependent "
                  f"{fmt(s.phase_dependent_failure_rate, pct=True)}")
+        phase += "".join(f", {text}" for text in verdict_words(s.phase_check))
     return (
         f"{report.pipeline}: pass rate {fmt(s.pass_rate, pct=True)} ({s.n_passed}/{s.n}, "
         f"95 % CI {fmt(lo, pct=True)}-{fmt(hi, pct=True)}){phase}; failures: {fails}"
@@ -78,3 +83,28 @@ def interpreter_text(interpreter: dict) -> str:
     from arenabench.eval.runs import Interpreter
 
     return Interpreter.from_dict(interpreter).describe()
+
+
+def _failure_detail(result: Any) -> str:
+    """The first line of a failing image's message, or what it answered against the GT."""
+    p = result.prediction
+    line = ((p.message or "").strip().splitlines() or [""])[0]
+    return line or (f"gt {result.truth.count} obstacles / {result.truth.area:.0f} px, "
+                    f"answered {p.count} / {p.area}")
+
+
+def first_failure_line(report: Report) -> str | None:
+    """``first failure: ID: CATEGORY: first line of its message``, with how many images
+    ended the same way (same category, same first line) when more than one did: what
+    ``check`` and ``eval`` print, so that a run where every image met the same crash (a
+    script the sandbox cannot see, a missing module) says what it was. ``None`` when no
+    image failed."""
+    failing = [r for r in report.images if not r.passed]
+    if not failing:
+        return None
+    first = failing[0]
+    detail = _failure_detail(first)
+    same = sum(1 for r in failing
+               if r.category == first.category and _failure_detail(r) == detail)
+    hit = f" (the same on {same} of {report.summary.n} images)" if same > 1 else ""
+    return f"first failure: {first.id}: {first.category}: {detail[:200]}{hit}"

@@ -1,13 +1,20 @@
-"""The phase check: does a failure depend on where the box edges fall within a pixel?
+"""The phase check: does a failure depend on where the box edges fall within a pixel, or on
+what the evidence behind the preset leaves open?
 
 For each failing image, the same scene is rendered again ``N`` times with every obstacle moved
 by a sub-pixel amount (phases spread over one image pixel in x and y, each box at its own
-phase), its ground truth
-computed analytically as always, and the pipeline run again on each (docs/phase-check.md).
-``k`` of the ``N`` phases pass:
+phase), through the generator's one image recipe
+(:func:`arenabench.generator.make.scene_image`: the set's degradations, encoding and GT), and
+the pipeline run again on each (docs/phase-check.md). When no phase passes, the same is done
+under each other value the preset's open parameters allow (:func:`open_variants`). A run that
+does not complete (:data:`NOT_COMPLETED`, a harness error) is not a failed run; over the
+completed runs the image is (:data:`arenabench.eval.scoring.results.PHASE_LABELS`):
 
-- ``k = 0``: a **robust** failure (the method is wrong on this scene);
-- ``k > 0``: a **phase-dependent** failure (:data:`PHASE_DEPENDENT_MEANING`).
+- **phase-dependent** when some phase of its own scene passes
+  (:data:`PHASE_DEPENDENT_MEANING`);
+- **depends on open** when only another value of an open parameter passes;
+- **robust** when no completed run passes (the method is wrong on this scene);
+- **unchecked** when no run completed.
 
 A passing image is never re-run, and nothing of the generator is imported while nothing
 fails. The pipeline is the run's own adapter (an external command keeps its limits and
@@ -20,9 +27,10 @@ import argparse
 import math
 import shutil
 import tempfile
+from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from concurrent.futures import ThreadPoolExecutor
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -39,6 +47,7 @@ from .results import (
     ImageResult,
     PhaseResult,
     Prediction,
+    VariantResult,
 )
 
 #: Phases a check renders by default.
@@ -93,8 +102,10 @@ def add_phase_check_argument(parser: argparse.ArgumentParser) -> None:
     parser.add_argument(
         "--phase-check", type=parse_phase_check, default="auto", metavar="N|off|auto",
         help=f"re-render each failing image's scene with the boxes moved by N sub-pixel "
-        f"amounts and re-run the pipeline: a failure that passes at none is 'robust', one that "
-        f"passes at some 'phase-dependent' (luck). auto (default): {DEFAULT_PHASES} phases on "
+        f"amounts and re-run the pipeline: a failure that passes at some is 'phase-dependent' "
+        f"(luck); one that passes at none is re-run under the other values of the preset's "
+        f"open parameters: 'depends-on-open' when one passes, else 'robust'; runs that crash, "
+        f"time out or hit a limit do not count. auto (default): {DEFAULT_PHASES} phases on "
         f"{', '.join(sorted(DEFAULT_ON_PRESETS))} scenes, off otherwise",
     )
 
@@ -182,37 +193,128 @@ class PhaseImage:
     gt: GroundTruth
 
 
-def _encode(bgr: np.ndarray, suffix: str, *, preset: str | None,
-            quality: int | None = None) -> bytes:
-    """Encode a phase image as the dataset's writer encodes the scene's preset (PNG, or JPEG at
-    ``quality``: the original image's, else the built-in preset's ``output.jpeg_quality``)."""
-    from arenabench.imageio import IMAGE_EXTENSIONS, encode_image
+@dataclass(frozen=True)
+class SceneSource:
+    """What re-making a set's scenes needs: the preset they were drawn from and the ``--set``
+    values (a set's ``dataset.json``: :func:`dataset_scene_source`; a sweep point's task).
 
-    ext = suffix.lower().lstrip(".")
-    image_format = next((f for f, e in IMAGE_EXTENSIONS.items() if ext in (e, f)), None)
-    if image_format is None:
-        raise ValueError(f"cannot encode an image as {suffix!r}")
-    if quality is not None:
-        return encode_image(bgr, image_format=image_format, jpeg_quality=quality)
-    quality = 95
-    if image_format == "jpeg" and preset:
-        from arenabench.generator.presets import get_preset
+    Attributes
+    ----------
+    preset : ResolvedPreset
+        The preset (its ``open`` entries are the parameters the evidence leaves open).
+    overrides : dict
+        The ``--set`` values the scenes were drawn with.
+    """
+
+    preset: Any
+    overrides: dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def open(self) -> dict[str, Any]:
+        """The preset's open parameters: name -> OpenParam."""
+        return dict(getattr(self.preset, "open", None) or {})
+
+    def output(self) -> Any:
+        """How the set's images are encoded (:class:`arenabench.generator.make.ImageFormat`)."""
+        from arenabench.generator.make import ImageFormat
+
+        return ImageFormat.of_preset(self.preset, self.overrides)
+
+    def sample(self, gt: GroundTruth, change: dict[str, Any] | None = None) -> Any:
+        """Scene ``gt.index`` of the run drawn again (``change``: open parameters set to
+        other values; every other draw is the same, each parameter having its own random
+        stream): a :class:`~arenabench.generator.sampler.SampledScene`."""
+        from arenabench.generator.sampler import sample_scene
+
+        return sample_scene(self.preset, seed=gt.seed, index=gt.index,
+                            overrides={**self.overrides, **(change or {})})
+
+    def reproduces(self, gt: GroundTruth) -> bool:
+        """Whether drawing scene ``gt.index`` again gives ``gt``'s scene (then its open
+        parameters can be varied)."""
+        from arenabench.fileio import rounded
 
         try:
-            quality = int(get_preset(preset).get("output.jpeg_quality", quality))
-        except ValueError:  # a preset this version does not know: cv2.imwrite's default
-            pass
-    return encode_image(bgr, image_format=image_format, jpeg_quality=quality)
+            again = self.sample(gt)
+        except Exception:
+            return False
+        return rounded(again.scene.to_dict()) == gt.to_dict()["scene"]
 
 
-def render_phases(gt: GroundTruth, *, phases: int, folder: Path, suffix: str = ".png",
-                  renderer: Any = None, jpeg_quality: int | None = None
+def dataset_scene_source(root: str | Path, doc: Any) -> SceneSource | None:
+    """The :class:`SceneSource` of a set from its ``dataset.json`` content ``doc``
+    (``preset_definition`` and ``args.overrides``); ``None`` when it records none."""
+    from arenabench.generator.param_values import parse_override
+    from arenabench.generator.preset_files import preset_from_document
+
+    if not isinstance(doc, dict) or not isinstance(doc.get("preset_definition"), dict):
+        return None
+    path = Path(root) / "dataset.json"
+    try:
+        preset = preset_from_document(doc["preset_definition"], where=str(path),
+                                      base=Path(root), source=path)
+        stored = (doc.get("args") or {}).get("overrides") or {}
+        overrides = dict(parse_override(f"{k}={v}") for k, v in stored.items())
+    except ValueError as exc:
+        _warn(f"phase check: {path}: its preset cannot be read again ({exc}): open "
+              "parameters are not varied")
+        return None
+    return SceneSource(preset=preset, overrides=overrides)
+
+
+@dataclass(frozen=True)
+class Variant:
+    """One open parameter set to another value the evidence allows (``param=value``)."""
+
+    param: str
+    value: Any
+
+    def text(self) -> str:
+        """``lighting.east_fill=0.3``."""
+        return f"{self.param}={self.value:g}" if isinstance(self.value, float) else (
+            f"{self.param}={self.value}")
+
+
+def open_variants(source: SceneSource, gt: GroundTruth) -> list[Variant]:
+    """The other values the preset's open parameters allow for ``gt``'s scene, one parameter
+    at a time: a range's ends, or each listed value, other than the scene's own value."""
+    from arenabench.generator.params import PARAMETERS, Range
+    from arenabench.generator.presets import resolve
+
+    if not source.open:
+        return []
+    params = resolve(source.preset, source.overrides)
+    out = []
+    for name, entry in source.open.items():
+        own = params.get(name)
+        if isinstance(own, Range):  # drawn per scene: the GT records the value
+            own = (gt.params or {}).get(name)
+        if entry.range is not None:
+            candidates = [entry.range.lo, entry.range.hi]
+            if PARAMETERS[name].kind == "int":
+                candidates = [round(v) for v in candidates]
+        else:
+            candidates = list(entry.values or ())
+        for value in dict.fromkeys(candidates):
+            same = (isinstance(value, (int, float)) and isinstance(own, (int, float))
+                    and math.isclose(float(value), float(own), abs_tol=1e-9))
+            if not same and value != own:
+                out.append(Variant(name, value))
+    return out
+
+
+def render_phases(gt: GroundTruth, *, phases: int, folder: Path, output: Any = None,
+                  renderer: Any = None, scene: Any = None,
+                  params: dict[str, Any] | None = None,
+                  offsets: Sequence[tuple[float, float]] | None = None,
                   ) -> Iterator[PhaseImage]:
     """Render the scene of ``gt`` at ``phases`` sub-pixel offsets into ``folder``
     (:func:`phase_offsets`, each box rotated by :func:`box_offsets`).
 
-    The image goes through the scene's own degradations (GT ``params``, the scene's noise
-    stream) like the original; each phase's GT is computed from its moved scene.
+    Each image is made by the generator's one image recipe
+    (:func:`arenabench.generator.make.scene_image`: render, the scene's own degradations with
+    its noise stream, encoding, GT), as the set's own image was; each phase's GT is computed
+    from its moved scene.
 
     Parameters
     ----------
@@ -221,64 +323,71 @@ def render_phases(gt: GroundTruth, *, phases: int, folder: Path, suffix: str = "
     phases : int, keyword-only
         Number of offsets (:func:`phase_offsets`).
     folder : Path, keyword-only
-        Where the images are written (``phase-NN`` + ``suffix``).
-    suffix : str, keyword-only
-        Image file type, that of the original image.
+        Where the images are written (``phase-NN`` + the format's extension).
+    output : ImageFormat, keyword-only
+        How the set's images are encoded (:meth:`SceneSource.output`); default PNG.
     renderer : SceneRenderer, keyword-only
         Default: this thread's :func:`arenabench.generator.make.worker_renderer`.
-    jpeg_quality : int, keyword-only
-        The original JPEG's quality (:func:`original_jpeg_quality`); default: the built-in
-        preset's.
+    scene, params : keyword-only
+        Another scene of the image (an open parameter's variant) and its drawn parameters;
+        default: ``gt``'s own.
+    offsets : sequence of (dx, dy), keyword-only
+        The offsets instead of :func:`phase_offsets` (``[(0, 0)]``: the scene unmoved).
     """
-    import cv2
-
     from arenabench.fileio import rounded
-    from arenabench.generator.degrade import Degradations, apply_degradations
-    from arenabench.generator.make import degrade_rng, ground_truth_record, worker_renderer
+    from arenabench.generator.make import ImageFormat, scene_image, worker_renderer
     from arenabench.generator.scene import Scene
 
     if gt.scene is None:
         raise ValueError(f"GT {gt.id!r} holds no scene: cannot re-render it")
-    scene = Scene.from_dict(gt.to_dict()["scene"])
+    if scene is None:
+        scene = Scene.from_dict(gt.to_dict()["scene"])
+        params = dict(gt.params or {})
+    output = output or ImageFormat()
     renderer = renderer or worker_renderer()
-    params = dict(gt.params or {})
-    degradations = Degradations.from_params(params)
     frame = None
     if gt.frame is not None and gt.frame.size:
         from arenabench.frame import FrameSpec
 
         frame = FrameSpec(size=int(gt.frame.size[0]), corners=gt.frame.corners or "inner")
-    sampled = {k: v for k, v in params.items() if not k.startswith("derived.")}
-    for i, offset in enumerate(phase_offsets(phases)):
-        offsets = box_offsets(offset, len(scene.obstacles))
-        moved = Scene.from_dict(rounded(shifted_scene(scene, offsets).to_dict()))
-        rgb = renderer.render(moved).rgb
-        if not degradations.is_neutral:
-            rgb = apply_degradations(rgb, degradations, degrade_rng(gt.seed, gt.index))
-        path = folder / f"phase-{i:02d}{suffix}"
-        path.write_bytes(_encode(cv2.cvtColor(rgb, cv2.COLOR_RGB2BGR), suffix,
-                                 preset=gt.preset, quality=jpeg_quality))
-        record = ground_truth_record(moved, sid=gt.id, preset=gt.preset, seed=gt.seed,
-                                     index=gt.index, params=sampled, frame=frame)
-        yield PhaseImage(path=path, gt=record)
+    for i, offset in enumerate(phase_offsets(phases) if offsets is None else offsets):
+        shift = box_offsets(offset, len(scene.obstacles))
+        moved = (scene if not any(offset) else
+                 Scene.from_dict(rounded(shifted_scene(scene, shift).to_dict())))
+        made = scene_image(moved, sid=gt.id, preset=gt.preset, seed=gt.seed, index=gt.index,
+                           params=params or {}, renderer=renderer, output=output,
+                           overrides=dict(gt.overrides or {}), frame=frame)
+        path = folder / f"phase-{i:02d}.{output.ext}"
+        path.write_bytes(made.image_bytes)
+        yield PhaseImage(path=path, gt=made.record)
 
 
 # ------------------------------------------------------------------------------ the check
 
-def original_jpeg_quality(image: str | Path) -> int | None:
-    """The quality the JPEG file ``image`` was written at (its tables,
-    :func:`arenabench.imageio.jpeg_quality`); ``None`` for another file or none found."""
+#: Statuses of a run that did not complete (the program crashed, ran out of time or hit a
+#: limit): not a failed run, it says nothing of the answer; the label counts completed runs.
+NOT_COMPLETED = ("crash", "timeout", "limit")
+
+
+def original_output(image: str | Path) -> Any:
+    """How the file ``image`` is encoded, read from the file itself (a JPEG's quality and
+    chroma subsampling from its tables): what the check uses when the set records no preset.
+    """
     from arenabench.fileio import open_regular
-    from arenabench.imageio import ImageLoadError, jpeg_quality
+    from arenabench.generator.make import ImageFormat
+    from arenabench.imageio import JPEG_SUBSAMPLINGS, ImageLoadError, jpeg_settings
 
     if Path(image).suffix.lower() not in (".jpg", ".jpeg"):
-        return None
+        return ImageFormat()
     try:
         with open_regular(image) as fh:
             head = fh.read(1 << 20)  # the tables come before the scan
-        return jpeg_quality(head)
+        found = jpeg_settings(head)
     except (OSError, ImageLoadError):
-        return None
+        return ImageFormat("jpeg")
+    return ImageFormat("jpeg", jpeg_quality=found.quality or 95,
+                       jpeg_subsampling=(found.subsampling if found.subsampling
+                                         in JPEG_SUBSAMPLINGS else "420"))
 
 
 def checked(result: ImageResult) -> bool:
@@ -293,6 +402,25 @@ def unchecked_text() -> str:
     return ", ".join(c for c in CATEGORIES if c not in CHECKED_CATEGORIES)
 
 
+@dataclass
+class _Tally:
+    runs: int = 0
+    completed: int = 0
+    passes: int = 0
+    first_error: str = ""
+
+    def add(self, prediction: Prediction | None, passed: bool, error: str = "") -> None:
+        self.runs += 1
+        if prediction is None or prediction.status in NOT_COMPLETED:
+            message = error or (prediction.message if prediction is not None else "")
+            line = ((message or "").strip().splitlines() or [""])[0]
+            status = prediction.status if prediction is not None else "harness error"
+            self.first_error = self.first_error or f"{status}: {line}"[:300]
+            return
+        self.completed += 1
+        self.passes += passed
+
+
 def check_phases(
     results: Sequence[ImageResult],
     gts: Sequence[GroundTruth],
@@ -303,10 +431,17 @@ def check_phases(
     area_reference: str,
     workers: int = 1,
     renderer: Any = None,
+    source: SceneSource | None = None,
     on_image: Callable[[], None] | None = None,
     stop: Callable[[], None] | None = None,
 ) -> list[ImageResult]:
     """``results`` with :class:`PhaseResult` added to each failing image (``phase``).
+
+    A failing image is re-run at ``phases`` sub-pixel phases of its scene; when none of those
+    runs passes, again at the same phases under each other value the preset's open
+    parameters allow (:func:`open_variants`), one parameter at a time. A run that does not
+    complete (:data:`NOT_COMPLETED`, a harness error, a scene that cannot be re-rendered) is
+    counted as tried, not as failed.
 
     Parameters
     ----------
@@ -318,13 +453,16 @@ def check_phases(
         The run's pipeline: image path -> :class:`Prediction` (never raises for the
         pipeline's own failures).
     phases : int, keyword-only
-        Phases per failing image; 0 returns ``results`` unchanged.
+        Phases per failing image (and per open variant); 0 returns ``results`` unchanged.
     tolerance, area_reference : keyword-only
         The run's scoring settings.
     workers : int, keyword-only
         Pipeline runs in parallel (renders happen in the calling thread, one after another).
     renderer : SceneRenderer, keyword-only
         Default: this thread's reused renderer.
+    source : SceneSource, keyword-only
+        The set's preset and ``--set`` values: the images' encoding and the open parameters
+        to vary. ``None``: each image encoded as its file is, no open parameter varied.
     on_image : callable, keyword-only
         Called after each failing image is checked (progress).
     stop : callable, keyword-only
@@ -338,8 +476,6 @@ def check_phases(
         Passing images untouched; failing images with ``phase`` set when
         :func:`checked` (any other failure keeps ``phase=None``).
     """
-    from arenabench.eval.datasets.reader import DatasetItem
-
     if len(results) != len(gts):
         raise ValueError(f"results and gts must have the same length, got {len(results)} "
                          f"and {len(gts)}")
@@ -351,36 +487,15 @@ def check_phases(
 
     tmp = tempfile.mkdtemp(prefix=owned_dir_prefix("arenabench-phase-"))
     pool = ThreadPoolExecutor(max_workers=max(1, workers), thread_name_prefix="arenabench-phase")
+    job = _Job(pool=pool, run=run, phases=phases, tolerance=tolerance,
+               area_reference=area_reference, renderer=renderer, source=source)
     try:
         try:
             for i in failing:
                 checkpoint()  # a stop signal a library swallowed
                 folder = Path(tmp, f"{i:06d}")
                 folder.mkdir()
-                suffix = Path(results[i].image).suffix or ".png"
-                pending = []
-                try:
-                    for image in render_phases(gts[i], phases=phases, folder=folder,
-                                               suffix=suffix, renderer=renderer,
-                                               jpeg_quality=original_jpeg_quality(
-                                                   results[i].image)):
-                        pending.append((image, pool.submit(_safe_run, run, image.path)))
-                except Exception as exc:  # a scene that cannot be re-rendered stays unchecked
-                    _warn(f"phase check of {results[i].id} skipped: {type(exc).__name__}: {exc}")
-                    for _, fut in pending:
-                        fut.cancel()
-                    pending = []
-                passes = 0
-                for image, fut in pending:
-                    if fut.cancelled():
-                        continue
-                    item = DatasetItem(id=results[i].id, image_path=image.path,
-                                       gt_path=image.path, gt=image.gt)
-                    scored = score_sample(item, fut.result(), tolerance=tolerance,
-                                          area_reference=area_reference)
-                    passes += scored.passed
-                if pending:
-                    out[i] = replace(results[i], phase=PhaseResult(passes=passes, n=phases))
+                out[i] = replace(results[i], phase=job.check(results[i], gts[i], folder))
                 shutil.rmtree(folder, ignore_errors=True)
                 if on_image is not None:
                     on_image()
@@ -395,19 +510,93 @@ def check_phases(
     return out
 
 
+@dataclass
+class _Job:
+    """The check of one run's failing images (its pool, pipeline and settings)."""
+
+    pool: ThreadPoolExecutor
+    run: Callable[[Path], Prediction]
+    phases: int
+    tolerance: float
+    area_reference: str
+    renderer: Any
+    source: SceneSource | None
+
+    def check(self, result: ImageResult, gt: GroundTruth, folder: Path) -> PhaseResult:
+        output = (self.source.output() if self.source is not None
+                  else original_output(result.image))
+        own = _Tally()
+        self._runs(own, result, gt, folder / "own", output=output)
+        variants: list[tuple[Variant, _Tally]] = []
+        if own.passes == 0 and self.source is not None and self.source.open:
+            todo = open_variants(self.source, gt)
+            if todo and not self.source.reproduces(gt):
+                _warn(f"phase check of {result.id}: its scene is not drawn again from the "
+                      "set's preset: open parameters are not varied")
+                todo = []
+            for k, variant in enumerate(todo):
+                tally = _Tally()
+                try:
+                    sampled = self.source.sample(gt, {variant.param: variant.value})
+                except Exception as exc:
+                    for _ in range(self.phases):
+                        tally.add(None, False, f"{type(exc).__name__}: {exc}")
+                else:
+                    self._runs(tally, result, gt, folder / f"open-{k:02d}", output=output,
+                               scene=sampled.scene, params=sampled.params)
+                variants.append((variant, tally))
+        return PhaseResult(
+            phases=self.phases, runs=own.runs, completed=own.completed, passes=own.passes,
+            variants=tuple(VariantResult(v.param, v.value, t.runs, t.completed, t.passes)
+                           for v, t in variants),
+            first_error=own.first_error or next((t.first_error for _, t in variants
+                                                 if t.first_error), ""))
+
+    def _runs(self, tally: _Tally, result: ImageResult, gt: GroundTruth, folder: Path, *,
+              output: Any, scene: Any = None, params: dict[str, Any] | None = None) -> None:
+        """Render the phases of one scene, run the pipeline on each, add them to ``tally``."""
+        from arenabench.eval.datasets.reader import DatasetItem
+
+        folder.mkdir()
+        pending = []
+        error = ""
+        try:
+            for image in render_phases(gt, phases=self.phases, folder=folder, output=output,
+                                       renderer=self.renderer, scene=scene, params=params):
+                pending.append((image, self.pool.submit(_safe_run, self.run, image.path)))
+        except Exception as exc:
+            error = f"{type(exc).__name__}: {exc}"
+            _warn(f"phase check of {result.id}: cannot re-render it: {error}")
+        for image, fut in pending:
+            prediction, harness = fut.result()
+            if prediction is None:
+                tally.add(None, False, harness)
+                continue
+            item = DatasetItem(id=result.id, image_path=image.path, gt_path=image.path,
+                               gt=image.gt)
+            scored = score_sample(item, prediction, tolerance=self.tolerance,
+                                  area_reference=self.area_reference)
+            tally.add(prediction, scored.passed)
+        for _ in range(self.phases - len(pending)):  # phases never rendered
+            tally.add(None, False, error)
+
+
 def _warn(message: str) -> None:
     import sys
 
     print(f"arenabench: warning: {message}", file=sys.stderr)
 
 
-def _safe_run(run: Callable[[Path], Prediction], path: Path) -> Prediction:
+def _safe_run(run: Callable[[Path], Prediction], path: Path
+              ) -> tuple[Prediction | None, str]:
+    """The run's prediction, or ``(None, message)`` for the harness's own failure (a run that
+    did not complete, not a failed one)."""
     try:
-        return run(path)
-    except HarnessError:  # the harness's own failure: the check stops, nothing is scored
-        raise
+        return run(path), ""
+    except HarnessError as exc:
+        return None, f"HarnessError: {exc}"
     except Exception as exc:  # the harness never dies from a bad pipeline
-        return Prediction(status="crash", message=f"{type(exc).__name__}: {exc}")
+        return Prediction(status="crash", message=f"{type(exc).__name__}: {exc}"), ""
 
 
 # ------------------------------------------------------------------------------ summaries
@@ -420,26 +609,54 @@ def phase_summary(results: Sequence[ImageResult]) -> dict[str, Any]:
     dict
         ``robust_failure_rate`` and ``phase_dependent_failure_rate`` (fractions of all
         images; ``None`` when no image was phase-checked) and ``phase_check``: ``phases``
-        (N), ``checked``, ``robust``, ``phase_dependent``, ``unchecked`` (failing images not
-        checked: the categories outside :data:`CHECKED_CATEGORIES`) (image counts),
-        ``meaning`` (one sentence); ``None`` when no image was phase-checked.
+        (N), ``checked``, ``robust``, ``phase_dependent``, ``depends_on_open`` (image counts
+        by label), ``depends_on`` (open parameter -> images whose verdict rests on it),
+        ``none_completed`` (checked images none of whose runs completed: labelled
+        ``unchecked``), ``unchecked`` (failing images not checked: the categories outside
+        :data:`CHECKED_CATEGORIES`), ``runs`` and ``not_completed`` (runs tried, and those
+        that crashed, timed out, hit a limit or met a harness error), ``meaning`` (one
+        sentence); ``None`` when no image was phase-checked.
     """
     checked = [r.phase for r in results if r.phase is not None]
     if not checked:
         return {"robust_failure_rate": None, "phase_dependent_failure_rate": None,
                 "phase_check": None}
     n = len(results)
-    robust = sum(1 for p in checked if p.label == "robust")
-    dependent = len(checked) - robust
+    labels = Counter(p.label for p in checked)
+    depends = Counter(name for p in checked if p.label == "depends_on_open"
+                      for name in p.depends_on)
+    runs = sum(p.total_runs for p in checked)
     return {
-        "robust_failure_rate": robust / n,
-        "phase_dependent_failure_rate": dependent / n,
+        "robust_failure_rate": labels["robust"] / n,
+        "phase_dependent_failure_rate": labels["phase_dependent"] / n,
         "phase_check": {"phases": max(p.n for p in checked), "checked": len(checked),
-                        "robust": robust, "phase_dependent": dependent,
+                        "robust": labels["robust"],
+                        "phase_dependent": labels["phase_dependent"],
+                        "depends_on_open": labels["depends_on_open"],
+                        "depends_on": dict(sorted(depends.items())),
+                        "none_completed": labels["unchecked"],
                         "unchecked": sum(1 for r in results
                                          if not r.passed and r.phase is None),
+                        "runs": runs,
+                        "not_completed": runs - sum(p.total_completed for p in checked),
                         "meaning": PHASE_DEPENDENT_MEANING},
     }
+
+
+def verdict_words(pc: dict[str, Any]) -> list[str]:
+    """The phase check's findings beyond robust and phase-dependent, as short clauses for a
+    summary line (empty when there are none): images whose verdict rests on an open
+    parameter, images none of whose runs completed, runs that did not complete."""
+    out = []
+    if pc.get("depends_on_open"):
+        names = ", ".join(f"{k} {v}" for k, v in (pc.get("depends_on") or {}).items())
+        out.append(f"depends on open parameters: {pc['depends_on_open']} ({names})")
+    if pc.get("none_completed"):
+        out.append(f"unchecked (no run completed): {pc['none_completed']}")
+    if pc.get("not_completed"):
+        out.append(f"{pc['not_completed']} of {pc.get('runs', 0)} phase runs did not complete "
+                   "(crash, timeout, limit or harness error; not counted as failures)")
+    return out
 
 
 def rate_text(value: float | None) -> str:

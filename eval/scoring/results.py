@@ -470,38 +470,163 @@ class Report:
         )
 
 
+#: The phase check's labels of a failing image (docs/phase-check.md), in the order reports
+#: list them: ``robust`` (fails under every phase and open-parameter variant that completed),
+#: ``phase_dependent`` (passes at some sub-pixel phase), ``depends_on_open`` (fails at every
+#: phase but passes when an open parameter of the preset takes another allowed value: the
+#: verdict rests on what the evidence does not pin), ``unchecked`` (no run completed).
+PHASE_LABELS: tuple[str, ...] = ("robust", "phase_dependent", "depends_on_open", "unchecked")
+
+
+def _counts(runs: int, completed: int, passes: int, what: str) -> None:
+    if not 0 <= passes <= completed <= runs:
+        raise ValueError(f"{what}: need 0 <= passes <= completed <= runs, got passes={passes}, "
+                         f"completed={completed}, runs={runs}")
+
+
+@dataclass(frozen=True)
+class VariantResult:
+    """The runs of a failing image with one open parameter at another value.
+
+    Attributes
+    ----------
+    param : str
+        The open parameter (``lighting.east_fill``).
+    value : Any
+        The value it was given.
+    runs, completed, passes : int
+        Runs tried (one per phase), completed (not a crash, timeout or limit) and passed.
+    """
+
+    param: str
+    value: Any
+    runs: int
+    completed: int
+    passes: int
+
+    def __post_init__(self) -> None:
+        _counts(self.runs, self.completed, self.passes, f"variant {self.param}")
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON form (an entry of a phase record's ``open``)."""
+        return {"param": self.param, "value": self.value, "runs": self.runs,
+                "completed": self.completed, "passes": self.passes}
+
+    @classmethod
+    def from_dict(cls, d: dict[str, Any]) -> VariantResult:
+        """Inverse of :meth:`to_dict`."""
+        return cls(param=str(d["param"]), value=d["value"], runs=int(d["runs"]),
+                   completed=int(d["completed"]), passes=int(d["passes"]))
+
+
 @dataclass(frozen=True)
 class PhaseResult:
     """What the phase check found for one failing image.
 
     Parameters
     ----------
-    passes : int
-        Phases at which the pipeline passed (``k``).
-    n : int
-        Phases tried (``N``).
+    phases : int
+        Sub-pixel phases per scene (``N``).
+    runs, completed, passes : int
+        Runs of the image's own scene: tried (``N``), completed (a run that crashed, timed
+        out, hit a limit or met a harness error did not complete: it is not a failed run) and
+        passed.
+    variants : tuple of VariantResult
+        The runs under each other value of the preset's open parameters (tried only when no
+        run of the own scene passed).
+    first_error : str
+        The first line of the first run that did not complete (``""``: all completed).
     """
 
+    phases: int
+    runs: int
+    completed: int
     passes: int
-    n: int
+    variants: tuple[VariantResult, ...] = ()
+    first_error: str = ""
 
     def __post_init__(self) -> None:
-        if not 0 <= self.passes <= self.n or self.n < 1:
-            raise ValueError(f"need 0 <= passes <= n and n >= 1, got {self.passes}/{self.n}")
+        if self.phases < 1:
+            raise ValueError(f"phases must be >= 1, got {self.phases}")
+        _counts(self.runs, self.completed, self.passes, "phase check")
+
+    @property
+    def n(self) -> int:
+        """Phases per scene (``N``)."""
+        return self.phases
+
+    @property
+    def total_runs(self) -> int:
+        """Runs tried, open variants included."""
+        return self.runs + sum(v.runs for v in self.variants)
+
+    @property
+    def total_completed(self) -> int:
+        """Runs that completed, open variants included."""
+        return self.completed + sum(v.completed for v in self.variants)
+
+    @property
+    def total_passes(self) -> int:
+        """Runs that passed, open variants included."""
+        return self.passes + sum(v.passes for v in self.variants)
+
+    @property
+    def depends_on(self) -> tuple[str, ...]:
+        """The open parameters under whose other values some run passed."""
+        return tuple(dict.fromkeys(v.param for v in self.variants if v.passes))
 
     @property
     def label(self) -> str:
-        """``"robust"`` (no phase passes) or ``"phase_dependent"``."""
-        return "robust" if self.passes == 0 else "phase_dependent"
+        """One of :data:`PHASE_LABELS`, over completed runs only."""
+        if self.total_completed == 0:
+            return "unchecked"
+        if self.passes:
+            return "phase_dependent"
+        if self.depends_on:
+            return "depends_on_open"
+        return "robust"
+
+    def text(self) -> str:
+        """What reports print: ``3/8 phase-dependent``, ``0/24 robust``, ``0/8 depends on
+        open lighting.east_fill``, ``0/0 unchecked (8 runs did not complete)``."""
+        label = self.label
+        words = ("depends on open " + ", ".join(self.depends_on)
+                 if label == "depends_on_open" else label.replace("_", "-"))
+        passes = self.passes if label == "phase_dependent" else self.total_passes
+        done = self.completed if label == "phase_dependent" else self.total_completed
+        missing = self.total_runs - self.total_completed
+        return f"{passes}/{done} {words}" + (
+            f" ({missing} of {self.total_runs} runs did not complete)" if missing else "")
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON form (the ``phase`` object of a ``report.json`` image)."""
-        return {"passes": self.passes, "n": self.n, "class": self.label}
+        """JSON form (the ``phase`` object of a ``report.json`` image): ``runs``,
+        ``completed``, ``passes`` (every run, open variants included), ``class``, ``phases``,
+        and when there are some ``open`` (the variants), ``depends_on`` and ``first_error``.
+        """
+        out: dict[str, Any] = {"runs": self.total_runs, "completed": self.total_completed,
+                               "passes": self.total_passes, "class": self.label,
+                               "phases": self.phases}
+        if self.variants:
+            out["open"] = [v.to_dict() for v in self.variants]
+        if self.depends_on:
+            out["depends_on"] = list(self.depends_on)
+        if self.first_error:
+            out["first_error"] = self.first_error
+        return out
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> PhaseResult:
-        """Inverse of :meth:`to_dict`."""
-        return cls(passes=int(d["passes"]), n=int(d["n"]))
+        """Inverse of :meth:`to_dict` (a record of ``passes`` and ``n`` only, as earlier
+        reports wrote, reads as ``n`` completed runs)."""
+        if "runs" not in d:
+            n = int(d["n"])
+            return cls(phases=n, runs=n, completed=n, passes=int(d["passes"]))
+        variants = tuple(VariantResult.from_dict(v) for v in d.get("open") or [])
+        return cls(phases=int(d["phases"]),
+                   runs=int(d["runs"]) - sum(v.runs for v in variants),
+                   completed=int(d["completed"]) - sum(v.completed for v in variants),
+                   passes=int(d["passes"]) - sum(v.passes for v in variants),
+                   variants=variants, first_error=str(d.get("first_error", "")))
 
 
 @dataclass(frozen=True)

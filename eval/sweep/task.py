@@ -20,7 +20,7 @@ from arenabench import workers
 from arenabench.eval.datasets.reader import DatasetItem
 from arenabench.eval.runs import owned_dir_prefix
 from arenabench.eval.scoring.results import Prediction
-from arenabench.imageio import IMAGE_EXTENSIONS, decode_image, encode_image
+from arenabench.imageio import decode_image
 from arenabench.interrupts import worker_task
 
 from ..scoring.metrics import score_sample
@@ -46,31 +46,34 @@ def image_name(point: int, scene: int) -> str:
 
 
 def _predict(spec: PipelineSpec, bgr: Any, image: list[bytes], tmp: list[str],
-             output: dict[str, Any]) -> Prediction:
+             sample: Any) -> Prediction:
     pipe = _pipeline(spec)
     if spec.in_memory and hasattr(pipe, "run_image"):
         return pipe.run_image(bgr)
     # external commands read a file: write the image once per sample, only now
-    name = f"image.{IMAGE_EXTENSIONS[output['image_format']]}"
+    name = f"image.{sample.output.ext}"
     if not tmp:
         tmp.append(tempfile.mkdtemp(prefix=owned_dir_prefix("arenabench-sweep-")))
         if not image:
-            image.append(encode_image(bgr, **output))
+            image.append(sample.image_bytes)
         Path(tmp[0], name).write_bytes(image[0])
     return pipe.run(Path(tmp[0], name))
 
 
 def _check_phases(task: SweepTask, gt: Any, results: list[Any], *, renderer: Any) -> None:
     """The phase check of each failing pipeline result, in place (the worker's renderer)."""
-    from arenabench.eval.scoring.phase_check import check_phases
+    from arenabench.eval.scoring.phase_check import SceneSource, check_phases
+    from arenabench.generator.presets import resolve_preset
 
+    source = SceneSource(resolve_preset(task.preset), dict(task.overrides))
     for k, (spec, result) in enumerate(zip(task.pipelines, results, strict=True)):
         if not result.passed:
             pipe = _pipeline(spec)
             results[k] = check_phases([result], [gt], pipe.run, phases=task.phases,
                                       tolerance=task.tolerance,
                                       area_reference=task.area_reference,
-                                      renderer=renderer, stop=getattr(pipe, "stop", None))[0]
+                                      renderer=renderer, source=source,
+                                      stop=getattr(pipe, "stop", None))[0]
 
 
 def run_task(task: SweepTask) -> dict[str, Any]:
@@ -118,17 +121,12 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
         out["error"] = f"SamplingError: {exc}"
         return out
     out["timings_ms"] = dict(sample.timings_ms)
-    from arenabench.generator.presets import resolve
-
-    params_out = resolve(task.preset, task.overrides)
-    output = {"image_format": params_out["output.format"],
-              "jpeg_quality": params_out["output.jpeg_quality"]}
     bgr = sample.bgr
     image: list[bytes] = []
-    if output["image_format"] != "png":  # pipelines see the file `generate` would write
-        image.append(encode_image(bgr, **output))
+    if sample.output.image_format != "png":  # pipelines see the file `generate` would write
+        image.append(sample.image_bytes)
         bgr = decode_image(image[0])
-    ext = IMAGE_EXTENSIONS[output["image_format"]]
+    ext = sample.output.ext
     gt = sample.record
     params = gt.params or {}
     flat = {k: float(v) for k, v in params.items()
@@ -140,7 +138,7 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
     any_failed = False
     try:
         for spec in task.pipelines:
-            pred = _predict(spec, bgr, image, tmp, output)
+            pred = _predict(spec, bgr, image, tmp, sample)
             result = score_sample(scored, pred, tolerance=task.tolerance,
                                   area_reference=task.area_reference)
             any_failed |= not result.passed
@@ -159,7 +157,7 @@ def _run_task(task: SweepTask) -> dict[str, Any]:
                      "scene": task.scene, "index": task.index})
     out["results"] = rows
     if keep:
-        out["image"] = image[0] if image else encode_image(bgr, **output)
+        out["image"] = sample.image_bytes
         out["image_ext"] = ext
         out["gt"] = gt.to_dict()
     return out
