@@ -2,9 +2,11 @@
 and grades. One room per job:
 
 - ``evaluation``: the evaluation loop (:func:`evaluate`, :func:`score`);
+- ``phase_check``: a failing image re-run across sub-pixel phases and the open parameters of
+  its preset, and labelled (robust, phase-dependent, depends on open, unchecked);
 - ``pipelines``: the pipeline interface and the in-process kinds (built-in, a callable);
 - ``scoring/``: what an answer scores, and what a set of scores says (records, metrics, the
-  metric registry, gates, comparisons, breakdowns and causes, the phase check);
+  metric registry, gates, comparisons, breakdowns and causes);
 - ``runs/``: running a pipeline anywhere but in this process (external commands cold and warm,
   the sandbox, limits, run slots, interpreters, isolated callables, what an answer becomes);
 - ``datasets/``: reading and checking a dataset (and results kept on disk for big sets);

@@ -121,7 +121,7 @@ def build_report(
     phase keys. ``images``: the full per-image results when ``results`` are compact ones
     (:func:`arenabench.eval.datasets.result_store.compact_result`, same order). ``manifest_sha256``:
     the dataset's (:meth:`~arenabench.eval.datasets.reader.Dataset.manifest_sha256`)."""
-    from arenabench.eval.scoring.phase_check import phase_summary
+    from arenabench.eval.phase_check import phase_summary
 
     summary = summarize([r.score for r in results], [r.prediction for r in results])
     return Report(
@@ -180,7 +180,7 @@ def evaluate(
     limit : int, optional
         Evaluate only the first ``limit`` images.
     phases : int
-        Phase check (:mod:`arenabench.eval.scoring.phase_check`): re-render each failing image's
+        Phase check (:mod:`arenabench.eval.phase_check`): re-render each failing image's
         scene at this many sub-pixel offsets and re-run the pipeline on each; 0 = off.
     isolate : bool
         Run a ``"pkg.module:function"`` pipeline in killable child processes
@@ -367,7 +367,7 @@ def _check_phases(results: list[ImageResult], data: Dataset, pipe: Pipeline,
                   *, phases: int, tolerance: float, area_reference: str, workers: int,
                   progress: bool) -> list[ImageResult]:
     """The phase check of a run's failing images (docs/phase-check.md)."""
-    from arenabench.eval.scoring.phase_check import check_phases, checked, dataset_scene_source
+    from arenabench.eval.phase_check import check_phases, checked, dataset_scene_source
     from arenabench.progress import progress as progress_bar
 
     failing = sum(1 for r in results if checked(r))

@@ -26,8 +26,8 @@ from arenabench.eval.grade.leaderboard import (
 )
 from arenabench.eval.grade.submissions import submission_hash
 from arenabench.eval.grade.teams import team_command
+from arenabench.eval.phase_check import DEFAULT_PHASES
 from arenabench.eval.runs import CommandPipeline
-from arenabench.eval.scoring.phase_check import DEFAULT_PHASES
 from arenabench.eval.scoring.results import Summary
 
 TEAMS_SRC = Path(__file__).resolve().parent / "grade_teams"

@@ -8,6 +8,9 @@ package), ``from pkg import submodule``, imports inside functions, and
 - No import cycle, lazy imports included: the graph of what each module imports at run time
   (imports under ``if TYPE_CHECKING:`` are for annotations only) has no strongly connected
   component of more than one module.
+- Rooms in layers: inside the harness a module imports only from its own room and the rooms
+  below it (:data:`LAYERS`), so scoring knows nothing of runs and a report writer nothing of
+  grading.
 - One door into running untrusted code: outside ``arenabench.eval.runs`` the harness imports
   its package (``from arenabench.eval.runs import CommandPipeline``), never its modules.
 
@@ -323,3 +326,49 @@ def test_importing_the_pipeline_and_the_cli_loads_neither_generator_nor_renderer
     )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == ""
+
+
+#: The harness's rooms, lowest first: a module imports only from its own room and the rooms
+#: below it (docs/architecture.md, "Import rules"). A top-level module of ``eval/`` is a room
+#: of its own; the core and the generator are below every room of the harness.
+LAYERS = (
+    ("arenabench",), ("arenabench.generator",),
+    ("arenabench.eval.scoring",), ("arenabench.eval.datasets",), ("arenabench.eval.pipelines",),
+    ("arenabench.eval.runs",), ("arenabench.eval.evaluation", "arenabench.eval.phase_check"),
+    ("arenabench.eval.reports",), ("arenabench.eval.sweep",), ("arenabench.eval.grade",),
+    ("arenabench.eval.bench",),
+    ("arenabench.eval.commands", "arenabench.eval.pytest_plugin", "arenabench.eval"),
+)
+
+
+def layer_of(module: str) -> int:
+    """The index in :data:`LAYERS` of the room ``module`` belongs to (its longest prefix)."""
+    best, found = -1, None
+    for i, room in enumerate(LAYERS):
+        for prefix in room:
+            if (module == prefix or module.startswith(prefix + ".")) and len(prefix) > best:
+                best, found = len(prefix), i
+    if found is None:
+        raise ValueError(f"{module} is in no room of LAYERS")
+    return found
+
+
+def upward_imports(graph: dict[str, set[str]]) -> list[str]:
+    """Every ``a -> b`` of ``graph`` where ``b``'s room is above ``a``'s."""
+    return sorted(f"{a} -> {b}" for a, targets in graph.items() for b in targets
+                  if layer_of(b) > layer_of(a))
+
+
+def test_a_room_imports_only_the_rooms_below_it():
+    assert upward_imports(_project_graph()) == []
+
+
+def test_the_layer_check_catches_an_import_of_a_room_above():
+    graph = {k: set(v) for k, v in _project_graph().items()}
+    graph["arenabench.eval.scoring.metrics"].add("arenabench.eval.runs")
+    assert upward_imports(graph) == ["arenabench.eval.scoring.metrics -> arenabench.eval.runs"]
+
+
+def test_every_module_is_in_a_room():
+    for module in _project_graph():
+        layer_of(module)

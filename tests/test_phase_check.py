@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from arenabench.eval.evaluation import evaluate
-from arenabench.eval.scoring.phase_check import (
+from arenabench.eval.phase_check import (
     PHASE_DEPENDENT_MEANING,
     PhaseResult,
     box_offsets,
@@ -169,7 +169,7 @@ def test_failures_a_phase_cannot_change_are_not_rerun(twin, fn, category):
 
 
 def test_only_answers_scored_wrong_are_phase_checked():
-    from arenabench.eval.scoring.phase_check import CHECKED_CATEGORIES
+    from arenabench.eval.phase_check import CHECKED_CATEGORIES
     from arenabench.eval.scoring.results import CATEGORIES, SCORING_FAILURES
 
     assert CHECKED_CATEGORIES == frozenset(SCORING_FAILURES) == {"wrong_count", "area_off"}

@@ -14,12 +14,12 @@ from dark_faces import dark_pixels
 
 from arenabench.eval.datasets.reader import load_dataset
 from arenabench.eval.evaluation import evaluate
-from arenabench.eval.runs import CommandPipeline, RunSettings
-from arenabench.eval.scoring.phase_check import (
+from arenabench.eval.phase_check import (
     dataset_scene_source,
     open_variants,
     render_phases,
 )
+from arenabench.eval.runs import CommandPipeline, RunSettings
 from arenabench.generator.dataset_writer import generate_dataset
 from arenabench.generator.preset_files import write_preset_file
 from arenabench.generator.presets import builtin_preset

@@ -236,7 +236,7 @@ def test_a_set_needs_no_texture_file_afterwards(tmp_path, monkeypatch):
     # re-rendering a GT scene: the phase check, on a machine whose cache never saw it
     monkeypatch.setenv(CACHE_ENV, str(tmp_path / "other-machine"))
     from arenabench.eval.datasets.reader import load_dataset
-    from arenabench.eval.scoring.phase_check import render_phases
+    from arenabench.eval.phase_check import render_phases
     from arenabench.generator.make import worker_renderer
     from arenabench.generator.scene import Scene
     from arenabench.imageio import encode_png
@@ -320,7 +320,7 @@ def test_phase_images_keep_the_jpeg_quality_of_a_preset_file(tmp_path):
     writes its re-rendered images at the original's quality, read from its tables."""
     from arenabench.eval.datasets.reader import load_dataset
     from arenabench.eval.evaluation import evaluate
-    from arenabench.eval.scoring.phase_check import check_phases
+    from arenabench.eval.phase_check import check_phases
     from arenabench.eval.scoring.results import Prediction
     from arenabench.generator.dataset_writer import generate_dataset
     from arenabench.imageio import jpeg_quality

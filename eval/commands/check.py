@@ -36,9 +36,9 @@ from arenabench.cliopts import (
     write_failure,
 )
 from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, escape, template_problem
+from arenabench.eval.phase_check import add_phase_check_argument
 from arenabench.eval.runs import COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER
 from arenabench.eval.scoring.metric_registry import METRIC
-from arenabench.eval.scoring.phase_check import add_phase_check_argument
 from arenabench.exitcodes import ExitCode
 from arenabench.generator.presets import (
     DEFAULT_PRESET,
@@ -243,14 +243,14 @@ def verdict_lines(report, *, min_pass_rate: float, phases: int) -> list[str]:
     """The verdict: pass rate, robust and phase-dependent failures, the strongest cause
     (:func:`arenabench.eval.scoring.breakdown.strongest_cause_text`), a systematic error of the
     answers (:func:`arenabench.eval.scoring.breakdown.systematic_text`)."""
-    from arenabench.eval.reports.summary_rows import first_failure_line
-    from arenabench.eval.scoring.breakdown import strongest_cause_text, systematic_text
-    from arenabench.eval.scoring.phase_check import (
+    from arenabench.eval.phase_check import (
         PHASE_DEPENDENT_MEANING,
         rate_text,
         unchecked_text,
         verdict_words,
     )
+    from arenabench.eval.reports.summary_rows import first_failure_line
+    from arenabench.eval.scoring.breakdown import strongest_cause_text, systematic_text
 
     s = report.summary
     ok = s.pass_rate >= min_pass_rate
@@ -307,8 +307,8 @@ def _main(argv: list[str] | None) -> int:
         return _error(problem)
     from dataclasses import replace
 
+    from arenabench.eval.phase_check import resolve_phases
     from arenabench.eval.runs import CommandPipeline, run_settings_from_args
-    from arenabench.eval.scoring.phase_check import resolve_phases
 
     script = Path(args.script).resolve()
     from arenabench.eval.reports import FORMATS

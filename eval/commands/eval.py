@@ -30,10 +30,10 @@ from arenabench.cliopts import (
     output_problem,
     write_failure,
 )
+from arenabench.eval.phase_check import add_phase_check_argument
 from arenabench.eval.pipelines import BUILTIN_PIPELINES
 from arenabench.eval.runs import OUTPUT_MODES, run_settings_from_args
 from arenabench.eval.scoring.metric_registry import fail_under_help
-from arenabench.eval.scoring.phase_check import add_phase_check_argument
 from arenabench.exitcodes import ExitCode
 
 if TYPE_CHECKING:
@@ -258,6 +258,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                 empty_report,
                 evaluate,
             )
+            from arenabench.eval.phase_check import resolve_phases
             from arenabench.eval.pipelines import make_pipeline
             from arenabench.eval.reports.summary_rows import first_failure_line, headline
             from arenabench.eval.runs import (
@@ -268,7 +269,6 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                 substitute_competition_python,
                 uses_competition_python,
             )
-            from arenabench.eval.scoring.phase_check import resolve_phases
             from arenabench.eval.scoring.thresholds import check_thresholds, parse_thresholds
     except Interrupted as exc:
         early = exc

@@ -34,8 +34,8 @@ from arenabench.cliopts import (
     usage_error,
 )
 from arenabench.cmdtemplate import GRADE_PLACEHOLDERS, GRADE_REFUSED
+from arenabench.eval.phase_check import add_phase_check_argument
 from arenabench.eval.runs import OUTPUT_MODES
-from arenabench.eval.scoring.phase_check import add_phase_check_argument
 from arenabench.exitcodes import ExitCode
 
 PROG = "arenabench grade"
@@ -151,8 +151,8 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.eval.datasets.reader import DatasetError, load_dataset
     from arenabench.eval.grade.grading import GradeOptions, check_out_dir, grade
     from arenabench.eval.grade.submissions import SubmissionsError, find_teams
+    from arenabench.eval.phase_check import resolve_phases
     from arenabench.eval.runs import run_settings_from_args
-    from arenabench.eval.scoring.phase_check import resolve_phases
 
     formats = args.formats
     if problem := output_problem(args.out):

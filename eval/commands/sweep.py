@@ -30,6 +30,7 @@ from arenabench.cliopts import (
     usage_error,
     write_failure,
 )
+from arenabench.eval.phase_check import add_phase_check_argument, resolve_phases
 from arenabench.eval.pipelines import BUILTIN_PIPELINES
 from arenabench.eval.runs import (
     OUTPUT_MODES,
@@ -38,7 +39,6 @@ from arenabench.eval.runs import (
     run_settings_from_args,
     substitute_competition_python,
 )
-from arenabench.eval.scoring.phase_check import add_phase_check_argument, resolve_phases
 from arenabench.exitcodes import ExitCode
 from arenabench.interrupts import Interrupted, stop_on_signals
 

@@ -100,7 +100,7 @@ class GradeOptions:
         Report files written per team (keys of ``FORMATS``); not part of the fingerprint,
         but a team whose files are missing is graded again.
     phases : int
-        Phase check of each team's failing images (:mod:`arenabench.eval.scoring.phase_check`):
+        Phase check of each team's failing images (:mod:`arenabench.eval.phase_check`):
         sub-pixel phases re-rendered per failure, the team's command re-run on each; 0 = off.
     give_up_after : int
         Timeouts in a row, in image order, after which a team's later images are not run
@@ -871,7 +871,7 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
         for s, p in zip(data.samples, job.preds, strict=True)
     ]
     if opts.phases and not all(r.passed for r in results):
-        from arenabench.eval.scoring.phase_check import check_phases, dataset_scene_source
+        from arenabench.eval.phase_check import check_phases, dataset_scene_source
 
         pipe = _team_pipeline(team_command(opts.command, team.path), settings=opts.settings,
                               output=opts.output, team=team.name, base_dir=str(team.path))

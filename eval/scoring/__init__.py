@@ -6,9 +6,9 @@
 - ``metric_registry``: every summary metric declared once (name, direction, format, range);
 - ``thresholds`` and ``compare``: the ``--fail-under`` gates, and two reports side by side;
 - ``breakdown`` and ``gt_facts``: pass rates by scene parameter, the ranked causes of failures,
-  systematic errors;
-- ``phase_check``: a failure re-run at sub-pixel phases (robust or phase-dependent).
+  systematic errors.
 
-Nothing here starts a process: a pipeline is run through :mod:`arenabench.eval.runs` (or in
-process, :mod:`arenabench.eval.pipelines`), and the phase check takes the run as a callable.
+Nothing here runs a pipeline or starts a process: that is :mod:`arenabench.eval.runs` (or in
+process, :mod:`arenabench.eval.pipelines`); re-running a failure across sub-pixel phases and
+open parameters is :mod:`arenabench.eval.phase_check`, a room above.
 """

@@ -122,7 +122,7 @@ class SweepSpec:
     independent_scenes : bool
         Give every point its own scenes (indices ``p * per_point + i``) instead of the same.
     phases : int
-        Phase check of every failing image (:mod:`arenabench.eval.scoring.phase_check`), in the
+        Phase check of every failing image (:mod:`arenabench.eval.phase_check`), in the
         worker that rendered it; 0 = off.
     """
 

@@ -62,7 +62,7 @@ def _predict(spec: PipelineSpec, bgr: Any, image: list[bytes], tmp: list[str],
 
 def _check_phases(task: SweepTask, gt: Any, results: list[Any], *, renderer: Any) -> None:
     """The phase check of each failing pipeline result, in place (the worker's renderer)."""
-    from arenabench.eval.scoring.phase_check import SceneSource, check_phases
+    from arenabench.eval.phase_check import SceneSource, check_phases
     from arenabench.generator.presets import resolve_preset
 
     source = SceneSource(resolve_preset(task.preset), dict(task.overrides))

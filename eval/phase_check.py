@@ -39,8 +39,8 @@ import numpy as np
 from arenabench.gtrecord import GroundTruth
 from arenabench.interrupts import checkpoint
 
-from .metrics import score_sample
-from .results import (
+from .scoring.metrics import score_sample
+from .scoring.results import (
     CATEGORIES,
     SCORING_FAILURES,
     HarnessError,
