@@ -152,7 +152,7 @@ def test_eval_and_sweep_run_competition_python_commands(competition_cache, tmp_p
     cmd = f"{COMPETITION_PLACEHOLDER} {LEGACY} --image {{image}}"
     out = tmp_path / "eval"
     proc = run_cli("eval", str(data), "--cmd", cmd, "--out", str(out), "--no-progress",
-                   "--phase-check", "off", "--min-pass-rate", "1", env=env)
+                   "--phase-check", "off", "--fail-under", "pass_rate=1", env=env)
     assert proc.returncode == 0, proc.stdout + proc.stderr
     python = env_folder(competition_cache) / "bin" / "python"
     assert f"{COMPETITION_PLACEHOLDER} is {python}" in proc.stderr
