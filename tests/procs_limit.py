@@ -4,7 +4,8 @@ the tests add where it cannot (one place for every test file).
 ``grade`` fails closed where the process limit cannot be enforced (root without a writable
 pids cgroup: :func:`arenabench.eval.grade.preflight.process_limit`). The tests' own grades are not
 about that, so there they pass ``--max-procs 0`` (no process limit); everywhere else they run
-with the default limit, as an organiser's would. tests/test_grade_procs.py tests the refusal
+with the default limit, as an organiser's would. tests/eval/grade/test_grade_procs.py tests
+the refusal
 itself.
 """
 

@@ -4,7 +4,7 @@
 # opt-in below, else a hint (without it commands run unsandboxed, with a warning).
 # Prints the exact install command when something is missing. Installs it itself only when
 # allowed: running as root with apt-get, and ARENABENCH_INSTALL_SYSTEM_DEPS=1 or CI=true.
-# With the same opt-in it also installs chromium (the headless browser tests/test_report_html.py
+# With the same opt-in it also installs chromium (the headless browser tests/eval/reports/test_report_html.py
 # renders the HTML report in); without it a missing chromium only skips those tests.
 set -u
 have_lib() { ldconfig -p 2>/dev/null | grep -q "$1"; }

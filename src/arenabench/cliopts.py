@@ -20,7 +20,7 @@ its code (0 for ``--help``, 2 for a usage error, the line already printed). The 
 every command shares are declared here; :func:`lock_out` holds an output folder's lock and
 :func:`write_failure` words a failed write (``disk full: ...``).
 Each builder tags the action it adds (``action.shared_option``), so a test can check that no
-command re-declares a shared option by hand (``tests/test_cliopts.py``).
+command re-declares a shared option by hand (``tests/core/test_cliopts.py``).
 """
 
 from __future__ import annotations

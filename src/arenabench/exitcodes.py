@@ -1,5 +1,5 @@
 """Exit statuses of every ``arenabench`` command, declared once (docs/commands.md, "Exit
-status"). A command's ``main`` returns one of them; ``tests/test_exit_codes.py`` checks that no
+status"). A command's ``main`` returns one of them; ``tests/core/test_exit_codes.py`` checks that no
 command module returns a bare number."""
 
 from __future__ import annotations

@@ -1,7 +1,8 @@
 """Reports what a run can see of the way it was started (one JSON line on stdout), leaves
 marks in every writable place it knows, and answers like the toy detector.
 
-Used by tests/test_warm.py: a warm run finds cv2 already imported, no mark of an earlier run,
+Used by tests/eval/runs/test_warm.py: a warm run finds cv2 already imported, no mark of an
+earlier run,
 ``__name__ == "__main__"`` and the command line's ``sys.argv``. ``$PROBE_MODE`` = ``hang``,
 ``memory`` or ``forkbomb`` misbehaves instead, ``slow`` takes two seconds first, for the image
 whose sha256 is ``$PROBE_BAD``.

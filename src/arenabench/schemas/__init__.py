@@ -1,7 +1,7 @@
 """JSON Schemas of the files arenabench writes, shipped as package data.
 
 ``gt.schema.json`` describes one ground-truth file (schema ``arenabench.gt/1``); its maxima
-are limits of :mod:`arenabench.limits` (``tests/test_gt_quickcheck.py`` checks that they
+are limits of :mod:`arenabench.limits` (``tests/core/test_gt_quickcheck.py`` checks that they
 agree). JSON Schema accepts NaN and infinities as ``number`` and ``3.0`` as ``integer``;
 :func:`gt_problem` also refuses any non-finite number, wherever it is, a count or marker id
 written with a fraction or exponent, and a marker id listed twice.
