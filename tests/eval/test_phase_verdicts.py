@@ -191,7 +191,7 @@ def test_a_failure_that_flips_with_an_open_parameter_names_it(east_open, tmp_pat
         leaderboard_dict,
         rank_rows,
     )
-    from arenabench.eval.reports.leaderboard_report import leaderboard_html
+    from arenabench.eval.grade.leaderboard_report import leaderboard_html
 
     rows = rank_rows([LeaderboardRow("team", report.summary, "teams/team/report.html",
                                      "0" * 64)])
