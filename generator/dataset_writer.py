@@ -58,7 +58,7 @@ from arenabench.fileio import (
     sha256_file,
 )
 from arenabench.generator.coco_export import CocoParts, write_coco
-from arenabench.generator.edges import EDGE_MODEL
+from arenabench.generator.edges import EDGE_RESOLVES, edge_model
 from arenabench.generator.make import (
     GENERATOR_VERSION,
     make_sample,
@@ -66,10 +66,17 @@ from arenabench.generator.make import (
     worker_gl_info,
     worker_renderer,
 )
-from arenabench.generator.presets import Value, format_value, get_preset, resolve
+from arenabench.generator.presets import Range, Value, format_value, get_preset, resolve
+from arenabench.generator.scene import RenderSpec
 from arenabench.generator.seeds import check_seed
 from arenabench.gtrecord import GroundTruth
-from arenabench.imageio import IMAGE_EXTENSIONS, PNG_COMPRESSION, encode_image
+from arenabench.imageio import (
+    DEFAULT_JPEG_SUBSAMPLING,
+    IMAGE_EXTENSIONS,
+    PNG_COMPRESSION,
+    encode_image,
+    jpeg_subsampling_problem,
+)
 from arenabench.interrupts import (
     Interrupted,
     signal_name,
@@ -103,13 +110,17 @@ class DatasetArgs:
             raise ValueError(f"count must be an integer >= 0, got {self.count!r}")
         check_at_most(int(self.count), MAX_DATASET_SCENES, "count")
         check_seed(self.seed)
-        resolve(self.preset, self.overrides)
+        image_format, _, subsampling = self.output
+        if image_format == "jpeg" and (problem := jpeg_subsampling_problem(subsampling)):
+            raise ValueError(f"output.jpeg_subsampling: {problem}")
 
     @property
-    def output(self) -> tuple[str, int]:
-        """``(output.format, output.jpeg_quality)`` of the preset with the overrides."""
+    def output(self) -> tuple[str, int, str]:
+        """``(output.format, output.jpeg_quality, output.jpeg_subsampling)`` of the preset
+        with the overrides."""
         params = resolve(self.preset, self.overrides)
-        return str(params["output.format"]), int(params["output.jpeg_quality"])
+        return (str(params["output.format"]), int(params["output.jpeg_quality"]),
+                str(params["output.jpeg_subsampling"]))
 
     @property
     def image_ext(self) -> str:
@@ -203,6 +214,8 @@ class RenderTask:
         ``output.format`` (``png`` or ``jpeg``).
     jpeg_quality : int
         ``output.jpeg_quality``.
+    jpeg_subsampling : str
+        ``output.jpeg_subsampling``.
     """
 
     args: dict[str, Any]
@@ -211,6 +224,7 @@ class RenderTask:
     out: str
     image_format: str = "png"
     jpeg_quality: int = 95
+    jpeg_subsampling: str = DEFAULT_JPEG_SUBSAMPLING
 
     @property
     def image_ext(self) -> str:
@@ -220,7 +234,8 @@ class RenderTask:
     def encode(self, bgr: np.ndarray) -> bytes:
         """The image file's bytes."""
         return encode_image(bgr, image_format=self.image_format,
-                            jpeg_quality=self.jpeg_quality)
+                            jpeg_quality=self.jpeg_quality,
+                            jpeg_subsampling=self.jpeg_subsampling)
 
 
 def _render(task: RenderTask):
@@ -511,12 +526,22 @@ def _finish_partial(out: Path, args: DatasetArgs, results: list[dict[str, Any]])
     return len(lines)
 
 
-def _image_format_meta(image_format: str, jpeg_quality: int) -> dict[str, Any]:
+def _image_format_meta(image_format: str, jpeg_quality: int,
+                       jpeg_subsampling: str) -> dict[str, Any]:
     """How the images are encoded, for ``dataset.json["render"]``."""
     if image_format == "jpeg":
         return {"image_format": "jpeg", "jpeg_quality": int(jpeg_quality),
-                "jpeg_chroma": "4:2:0"}
+                "jpeg_chroma": ":".join(("4", *jpeg_subsampling[1:]))}
     return {"image_format": "png", "png_compression": PNG_COMPRESSION}
+
+
+def _edges_meta(params: dict[str, Value]) -> str:
+    """How the obstacles' edges are drawn, for ``dataset.json["render"]["edges"]``."""
+    samples, how = params["render.edge_samples"], params["render.edge_resolve"]
+    if isinstance(samples, Range):
+        return (f"render.edge_samples drawn per scene in {samples} (each GT's params), "
+                f"{EDGE_RESOLVES[how]}")
+    return edge_model(RenderSpec(edge_samples=samples, edge_resolve=how))
 
 
 def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
@@ -528,7 +553,7 @@ def _write_meta(out: Path, args: DatasetArgs, *, complete: bool,
         "count": int(args.count), "complete": complete,
         "params": {k: format_value(v) for k, v in sorted(params.items())},
         "versions": _versions(gl) if complete else {},
-        "render": {"mode": "flat, Lambertian shading baked", "edges": EDGE_MODEL,
+        "render": {"mode": "flat, Lambertian shading baked", "edges": _edges_meta(params),
                    **_image_format_meta(*args.output)},
         "files": {"images": "images/", "gt": "gt/", "manifest": "manifest.jsonl",
                   "coco": "coco.json"},
@@ -689,9 +714,10 @@ def _render_all(root: Path, args: DatasetArgs, todo: list[int], skipped: int,
     if meta is None or meta["args"].get("count") != args.count:
         _write_meta(root, args, complete=False)
     stored = args.to_dict()
-    image_format, jpeg_quality = args.output
+    image_format, jpeg_quality, jpeg_subsampling = args.output
     tasks = [RenderTask(args=stored, seed=args.seed, index=i, out=str(root),
-                        image_format=image_format, jpeg_quality=jpeg_quality) for i in todo]
+                        image_format=image_format, jpeg_quality=jpeg_quality,
+                        jpeg_subsampling=jpeg_subsampling) for i in todo]
     results: list[dict[str, Any]] = []
     parts = CocoParts()  # the scenes' COCO parts wait on disk, not in results
     bar = _progress(len(tasks), progress)

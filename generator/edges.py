@@ -1,13 +1,15 @@
 """Edge pixels as the competition's renderer draws them: two coverage samples per pixel,
-averaged in linear light.
+averaged in linear light; and the other edge models a twin may need.
 
 Measured on the published example (``docs/rendering.md``, "Edges"): every blended pixel along
 the box outlines is the *half* blend of its two neighbouring surfaces in linear light (grey 188
 between a dark side face of 71 and the floor of 248, 198 between the top face of 120 and the
 floor), never a quarter blend, and the other edge pixels are hard steps. That is a two-sample
-resolve in an sRGB framebuffer. This module holds that model: where the samples sit
-(:data:`EDGE_SAMPLES`), the region that gets them (:func:`obstacle_region`) and the resolve
-(:func:`resolve_two_samples`). The renderer draws the samples; nothing here touches OpenGL.
+resolve in an sRGB framebuffer. This module holds that model and its neighbours (a scene's
+``render`` section, :class:`~arenabench.generator.scene.RenderSpec`, picks one): where the
+samples sit (:data:`EDGE_PATTERNS`), the region that gets them (:func:`obstacle_region`) and
+the resolve (:func:`resolve_samples`). The renderer draws the samples; nothing here touches
+OpenGL.
 """
 
 from __future__ import annotations
@@ -19,25 +21,55 @@ import numpy as np
 
 from . import camera as cam
 from .layout import box_vertices
-from .scene import Scene
+from .scene import RenderSpec, Scene
 
-__all__ = ["EDGE_MODEL", "EDGE_SAMPLES", "REGION_PAD_PX", "SAME_SURFACE_MAX_DIFF", "linear_to_srgb",
-           "obstacle_region", "resolve_two_samples", "srgb_to_linear"]
+__all__ = ["EDGE_PATTERNS", "EDGE_RESOLVES", "EDGE_SAMPLES", "REGION_PAD_PX",
+           "SAME_SURFACE_MAX_DIFF", "edge_model", "linear_to_srgb", "obstacle_region",
+           "resolve_samples", "srgb_to_linear"]
 
-#: Offsets (x, y) in px, from the pixel centre, of the two coverage samples (the standard
-#: two-sample pattern: on the diagonal, a quarter pixel either side of the centre).
-EDGE_SAMPLES: tuple[tuple[float, float], tuple[float, float]] = ((-0.25, -0.25), (0.25, 0.25))
+#: Offsets (x, y) in px from the pixel centre (x to the right, y down the rows) of the coverage
+#: samples of each edge model, by samples per pixel. They are the standard multisample
+#: positions of GL, Vulkan and Direct3D (Vulkan's "standard sample locations",
+#: ``VkPhysicalDeviceLimits::standardSampleLocations``; Direct3D's
+#: ``D3D11_STANDARD_MULTISAMPLE_PATTERN``; Mesa's ``intel_sample_positions.c`` lists the same):
+#: 1 sample at the centre (hard edges); 2 on the diagonal, a quarter pixel either side of the
+#: centre (corner-origin (0.25, 0.25) and (0.75, 0.75)); 4 on the rotated grid, corner-origin
+#: (0.375, 0.125), (0.875, 0.375), (0.125, 0.625), (0.625, 0.875), i.e. (-2, -6), (6, -2),
+#: (-6, 2), (2, 6) sixteenths of a pixel from the centre. ``tests/test_edges.py`` checks that
+#: the keys are the choices of ``render.edge_samples``.
+EDGE_PATTERNS: dict[int, tuple[tuple[float, float], ...]] = {
+    1: ((0.0, 0.0),),
+    2: ((-0.25, -0.25), (0.25, 0.25)),
+    4: ((-0.125, -0.375), (0.375, -0.125), (-0.375, 0.125), (0.125, 0.375)),
+}
+
+#: The competition renderer's pattern: two samples (the default ``render.edge_samples``).
+EDGE_SAMPLES = EDGE_PATTERNS[RenderSpec().edge_samples]
+
+#: How the samples of an edge pixel are averaged (``render.edge_resolve``): in linear light,
+#: as an sRGB framebuffer resolves, or in sRGB values, as a plain (UNORM) one does.
+EDGE_RESOLVES = {"linear": "averaged in linear light", "srgb": "averaged in sRGB values"}
 
 #: Two samples whose colours differ by at most this many grey levels in every channel saw the
 #: same surface: the pixel keeps its centre sample (textures are filtered once per pixel, as
 #: in a multisample resolve, where only coverage is sampled per sample).
 SAME_SURFACE_MAX_DIFF = 8
 
-#: How edges are drawn, as recorded in a dataset's ``dataset.json`` (``render.edges``).
-EDGE_MODEL = (f"two samples per pixel at {EDGE_SAMPLES[0]} and {EDGE_SAMPLES[1]} px from its "
-              "centre on the obstacles' region, averaged in linear light")
+_WORDS = {1: "one", 2: "two", 4: "four"}
 
-#: Margin in px around the obstacles' projected bounding box that gets two samples.
+
+def edge_model(spec: RenderSpec) -> str:
+    """How edges are drawn under ``spec``, as a dataset's ``dataset.json`` records it
+    (``render.edges``)."""
+    if spec.edge_samples == 1:
+        return "one sample per pixel (hard edges)"
+    at = [str(p) for p in EDGE_PATTERNS[spec.edge_samples]]
+    where = ", ".join(at[:-1]) + f" and {at[-1]}"
+    return (f"{_WORDS[spec.edge_samples]} samples per pixel at {where} px from its centre on "
+            f"the obstacles' region, {EDGE_RESOLVES[spec.edge_resolve]}")
+
+
+#: Margin in px around the obstacles' projected bounding box that gets the edge samples.
 REGION_PAD_PX = 2
 
 _SRGB = np.arange(256) / 255.0
@@ -88,33 +120,51 @@ def obstacle_region(scene: Scene) -> tuple[int, int, int, int] | None:
     return (int(x0), int(y0), int(x1), int(y1))
 
 
-def resolve_two_samples(centre: np.ndarray, first: np.ndarray, second: np.ndarray) -> int:
-    """Resolve two coverage samples into ``centre``, in place; returns the pixels blended.
+def resolve_samples(centre: np.ndarray, samples: tuple[np.ndarray, ...] | list[np.ndarray],
+                    *, resolve: str = "linear") -> int:
+    """Resolve coverage samples into ``centre``, in place; returns the pixels blended.
 
-    Where the samples saw the same surface (they differ by at most
+    Where the samples saw the same surface (every two of them differ by at most
     :data:`SAME_SURFACE_MAX_DIFF` in every channel) the pixel keeps its centre sample;
-    elsewhere it becomes their mean in linear light, encoded back to sRGB.
+    elsewhere it becomes their mean: in linear light, encoded back to sRGB (``"linear"``), or
+    of the sRGB values (``"srgb"``), rounded to nearest (ties to even, as
+    :func:`linear_to_srgb`).
 
     Parameters
     ----------
     centre : numpy.ndarray
         (H, W, 3) uint8 single-sample render of the region, changed in place.
-    first, second : numpy.ndarray
-        (H, W, 3) uint8 renders of the same region at the two :data:`EDGE_SAMPLES` offsets.
+    samples : sequence of numpy.ndarray
+        (H, W, 3) uint8 renders of the same region at the offsets of one of
+        :data:`EDGE_PATTERNS`, at least one.
+    resolve : {"linear", "srgb"}, keyword-only
+        Where the mean is taken (:data:`EDGE_RESOLVES`).
 
     Returns
     -------
     int
         How many pixels were blended.
     """
-    if not centre.shape == first.shape == second.shape or centre.dtype != np.uint8:
-        raise ValueError(f"samples must be equal-shaped uint8 images, got {centre.shape}, "
-                         f"{first.shape}, {second.shape}")
-    diff = cv2.absdiff(first, second)
+    if resolve not in EDGE_RESOLVES:
+        raise ValueError(f"resolve must be one of {', '.join(EDGE_RESOLVES)}, got {resolve!r}")
+    if not samples or centre.dtype != np.uint8 or any(
+            s.shape != centre.shape or s.dtype != np.uint8 for s in samples):
+        raise ValueError(f"samples must be one or more uint8 images shaped like the centre "
+                         f"{centre.shape}, got {[s.shape for s in samples]}")
+    lo, hi = samples[0].copy(), samples[0].copy()
+    for s in samples[1:]:
+        np.minimum(lo, s, out=lo)
+        np.maximum(hi, s, out=hi)
+    diff = cv2.subtract(hi, lo)  # the largest difference between two samples, per channel
     edge = ((diff[..., 0] > SAME_SURFACE_MAX_DIFF) | (diff[..., 1] > SAME_SURFACE_MAX_DIFF)
             | (diff[..., 2] > SAME_SURFACE_MAX_DIFF))
     ys, xs = np.nonzero(edge)
     if len(ys):
-        mean = (_SRGB_TO_LINEAR[first[ys, xs]] + _SRGB_TO_LINEAR[second[ys, xs]]) * 0.5
-        centre[ys, xs] = linear_to_srgb(mean)
+        lut = _SRGB_TO_LINEAR if resolve == "linear" else np.arange(256, dtype=np.float64)
+        total = lut[samples[0][ys, xs]]
+        for s in samples[1:]:
+            total = total + lut[s[ys, xs]]
+        mean = total * (1.0 / len(samples))  # exact for 1, 2 and 4 samples
+        centre[ys, xs] = (linear_to_srgb(mean) if resolve == "linear"
+                          else np.clip(np.rint(mean), 0, 255).astype(np.uint8))
     return len(ys)

@@ -1,4 +1,5 @@
-"""Scene-side light variations computed analytically: box shadows and an uneven (spot) light.
+"""Scene-side light variations computed analytically: box shadows, an uneven (spot) light and
+fill lights on the boxes' east and west faces.
 
 - Shadows: the first directional light's shadow of each box on the floor is the convex hull of
   its footprint and its top face projected along the light onto z = 0. The union is drawn as
@@ -6,6 +7,11 @@
   appearance only: they never change the ground-truth count or areas.
 - Spot light: a smooth multiplicative gain over the floor, applied to the rendered pinhole
   image through the floor homography (a box takes the gain of the floor point behind it).
+- Fill lights (``lighting.east_fill``, ``lighting.west_fill``): horizontal directional lights
+  along x, after the main light in ``LightingSpec.directional``. A normal without an x
+  component (the floor, the markers, the boxes' top, north and south faces) gets nothing from
+  them, so only the east and west faces change; they cast no shadow (only the first light
+  does) and leave the floor's shade, hence the shadows' darkness, as it was.
 """
 
 from __future__ import annotations
@@ -17,11 +23,24 @@ from shapely.geometry import MultiPoint, Polygon
 
 from arenabench.generator import camera as cam
 from arenabench.generator.layout import box_vertices
-from arenabench.generator.scene import LightingSpec, Scene
+from arenabench.generator.scene import DirectionalLight, LightingSpec, Scene
 from arenabench.generator.shading import floor_factor
 
 #: Height (m) of the shadow overlay: above the floor, the distractors and the markers.
 SHADOW_Z = 0.0014
+
+
+#: Where each fill light travels: the east fill towards -x (it lights faces whose normal
+#: points east, +x), the west fill towards +x.
+FILL_DIRECTIONS: dict[str, tuple[float, float, float]] = {
+    "east": (-1.0, 0.0, 0.0), "west": (1.0, 0.0, 0.0)}
+
+
+def fill_lights(*, east: float, west: float) -> tuple[DirectionalLight, ...]:
+    """The fill lights of intensities ``east`` and ``west`` (none for 0), to follow the main
+    light in ``LightingSpec.directional`` (only the first directional light casts shadows)."""
+    return tuple(DirectionalLight(direction=FILL_DIRECTIONS[side], intensity=float(value))
+                 for side, value in (("east", east), ("west", west)) if value > 0)
 
 
 def shadow_alpha(lighting: LightingSpec) -> float:

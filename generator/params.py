@@ -19,6 +19,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from arenabench.generator import competition_arena as comp
+from arenabench.imageio import DEFAULT_JPEG_SUBSAMPLING, JPEG_SUBSAMPLINGS
 from arenabench.limits import MAX_IMAGE_SIDE_PX
 
 #: Value kinds of a parameter; only "float" and "int" accept ranges.
@@ -27,7 +28,7 @@ KINDS = ("float", "int", "str", "rgb", "ids", "bool")
 #: obstacle, or only when a preset or ``--set`` gives it as a range ("fixed").
 DRAWS = ("scene", "box", "fixed")
 #: Where the value goes: a section of the scene, or the image degradations.
-SECTIONS = ("arena", "markers", "camera", "lighting", "degrade")
+SECTIONS = ("arena", "markers", "camera", "lighting", "render", "degrade")
 
 
 @dataclass(frozen=True)
@@ -82,7 +83,8 @@ class Param:
     bounds : Range or None
         Inclusive bounds of a number (``None``: any).
     choices : tuple of str
-        Allowed values of a "str" parameter (empty = any).
+        Allowed values of a "str" or "int" parameter, spelt as on the command line (empty =
+        any); a range of an "int" parameter with choices draws among the choices inside it.
     neutral : value or None
         The value a preset that lacks the parameter gets; it changes nothing in the image
         (``None``: every preset must give the parameter).
@@ -123,6 +125,8 @@ class Param:
         if self.draw not in DRAWS:
             raise ValueError(f"{self.name}: draw must be one of {', '.join(DRAWS)}, "
                              f"got {self.draw!r}")
+        if self.choices and self.kind not in ("str", "int"):
+            raise ValueError(f"{self.name}: only str and int parameters have choices")
         if self.lands and self.lands.split(".")[0] not in SECTIONS:
             raise ValueError(f"{self.name}: lands must start with one of "
                              f"{', '.join(SECTIONS)}, got {self.lands!r}")
@@ -137,6 +141,10 @@ class Param:
     def numeric(self) -> bool:
         """Whether the parameter is a number (and so may be a :class:`Range`)."""
         return self.kind in ("float", "int")
+
+    def values_in(self, lo: float, hi: float) -> tuple[int, ...]:
+        """The choices of an "int" parameter with choices that lie in ``[lo, hi]``, in order."""
+        return tuple(v for v in sorted(int(c) for c in self.choices) if lo <= v <= hi)
 
 
 def _b(lo: float, hi: float) -> Range:
@@ -258,6 +266,13 @@ PARAMS: tuple[Param, ...] = (
           neutral=0.0, lands="lighting.spot_xy_m.1", draw="scene"),
     Param("lighting.spot_radius_m", "float", "spot light radius (m)", _b(0.01, 1000),
           neutral=3.0, lands="lighting.spot_radius_m", draw="scene"),
+    # Fill lights: horizontal directional lights along x, on the boxes' east or west faces only
+    # (the floor, the markers and the top, north and south faces have no x component in their
+    # normals); how a twin states the shade of faces its example does not show.
+    Param("lighting.east_fill", "float", "extra light on the boxes' east (+x) faces only "
+          "(0 = none)", _b(0, 2), neutral=0.0),
+    Param("lighting.west_fill", "float", "extra light on the boxes' west (-x) faces only "
+          "(0 = none)", _b(0, 2), neutral=0.0),
     Param("distractors.tapes", "int", "tape lines on the floor (not obstacles)", _b(0, 50),
           neutral=0, draw="scene"),
     Param("distractors.papers", "int", "papers on the floor (not obstacles)", _b(0, 50),
@@ -266,13 +281,23 @@ PARAMS: tuple[Param, ...] = (
           "occluder (0 = none)", _b(0, 1), neutral=0.0, draw="scene"),
     Param("markers.occluded", "int", "which marker is occluded: 0 NW, 1 NE, 2 SE, 3 SW",
           _b(0, 3), neutral=0, draw="scene"),
+    # How box edges are drawn (docs/rendering.md, "Edges"): neutral = the competition's.
+    Param("render.edge_samples", "int", "coverage samples per pixel along box edges: 1 hard, "
+          "2 the competition's, 4 standard 4x MSAA", _b(1, 4), choices=("1", "2", "4"),
+          neutral=2, lands="render.edge_samples"),
+    Param("render.edge_resolve", "str", "edge samples averaged in linear light (an sRGB "
+          "framebuffer) or in sRGB values (a plain one)", choices=("linear", "srgb"),
+          neutral="linear", lands="render.edge_resolve"),
     # How the image files are written (not part of the scene: the GT changes only in its
     # image path).
     Param("output.format", "str", "image files: png (lossless), or jpeg as cv2.imwrite "
-          "writes it (4:2:0 chroma; the competition's example)", choices=("png", "jpeg"),
+          "writes it (the competition's example)", choices=("png", "jpeg"),
           neutral="png"),
     Param("output.jpeg_quality", "int", "JPEG quality of output.format=jpeg", _b(1, 100),
           neutral=95),
+    Param("output.jpeg_subsampling", "str", "JPEG chroma subsampling of output.format=jpeg "
+          "(420: cv2.imwrite's default)", choices=tuple(JPEG_SUBSAMPLINGS),
+          neutral=DEFAULT_JPEG_SUBSAMPLING),
 )
 
 #: Every parameter by name (declaration order).

@@ -162,9 +162,17 @@ def _twin() -> dict[str, Value]:
         "lighting.elevation_deg": round(math.degrees(math.asin(-d[2])), 6),
         "lighting.azimuth_deg": round(math.degrees(math.atan2(-d[1], -d[0])), 6),
         "background.gray": ex["background_rgb"][0],
+        # the example's faces seen: top, north, south; the east and west faces keep the main
+        # light's shade (no fill: a choice the example allows, not one it shows)
+        "lighting.east_fill": 0.0,
+        "lighting.west_fill": 0.0,
+        # its edges: two samples per pixel averaged in linear light (docs/rendering.md, "Edges")
+        "render.edge_samples": 2,
+        "render.edge_resolve": "linear",
         # the example is a JPEG at quality 95, 4:2:0 (libjpeg's tables scaled to 95)
         "output.format": "jpeg",
         "output.jpeg_quality": 95,
+        "output.jpeg_subsampling": "420",
     }
 
 #: Named presets: name -> (description, parameters).
@@ -225,6 +233,14 @@ def _check_bounds(key: str, value: float, spec: Param, raw: Any) -> None:
         raise ValueError(f"--set {key}: value {_shown(raw)} out of range [{b.lo:g}, {b.hi:g}]")
 
 
+def _check_choice(key: str, number: float | int, spec: Param, raw: Any) -> float | int:
+    """``number`` when it is one of an int parameter's choices (or it has none)."""
+    if spec.choices and str(number) not in spec.choices:
+        raise ValueError(f"--set {key}: invalid value {_shown(raw)} (choices: "
+                         f"{', '.join(spec.choices)})")
+    return number
+
+
 def _shown(raw: Any) -> str:
     """``raw`` as error messages show it (a range as ``(lo, hi)``, like the input tuple)."""
     return repr((raw.lo, raw.hi)) if isinstance(raw, Range) else repr(raw)
@@ -273,12 +289,17 @@ def validate_value(key: str, value: Value) -> Value:
                 raise ValueError(f"--set {key}: empty range {_shown(value)} (lo > hi)")
             _check_bounds(key, lo, spec, value)
             _check_bounds(key, hi, spec, value)
-            return Range(lo, hi) if lo != hi else lo
+            if lo == hi:
+                return _check_choice(key, lo, spec, value)
+            if spec.choices and not spec.values_in(lo, hi):
+                raise ValueError(f"--set {key}: range {_shown(value)} holds none of the "
+                                 f"choices {', '.join(spec.choices)}")
+            return Range(lo, hi)
         if isinstance(value, bool):
             raise ValueError(f"--set {key}: invalid {spec.kind} value {value!r}")
         number = _number(key, str(value), spec.kind)
         _check_bounds(key, number, spec, value)
-        return number
+        return _check_choice(key, number, spec, value)
     if spec.kind == "bool":
         if isinstance(value, bool):
             return value

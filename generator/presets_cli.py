@@ -35,8 +35,9 @@ def main(argv: list[str] | None = None) -> int:
         width = max(len(k) for k in PARAMETERS)
         for key, spec in PARAMETERS.items():
             bounds = f"{spec.bounds.lo:.10g}..{spec.bounds.hi:.10g}" if spec.bounds else ""
+            choices = f" (choices: {', '.join(spec.choices)})" if spec.choices else ""
             neutral = "" if spec.neutral is None else f" (neutral {format_value(spec.neutral)})"
-            print(f"{key:<{width}}  {spec.kind:<5}  {bounds:<13}  {spec.help}{neutral}")
+            print(f"{key:<{width}}  {spec.kind:<5}  {bounds:<13}  {spec.help}{choices}{neutral}")
         return 0
     width = max(len(k) for k in PRESETS)
     for name, (desc, _) in PRESETS.items():

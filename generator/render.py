@@ -7,8 +7,9 @@ scene, reused across scenes: the floor and marker nodes are cached by their desc
 only obstacle nodes and the camera change. Each render pass is a method: the colour pass
 (:meth:`Renderer._colour_pass`) uses ``RenderFlags.FLAT`` with Lambertian shading baked into
 colours (:mod:`arenabench.generator.shading`), about 3x faster than lit mode on Mesa llvmpipe,
-a centre sample per pixel, and two offset samples of the obstacles' region for their edges,
-as the competition's renderer draws them (:mod:`arenabench.generator.edges`); floor, markers
+a centre sample per pixel, and offset samples of the obstacles' region for their edges (two,
+as the competition's renderer draws them, unless the scene's ``render`` section says
+otherwise: :mod:`arenabench.generator.edges`); floor, markers
 and background are drawn once and reused while consecutive scenes share them (the static
 layer, see :meth:`Renderer._static_layer`); the mask pass (:meth:`Renderer._mask_pass`) gives
 instance masks from ``RenderFlags.SEG`` (exact, one sample), on request.
@@ -33,7 +34,7 @@ from arenabench.frame import CORNER_ORDER
 from arenabench.generator import camera as cam
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.distractors import patch_mesh_arrays
-from arenabench.generator.edges import EDGE_SAMPLES, obstacle_region, resolve_two_samples
+from arenabench.generator.edges import EDGE_PATTERNS, obstacle_region, resolve_samples
 from arenabench.generator.layout import (
     MARKER_Z,
     box_footprint,
@@ -138,10 +139,12 @@ class Renderer(SceneRenderer):
     Parameters
     ----------
     antialias : bool, keyword-only
-        Edge samples on colour renders (on by default): a pixel whose two samples
-        (:data:`~arenabench.generator.edges.EDGE_SAMPLES`) see different surfaces of the
-        obstacles' region gets their mean in linear light, as in the competition's images
-        (docs/rendering.md). Textures (floor, markers) are filtered either way; ground
+        Edge samples on colour renders (on by default), as the scene's ``render`` section
+        asks (:class:`~arenabench.generator.scene.RenderSpec`; by default two samples,
+        :data:`~arenabench.generator.edges.EDGE_SAMPLES`): a pixel whose samples see
+        different surfaces of the obstacles' region gets their mean (in linear light by
+        default), as in the competition's images (docs/rendering.md). Off: hard edges
+        whatever the scene asks. Textures (floor, markers) are filtered either way; ground
         truth, depth and instance masks never depend on it.
 
     Raises
@@ -381,10 +384,11 @@ class Renderer(SceneRenderer):
         """(H, W, 3) uint8 colour, flat shaded; and the (H, W) float32 depth map when ``depth``
         is set (else None).
 
-        One sample per pixel at its centre, then, when :attr:`antialias` is set, two more
-        renders of the obstacles' region at the offsets
-        :data:`~arenabench.generator.edges.EDGE_SAMPLES`, resolved into the edge pixels
-        (:func:`~arenabench.generator.edges.resolve_two_samples`).
+        One sample per pixel at its centre, then, when :attr:`antialias` is set and the
+        scene's ``render.edge_samples`` is more than 1, one more render of the obstacles'
+        region at each offset of its pattern
+        (:data:`~arenabench.generator.edges.EDGE_PATTERNS`), resolved into the edge pixels
+        (:func:`~arenabench.generator.edges.resolve_samples`, ``render.edge_resolve``).
         The centre sample outside that region comes from the static layer
         (:meth:`_static_layer`) when it is cached: the pixels are the same either way.
         """
@@ -399,10 +403,12 @@ class Renderer(SceneRenderer):
             if region is not None:
                 x0, y0, x1, y1 = region
                 rgb[y0:y1, x0:x1] = self._offscreen.render(self._scene, flags, region=region)[0]
-        if self.antialias and region is not None:
+        edges = scene.render
+        if self.antialias and edges.edge_samples > 1 and region is not None:
             x0, y0, x1, y1 = region
-            first, second = (self._offset_pass(flags, region, offset) for offset in EDGE_SAMPLES)
-            resolve_two_samples(rgb[y0:y1, x0:x1], first, second)
+            samples = [self._offset_pass(flags, region, offset)
+                       for offset in EDGE_PATTERNS[edges.edge_samples]]
+            resolve_samples(rgb[y0:y1, x0:x1], samples, resolve=edges.edge_resolve)
         return rgb, z
 
     def _offset_pass(self, flags: int, region: tuple[int, int, int, int],

@@ -32,6 +32,7 @@ from arenabench.generator.layout import (
     marker_corners_world,
 )
 from arenabench.generator.lens import distort_points
+from arenabench.generator.lights import fill_lights
 from arenabench.generator.params import PARAMETERS, PARAMS, Range, Value, assemble
 from arenabench.generator.presets import resolve
 from arenabench.generator.scene import (
@@ -40,6 +41,7 @@ from arenabench.generator.scene import (
     LightingSpec,
     MarkerSpec,
     Obstacle,
+    RenderSpec,
     Scene,
 )
 
@@ -110,11 +112,14 @@ class Streams:
         if not isinstance(value, Range):
             return value
         spec = PARAMETERS[key]
-        return draw(self(spec.stream), value, integer=spec.kind == "int")
+        return draw(self(spec.stream), value, integer=spec.kind == "int",
+                    choices=spec.values_in(value.lo, value.hi) if spec.choices else ())
 
 
-def draw(rng: np.random.Generator, value: Value, *, integer: bool = False) -> Any:
-    """Draw one value: a :class:`Range` is uniform (integers inclusive), else fixed.
+def draw(rng: np.random.Generator, value: Value, *, integer: bool = False,
+         choices: tuple[int, ...] = ()) -> Any:
+    """Draw one value: a :class:`Range` is uniform (integers inclusive; one of ``choices``,
+    each as likely, when given), else fixed.
 
     Always consumes exactly one uniform draw from ``rng``.
     """
@@ -122,6 +127,8 @@ def draw(rng: np.random.Generator, value: Value, *, integer: bool = False) -> An
     if not isinstance(value, Range):
         return value
     lo, hi = value.lo, value.hi
+    if choices:
+        return int(choices[min(math.floor(u * len(choices)), len(choices) - 1)])
     if integer:
         return int(lo + min(math.floor(u * (hi - lo + 1)), hi - lo))
     return float(lo + u * (hi - lo))
@@ -269,6 +276,8 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
     direction = (-math.cos(el) * math.cos(az), -math.cos(el) * math.sin(az), -math.sin(el))
     light = sections["lighting"]
     light["directional"][0]["direction"] = direction
+    light["directional"] += fill_lights(east=values["lighting.east_fill"],
+                                        west=values["lighting.west_fill"])
     lighting = LightingSpec(**light)
     patches = sample_patches(streams(PATCH_STREAM), tapes=drawn["distractors.tapes"],
                              papers=drawn["distractors.papers"], arena=arena, markers=markers)
@@ -278,7 +287,8 @@ def sample_scene(preset: str | dict[str, Value], *, seed: int, index: int,
         patches = (*patches, occluder)
     g = drawn["background.gray"]
     scene = Scene(arena=arena, markers=markers, obstacles=obstacles, camera=camera,
-                  lighting=lighting, background_rgb=(g, g, g), patches=patches)
+                  lighting=lighting, background_rgb=(g, g, g), patches=patches,
+                  render=RenderSpec(**sections["render"]))
     # Canonical form: the scene rendered is exactly the one written to the GT file (floats
     # rounded like the GT file), so Scene.from_dict(gt["scene"]) re-renders the same image.
     scene = Scene.from_dict(rounded(scene.to_dict()))

@@ -179,13 +179,20 @@ class MarkerSpec:
         object.__setattr__(self, "ids", ids)
         if not isinstance(self.dictionary, str):
             raise ValueError(f"markers.dictionary must be a name, got {self.dictionary!r}")
-        from arenabench.generator.textures import aruco_dictionary  # imports this module
+        from arenabench.generator.textures import (  # imports this module
+            aruco_dictionary,
+            symmetric_turn,
+        )
 
         size = aruco_dictionary(self.dictionary).bytesList.shape[0]
         for marker_id in ids:
             if not 0 <= marker_id < size:
                 raise ValueError(f"markers.ids: id {marker_id} is not in {self.dictionary} "
                                  f"(ids 0..{size - 1})")
+            if (turn := symmetric_turn(self.dictionary, marker_id)) is not None:
+                raise ValueError(f"markers.ids: id {marker_id} of {self.dictionary} looks the "
+                                 f"same turned {turn} deg, so no detector can tell its first "
+                                 f"corner (choose another id)")
         _positive(self.side_m, "markers.side_m")
         if self.quiet_zone_m < 0:
             raise ValueError(f"markers.quiet_zone_m must be >= 0, got {self.quiet_zone_m!r}")
@@ -346,6 +353,41 @@ class LightingSpec:
         object.__setattr__(self, "directional", lights)
 
 
+def _choice(value: Any, name: str, *, kind: type) -> None:
+    """Refuse a ``value`` that is not one of the choices (of type ``kind``) the parameter
+    registry declares for ``name``."""
+    choices = PARAMETERS[name].choices
+    if isinstance(value, bool) or not isinstance(value, kind) or str(value) not in choices:
+        raise ValueError(f"{name} must be one of {', '.join(choices)}, got {value!r}")
+
+
+@dataclass(frozen=True)
+class RenderSpec:
+    """How the renderer draws the obstacles' edges (docs/rendering.md, "Edges").
+
+    Parameters
+    ----------
+    edge_samples : {1, 2, 4}
+        Coverage samples per pixel along the obstacles' edges: 1 = hard edges, 2 = the
+        competition renderer's two-sample pattern, 4 = the standard 4x MSAA pattern
+        (:data:`arenabench.generator.edges.EDGE_PATTERNS`).
+    edge_resolve : {"linear", "srgb"}
+        Where the samples of an edge pixel are averaged: in linear light (an sRGB framebuffer,
+        as the competition's) or in sRGB values (a plain framebuffer).
+
+    A scene file states this section only when it differs from the defaults (the neutral
+    values of ``render.edge_samples`` and ``render.edge_resolve``), so scene files and GT
+    written before it existed read and render the same.
+    """
+
+    edge_samples: int = PARAMETERS["render.edge_samples"].neutral
+    edge_resolve: str = PARAMETERS["render.edge_resolve"].neutral
+
+    def __post_init__(self) -> None:
+        _choice(self.edge_samples, "render.edge_samples", kind=int)
+        _choice(self.edge_resolve, "render.edge_resolve", kind=str)
+
+
 @dataclass(frozen=True)
 class FloorPatch:
     """A flat rectangle lying on the floor: not an obstacle (never counted, no area).
@@ -393,6 +435,7 @@ class Scene:
     """Everything needed to render one image and compute its ground truth.
 
     ``patches`` are flat distractors (tape, paper) and marker occluders: drawn, never counted.
+    ``render`` says how the obstacles' edges are drawn (:class:`RenderSpec`).
     """
 
     arena: ArenaSpec
@@ -402,6 +445,7 @@ class Scene:
     lighting: LightingSpec = field(default_factory=LightingSpec)
     background_rgb: Rgb = (225, 225, 225)
     patches: tuple[FloorPatch, ...] = ()
+    render: RenderSpec = field(default_factory=RenderSpec)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "obstacles", tuple(self.obstacles))
@@ -410,6 +454,8 @@ class Scene:
             p if isinstance(p, FloorPatch) else FloorPatch(**_tuplify(p)) for p in self.patches
         ))
         object.__setattr__(self, "background_rgb", _rgb(self.background_rgb, "background_rgb"))
+        if not isinstance(self.render, RenderSpec):
+            raise ValueError(f"render must be a RenderSpec, got {self.render!r}")
         mk = self.markers
         if (self.arena.texture == comp.TEXTURE_NAME
                 and not comp.markers_are_printed(mk.dictionary, mk.ids, mk.side_m,
@@ -426,9 +472,12 @@ class Scene:
 
         The camera is written one way only: ``K`` or ``fov_deg`` for the intrinsics, the
         look-at pose (``eye_m``, ``look_at_m``) or the orbit pose (``altitude_m``,
-        ``tilt_deg``, ``yaw_deg``, ``target_m``), never both.
+        ``tilt_deg``, ``yaw_deg``, ``target_m``), never both. ``render`` is written only when
+        it is not the default (:class:`RenderSpec`).
         """
         out = _listify(asdict(self))
+        if self.render == RenderSpec():
+            del out["render"]
         camera = out["camera"]
         for name in CAMERA_INTRINSIC_FIELDS[camera["K"] is None]:
             del camera[name]
@@ -471,6 +520,7 @@ class Scene:
                 lighting=LightingSpec(**lighting),
                 background_rgb=tuple(data.get("background_rgb", (225, 225, 225))),
                 patches=tuple(FloorPatch(**_tuplify(p)) for p in data.get("patches", ())),
+                render=RenderSpec(**data.get("render", {})),
             )
         except (KeyError, TypeError, AttributeError) as exc:
             raise ValueError(f"invalid scene description: {exc}") from exc
@@ -490,7 +540,8 @@ def _tuplify(d: dict[str, Any]) -> dict[str, Any]:
 
 #: Top-level keys of a scene file.
 SCENE_KEYS = frozenset(
-    {"arena", "markers", "obstacles", "camera", "lighting", "background_rgb", "patches"}
+    {"arena", "markers", "obstacles", "camera", "lighting", "background_rgb", "patches",
+     "render"}
 )
 
 

@@ -36,6 +36,20 @@ def aruco_dictionary(name: str):
     return cv2.aruco.getPredefinedDictionary(code)
 
 
+@functools.lru_cache(maxsize=4096)
+def symmetric_turn(dictionary: str, marker_id: int) -> int | None:
+    """The smallest quarter turn (90, 180 or 270 deg) under which marker ``marker_id`` of
+    ``dictionary`` looks the same, or ``None``: a detector cannot tell such a marker's first
+    corner (of every predefined dictionary, only DICT_ARUCO_ORIGINAL's id 1023 is one, at
+    180)."""
+    d = aruco_dictionary(dictionary)
+    img = cv2.aruco.generateImageMarker(d, int(marker_id), d.markerSize + 2, borderBits=1)
+    for quarter in (1, 2, 3):
+        if np.array_equal(img, np.rot90(img, quarter)):
+            return 90 * quarter
+    return None
+
+
 def marker_texture(dictionary: str, marker_id: int, side_m: float, quiet_zone_m: float):
     """A marker sheet: the marker image with a white quiet zone.
 

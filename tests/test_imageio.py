@@ -104,11 +104,18 @@ def test_encode_png_is_lossless_and_the_writers_one_encoder():
 def test_jpeg_layout_and_quality_of_the_example_and_of_other_encodings():
     """The example's tables and 4:2:0 sampling are cv2.imwrite's at quality 95; another
     quality or 4:4:4 is told apart; a PNG is refused with a one-line error."""
-    from arenabench.imageio import encode_image, encode_jpeg, jpeg_layout, jpeg_quality
+    from arenabench.imageio import (
+        encode_image,
+        encode_jpeg,
+        jpeg_layout,
+        jpeg_quality,
+        jpeg_settings,
+    )
 
     example = EXAMPLE.read_bytes()
     assert jpeg_quality(example) == 95
     assert jpeg_layout(example).sampling == ((2, 2), (1, 1), (1, 1))
+    assert jpeg_settings(example) == (95, "420")
     bgr = np.zeros((16, 16, 3), np.uint8)
     assert jpeg_quality(encode_jpeg(bgr, quality=80)) == 80
     assert encode_image(bgr, image_format="jpeg", jpeg_quality=95) == encode_jpeg(bgr, quality=95)
@@ -116,10 +123,67 @@ def test_jpeg_layout_and_quality_of_the_example_and_of_other_encodings():
                                           cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
                                           cv2.IMWRITE_JPEG_SAMPLING_FACTOR_444])
     assert ok and jpeg_layout(full.tobytes()).sampling == ((1, 1), (1, 1), (1, 1))
-    assert jpeg_quality(full.tobytes()) is None
+    assert jpeg_settings(full.tobytes()) == (95, "444")
+    assert full.tobytes() == encode_jpeg(bgr, quality=95, subsampling="444")
     with pytest.raises(ImageLoadError, match="not a JPEG"):
         jpeg_layout(encode_image(bgr, image_format="png", jpeg_quality=95))
     with pytest.raises(ValueError, match="quality"):
         encode_jpeg(bgr, quality=0)
     with pytest.raises(ValueError, match="unknown image format"):
         encode_image(bgr, image_format="webp", jpeg_quality=95)
+
+
+def test_jpeg_settings_read_back_every_quality_and_subsampling_written():
+    """Every quality 1..100 and every subsampling encode_jpeg writes is read back exactly from
+    the file's own tables and frame header (libjpeg's scaling of the standard tables); 4:2:0
+    is written without the option, byte for byte as cv2.imwrite's default."""
+    from arenabench.imageio import (
+        JPEG_SUBSAMPLINGS,
+        encode_jpeg,
+        jpeg_quality,
+        jpeg_settings,
+    )
+
+    rng = np.random.default_rng(1)
+    bgr = rng.integers(0, 256, (24, 40, 3), dtype=np.uint8)
+    default = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, 90])[1].tobytes()
+    assert encode_jpeg(bgr, quality=90) == default
+    for subsampling in JPEG_SUBSAMPLINGS:
+        for quality in range(1, 101):
+            data = encode_jpeg(bgr, quality=quality, subsampling=subsampling)
+            assert jpeg_settings(data) == (quality, subsampling), (quality, subsampling)
+            assert jpeg_quality(data) == quality
+    grey = cv2.imencode(".jpg", bgr[:, :, 0], [cv2.IMWRITE_JPEG_QUALITY, 70])[1].tobytes()
+    assert jpeg_settings(grey) == (70, "gray")
+
+
+def test_jpeg_settings_estimate_the_quality_of_tables_of_their_own():
+    """A file whose luminance table is no libjpeg-scaled one (here: quality 80's table with
+    a few entries moved, as another encoder might write) gets the nearest quality, and
+    jpeg_quality says there is no exact one."""
+    from arenabench.imageio import encode_jpeg, jpeg_layout, jpeg_quality, jpeg_settings
+
+    data = bytearray(encode_jpeg(np.zeros((16, 16, 3), np.uint8), quality=80))
+    start = data.index(b"\xff\xdb") + 5  # first DQT's first table (id 0), zig-zag order
+    table = list(jpeg_layout(bytes(data)).tables[0])
+    assert list(data[start:start + 64]) == table
+    for k in (3, 17, 40):
+        data[start + k] += 1
+    assert jpeg_quality(bytes(data)) is None
+    assert jpeg_settings(bytes(data)) == (80, "420")
+
+
+def test_a_subsampling_opencv_cannot_write_is_refused_in_one_line(monkeypatch):
+    """Without IMWRITE_JPEG_SAMPLING_FACTOR (OpenCV < 4.7) only 4:2:0 can be written: asking
+    for another is one line naming the OpenCV version, not a silent 4:2:0."""
+    from arenabench import imageio
+
+    bgr = np.zeros((16, 16, 3), np.uint8)
+    with pytest.raises(ValueError, match=r"unknown JPEG subsampling '411' \(one of 420, 422"):
+        imageio.encode_jpeg(bgr, quality=90, subsampling="411")
+    monkeypatch.delattr(cv2, "IMWRITE_JPEG_SAMPLING_FACTOR")
+    assert imageio.jpeg_subsampling_problem("420") is None
+    assert imageio.encode_jpeg(bgr, quality=90).startswith(b"\xff\xd8")
+    with pytest.raises(ValueError, match=r"needs OpenCV >= 4\.7") as err:
+        imageio.encode_jpeg(bgr, quality=90, subsampling="444")
+    assert "\n" not in str(err.value)

@@ -15,7 +15,7 @@ from __future__ import annotations
 import os
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, NamedTuple
 
 import cv2
 import numpy as np
@@ -257,9 +257,40 @@ def encode_png(bgr: np.ndarray) -> bytes:
 IMAGE_EXTENSIONS = {"png": "png", "jpeg": "jpg"}
 
 
-def encode_jpeg(bgr: np.ndarray, *, quality: int) -> bytes:
-    """Encode an image as JPEG bytes as ``cv2.imwrite`` does by default (libjpeg's standard
-    tables scaled to ``quality``, 4:2:0 chroma subsampling, baseline): how the competition's
+#: JPEG chroma subsamplings the writers can choose (``output.jpeg_subsampling``): name ->
+#: (the (horizontal, vertical) sampling factors of Y, Cb and Cr in the frame header, the
+#: OpenCV ``IMWRITE_JPEG_SAMPLING_FACTOR_*`` constant's name). ``420`` is what
+#: ``cv2.imwrite`` writes by default, and the competition's example.
+JPEG_SUBSAMPLINGS: dict[str, tuple[tuple[tuple[int, int], ...], str]] = {
+    "420": (((2, 2), (1, 1), (1, 1)), "IMWRITE_JPEG_SAMPLING_FACTOR_420"),
+    "422": (((2, 1), (1, 1), (1, 1)), "IMWRITE_JPEG_SAMPLING_FACTOR_422"),
+    "444": (((1, 1), (1, 1), (1, 1)), "IMWRITE_JPEG_SAMPLING_FACTOR_444"),
+}
+#: The subsampling ``cv2.imwrite`` uses when not told (written without the option).
+DEFAULT_JPEG_SUBSAMPLING = "420"
+
+
+def jpeg_subsampling_problem(subsampling: str) -> str | None:
+    """Why :func:`encode_jpeg` cannot write ``subsampling`` with this OpenCV, or ``None``.
+
+    Any OpenCV writes the default (``420``); the others need ``IMWRITE_JPEG_SAMPLING_FACTOR``
+    (OpenCV 4.7 and later; the competition's 4.10 has it).
+    """
+    if subsampling not in JPEG_SUBSAMPLINGS:
+        return (f"unknown JPEG subsampling {subsampling!r} "
+                f"(one of {', '.join(JPEG_SUBSAMPLINGS)})")
+    if subsampling != DEFAULT_JPEG_SUBSAMPLING and not hasattr(
+            cv2, "IMWRITE_JPEG_SAMPLING_FACTOR"):
+        return (f"JPEG subsampling {subsampling} needs OpenCV >= 4.7 "
+                f"(IMWRITE_JPEG_SAMPLING_FACTOR); this OpenCV {cv2.__version__} writes "
+                f"{DEFAULT_JPEG_SUBSAMPLING} only")
+    return None
+
+
+def encode_jpeg(bgr: np.ndarray, *, quality: int,
+                subsampling: str = DEFAULT_JPEG_SUBSAMPLING) -> bytes:
+    """Encode an image as JPEG bytes as ``cv2.imwrite`` does (libjpeg's standard tables scaled
+    to ``quality``, baseline), with 4:2:0 chroma subsampling by default: how the competition's
     example image was written.
 
     Parameters
@@ -268,23 +299,34 @@ def encode_jpeg(bgr: np.ndarray, *, quality: int) -> bytes:
         uint8 image, H x W x 3 in OpenCV's BGR order (or H x W grey).
     quality : int, keyword-only
         JPEG quality, 1..100.
+    subsampling : {"420", "422", "444"}, keyword-only
+        Chroma subsampling (:data:`JPEG_SUBSAMPLINGS`); ``420`` is written without the
+        option, as ``cv2.imwrite``'s default.
 
     Raises
     ------
     ValueError
-        For a quality outside 1..100.
+        For a quality outside 1..100, or a subsampling this OpenCV cannot write
+        (:func:`jpeg_subsampling_problem`).
     """
     if isinstance(quality, bool) or not isinstance(quality, int) or not 1 <= quality <= 100:
         raise ValueError(f"JPEG quality must be an integer 1..100, got {quality!r}")
-    ok, buf = cv2.imencode(".jpg", bgr, [cv2.IMWRITE_JPEG_QUALITY, quality])
+    if problem := jpeg_subsampling_problem(subsampling):
+        raise ValueError(problem)
+    params = [cv2.IMWRITE_JPEG_QUALITY, quality]
+    if subsampling != DEFAULT_JPEG_SUBSAMPLING:
+        params += [cv2.IMWRITE_JPEG_SAMPLING_FACTOR,
+                   getattr(cv2, JPEG_SUBSAMPLINGS[subsampling][1])]
+    ok, buf = cv2.imencode(".jpg", bgr, params)
     if not ok:  # pragma: no cover - OpenCV failure
         raise RuntimeError("JPEG encoding failed")
     return buf.tobytes()
 
 
-def encode_image(bgr: np.ndarray, *, image_format: str, jpeg_quality: int) -> bytes:
+def encode_image(bgr: np.ndarray, *, image_format: str, jpeg_quality: int,
+                 jpeg_subsampling: str = DEFAULT_JPEG_SUBSAMPLING) -> bytes:
     """Encode ``bgr`` in ``image_format`` (a key of :data:`IMAGE_EXTENSIONS`):
-    :func:`encode_png` or :func:`encode_jpeg` at ``jpeg_quality``.
+    :func:`encode_png` or :func:`encode_jpeg` at ``jpeg_quality`` and ``jpeg_subsampling``.
 
     Raises
     ------
@@ -294,7 +336,7 @@ def encode_image(bgr: np.ndarray, *, image_format: str, jpeg_quality: int) -> by
     if image_format == "png":
         return encode_png(bgr)
     if image_format == "jpeg":
-        return encode_jpeg(bgr, quality=jpeg_quality)
+        return encode_jpeg(bgr, quality=jpeg_quality, subsampling=jpeg_subsampling)
     raise ValueError(f"unknown image format {image_format!r} "
                      f"(one of {', '.join(IMAGE_EXTENSIONS)})")
 
@@ -364,18 +406,104 @@ def jpeg_layout(data: bytes, *, name: str = "image") -> JpegLayout:
     return JpegLayout(tables=tables, sampling=sampling)
 
 
+#: The example quantisation tables of the JPEG standard (ITU-T T.81, Annex K, tables K.1 and
+#: K.2), in natural (row-major) order: libjpeg scales them by the quality.
+_STD_LUMINANCE = (
+    16, 11, 10, 16, 24, 40, 51, 61, 12, 12, 14, 19, 26, 58, 60, 55,
+    14, 13, 16, 24, 40, 57, 69, 56, 14, 17, 22, 29, 51, 87, 80, 62,
+    18, 22, 37, 56, 68, 109, 103, 77, 24, 35, 55, 64, 81, 104, 113, 92,
+    49, 64, 78, 87, 103, 121, 120, 101, 72, 92, 95, 98, 112, 100, 103, 99,
+)  # fmt: skip
+_STD_CHROMINANCE = (
+    17, 18, 24, 47, 99, 99, 99, 99, 18, 21, 26, 66, 99, 99, 99, 99,
+    24, 26, 56, *(99,) * 5, 47, 66, *(99,) * 6, *(99,) * 32,
+)  # fmt: skip
+#: Position in natural order of the k-th value of a table as the file stores it (zig-zag).
+_ZIGZAG = (
+    0, 1, 8, 16, 9, 2, 3, 10, 17, 24, 32, 25, 18, 11, 4, 5,
+    12, 19, 26, 33, 40, 48, 41, 34, 27, 20, 13, 6, 7, 14, 21, 28,
+    35, 42, 49, 56, 57, 50, 43, 36, 29, 22, 15, 23, 30, 37, 44, 51,
+    58, 59, 52, 45, 38, 31, 39, 46, 53, 60, 61, 54, 47, 55, 62, 63,
+)  # fmt: skip
+
+
+def libjpeg_table(standard: tuple[int, ...], quality: int) -> tuple[int, ...]:
+    """A standard table (natural order) scaled to ``quality`` as libjpeg's
+    ``jpeg_set_quality`` scales it (``jpeg_quality_scaling``, then ``jpeg_add_quant_table``
+    with ``force_baseline``), in file (zig-zag) order."""
+    scale = 5000 // quality if quality < 50 else 200 - 2 * quality
+    return tuple(min(max((standard[i] * scale + 50) // 100, 1), 255) for i in _ZIGZAG)
+
+
+_LIBJPEG_TABLES = {q: (libjpeg_table(_STD_LUMINANCE, q), libjpeg_table(_STD_CHROMINANCE, q))
+                   for q in range(1, 101)}
+
+
+class JpegSettings(NamedTuple):
+    """How a JPEG file was written, as far as its own headers say (:func:`jpeg_settings`)."""
+
+    #: libjpeg quality 1..100: exact when the file's tables are libjpeg's standard ones
+    #: scaled to it (:func:`jpeg_quality`), else the nearest such luminance table's.
+    quality: int
+    #: chroma subsampling: a key of :data:`JPEG_SUBSAMPLINGS`, ``440`` or ``411``, ``gray``
+    #: for one component, else the factors (``"2x2,1x1,1x1"``).
+    subsampling: str
+
+
+_OTHER_SUBSAMPLINGS = {((1, 2), (1, 1), (1, 1)): "440", ((4, 1), (1, 1), (1, 1)): "411"}
+
+
+def _subsampling_name(sampling: tuple[tuple[int, int], ...]) -> str:
+    for name, (factors, _) in JPEG_SUBSAMPLINGS.items():
+        if sampling == factors:
+            return name
+    if len(sampling) == 1:
+        return "gray"
+    return _OTHER_SUBSAMPLINGS.get(sampling, ",".join(f"{h}x{v}" for h, v in sampling))
+
+
+def _exact_quality(layout: JpegLayout) -> int | None:
+    luma, chroma = layout.tables.get(0), layout.tables.get(1)
+    for quality, (lum, chrom) in _LIBJPEG_TABLES.items():
+        if luma == lum and (chroma is None or chroma == chrom):
+            return quality
+    return None
+
+
+def jpeg_settings(data: bytes, *, name: str = "image") -> JpegSettings:
+    """The quality and chroma subsampling a JPEG file was written with, read from its own
+    quantisation tables (DQT) and frame header (SOF): no decoding.
+
+    The quality is libjpeg's (``cv2.imwrite``'s, Pillow's, most cameras' software): exact
+    when the luminance table (and the chrominance one, when present) is the JPEG standard's
+    scaled to that quality, as libjpeg scales it; otherwise the quality whose scaled
+    luminance table is nearest (least sum of absolute differences; an estimate, for an
+    encoder with tables of its own).
+
+    Raises
+    ------
+    ImageLoadError
+        When ``data`` is not a readable JPEG or has no luminance table (id 0).
+    """
+    layout = jpeg_layout(data, name=name)
+    if 0 not in layout.tables:
+        raise ImageLoadError(f"{name}: JPEG without a luminance quantisation table (id 0)")
+    quality = _exact_quality(layout)
+    if quality is None:
+        luma = np.asarray(layout.tables[0], np.int64)
+        quality = min(_LIBJPEG_TABLES, key=lambda q: (
+            int(np.abs(np.asarray(_LIBJPEG_TABLES[q][0]) - luma).sum()), -q))
+    return JpegSettings(quality=quality, subsampling=_subsampling_name(layout.sampling))
+
+
 def jpeg_quality(data: bytes, *, name: str = "image") -> int | None:
-    """The quality at which :func:`encode_jpeg` (``cv2.imwrite``'s default encoder) writes the
-    same quantisation tables and sampling as this JPEG file, or None when no quality does.
+    """The quality at which :func:`encode_jpeg` (``cv2.imwrite``'s encoder) writes the same
+    quantisation tables as this JPEG file (libjpeg's standard tables scaled to it), or None
+    when no quality does (:func:`jpeg_settings` then estimates one).
 
     Raises
     ------
     ImageLoadError
         When ``data`` is not a readable JPEG.
     """
-    want = jpeg_layout(data, name=name)
-    probe = np.zeros((16, 16, 3), np.uint8)
-    for quality in range(100, 0, -1):
-        if jpeg_layout(encode_jpeg(probe, quality=quality)) == want:
-            return quality
-    return None
+    return _exact_quality(jpeg_layout(data, name=name))
