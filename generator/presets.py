@@ -9,14 +9,12 @@ anything else is refused with an error naming the key.
 
 from __future__ import annotations
 
-import json
-import math
+from collections.abc import Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 from arenabench.cliopts import plain_number
 from arenabench.frame import COMPETITION_DICTIONARY
-from arenabench.generator import competition_arena as comp
 from arenabench.generator.params import DEFAULTS, NEUTRAL, PARAMETERS, Param, Range, Value
 from arenabench.suggest import did_you_mean
 
@@ -119,66 +117,50 @@ _WAREHOUSE: dict[str, Value] = {
 }
 
 
-#: The fitted competition example (camera, light, colours), shipped with the package.
+#: The fitted competition example (camera, light, colours), shipped with the package: the
+#: evidence the ``eyrc`` preset file's camera, light and colours were read from (a test keeps
+#: them equal).
 EXAMPLE_SCENE = Path(__file__).resolve().parent / "scenes" / "task1c_example.json"
 
+#: Built-in presets kept as preset files (package data, docs/formats.md "Preset files"):
+#: name -> file. The file is the preset's only source; its ``[preset]`` name is the key.
+PRESET_FILES: dict[str, Path] = {
+    "eyrc": Path(__file__).resolve().parent / "assets" / "presets" / "eyrc.toml",
+}
 
-def _twin() -> dict[str, Value]:
-    """The hidden-test twin: the fitted example's camera, light, colours and arena held fixed
-    (read from :data:`EXAMPLE_SCENE`), one box grey, boxes axis-aligned; only the boxes' count,
-    position, size and height vary (README "The eyrc twin" gives the evidence for each range).
-    """
-    ex = json.loads(EXAMPLE_SCENE.read_text())
-    cam, light = ex["camera"], ex["lighting"]
-    d = light["directional"][0]["direction"]
-    grays = sorted({o["color_rgb"][0] for o in ex["obstacles"]})
-    return {
-        **_EYRC_JITTER,
-        "arena.side_m": comp.ARENA_SIDE_M,
-        "arena.margin_m": comp.ARENA_MARGIN_M,
-        "arena.floor_rgb": tuple(ex["arena"]["floor_rgb"]),
-        "arena.texture": comp.TEXTURE_NAME,
-        "arena.border_width_m": 0.0,
-        "arena.logo_text": "",
-        "markers.side_m": comp.MARKER_SIDE_M,
-        "obstacles.count": Range(1, 4),
-        "obstacles.length_m": Range(0.45, 1.0),
-        "obstacles.width_m": Range(0.28, 0.34),
-        "obstacles.height_m": Range(0.2, 0.35),
-        "obstacles.yaw_deg": Range(-45.0, 135.0),
-        "obstacles.yaw_step_deg": 90.0,
-        "obstacles.gray": grays[0] if len(grays) == 1 else Range(grays[0], grays[-1]),
-        "obstacles.min_gap_m": 0.15,
-        "obstacles.edge_margin_m": 0.16,
-        "camera.fov_deg": cam["fov_deg"],
-        "camera.altitude_m": cam["altitude_m"],
-        "camera.tilt_deg": cam["tilt_deg"],
-        "camera.yaw_deg": cam["yaw_deg"],
-        "camera.roll_deg": cam["roll_deg"],
-        "camera.target_x_m": cam["target_m"][0],
-        "camera.target_y_m": cam["target_m"][1],
-        "lighting.ambient": light["ambient"],
-        "lighting.intensity": light["directional"][0]["intensity"],
-        "lighting.elevation_deg": round(math.degrees(math.asin(-d[2])), 6),
-        "lighting.azimuth_deg": round(math.degrees(math.atan2(-d[1], -d[0])), 6),
-        "background.gray": ex["background_rgb"][0],
-        # the example's faces seen: top, north, south; the east and west faces keep the main
-        # light's shade (no fill: a choice the example allows, not one it shows)
-        "lighting.east_fill": 0.0,
-        "lighting.west_fill": 0.0,
-        # its edges: two samples per pixel averaged in linear light (docs/rendering.md, "Edges")
-        "render.edge_samples": 2,
-        "render.edge_resolve": "linear",
-        # the example is a JPEG at quality 95, 4:2:0 (libjpeg's tables scaled to 95)
-        "output.format": "jpeg",
-        "output.jpeg_quality": 95,
-        "output.jpeg_subsampling": "420",
-    }
 
-#: Named presets: name -> (description, parameters).
-PRESETS: dict[str, tuple[str, dict[str, Value]]] = {
-    "eyrc": ("the hidden-test twin: the competition's arena texture, the fitted example's "
-             "camera, light and box grey held fixed, 1-4 axis-aligned boxes", _twin()),
+class _Presets(Mapping[str, tuple[str, dict[str, Value]]]):
+    """Built-in presets, name -> (description, parameters), in listing order; a preset of
+    :data:`PRESET_FILES` is read (and validated) on first use."""
+
+    def __init__(self, order: tuple[str, ...], given: dict[str, tuple[str, dict[str, Value]]]
+                 ) -> None:
+        self._order = order
+        self._given = given
+
+    def __getitem__(self, name: str) -> tuple[str, dict[str, Value]]:
+        if name in self._given:
+            return self._given[name]
+        if name in PRESET_FILES and name in self._order:
+            from arenabench.generator.preset_files import builtin_preset
+
+            made = builtin_preset(name)
+            self._given[name] = (made.description, dict(made.params))
+            return self._given[name]
+        raise KeyError(name)
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._order)
+
+    def __len__(self) -> int:
+        return len(self._order)
+
+    def __contains__(self, name: object) -> bool:
+        return name in self._order
+
+
+#: The built-in presets given in code: name -> (description, parameters).
+_IN_CODE: dict[str, tuple[str, dict[str, Value]]] = {
     "eyrc-jitter": ("looks like the e-Yantra Task 1C example, widened: 8 m arena, camera, "
                     "light, box greys and yaw jittered, 1-5 grey boxes", _EYRC_JITTER),
     "eyrc-upright": ("eyrc-jitter with the markers printed upright (the published pipeline then "
@@ -195,20 +177,29 @@ PRESETS: dict[str, tuple[str, dict[str, Value]]] = {
                   "wooden pallets and coloured crates, tape and paper clutter", _WAREHOUSE),
 }
 
+#: Named presets: name -> (description, parameters), ``eyrc`` first. ``eyrc`` is the preset
+#: file :data:`PRESET_FILES` names (read on first use); ``--preset`` also takes a preset file
+#: (:func:`arenabench.generator.preset_files.resolve_preset`).
+PRESETS: Mapping[str, tuple[str, dict[str, Value]]] = _Presets(
+    (*PRESET_FILES, *_IN_CODE), _IN_CODE)
+
 
 def preset_names() -> list[str]:
     """Names of the built-in presets."""
     return list(PRESETS)
 
 
-def get_preset(name: str) -> dict[str, Value]:
-    """A copy of preset ``name``'s parameters.
+def get_preset(name: Any) -> dict[str, Value]:
+    """A copy of preset ``name``'s parameters (``name``: a built-in preset's name, or a
+    :class:`~arenabench.generator.preset_files.ResolvedPreset`).
 
     Raises
     ------
     ValueError
         For an unknown name (the message lists the known ones).
     """
+    if not isinstance(name, str):  # a ResolvedPreset (a preset file)
+        return dict(name.params)
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r}{did_you_mean(name, PRESETS)} "
                          f"(known: {', '.join(PRESETS)})")
@@ -364,10 +355,11 @@ def parse_overrides(items: list[str] | None) -> dict[str, Value]:
     return out
 
 
-def resolve(preset: str | dict[str, Value], overrides: dict[str, Value] | None = None
-            ) -> dict[str, Value]:
-    """Preset parameters with ``overrides`` applied, every value validated."""
-    params = get_preset(preset) if isinstance(preset, str) else dict(preset)
+def resolve(preset: Any, overrides: dict[str, Value] | None = None) -> dict[str, Value]:
+    """Preset parameters with ``overrides`` applied, every value validated (``preset``: a
+    name, a parameter mapping or a
+    :class:`~arenabench.generator.preset_files.ResolvedPreset`)."""
+    params = dict(preset) if isinstance(preset, Mapping) else get_preset(preset)
     params = {**DEFAULTS, **params}
     for key, value in (overrides or {}).items():
         params[key] = value

@@ -41,6 +41,10 @@ MAX_IMAGE_ID_CHARS = 128
 #: Largest ``dataset.json`` read (the generator's is a few kilobytes).
 MAX_DATASET_META_BYTES = 1024**2
 
+#: Largest preset file read (``--preset FILE``; a complete one is a few kilobytes). A
+#: ``dataset.json`` given as a preset is held to :data:`MAX_DATASET_META_BYTES` too.
+MAX_PRESET_FILE_BYTES = MAX_DATASET_META_BYTES
+
 #: Largest magnitude of any number in a scene (metres, degrees, pixels, intrinsics): beyond
 #: it the camera and geometry arithmetic loses all precision (``inf`` and ``nan`` never pass).
 MAX_SCENE_NUMBER = 1e6
