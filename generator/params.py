@@ -159,7 +159,11 @@ PARAMS: tuple[Param, ...] = (
           lands="arena.margin_m"),
     Param("arena.floor_rgb", "rgb", "floor albedo R,G,B", lands="arena.floor_rgb"),
     Param("arena.texture", "str", "floor texture (competition: the e-Yantra arena image)",
-          choices=("plain", "speckle", "concrete", comp.TEXTURE_NAME), lands="arena.texture"),
+          choices=("plain", "speckle", "concrete", comp.TEXTURE_NAME, "image"),
+          lands="arena.texture"),
+    Param("arena.texture_file", "str", "image file of arena.texture=image (relative to the "
+          "preset file), covering the floor square, its markers printed", neutral="",
+          lands="arena.texture_file"),
     Param("arena.texture_seed", "int", "seed of the procedural floor texture",
           _b(0, 1_000_000), lands="arena.texture_seed"),
     Param("arena.border_width_m", "float", "border line width (m), 0 = none", _b(0, 1),

@@ -447,6 +447,11 @@ def _param_value(ctx: _Context, key: str, raw: Any, *, spelled_as: str,
                 return _raise(bad(f"expected {forms}"))
         elif not isinstance(raw, str):
             return _raise(bad(f"a {_toml_type(raw)} where {forms} belongs"))
+    if key == "arena.texture_file" and isinstance(value, str) and value:
+        path = Path(value) if Path(value).is_absolute() else ctx.base / value
+        if not path.is_file():
+            return _raise(bad("no such image file"))
+        value = str(path.resolve())
     try:
         return validate_value(key, value)
     except ValueError as exc:

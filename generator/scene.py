@@ -25,8 +25,10 @@ from arenabench.limits import (
 Rgb = tuple[int, int, int]
 
 
-#: Floor textures: procedural ones, and the competition's own arena image.
-FLOOR_TEXTURES = ("plain", "speckle", "concrete", comp.TEXTURE_NAME)
+#: The floor texture that is an image file (``arena.texture_file``) with its markers printed.
+IMAGE_TEXTURE = "image"
+#: Floor textures: procedural ones, the competition's own arena image, and an image file.
+FLOOR_TEXTURES = ("plain", "speckle", "concrete", comp.TEXTURE_NAME, IMAGE_TEXTURE)
 
 
 def _rgb(value: Any, name: str) -> Rgb:
@@ -83,12 +85,14 @@ class ArenaSpec:
         Width of floor beyond the border line on every side.
     floor_rgb : tuple of int
         Floor albedo (0..255).
-    texture : {"plain", "speckle", "concrete", "competition"}
+    texture : {"plain", "speckle", "concrete", "competition", "image"}
         Plain colour, a faint procedural speckle, or warehouse concrete (mottling, stains and
         painted lane lines in the margin), seeded by ``texture_seed``; or the competition's
         own arena image (border line, markers 80/85/90/95 and logo printed on it, tinted by
         ``floor_rgb``), which fixes ``side_m`` and ``margin_m`` to its geometry
-        (:mod:`arenabench.generator.competition_arena`).
+        (:mod:`arenabench.generator.competition_arena`); or an image file
+        (``texture_file``) covering the floor square (``side_m`` + 2 ``margin_m``), its
+        markers printed on it (none are drawn), tinted by ``floor_rgb``.
     texture_seed : int
         Seed of the procedural texture.
     border_width_m : float
@@ -103,6 +107,9 @@ class ArenaSpec:
         Text distractor drawn centred just outside the south border ("" = none).
     logo_rgb : tuple of int
         Colour of the text distractor.
+    texture_file : str
+        The image file of ``texture="image"`` (empty otherwise); a scene file states it only
+        when set, relative to the scene file's folder or absolute.
     """
 
     side_m: float = 8.0
@@ -116,9 +123,16 @@ class ArenaSpec:
     grid_rgb: Rgb = (200, 200, 200)
     logo_text: str = ""
     logo_rgb: Rgb = (220, 50, 50)
+    texture_file: str = ""
 
     def __post_init__(self) -> None:
         _finite_fields(self, "arena")
+        if not isinstance(self.texture_file, str):
+            raise ValueError(f"arena.texture_file must be a path, got {self.texture_file!r}")
+        if (self.texture == IMAGE_TEXTURE) != bool(self.texture_file):
+            raise ValueError(f"arena.texture_file is given with arena.texture={IMAGE_TEXTURE} "
+                             f"and only then, got texture {self.texture!r} and texture_file "
+                             f"{self.texture_file!r}")
         _positive(self.side_m, "arena.side_m")
         if self.margin_m < 0:
             raise ValueError(f"arena.margin_m must be >= 0, got {self.margin_m!r}")
@@ -473,11 +487,13 @@ class Scene:
         The camera is written one way only: ``K`` or ``fov_deg`` for the intrinsics, the
         look-at pose (``eye_m``, ``look_at_m``) or the orbit pose (``altitude_m``,
         ``tilt_deg``, ``yaw_deg``, ``target_m``), never both. ``render`` is written only when
-        it is not the default (:class:`RenderSpec`).
+        it is not the default (:class:`RenderSpec`), ``arena.texture_file`` only when set.
         """
         out = _listify(asdict(self))
         if self.render == RenderSpec():
             del out["render"]
+        if not out["arena"]["texture_file"]:
+            del out["arena"]["texture_file"]
         camera = out["camera"]
         for name in CAMERA_INTRINSIC_FIELDS[camera["K"] is None]:
             del camera[name]
@@ -569,6 +585,10 @@ def load_scene(path: str | Path) -> Scene:
     unknown = sorted(set(data) - SCENE_KEYS)
     if unknown:
         raise ValueError(f"scene file {str(p)!r}: unknown field(s) {', '.join(unknown)}")
+    arena = data.get("arena")
+    if isinstance(arena, dict) and isinstance(arena.get("texture_file"), str) \
+            and arena["texture_file"] and not Path(arena["texture_file"]).is_absolute():
+        data["arena"] = {**arena, "texture_file": str(p.resolve().parent / arena["texture_file"])}
     try:
         return Scene.from_dict(data)
     except ValueError as exc:

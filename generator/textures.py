@@ -14,12 +14,30 @@ import numpy as np
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.edges import linear_to_srgb, srgb_to_linear
 from arenabench.generator.layout import floor_extent
-from arenabench.generator.scene import ArenaSpec
+from arenabench.generator.scene import IMAGE_TEXTURE, ArenaSpec
 
 #: Floor texture side in texels.
 FLOOR_TEXELS = 2048
 #: Texels per marker module (cell): 4x4 markers are 6 modules wide with the black border.
 MODULE_TEXELS = 32
+#: An image texture larger than this (texels a side) is halved in linear light, as GL's first
+#: mip level, until it fits.
+IMAGE_TEXTURE_MAX_TEXELS = 4096
+
+
+def image_texture_rgb(path: str) -> np.ndarray:
+    """The image file of an ``arena.texture="image"`` arena as (H, W, 3) uint8 RGB, row 0
+    north.
+
+    Raises
+    ------
+    ValueError
+        When the file is missing or not an image.
+    """
+    bgr = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if bgr is None:
+        raise ValueError(f"arena.texture_file: cannot read an image from {path!r}")
+    return np.ascontiguousarray(cv2.cvtColor(bgr, cv2.COLOR_BGR2RGB))
 
 
 def aruco_dictionary(name: str):
@@ -120,6 +138,12 @@ def _floor_texture(arena: ArenaSpec, texels: int) -> np.ndarray:
         # the memory (the original would cost a rendering worker about 100 MB)
         full = cv2.LUT(comp.texture_rgb(), lut)
         img = halve_in_linear_light(full)
+    elif arena.texture == IMAGE_TEXTURE:  # an image file, tinted by the floor colour
+        levels = np.arange(256, dtype=np.float64)[:, None] * np.asarray(arena.floor_rgb) / 255.0
+        lut = np.rint(levels).astype(np.uint8).reshape(256, 1, 3)
+        img = cv2.LUT(image_texture_rgb(arena.texture_file), lut)
+        while max(img.shape[:2]) > IMAGE_TEXTURE_MAX_TEXELS:  # the first mip level GL makes
+            img = halve_in_linear_light(img)
     else:
         img = np.empty((texels, texels, 3), np.uint8)
         img[:] = arena.floor_rgb
