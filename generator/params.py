@@ -162,7 +162,7 @@ PARAMS: tuple[Param, ...] = (
           choices=("plain", "speckle", "concrete", comp.TEXTURE_NAME, "image"),
           lands="arena.texture"),
     Param("arena.texture_file", "str", "image file of arena.texture=image (relative to the "
-          "preset file), covering the floor square, its markers printed", neutral="",
+          "preset file), covering the floor square", neutral="",
           lands="arena.texture_file"),
     Param("arena.texture_seed", "int", "seed of the procedural floor texture",
           _b(0, 1_000_000), lands="arena.texture_seed"),
@@ -182,6 +182,8 @@ PARAMS: tuple[Param, ...] = (
           _b(-360, 360), lands="markers.rotation_deg"),
     Param("markers.quiet_zone_m", "float", "white quiet zone around markers (m)", _b(0, 10),
           lands="markers.quiet_zone_m"),
+    Param("markers.printed", "bool", "markers printed on the arena.texture=image file (none "
+          "drawn)", neutral=False, lands="markers.printed"),
     Param("obstacles.count", "int", "number of boxes", _b(0, 50), draw="scene"),
     Param("obstacles.length_m", "float", "box length (m), per box", _b(0.01, 100), draw="box"),
     Param("obstacles.width_m", "float", "box width (m), per box", _b(0.01, 100), draw="box"),

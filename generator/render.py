@@ -237,7 +237,7 @@ class Renderer(SceneRenderer):
         # Marker sheets: one unit quad per marker, kept while the sheet images stay the same;
         # a scene only moves and scales them (node pose), so drawn marker sizes cost nothing.
         mk = scene.markers
-        printed = scene.arena.texture == IMAGE_TEXTURE or (
+        printed = (scene.arena.texture == IMAGE_TEXTURE and mk.printed) or (
             scene.arena.texture == comp.TEXTURE_NAME and comp.markers_are_printed(
                 mk.dictionary, mk.ids, mk.side_m, mk.rotation_deg))
         sheets = [] if printed else [

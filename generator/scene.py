@@ -91,8 +91,8 @@ class ArenaSpec:
         own arena image (border line, markers 80/85/90/95 and logo printed on it, tinted by
         ``floor_rgb``), which fixes ``side_m`` and ``margin_m`` to its geometry
         (:mod:`arenabench.generator.competition_arena`); or an image file
-        (``texture_file``) covering the floor square (``side_m`` + 2 ``margin_m``), its
-        markers printed on it (none are drawn), tinted by ``floor_rgb``.
+        (``texture_file``) covering the floor square (``side_m`` + 2 ``margin_m``), tinted by
+        ``floor_rgb``, its markers printed on it (``MarkerSpec.printed``) or drawn over it.
     texture_seed : int
         Seed of the procedural texture.
     border_width_m : float
@@ -174,6 +174,11 @@ class MarkerSpec:
         upright (the generated image's top towards north). 180 is the competition arena.
     quiet_zone_m : float
         Width of the white quiet zone drawn around each marker.
+    printed : bool
+        The markers are printed on an image arena (``arena.texture="image"``): none are
+        drawn. Otherwise they are drawn as marker sheets over the floor (on the competition's
+        texture: unless they are the ones printed on it). A scene file states it only when
+        true.
     """
 
     dictionary: str = COMPETITION_DICTIONARY
@@ -181,9 +186,12 @@ class MarkerSpec:
     side_m: float = 0.48
     rotation_deg: float = 180.0
     quiet_zone_m: float = 0.04
+    printed: bool = False
 
     def __post_init__(self) -> None:
         _finite_fields(self, "markers")
+        if not isinstance(self.printed, bool):
+            raise ValueError(f"markers.printed must be true or false, got {self.printed!r}")
         ids = tuple(int(i) for i in self.ids)
         if len(ids) != 4:
             raise ValueError(f"markers.ids must be 4 ids (nw, ne, se, sw), got {self.ids!r}")
@@ -494,6 +502,8 @@ class Scene:
             del out["render"]
         if not out["arena"]["texture_file"]:
             del out["arena"]["texture_file"]
+        if not out["markers"]["printed"]:
+            del out["markers"]["printed"]
         camera = out["camera"]
         for name in CAMERA_INTRINSIC_FIELDS[camera["K"] is None]:
             del camera[name]
