@@ -23,6 +23,8 @@ Steps (each one a module of this package):
 from __future__ import annotations
 
 import math
+import shutil
+import tempfile
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -32,6 +34,7 @@ from typing import Any
 import cv2
 import numpy as np
 
+from arenabench.generator import camera as cam
 from arenabench.generator import competition_arena as comp
 from arenabench.generator.params import Range, Value
 from arenabench.generator.presets import resolve
@@ -203,14 +206,22 @@ def build_twin(image_path: Path, options: TwinOptions | None = None, *,
         from arenabench.generator.render import Renderer
 
         renderer = Renderer()
+    folder = tempfile.mkdtemp(prefix="arenabench-twin-")
     try:
-        return _build(Path(image_path), options, _Steps(progress), renderer)
+        twin = _build(Path(image_path), options, _Steps(progress), renderer, folder)
+        if twin.scene.arena.texture == IMAGE_TEXTURE and twin.texture_rgb is not None:
+            # the scene keeps naming a file the writer replaces with TEXTURE_FILE
+            twin.scene = replace(twin.scene, arena=replace(
+                twin.scene.arena, texture_file=str(Path(folder) / "gone" / TEXTURE_FILE)))
+        return twin
     finally:
+        shutil.rmtree(folder, ignore_errors=True)
         if own:
             renderer.close()
 
 
-def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> Twin:
+def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer,
+           folder: str) -> Twin:
     data = image_path.read_bytes()
     real = decode_image(data, name=str(image_path))
     gray = cv2.cvtColor(real, cv2.COLOR_BGR2GRAY)
@@ -219,15 +230,16 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
     finding = find_markers(gray)
     steps.done("markers", f"{finding.dictionary} ids {list(finding.ids)}, printed "
                           f"{finding.rotation_deg:g} deg")
-    # 2. geometry: the texture's, or the markers' square of side 1 until the scale is known
+    # 2. geometry: the texture's, or the generator's default arena until the scale is known
     geometry = (ag.texture_geometry(options.texture, options.arena_size_m, finding)
                 if options.texture is not None else
-                ag.ArenaGeometry(1.0, None, None, "default"))
+                ag.ArenaGeometry(ag.DEFAULT_SIDE_M, None, None, "default"))
     provisional = ArenaSpec(side_m=geometry.side_m, margin_m=geometry.margin_m or 0.0,
                             border_width_m=0.0, logo_text="")
     markers = MarkerSpec(dictionary=finding.dictionary, ids=finding.ids,
                          side_m=geometry.marker_side_m or 0.07 * geometry.side_m,
-                         rotation_deg=finding.rotation_deg, quiet_zone_m=0.0)
+                         rotation_deg=finding.rotation_deg, quiet_zone_m=0.0,
+                         printed=geometry.texture == "file")
     checkpoint()
     fit = cf.fit_camera(gray, finding, arena=provisional, markers=markers,
                         fit_marker_side=geometry.marker_side_m is None, snap=options.snap,
@@ -260,7 +272,8 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
     if not geometry.texture:
         floor_half = None
         if shades.background_rgb is not None:
-            floor_half = ag.floor_edge_half(gray, camera, 0.5, floor=_grey(shades.floor_rgb),
+            floor_half = ag.floor_edge_half(gray, camera, geometry.side_m / 2.0,
+                                            floor=_grey(shades.floor_rgb),
                                             background=_grey(shades.background_rgb))
         if options.arena_size_m is not None:
             if floor_half is None:
@@ -270,9 +283,10 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
                     "size cannot be placed")
             scale = options.arena_size_m[0] / (2.0 * floor_half)
             scale_source = "floor edge"
-        else:
-            scale = ag.DEFAULT_SIDE_M
-        margin = (floor_half - 0.5) if floor_half is not None else 0.05
+        half = geometry.side_m / 2.0
+        # no edge seen: the floor reaches past every image corner
+        margin = (floor_half - half) if floor_half is not None else (
+            1.05 * _view_reach(camera) - half)
     obstacles = tuple(replace(b.obstacle, color_rgb=rgb)
                       for b, rgb in zip(shades.boxes, shades.box_rgb, strict=True))
     background = shades.background_rgb or shades.floor_rgb
@@ -285,12 +299,12 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
                   lighting=shades.lighting, background_rgb=(_grey(background),) * 3)
     texture_rgb = None
     if not geometry.texture:
-        from arenabench.generator.twin.rectify import rectified_arena
-
         checkpoint()
-        texture_rgb, scene = rectified_arena(real, scene, shades.box_mask, renderer,
-                                             progress=steps.say)
-        steps.done("texture", f"rectified from the image, {texture_rgb.shape[1]} texels a side")
+        texture_rgb, scene, fit = _own_texture(real, gray, scene, fit, shades, finding,
+                                               renderer, folder, options, steps)
+        steps.done("texture", f"rectified from the image, {texture_rgb.shape[1]} texels a "
+                              f"side; camera {fit.camera.altitude_m:.4f} m up, marker side "
+                              f"{scene.markers.side_m:.4f} m")
     # 4b. the boxes on the render
     from arenabench.generator.twin.box_refine import refine_boxes
 
@@ -330,7 +344,7 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
                    "snapped": {k: {"unit": u, "value": v} for k, (u, v) in fit.snapped.items()},
                    "stage": fit.stage, "rms_free": fit.rms_free, "rms": fit.rms,
                    "corner_rms_px": fit.corner_rms_px, "sensitivity": fit.sensitivity},
-        "scale": {"source": scale_source, "metres_per_unit": scale},
+        "scale": {"source": scale_source, "factor": round(scale, 9)},
         "shades": {"floor_rgb": list(shades.floor_rgb),
                    "background_rgb": None if shades.background_rgb is None
                    else list(shades.background_rgb),
@@ -352,6 +366,84 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
     return Twin(scene=scene, params=params, records=records, figures=figures, real=real,
                 render=render_bgr, texture_rgb=texture_rgb, varied=varied, facts=facts,
                 timings=steps.timings)
+
+
+def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
+                 finding: MarkerFinding, renderer, folder: str, options: TwinOptions,
+                 steps: _Steps) -> tuple[np.ndarray, Scene, cf.CameraFit]:
+    """Without a texture: the markers either drawn as the generator draws marker sheets, or
+    painted into a texture rectified from the image; for each, the camera (and the marker
+    side, the quiet zone of drawn ones) refined on its render, and the one whose marker
+    squares match the image better kept; then the texture rectified through that camera and
+    corrected by back-projection."""
+    from arenabench.generator.twin.rectify import (
+        Rectification,
+        marker_side_search,
+        rectified_arena,
+        with_texture,
+    )
+
+    squares = np.zeros(gray.shape, bool)
+    for m in marker_squares(finding, gray.shape).values():
+        squares |= m
+    rect = Rectification(real, scene, shades.box_mask)
+
+    def mad(s: Scene) -> float:
+        got = cv2.cvtColor(renderer.render(replace(s, obstacles=())).rgb, cv2.COLOR_RGB2GRAY)
+        return float(np.abs(got[squares].astype(float) - gray[squares]).mean())
+
+    # drawn sheets: camera and side on the render, then the quiet zone
+    module = scene.markers.side_m / finding.module_count
+    drawn = with_texture(replace(scene, markers=replace(scene.markers, printed=False,
+                                                        quiet_zone_m=module)),
+                         rect.texture, folder)
+    fit_d = cf.refine_with_renderer(fit, drawn, gray, squares, renderer, snap=options.snap,
+                                    fit_side=True, progress=steps.say)
+    drawn = replace(drawn, camera=fit_d.camera,
+                    markers=replace(drawn.markers, side_m=fit_d.marker_side_m))
+    best_q = min((mad(replace(drawn, markers=replace(drawn.markers, quiet_zone_m=q * module))),
+                  q) for q in (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0))
+    drawn = replace(drawn, markers=replace(drawn.markers, quiet_zone_m=round(best_q[1] * module,
+                                                                            6)))
+    steps.say(f"markers drawn as sheets: {best_q[0]:.2f} grey levels over the marker squares "
+              f"(quiet zone {best_q[1]:g} modules)")
+    # painted into the texture: the marker model's camera kept (how a printed marker's pixels
+    # look depends on the unknown texel grid of the texture it was printed on, which a render
+    # at another grid cannot match: the camera would follow the aliasing, not the geometry)
+    painted = replace(scene, markers=replace(scene.markers, printed=True, quiet_zone_m=0.0))
+    fit_p = fit
+    side, cost_p = marker_side_search(gray, painted, rect, squares, renderer, folder)
+    painted = replace(painted, markers=replace(painted.markers, side_m=side))
+    fit_p = replace(fit_p, marker_side_m=side)
+    steps.say(f"markers painted into the texture: {cost_p:.2f} grey levels over the marker "
+              "squares")
+    if best_q[0] <= cost_p:
+        chosen, fit = replace(drawn, arena=scene.arena), fit_d
+    else:
+        chosen, fit = replace(painted, arena=scene.arena), fit_p
+    chosen = replace(chosen, obstacles=scene.obstacles)
+    texture_rgb, chosen = rectified_arena(real, chosen, shades.box_mask, renderer,
+                                          folder=folder, progress=steps.say)
+    return texture_rgb, chosen, fit
+
+
+def _scale_range(name: str, value: float) -> Range:
+    """What a length allows when the scale is open: a tenth to ten times itself (within the
+    parameter's bounds)."""
+    from arenabench.generator.params import PARAMETERS
+
+    lo, hi = sorted((round(value * 0.1, 6), round(value * 10.0, 6)))
+    b = PARAMETERS[name].bounds
+    return Range(max(lo, b.lo), min(hi, b.hi))
+
+
+def _view_reach(camera) -> float:
+    """The largest |x| or |y| (m) on the floor seen at the image's corners."""
+    h = cam.floor_homography(cam.intrinsics(camera), cam.world_from_camera(camera))
+    corners = np.array([[0, 0], [camera.width - 1, 0], [camera.width - 1, camera.height - 1],
+                        [0, camera.height - 1]], np.float64)
+    world = cv2.perspectiveTransform(corners.reshape(-1, 1, 2), np.linalg.inv(h)).reshape(-1, 2)
+    return float(np.abs(world).max())
 
 
 def _texture_arena(geometry: ag.ArenaGeometry, floor_rgb) -> ArenaSpec:
@@ -438,7 +530,8 @@ def _preset_params(scene: Scene, varied: list[Varied], facts: FileFacts) -> dict
         "arena.grid_step_m": 0.0, "arena.grid_rgb": (200, 200, 200), "arena.logo_text": "",
         "arena.logo_rgb": (220, 50, 50),
         "markers.dictionary": m.dictionary, "markers.ids": m.ids, "markers.side_m": m.side_m,
-        "markers.rotation_deg": m.rotation_deg, "markers.quiet_zone_m": 0.04,
+        "markers.rotation_deg": m.rotation_deg, "markers.quiet_zone_m": m.quiet_zone_m,
+        "markers.printed": m.printed,
         "obstacles.palette": "gray", "obstacles.max_tries": 500,
         "obstacles.gray": grays[0] if len(grays) == 1 else Range(grays[0], grays[-1]),
         "camera.width": c.width, "camera.height": c.height, "camera.fov_deg": c.fov_deg,
@@ -487,8 +580,7 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                + (" of pitch" if key == "tilt_deg" else "") if snapped
                else "fitted to the markers' pixels")
         if scale_source == "default" and key in ("target_x", "target_y", "altitude_m"):
-            r[name] = rec.open_range(name, params[name], Range(0.0, 1e3) if key == "altitude_m"
-                                     else Range(-1e3, 1e3),
+            r[name] = rec.open_range(name, params[name], _scale_range(name, params[name]),
                                      "the image fixes the camera only up to scale (no "
                                      "--arena-size): every length scales with its distance",
                                      evidence=how)
@@ -510,6 +602,19 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                            in (comp.TEXTURE_NAME,) or fit.stage == "render"
                            else rec.pinned("markers.side_m", params["markers.side_m"],
                                            "fitted to the markers' pixels with the camera"))
+    if scene.arena.texture == IMAGE_TEXTURE and scale_source != "texture":
+        how = ("painted into the rectified texture (their pixels fit better so than drawn as "
+               "marker sheets)" if scene.markers.printed else
+               "drawn as marker sheets over the rectified texture (their pixels fit better so "
+               "than painted into it)")
+        r["markers.printed"] = rec.pinned("markers.printed", params["markers.printed"], how)
+        if not scene.markers.printed:
+            r["markers.quiet_zone_m"] = rec.pinned(
+                "markers.quiet_zone_m", params["markers.quiet_zone_m"],
+                "the white around the markers, searched in quarter modules on the render")
+    elif scene.arena.texture == IMAGE_TEXTURE:
+        r["markers.printed"] = rec.pinned("markers.printed", True,
+                                          "the given texture's markers are the image's")
     if scene.arena.texture in (comp.TEXTURE_NAME, IMAGE_TEXTURE):
         source = ("the given texture" if scale_source == "texture"
                   else "rectified from the image")
@@ -519,9 +624,10 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                                                  params["arena.texture_file"], source)
     for name in ("arena.side_m", "arena.margin_m"):
         if scale_source == "default":
-            r[name] = rec.open_range(name, params[name], Range(0.5, 1000.0),
+            r[name] = rec.open_range(name, params[name], _scale_range(name, params[name]),
                                      "the image fixes the arena only up to scale (no "
-                                     "--arena-size or texture)")
+                                     "--arena-size or texture): any size, every length "
+                                     "scaled alike")
         else:
             r[name] = rec.pinned(name, params[name], f"from the {scale_source}")
     r["arena.floor_rgb"] = rec.pinned("arena.floor_rgb", params["arena.floor_rgb"],

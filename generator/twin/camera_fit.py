@@ -261,21 +261,30 @@ class RenderObjective(Objective):
 
     steps = RENDER_STEPS
 
-    def __init__(self, scene: Scene, gray: np.ndarray, mask: np.ndarray, renderer) -> None:
+    def __init__(self, scene: Scene, gray: np.ndarray, mask: np.ndarray, renderer, *,
+                 fit_side: bool = False) -> None:
         self.scene = replace(scene, obstacles=())
         self.mask = mask
         self.target = gray[mask].astype(np.float64)
         self.renderer = renderer
         self.height, self.width = gray.shape
+        self.fit_side = fit_side
+        self.extra_steps = np.array([scene.markers.side_m * 5e-4] if fit_side else [])
 
-    def render(self, camera: CameraSpec) -> np.ndarray:
-        """The grey render of the scene through ``camera``."""
-        rgb = self.renderer.render(replace(self.scene, camera=camera)).rgb
+    def render(self, camera: CameraSpec, side: float | None = None) -> np.ndarray:
+        """The grey render of the scene through ``camera`` (markers of ``side``, when given:
+        drawn markers only)."""
+        scene = replace(self.scene, camera=camera)
+        if side is not None:
+            scene = replace(scene, markers=replace(scene.markers, side_m=float(side)))
+        rgb = self.renderer.render(scene).rgb
         return cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY)
 
     def residuals(self, v: np.ndarray, extra: np.ndarray) -> np.ndarray:
         checkpoint()
-        got = self.render(orbit_camera(v, self.width, self.height))[self.mask].astype(np.float64)
+        side = float(extra[0]) if self.fit_side else None
+        got = self.render(orbit_camera(v, self.width, self.height), side)[self.mask].astype(
+            np.float64)
         a = np.column_stack([got, np.ones_like(got)])
         coef, *_ = np.linalg.lstsq(a, self.target, rcond=None)
         return a @ coef - self.target
@@ -451,15 +460,22 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
 
 
 def refine_with_renderer(fit: CameraFit, scene: Scene, gray: np.ndarray, mask: np.ndarray,
-                         renderer, *, snap: bool = True,
+                         renderer, *, snap: bool = True, fit_side: bool = False,
                          progress: Callable[[str], None] | None = None) -> CameraFit:
     """Step 3 (and 4 again): refine ``fit``'s camera on the generator's render of ``scene``
-    (a known arena texture) in ``mask``, every angle free again, then snap."""
+    (a known arena texture, or drawn markers) in ``mask``, every angle free again, then snap;
+    with ``fit_side`` (drawn markers) the marker side too."""
     height, width = gray.shape
-    objective = RenderObjective(scene, gray, mask, renderer)
-    none = np.zeros(0)
-    v, _, rms_free = levenberg_marquardt(objective, orbit_vector(fit.free), none,
-                                         free=tuple(range(len(ORBIT))), iterations=8)
+    objective = RenderObjective(scene, gray, mask, renderer, fit_side=fit_side)
+    none = np.array([scene.markers.side_m] if fit_side else [])
+    starts = [orbit_vector(fit.camera), orbit_vector(fit.free)]
+    best = None
+    for start in starts:  # the snapped camera, then the free one: the better fit wins
+        v, ex, rms_free = levenberg_marquardt(objective, start, none,
+                                              free=tuple(range(len(ORBIT))), iterations=8)
+        if best is None or rms_free < best[1]:
+            best = (v, rms_free, ex)
+    v, rms_free, none = best
     free_camera = rounded_camera(v, width, height)
     if progress:
         progress(f"camera refined on the render: fov {free_camera.fov_deg:.3f} deg, "
@@ -467,9 +483,10 @@ def refine_with_renderer(fit: CameraFit, scene: Scene, gray: np.ndarray, mask: n
     snapped: dict[str, tuple[str, float]] = {}
     rms = rms_free
     if snap:
-        v, _, snapped, rms = snap_angles(objective, v, none, rms_free, iterations=5,
-                                         progress=progress)
+        v, none, snapped, rms = snap_angles(objective, v, none, rms_free, iterations=5,
+                                            progress=progress)
     camera = rounded_camera(v, width, height)
+    side = round(float(none[0]), 6) if fit_side else fit.marker_side_m
     return replace(fit, camera=camera, free=free_camera, rms_free=round(rms_free, 4),
-                   rms=round(rms, 4), stage="render", snapped=snapped,
+                   rms=round(rms, 4), stage="render", snapped=snapped, marker_side_m=side,
                    sensitivity=sensitivity(objective, orbit_vector(camera), none))

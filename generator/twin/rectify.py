@@ -15,7 +15,6 @@ looked up through the same map, is added to the texture.
 from __future__ import annotations
 
 import os
-import tempfile
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -36,6 +35,9 @@ TEXELS_PER_PX = 2.0
 MAX_TEXELS = 4096
 #: Pixels around the boxes left out of the texture (their edges blend with the floor).
 BOX_PAD_PX = 4
+#: Texture files written by this process (their names must differ: textures are cached by
+#: path).
+_COUNTER = [0]
 
 
 def texel_map(scene: Scene, texels: int) -> tuple[np.ndarray, np.ndarray]:
@@ -62,60 +64,204 @@ def texture_side(scene: Scene) -> int:
     return n
 
 
-def _write(texture_rgb: np.ndarray, folder: str, k: int) -> str:
-    path = os.path.join(folder, f"arena-{k}.png")
+def paint_markers(texture: np.ndarray, scene: Scene, *, supersample: int = 4) -> np.ndarray:
+    """Paint the four markers into ``texture`` (in place) from their dictionary's modules at
+    their fitted place: black 0, white the floor's (255 in the texture), each texel's share
+    from ``supersample`` x ``supersample`` samples. A marker is a printed pattern the image
+    shows only blurred once (by the camera that took it); rectified, it would be blurred a
+    second time by the twin's renderer, and its black and white leave no room to sharpen it
+    back. Returns the texels painted (bool)."""
+    from arenabench.frame import CORNER_ORDER
+    from arenabench.generator.layout import marker_corners_world
+    from arenabench.generator.twin.marker_model import module_pattern
+
+    n = texture.shape[0]
+    e = floor_extent(scene.arena)
+    texel = 2.0 * e / n
+    painted = np.zeros(texture.shape[:2], bool)
+    offs = (np.arange(supersample) + 0.5) / supersample - 0.5
+    for corner, marker_id in zip(CORNER_ORDER, scene.markers.ids, strict=True):
+        c = marker_corners_world(scene.arena, scene.markers, corner)
+        modules = module_pattern(scene.markers.dictionary, marker_id)
+        cells = modules.shape[0]
+        u_axis, v_axis = c[1] - c[0], c[3] - c[0]
+        inv = np.linalg.inv(np.column_stack([u_axis, v_axis]))
+        xs, ys = c[:, 0], c[:, 1]
+        j0 = max(int(np.floor((xs.min() + e) / texel)) - 1, 0)
+        j1 = min(int(np.ceil((xs.max() + e) / texel)) + 1, n)
+        i0 = max(int(np.floor((e - ys.max()) / texel)) - 1, 0)
+        i1 = min(int(np.ceil((e - ys.min()) / texel)) + 1, n)
+        jj, ii = np.meshgrid(np.arange(j0, j1), np.arange(i0, i1))
+        white = np.zeros(jj.shape)
+        inside = np.zeros(jj.shape)
+        for dy in offs:
+            for dx in offs:
+                x = (jj + 0.5 + dx) * texel - e
+                y = e - (ii + 0.5 + dy) * texel
+                uv = np.einsum("ij,jkl->ikl", inv, np.stack([x - c[0, 0], y - c[0, 1]]))
+                ok = (uv[0] >= 0) & (uv[0] < 1) & (uv[1] >= 0) & (uv[1] < 1)
+                cu = np.clip((uv[0] * cells).astype(int), 0, cells - 1)
+                cv = np.clip((uv[1] * cells).astype(int), 0, cells - 1)
+                white += np.where(ok, modules[cv, cu], 0.0)
+                inside += ok
+        k = supersample * supersample
+        full = inside >= k  # texels wholly inside the marker: painted
+        part = (inside > 0) & ~full  # on its outline: blended with what was there
+        block = texture[i0:i1, j0:j1].astype(np.float64)
+        lin = _to_linear(block)
+        mark = (white / k)[..., None]
+        share = (inside / k)[..., None]
+        blended = _to_srgb((1.0 - share) * lin + mark)  # white is 1 in linear light
+        block = np.where(full[..., None], _to_srgb(mark * np.ones_like(lin)), block)
+        block = np.where(part[..., None], blended, block)
+        texture[i0:i1, j0:j1] = np.clip(np.rint(block), 0, 255).astype(np.uint8)
+        painted[i0:i1, j0:j1] |= full
+    return painted
+
+
+def marker_region(scene: Scene, texels: int, grow_m: float) -> np.ndarray:
+    """Texels of the floor texture within the four marker squares grown by ``grow_m`` (where
+    drawn marker sheets lie: the texture there is never seen)."""
+    from arenabench.frame import CORNER_ORDER
+    from arenabench.generator.layout import marker_square
+
+    e = floor_extent(scene.arena)
+    centres = (np.arange(texels) + 0.5) * (2.0 * e / texels) - e
+    x, y = np.meshgrid(centres, -centres)
+    out = np.zeros((texels, texels), bool)
+    for corner in CORNER_ORDER:
+        x0, x1, y0, y1 = marker_square(scene.arena, scene.markers, corner)
+        out |= (x >= x0 - grow_m) & (x <= x1 + grow_m) & (y >= y0 - grow_m) & (y <= y1 + grow_m)
+    return out
+
+
+def _to_linear(srgb: np.ndarray) -> np.ndarray:
+    v = srgb / 255.0
+    return np.where(v <= 0.04045, v / 12.92, ((v + 0.055) / 1.055) ** 2.4)
+
+
+def _to_srgb(linear: np.ndarray) -> np.ndarray:
+    y = np.clip(linear, 0.0, 1.0)
+    return 255.0 * np.where(y <= 0.0031308, y * 12.92, 1.055 * np.power(y, 1.0 / 2.4) - 0.055)
+
+
+def _write(texture_rgb: np.ndarray, folder: str) -> str:
+    """Write the texture as a new file (a scene names its texture by path, and textures are
+    cached by it)."""
+    _COUNTER[0] += 1
+    path = os.path.join(folder, f"arena-{_COUNTER[0]}.png")
     cv2.imwrite(path, cv2.cvtColor(texture_rgb, cv2.COLOR_RGB2BGR),
                 [cv2.IMWRITE_PNG_COMPRESSION, 1])
     return path
 
 
+def with_texture(scene: Scene, texture_rgb: np.ndarray, folder: str) -> Scene:
+    """``scene`` on an image arena showing ``texture_rgb`` (written into ``folder``); its
+    markers printed or drawn as ``scene.markers.printed`` says."""
+    arena = replace(scene.arena, texture=IMAGE_TEXTURE, texture_file=_write(texture_rgb, folder),
+                    border_width_m=0.0, logo_text="", grid_step_m=0.0)
+    return replace(scene, arena=arena)
+
+
+class Rectification:
+    """The floor square looked up in the image through ``scene``'s camera (the texture before
+    its markers are painted and before back-projection), with what it could not see."""
+
+    def __init__(self, real_bgr: np.ndarray, scene: Scene, box_mask: np.ndarray) -> None:
+        self.scene = scene
+        n = texture_side(scene)
+        self.mx, self.my = texel_map(scene, n)
+        h, w = real_bgr.shape[:2]
+        seen = (self.mx >= 0) & (self.mx <= w - 1) & (self.my >= 0) & (self.my <= h - 1)
+        k = 2 * BOX_PAD_PX + 1
+        self.boxes = cv2.dilate(box_mask.astype(np.uint8), np.ones((k, k), np.uint8)
+                                ).astype(bool)
+        hidden = cv2.remap(self.boxes.astype(np.uint8), self.mx, self.my, cv2.INTER_NEAREST,
+                           borderMode=cv2.BORDER_CONSTANT, borderValue=1).astype(bool)
+        floor = np.asarray(scene.arena.floor_rgb, np.float64)
+        self.rgb = cv2.cvtColor(real_bgr, cv2.COLOR_BGR2RGB).astype(np.float32)
+        self.scale = (255.0 / np.maximum(floor, 1.0)).astype(np.float32)
+        raw = cv2.remap(self.rgb, self.mx, self.my, cv2.INTER_CUBIC,
+                        borderMode=cv2.BORDER_REPLICATE)
+        texture = np.clip(raw * self.scale, 0, 255)
+        texture[~seen] = 255.0
+        texture = texture.astype(np.uint8)
+        if (hidden & seen).any():
+            texture = cv2.inpaint(texture, (hidden & seen).astype(np.uint8), 5,
+                                  cv2.INPAINT_TELEA)
+        self.texture = texture
+        self.unknown = (~seen) | hidden
+
+    def painted(self, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
+        """The texture with ``scene``'s markers painted, and the texels painted."""
+        texture = self.texture.copy()
+        return texture, paint_markers(texture, scene)
+
+    def back_project(self, texture: np.ndarray, painted: np.ndarray, scene: Scene, renderer,
+                     folder: str, *, rounds: int = ROUNDS,
+                     progress: Callable[[str], None] | None = None
+                     ) -> tuple[np.ndarray, Scene]:
+        """Correct ``texture`` by back-projection (module docstring); returns it and the scene
+        showing it."""
+        current = with_texture(scene, texture, folder)
+        work = texture.astype(np.float32)
+        for r in range(1, rounds + 1):
+            checkpoint()
+            render = renderer.render(replace(current, obstacles=())).rgb.astype(np.float32)
+            diff = (self.rgb - render) * self.scale
+            diff[self.boxes] = 0.0
+            back = cv2.remap(diff, self.mx, self.my, cv2.INTER_LINEAR,
+                             borderMode=cv2.BORDER_CONSTANT, borderValue=0)
+            back[self.unknown | painted] = 0.0
+            work = np.clip(work + back, 0, 255)
+            texture = np.rint(work).astype(np.uint8)
+            current = with_texture(current, texture, folder)
+            if progress:
+                progress(f"texture round {r}: floor difference "
+                         f"{float(np.abs(self.rgb - render)[~self.boxes].mean()):.2f} grey "
+                         "levels before it")
+        return texture, current
+
+
 def rectified_arena(real_bgr: np.ndarray, scene: Scene, box_mask: np.ndarray, renderer, *,
-                    rounds: int = ROUNDS, progress: Callable[[str], None] | None = None,
-                    folder: str | None = None) -> tuple[np.ndarray, Scene]:
+                    folder: str, rounds: int = ROUNDS,
+                    progress: Callable[[str], None] | None = None) -> tuple[np.ndarray, Scene]:
     """The texture (RGB uint8, row 0 north) and ``scene`` showing it (``arena.texture`` image,
-    its file in ``folder``, a temporary one by default, which the caller replaces when it
-    writes the twin)."""
-    folder = folder or tempfile.mkdtemp(prefix="arenabench-twin-")
-    n = texture_side(scene)
-    mx, my = texel_map(scene, n)
-    h, w = real_bgr.shape[:2]
-    seen = (mx >= 0) & (mx <= w - 1) & (my >= 0) & (my <= h - 1)
-    k = 2 * BOX_PAD_PX + 1
-    boxes = cv2.dilate(box_mask.astype(np.uint8), np.ones((k, k), np.uint8))
-    hidden = cv2.remap(boxes, mx, my, cv2.INTER_NEAREST, borderMode=cv2.BORDER_CONSTANT,
-                       borderValue=1).astype(bool)
-    floor = np.asarray(scene.arena.floor_rgb, np.float64)
-    rgb = cv2.cvtColor(real_bgr, cv2.COLOR_BGR2RGB).astype(np.float32)
-    raw = cv2.remap(rgb, mx, my, cv2.INTER_CUBIC, borderMode=cv2.BORDER_REPLICATE)
-    scale = 255.0 / np.maximum(floor, 1.0)
-    texture = np.clip(raw * scale, 0, 255)
-    unknown = (~seen) | hidden
-    texture[~seen] = 255.0
-    texture = texture.astype(np.uint8)
-    if hidden.any():
-        texture = cv2.inpaint(texture, (hidden & seen).astype(np.uint8), 5, cv2.INPAINT_TELEA)
-    path = _write(texture, folder, 0)
-    arena = replace(scene.arena, texture=IMAGE_TEXTURE, texture_file=path, border_width_m=0.0,
-                    logo_text="", grid_step_m=0.0)
-    current = replace(scene, arena=arena)
-    empty = replace(current, obstacles=())
-    grown = cv2.dilate(box_mask.astype(np.uint8), np.ones((k, k), np.uint8)).astype(bool)
-    work = texture.astype(np.float32)
-    for r in range(1, rounds + 1):
+    its file in ``folder``, which the caller replaces when it writes the twin): the markers
+    painted into it when ``scene.markers.printed``, else left to the drawn sheets (the
+    texture under them untouched)."""
+    rect = Rectification(real_bgr, scene, box_mask)
+    if scene.markers.printed:
+        texture, keep = rect.painted(scene)
+    else:
+        texture = rect.texture.copy()
+        keep = marker_region(scene, texture.shape[0], scene.markers.quiet_zone_m)
+    return rect.back_project(texture, keep, scene, renderer, folder, rounds=rounds,
+                             progress=progress)
+
+
+def marker_side_search(real_gray: np.ndarray, scene: Scene, rect: Rectification, mask,
+                       renderer, folder: str, *, span: float = 0.01, count: int = 9
+                       ) -> tuple[float, float]:
+    """The marker side (within ``span`` of ``scene``'s, relative) whose painted markers,
+    rendered, match the image best in ``mask`` (mean absolute grey difference): a grid of
+    ``count`` sides, then a parabola through the best three. Returns (side, difference)."""
+    target = real_gray.astype(np.float64)[mask]
+
+    def cost(side: float) -> float:
         checkpoint()
-        render = renderer.render(empty).rgb.astype(np.float32)
-        diff = (rgb - render) * scale.astype(np.float32)
-        diff[grown] = 0.0
-        back = cv2.remap(diff, mx, my, cv2.INTER_LINEAR, borderMode=cv2.BORDER_CONSTANT,
-                         borderValue=0)
-        back[unknown] = 0.0
-        work = np.clip(work + back, 0, 255)
-        texture = np.rint(work).astype(np.uint8)
-        path = _write(texture, folder, r)
-        arena = replace(arena, texture_file=path)
-        empty = replace(empty, arena=arena)
-        if progress:
-            shown = ~grown
-            progress(f"texture round {r}: floor difference "
-                     f"{float(np.abs(rgb - render)[shown].mean()):.2f} grey levels before it")
-    return texture, replace(current, arena=arena)
+        s = replace(scene, markers=replace(scene.markers, side_m=side, printed=True))
+        texture, _ = rect.painted(s)
+        shown = with_texture(replace(s, obstacles=()), texture, folder)
+        got = cv2.cvtColor(renderer.render(shown).rgb, cv2.COLOR_RGB2GRAY)[mask]
+        return float(np.abs(got - target).mean())
+
+    base = scene.markers.side_m
+    sides = np.linspace(base * (1 - span), base * (1 + span), count)
+    costs = [cost(float(v)) for v in sides]
+    i = int(np.clip(np.argmin(costs), 1, count - 2))
+    a, b, c = costs[i - 1], costs[i], costs[i + 1]
+    den = a - 2 * b + c
+    step = sides[1] - sides[0]
+    best = float(sides[i] + (0.5 * (a - c) / den * step if den > 0 else 0.0))
+    return round(best, 6), cost(best)

@@ -129,6 +129,18 @@ def _mode(values: np.ndarray) -> int:
     return int(np.argmax(np.bincount(v.ravel(), minlength=256)))
 
 
+def floor_level(values: np.ndarray) -> int:
+    """The floor's grey among ``values``: the commonest grey within 20 levels of their median
+    (a textured floor spreads over several levels, so a uniform box top can outnumber any
+    one of them; the boxes cover less than half the floor)."""
+    v = np.clip(np.rint(values), 0, 255).astype(np.int64).ravel()
+    median = int(np.median(v))
+    near = v[np.abs(v - median) <= 20]
+    hist = np.bincount(near, minlength=256).astype(np.float64)
+    hist = np.convolve(hist, np.ones(5) / 5.0, mode="same")  # a textured floor's spread
+    return int(np.argmax(hist))
+
+
 def _polygon_mask(shape: tuple[int, int], px: np.ndarray) -> np.ndarray:
     m = np.zeros(shape, np.uint8)
     cv2.fillPoly(m, [np.round(px * 16).astype(np.int32)], 1, shift=4)
@@ -195,8 +207,9 @@ def read_shades(bgr: np.ndarray, camera: CameraSpec, arena: ArenaSpec,
     shape = gray.shape
     inner = floor_square_mask(camera, shape, arena.side_m / 2 - markers.side_m * 0.5)
     inner &= ~marker_mask(camera, arena, markers, shape, markers.quiet_zone_m + 0.02)
-    floor_gray = _mode(gray[inner])
-    boxes = fit_boxes(gray, camera, arena, markers, floor_gray=floor_gray, min_box_px=MIN_BOX_PX)
+    floor_gray = floor_level(gray[inner])
+    boxes = fit_boxes(_box_candidates(gray, camera, arena, markers, floor_gray), camera, arena,
+                      markers, floor_gray=floor_gray, min_box_px=MIN_BOX_PX)
     box_mask = np.zeros(shape, bool)
     K, pose = cam.intrinsics(camera), cam.world_from_camera(camera)
     for b in boxes:
@@ -204,7 +217,7 @@ def read_shades(bgr: np.ndarray, camera: CameraSpec, arena: ArenaSpec,
         box_mask |= _polygon_mask(shape, hull.reshape(-1, 2))
     grown = cv2.dilate(box_mask.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
     floor_px = inner & ~grown
-    floor_rgb = tuple(_mode(bgr[..., 2 - c][floor_px]) for c in range(3))
+    floor_rgb = tuple(floor_level(bgr[..., 2 - c][floor_px]) for c in range(3))
     outside = ~floor_square_mask(camera, shape, floor_extent(arena) + 0.02)
     background_rgb = None
     if outside.sum() >= MIN_BACKGROUND_PX:
@@ -227,6 +240,34 @@ def read_shades(bgr: np.ndarray, camera: CameraSpec, arena: ArenaSpec,
                   background_px=int(outside.sum()), boxes=tuple(observed),
                   box_rgb=tuple(box_rgb), faces=tuple(faces), lighting=lighting,
                   face_residual=_face_residual(faces, observed, lighting), box_mask=box_mask)
+
+
+#: A dark blob is not a box when its minimum-area rectangle is this many times longer than
+#: wide (a printed line), or when it fills less than this share of that rectangle (a ring of
+#: border lines, letters).
+MAX_BLOB_ASPECT = 12.0
+MIN_BLOB_FILL = 0.5
+
+
+def _box_candidates(gray: np.ndarray, camera: CameraSpec, arena: ArenaSpec,
+                    markers: MarkerSpec, floor_gray: float) -> np.ndarray:
+    """``gray`` with what cannot be a box painted over in the floor's grey: everything outside
+    the markers' square (the background, lanes and logos in the margin) and dark blobs shaped
+    like printed lines or letters (:data:`MAX_BLOB_ASPECT`, :data:`MIN_BLOB_FILL`)."""
+    out = gray.copy()
+    out[~floor_square_mask(camera, gray.shape, arena.side_m / 2.0)] = floor_gray
+    dark = ((out < floor_gray - 40)
+            & ~marker_mask(camera, arena, markers, gray.shape, markers.quiet_zone_m + 0.02))
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(dark.astype(np.uint8), connectivity=8)
+    for i in range(1, n):
+        if stats[i, cv2.CC_STAT_AREA] < MIN_BOX_PX:
+            continue
+        pts = np.column_stack(np.nonzero(labels == i)[::-1]).astype(np.float32)
+        (_, _), (w, h), _ = cv2.minAreaRect(pts)
+        long, short = max(w, h), max(min(w, h), 1.0)
+        if long / short > MAX_BLOB_ASPECT or stats[i, cv2.CC_STAT_AREA] < MIN_BLOB_FILL * w * h:
+            out[labels == i] = floor_gray
+    return out
 
 
 def _top_mask(ob: Obstacle, camera: CameraSpec, shape: tuple[int, int]) -> np.ndarray:

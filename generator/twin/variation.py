@@ -82,9 +82,21 @@ def vary_boxes(obstacles: tuple[Obstacle, ...], arena: ArenaSpec, markers: Marke
     out: list[Varied] = []
     n = len(obstacles)
     inner_half = arena.side_m / 2.0 - markers.side_m
-    if n == 0:
-        out.append(Varied("obstacles.count", Range(0, 2), "no box",
-                          "no box is seen: 0 to 2 boxes of the generator's sizes"))
+    if n == 0:  # nothing to draw around: sizes as shares of the arena, everything open
+        side = arena.side_m
+        rule = "no box is seen: sizes as shares of the arena's side"
+        out += [Varied("obstacles.count", Range(0, 2), "no box", "no box is seen: 0 to 2"),
+                Varied("obstacles.length_m", Range(_nearest(0.1 * side), _nearest(0.25 * side)),
+                       "no box", rule),
+                Varied("obstacles.width_m", Range(_nearest(0.05 * side), _nearest(0.1 * side)),
+                       "no box", rule),
+                Varied("obstacles.height_m", Range(_nearest(0.04 * side), _nearest(0.1 * side)),
+                       "no box", rule),
+                Varied("obstacles.yaw_deg", Range(-45.0, 135.0), "no box", "yaw 0 or 90 deg"),
+                Varied("obstacles.yaw_step_deg", 90.0, "no box", "axis-aligned"),
+                Varied("obstacles.gray", Range(80, 160), "no box", "any mid grey"),
+                Varied("obstacles.min_gap_m", _nearest(0.05 * side), "no box", rule),
+                Varied("obstacles.edge_margin_m", _nearest(0.05 * side), "no box", rule)]
         return out
     sizes = {k: [getattr(o, k) for o in obstacles] for k in SIZE_FACTORS}
     ranges = {}
