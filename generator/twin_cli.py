@@ -5,7 +5,7 @@ Writes ``DIR/preset.toml`` (a preset whose scenes are hidden-test-like for that 
 ``DIR/twin.json`` (every parameter, pinned with its residual or open with the range kept and
 why) and ``DIR/report.html`` (the image, the twin's render of it and their difference, region
 by region), and ``DIR/arena.png`` when the arena is an image (the texture given, or one
-rectified from the image). See docs/twin.md, "A twin of any arena".
+rectified from the image). See docs/twin-tutorial.md and docs/commands.md.
 """
 
 from __future__ import annotations

@@ -299,6 +299,7 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer,
                   lighting=shades.lighting, background_rgb=(_grey(background),) * 3)
     texture_rgb = None
     if not geometry.texture:
+        scene = _sheet_white(scene, gray, finding, steps)
         checkpoint()
         texture_rgb, scene, fit = _own_texture(real, gray, scene, fit, shades, finding,
                                                renderer, folder, options, steps)
@@ -343,7 +344,8 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer,
         "camera": {"free": _camera_dict(_scale_camera(fit.free, scale)),
                    "snapped": {k: {"unit": u, "value": v} for k, (u, v) in fit.snapped.items()},
                    "stage": fit.stage, "rms_free": fit.rms_free, "rms": fit.rms,
-                   "corner_rms_px": fit.corner_rms_px, "sensitivity": fit.sensitivity},
+                   "corner_rms_px": fit.corner_rms_px, "sensitivity": fit.sensitivity,
+                   "fov_range": None if fit.fov_range is None else list(fit.fov_range)},
         "scale": {"source": scale_source, "factor": round(scale, 9)},
         "shades": {"floor_rgb": list(shades.floor_rgb),
                    "background_rgb": None if shades.background_rgb is None
@@ -366,6 +368,13 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer,
     return Twin(scene=scene, params=params, records=records, figures=figures, real=real,
                 render=render_bgr, texture_rgb=texture_rgb, varied=varied, facts=facts,
                 timings=steps.timings)
+
+
+#: Drawn marker sheets this close to the image's marker squares (mean absolute grey
+#: difference) are taken without trying painted markers.
+DRAWN_MATCH = 1.5
+#: Quiet zones tried around drawn marker sheets (modules).
+QUIET_ZONES = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0)
 
 
 def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
@@ -392,19 +401,24 @@ def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
         got = cv2.cvtColor(renderer.render(replace(s, obstacles=())).rgb, cv2.COLOR_RGB2GRAY)
         return float(np.abs(got[squares].astype(float) - gray[squares]).mean())
 
-    # drawn sheets: camera and side on the render, then the quiet zone
+    # drawn sheets: the quiet zone, the camera and side on the render, the quiet zone again
     module = scene.markers.side_m / finding.module_count
+
+    def quiet_zone(s: Scene) -> tuple[Scene, tuple[float, float]]:
+        m = s.markers.side_m / finding.module_count
+        best = min((mad(replace(s, markers=replace(s.markers, quiet_zone_m=q * m))), q)
+                   for q in QUIET_ZONES)
+        return replace(s, markers=replace(s.markers, quiet_zone_m=round(best[1] * m, 6))), best
+
     drawn = with_texture(replace(scene, markers=replace(scene.markers, printed=False,
                                                         quiet_zone_m=module)),
                          rect.texture, folder)
+    drawn, _ = quiet_zone(drawn)
     fit_d = cf.refine_with_renderer(fit, drawn, gray, squares, renderer, snap=options.snap,
                                     fit_side=True, progress=steps.say)
     drawn = replace(drawn, camera=fit_d.camera,
                     markers=replace(drawn.markers, side_m=fit_d.marker_side_m))
-    best_q = min((mad(replace(drawn, markers=replace(drawn.markers, quiet_zone_m=q * module))),
-                  q) for q in (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0))
-    drawn = replace(drawn, markers=replace(drawn.markers, quiet_zone_m=round(best_q[1] * module,
-                                                                            6)))
+    drawn, best_q = quiet_zone(drawn)
     steps.say(f"markers drawn as sheets: {best_q[0]:.2f} grey levels over the marker squares "
               f"(quiet zone {best_q[1]:g} modules)")
     # painted into the texture: the marker model's camera kept (how a printed marker's pixels
@@ -412,11 +426,13 @@ def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
     # at another grid cannot match: the camera would follow the aliasing, not the geometry)
     painted = replace(scene, markers=replace(scene.markers, printed=True, quiet_zone_m=0.0))
     fit_p = fit
-    side, cost_p = marker_side_search(gray, painted, rect, squares, renderer, folder)
-    painted = replace(painted, markers=replace(painted.markers, side_m=side))
-    fit_p = replace(fit_p, marker_side_m=side)
-    steps.say(f"markers painted into the texture: {cost_p:.2f} grey levels over the marker "
-              "squares")
+    cost_p = math.inf
+    if best_q[0] > DRAWN_MATCH:
+        side, cost_p = marker_side_search(gray, painted, rect, squares, renderer, folder)
+        painted = replace(painted, markers=replace(painted.markers, side_m=side))
+        fit_p = replace(fit_p, marker_side_m=side)
+        steps.say(f"markers painted into the texture: {cost_p:.2f} grey levels over the marker "
+                  "squares")
     if best_q[0] <= cost_p:
         chosen, fit = replace(drawn, arena=scene.arena), fit_d
     else:
@@ -425,6 +441,59 @@ def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
     texture_rgb, chosen = rectified_arena(real, chosen, shades.box_mask, renderer,
                                           folder=folder, progress=steps.say)
     return texture_rgb, chosen, fit
+
+
+#: The field of view is open when the markers fit as well over a wider span than this (deg).
+FOV_PINNED_SPAN_DEG = 0.5
+
+
+def _fov_open(fit: cf.CameraFit) -> bool:
+    return fit.fov_range is not None and fit.fov_range[1] - fit.fov_range[0] > FOV_PINNED_SPAN_DEG
+
+
+def _fov_trade(fit: cf.CameraFit, key: str, value: float) -> Range:
+    """The range of the field of view (``key`` ``fov_deg``) or the altitude (``value``: the
+    fitted camera's, in metres) that fit as well (:attr:`CameraFit.fov_range`), holding
+    ``value``."""
+    metres = value / fit.camera.altitude_m  # the fit's units to metres
+    ends = fit.fov_range if key == "fov_deg" else tuple(a * metres for a in fit.altitude_range)
+    lo, hi = sorted(ends)
+    return Range(round(min(lo, value), 6), round(max(hi, value), 6))
+
+
+#: The marker sheets' white must be this share of 255 or less for the light to be dimmed to it.
+DIM_BELOW = 0.97
+
+
+def _sheet_white(scene: Scene, gray: np.ndarray, finding: MarkerFinding, steps: _Steps) -> Scene:
+    """``scene`` lit so that white paper shows the image's marker white: drawn marker sheets
+    are white (255) lit like the floor, so a white well below 255 means a dimmer light over
+    lighter albedos (floor and box greys divided by the same factor, every face's shade kept).
+    The white is the 99th percentile of the marker squares' pixels."""
+    from arenabench.generator.shading import floor_factor
+
+    squares = np.zeros(gray.shape, bool)
+    for m in marker_squares(finding, gray.shape).values():
+        squares |= m
+    white = float(np.percentile(gray[squares], 99))
+    k = white / 255.0
+    floor = max(scene.arena.floor_rgb)
+    if k > DIM_BELOW or k * 255.0 < floor or floor / k > 255.0:
+        return scene
+    lit = scene.lighting
+    lighting = replace(lit, ambient=round(lit.ambient * k / floor_factor(lit), 6),
+                       directional=tuple(replace(d, intensity=round(d.intensity * k
+                                                                    / floor_factor(lit), 6))
+                                         for d in lit.directional))
+
+    def albedo(rgb) -> tuple[int, ...]:
+        return tuple(min(round(v / k), 255) for v in rgb)
+
+    steps.say(f"marker white {white:.0f}: the light dimmed to {k:.3f} of white")
+    return replace(scene, lighting=lighting,
+                   arena=replace(scene.arena, floor_rgb=albedo(scene.arena.floor_rgb)),
+                   obstacles=tuple(replace(o, color_rgb=albedo(o.color_rgb))
+                                   for o in scene.obstacles))
 
 
 def _scale_range(name: str, value: float) -> Range:
@@ -584,6 +653,13 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                                      "the image fixes the camera only up to scale (no "
                                      "--arena-size): every length scales with its distance",
                                      evidence=how)
+        elif key in ("fov_deg", "altitude_m") and _fov_open(fit):
+            r[name] = rec.open_range(name, params[name], _fov_trade(fit, key, params[name]),
+                                     f"the markers fit as well from {fit.fov_range[0]:.2f} to "
+                                     f"{fit.fov_range[1]:.2f} deg of field of view: a near-nadir "
+                                     "view of a flat arena trades the field of view against the "
+                                     "altitude, only the weak perspective of the tilt tells "
+                                     "them apart", evidence=how)
         else:
             r[name] = rec.pinned(name, params[name], how, fit.sensitivity.get(key), sens_unit)
     for name in ("camera.width", "camera.height"):
@@ -605,8 +681,8 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
     if scene.arena.texture == IMAGE_TEXTURE and scale_source != "texture":
         how = ("painted into the rectified texture (their pixels fit better so than drawn as "
                "marker sheets)" if scene.markers.printed else
-               "drawn as marker sheets over the rectified texture (their pixels fit better so "
-               "than painted into it)")
+               "drawn as marker sheets over the rectified texture (their pixels match the "
+               "image's better than painted ones, or within 1.5 grey levels)")
         r["markers.printed"] = rec.pinned("markers.printed", params["markers.printed"], how)
         if not scene.markers.printed:
             r["markers.quiet_zone_m"] = rec.pinned(

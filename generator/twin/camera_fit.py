@@ -41,9 +41,10 @@ from arenabench.interrupts import checkpoint
 
 #: Round values tried for each angle, coarsest first: (unit, step). Radians first: a
 #: simulator's camera is usually stated in radians (Gazebo's SDF).
+#: No finer step: an angle known to a few hundredths of a degree lies within the tolerance of
+#: some value on a finer grid whatever it is, so a snap there would say nothing.
 SNAP_STEPS: tuple[tuple[str, float], ...] = (
-    ("rad", 0.1), ("deg", 5.0), ("rad", 0.05), ("deg", 1.0), ("rad", 0.01), ("deg", 0.5),
-    ("deg", 0.1))
+    ("rad", 0.1), ("deg", 5.0), ("rad", 0.05), ("deg", 1.0))
 #: A round value is kept when the RMS residual grows by at most this share of the free fit's.
 SNAP_TOLERANCE = 0.01
 #: The orbit-form parameters fitted (``CameraSpec`` fields; ``target_x``/``target_y`` are
@@ -88,6 +89,11 @@ class CameraFit:
     sensitivity : dict
         Parameter -> how much the RMS residual grows when that parameter moves by its step
         in :data:`SENSITIVITY_STEPS` (grey levels): the residual of a pinned value.
+    fov_range : tuple of float or None
+        The fields of view (deg, lowest and highest) at which the markers fit as well, the
+        other parameters refitted (:func:`fov_range`); ``None`` where not scanned.
+    altitude_range : tuple of float or None
+        The altitudes (m, in the fit's units) of those two fits.
     """
 
     camera: CameraSpec
@@ -100,6 +106,42 @@ class CameraFit:
     corner_rms_px: float
     snapped: dict[str, tuple[str, float]] = field(default_factory=dict)
     sensitivity: dict[str, float] = field(default_factory=dict)
+    fov_range: tuple[float, float] | None = None
+    altitude_range: tuple[float, float] | None = None
+
+
+#: Field-of-view offsets (deg) scanned by :func:`fov_range`, nearest first, each way.
+FOV_SCAN_DEG = (0.25, 0.5, 1.0, 2.0, 4.0)
+
+
+def fov_range(objective: Objective, v: np.ndarray, extra: np.ndarray, rms_ref: float, *,
+              iterations: int = 8) -> tuple[tuple[float, float], tuple[float, float]]:
+    """The fields of view at which the markers fit as well as at ``v`` (the residual within
+    :data:`SNAP_TOLERANCE` of ``rms_ref``), every other parameter refitted, scanned out to
+    :data:`FOV_SCAN_DEG` each way: a near-nadir view of a flat arena trades the field of view
+    against the altitude (every floor point keeps its pixel), so only the perspective of a
+    tilted view, weak at a few degrees, tells them apart. Returns ((lowest, highest) field of
+    view, (altitude there, altitude there))."""
+    k, a = ORBIT.index("fov_deg"), ORBIT.index("altitude_m")
+    limit = rms_ref * (1.0 + SNAP_TOLERANCE)
+    free = tuple(i for i in range(len(ORBIT)) if i != k)
+    ends = []
+    for sign in (-1.0, 1.0):
+        best = v
+        for offset in FOV_SCAN_DEG:
+            trial = best.copy()
+            trial[k] = v[k] + sign * offset
+            trial[a] = best[a] * math.tan(math.radians(best[k] / 2)) / math.tan(
+                math.radians(trial[k] / 2))  # the floor's image about the same
+            tv, _, trms = levenberg_marquardt(objective, trial, extra, free=free,
+                                              iterations=iterations)
+            if trms > limit:
+                break
+            best = tv
+        ends.append(best)
+    lo, hi = ends
+    return ((round(float(lo[k]), 4), round(float(hi[k]), 4)),
+            (round(float(lo[a]), 6), round(float(hi[a]), 6)))
 
 
 def world_corners(arena: ArenaSpec, markers: MarkerSpec) -> np.ndarray:
@@ -444,6 +486,10 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
         progress(f"camera fitted freely to the marker pixels: fov {free_camera.fov_deg:.3f} "
                  f"deg, {free_camera.altitude_m:.4f} m up, tilt {free_camera.tilt_deg:.3f} "
                  f"deg (RMS {rms_free:.2f})")
+    fovs, altitudes = fov_range(objective, v, extra, rms_free)
+    if progress:
+        progress(f"the markers fit as well from {fovs[0]:.2f} to {fovs[1]:.2f} deg of field of "
+                 "view")
     snapped: dict[str, tuple[str, float]] = {}
     rms = rms_free
     if snap:
@@ -456,7 +502,8 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
     return CameraFit(camera=camera, free=free_camera, marker_side_m=round(side, 6),
                      sigma_px=round(sigma, 4), rms_free=round(rms_free, 4), rms=round(rms, 4),
                      stage="markers", corner_rms_px=round(corner_rms, 4), snapped=snapped,
-                     sensitivity=sensitivity(objective, orbit_vector(camera), extra))
+                     sensitivity=sensitivity(objective, orbit_vector(camera), extra),
+                     fov_range=fovs, altitude_range=altitudes)
 
 
 def refine_with_renderer(fit: CameraFit, scene: Scene, gray: np.ndarray, mask: np.ndarray,

@@ -32,7 +32,7 @@ ROUNDS = 4
 #: :data:`MAX_TEXELS`).
 TEXELS_PER_PX = 2.0
 #: The largest texture side.
-MAX_TEXELS = 4096
+MAX_TEXELS = 2048
 #: Pixels around the boxes left out of the texture (their edges blend with the floor).
 BOX_PAD_PX = 4
 #: Texture files written by this process (their names must differ: textures are cached by
@@ -178,7 +178,11 @@ class Rectification:
                                 ).astype(bool)
         hidden = cv2.remap(self.boxes.astype(np.uint8), self.mx, self.my, cv2.INTER_NEAREST,
                            borderMode=cv2.BORDER_CONSTANT, borderValue=1).astype(bool)
-        floor = np.asarray(scene.arena.floor_rgb, np.float64)
+        from arenabench.generator.shading import floor_factor
+
+        # the floor as rendered: its tint under the light
+        floor = (np.asarray(scene.arena.floor_rgb, np.float64)
+                 * min(floor_factor(scene.lighting), 1.0))
         self.rgb = cv2.cvtColor(real_bgr, cv2.COLOR_BGR2RGB).astype(np.float32)
         self.scale = (255.0 / np.maximum(floor, 1.0)).astype(np.float32)
         raw = cv2.remap(self.rgb, self.mx, self.my, cv2.INTER_CUBIC,
