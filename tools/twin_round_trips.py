@@ -40,6 +40,8 @@ def main(argv: list[str] | None = None) -> int:
                    help="scenes of each twin for the reference pipeline's pass rate (0: none)")
     p.add_argument("--keep", type=Path, default=None,
                    help="keep the images and twins here (default: a temporary folder)")
+    p.add_argument("--reuse", action="store_true",
+                   help="compare the twins already in --keep again (no rebuilding)")
     args = p.parse_args(argv)
     try:  # before any work
         from twin_blind import TOLERANCES, hidden_case, reference_pass_rate, round_trip
@@ -56,7 +58,7 @@ def main(argv: list[str] | None = None) -> int:
         for seed in _seeds(args):
             case = hidden_case(seed)
             t = time.monotonic()
-            result = round_trip(case, folder / f"case-{seed}", renderer)
+            result = round_trip(case, folder / f"case-{seed}", renderer, reuse=args.reuse)
             s = case.scene
             floor = s.arena.texture if case.texture is None else "image"
             print(f"case {seed}: {s.markers.dictionary} ids {list(s.markers.ids)} turned "

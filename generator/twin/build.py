@@ -469,15 +469,20 @@ def _sheet_white(scene: Scene, gray: np.ndarray, finding: MarkerFinding, steps: 
     """``scene`` lit so that white paper shows the image's marker white: drawn marker sheets
     are white (255) lit like the floor, so a white well below 255 means a dimmer light over
     lighter albedos (floor and box greys divided by the same factor, every face's shade kept).
-    The white is the 99th percentile of the marker squares' pixels."""
+    The white is the median of the marker squares' pixels above the middle between the floor
+    and their 99th percentile (the white modules and quiet zones; the percentile alone would
+    take JPEG ringing's overshoot)."""
     from arenabench.generator.shading import floor_factor
 
     squares = np.zeros(gray.shape, bool)
     for m in marker_squares(finding, gray.shape).values():
         squares |= m
-    white = float(np.percentile(gray[squares], 99))
-    k = white / 255.0
     floor = max(scene.arena.floor_rgb)
+    values = gray[squares].astype(np.float64)
+    top = float(np.percentile(values, 99))
+    bright = values[values >= (floor + top) / 2.0]
+    white = float(np.median(bright)) if bright.size else top
+    k = white / 255.0
     if k > DIM_BELOW or k * 255.0 < floor or floor / k > 255.0:
         return scene
     lit = scene.lighting
@@ -661,6 +666,9 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                                      "altitude, only the weak perspective of the tilt tells "
                                      "them apart", evidence=how)
         else:
+            if key in ("tilt_deg", "yaw_deg", "roll_deg") and _fov_open(fit):
+                how += (" (for the field of view held: along the span of fields of view that "
+                        "fit as well the tilt moves with it)")
             r[name] = rec.pinned(name, params[name], how, fit.sensitivity.get(key), sens_unit)
     for name in ("camera.width", "camera.height"):
         r[name] = rec.pinned(name, params[name], "the image's size")
