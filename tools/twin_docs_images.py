@@ -1,9 +1,14 @@
 """The tutorial's pictures (docs/twin-tutorial.md) from a real twin: the image, the twin's
 render of the same scene (written as the image was), their difference, and one marker of each
-zoomed, into docs/images/twin-*.png::
+zoomed, into docs/images/PREFIX-*.png::
 
-    .venv/bin/arenabench twin tests/data/task1c_image.jpg --out /tmp/example-twin
+    .venv/bin/arenabench twin tests/data/task1c_image.jpg --out /tmp/example-twin \
+        --texture generator/assets/arena_texture.png --arena-size 3.7,3.7
     .venv/bin/python tools/twin_docs_images.py tests/data/task1c_image.jpg /tmp/example-twin
+    .venv/bin/arenabench twin tests/data/task1c_image.jpg --out /tmp/example-own \
+        --arena-size 3.7,3.7
+    .venv/bin/python tools/twin_docs_images.py tests/data/task1c_image.jpg /tmp/example-own \
+        --prefix twin-own
 """
 
 from __future__ import annotations
@@ -38,6 +43,7 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("image", type=Path, help="the image the twin was made from")
     p.add_argument("twin", type=Path, help="the twin's folder (arenabench twin --out)")
+    p.add_argument("--prefix", default="twin", help="file names' prefix (default twin)")
     args = p.parse_args(argv)
     data = args.image.read_bytes()
     real = decode_image(data, name=str(args.image))
@@ -49,8 +55,8 @@ def main(argv: list[str] | None = None) -> int:
     diff = difference_image(tg, rg)
     small = (WHOLE_PX, round(real.shape[0] * WHOLE_PX / real.shape[1]))
     OUT.mkdir(parents=True, exist_ok=True)
-    for name, img in (("twin-example.png", rg), ("twin-render.png", tg),
-                      ("twin-difference.png", diff)):
+    for name, img in ((f"{args.prefix}-example.png", rg), (f"{args.prefix}-render.png", tg),
+                      (f"{args.prefix}-difference.png", diff)):
         _write(name, cv2.resize(img, small, interpolation=cv2.INTER_AREA))
     # one marker (the first found) zoomed: image, twin, difference side by side
     square = next(iter(marker_squares(find_markers(rg), rg.shape).values()))
@@ -61,7 +67,7 @@ def main(argv: list[str] | None = None) -> int:
              diff[crop]]
     gap = np.full((tiles[0].shape[0], 2, 3), 255, np.uint8)
     row = np.hstack([tiles[0], gap, tiles[1], gap, tiles[2]])
-    _write("twin-marker.png", cv2.resize(row, None, fx=ZOOM, fy=ZOOM,
+    _write(f"{args.prefix}-marker.png", cv2.resize(row, None, fx=ZOOM, fy=ZOOM,
                                          interpolation=cv2.INTER_NEAREST))
     figures = json.loads((args.twin / "twin.json").read_text())["figures"]
     print(f"marker squares {figures['mad']['markers']:.2f} grey levels, whole image "
