@@ -299,7 +299,9 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer,
                   lighting=shades.lighting, background_rgb=(_grey(background),) * 3)
     texture_rgb = None
     if not geometry.texture:
-        scene = _sheet_white(scene, gray, finding, steps)
+        scene = replace(scene, arena=replace(scene.arena, floor_rgb=_floor_tint(
+            real, scene, shades, finding)))
+        scene = _sheet_white(scene, gray, finding, steps, floor=_grey(shades.floor_rgb))
         checkpoint()
         texture_rgb, scene, fit = _own_texture(real, gray, scene, fit, shades, finding,
                                                renderer, folder, options, steps)
@@ -465,7 +467,34 @@ def _fov_trade(fit: cf.CameraFit, key: str, value: float) -> Range:
 DIM_BELOW = 0.97
 
 
-def _sheet_white(scene: Scene, gray: np.ndarray, finding: MarkerFinding, steps: _Steps) -> Scene:
+#: The share of the floor's pixels at most as light as the rectified texture's tint (the rest
+#: clip at the texture's white).
+TINT_PERCENTILE = 99.5
+
+
+def _floor_tint(real: np.ndarray, scene: Scene, shades: Shades, finding: MarkerFinding
+                ) -> tuple[int, int, int]:
+    """The tint of a texture rectified from the image: the floor's lightest grey
+    (:data:`TINT_PERCENTILE`, per channel; boxes and markers left out), so that the texture,
+    stored relative to it, keeps the floor's lighter pixels below its white (stored relative
+    to the commonest grey they would clip, and the floor come out darker where it is lighter)."""
+    from arenabench.generator.twin.shades import floor_square_mask
+
+    shape = real.shape[:2]
+    floor = floor_square_mask(scene.camera, shape, scene.arena.side_m / 2.0)
+    floor &= ~cv2.dilate(shades.box_mask.astype(np.uint8), np.ones((9, 9), np.uint8)
+                         ).astype(bool)
+    for m in marker_squares(finding, shape).values():
+        floor &= ~m
+    if floor.sum() < 1000:
+        return shades.floor_rgb
+    rgb = cv2.cvtColor(real, cv2.COLOR_BGR2RGB)
+    return tuple(max(min(math.ceil(float(np.percentile(rgb[..., c][floor], TINT_PERCENTILE))),
+                         255), shades.floor_rgb[c]) for c in range(3))
+
+
+def _sheet_white(scene: Scene, gray: np.ndarray, finding: MarkerFinding, steps: _Steps, *,
+                 floor: float) -> Scene:
     """``scene`` lit so that white paper shows the image's marker white: drawn marker sheets
     are white (255) lit like the floor, so a white well below 255 means a dimmer light over
     lighter albedos (floor and box greys divided by the same factor, every face's shade kept).
@@ -477,7 +506,6 @@ def _sheet_white(scene: Scene, gray: np.ndarray, finding: MarkerFinding, steps: 
     squares = np.zeros(gray.shape, bool)
     for m in marker_squares(finding, gray.shape).values():
         squares |= m
-    floor = max(scene.arena.floor_rgb)
     values = gray[squares].astype(np.float64)
     top = float(np.percentile(values, 99))
     bright = values[values >= (floor + top) / 2.0]
@@ -715,7 +743,11 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
         else:
             r[name] = rec.pinned(name, params[name], f"from the {scale_source}")
     r["arena.floor_rgb"] = rec.pinned("arena.floor_rgb", params["arena.floor_rgb"],
-                                      "the floor's commonest grey inside the markers' square",
+                                      "the floor's commonest grey inside the markers' square"
+                                      if scene.arena.texture != IMAGE_TEXTURE or scale_source
+                                      == "texture" else "the rectified texture's tint: the "
+                                      f"floor's lightest grey ({TINT_PERCENTILE:g}th percentile;"
+                                      f" its commonest as seen is {list(shades.floor_rgb)})",
                                       res.get("arena.floor_rgb"),
                                       "grey levels MAD over the floor per grey level")
     if shades.background_rgb is None:
