@@ -317,6 +317,8 @@ def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
     f = min(floor_factor(hidden.lighting), 1.0)
     tol = TOLERANCES["grey"][0]
     floor = _grey(hidden.arena.floor_rgb) * f
+    if case.texture is not None:  # a picture tinted by floor_rgb: its own commonest grey
+        floor *= float(np.median(case.texture)) / 255.0
     # the floor's grey as the twin read it (a rectified texture's tint, arena.floor_rgb, is
     # the floor's lightest grey: its record says so)
     got_floor = _grey(doc["shades"]["floor_rgb"])
