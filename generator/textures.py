@@ -114,11 +114,6 @@ def _floor_texture(arena: ArenaSpec, texels: int) -> np.ndarray:
     else:
         img = np.empty((texels, texels, 3), np.uint8)
         img[:] = arena.floor_rgb
-    if img.shape[0] != texels:  # a picture's own texel grid for what is drawn over it
-        texels = img.shape[0]
-        scale = texels / (2.0 * e)
-        centres = (np.arange(texels) + 0.5) / scale - e
-        x, y = centres[None, :], -centres[:, None]
     if arena.texture == "speckle":
         rng = np.random.default_rng(arena.texture_seed)
         noise = rng.normal(0.0, 2.0, size=(texels // 4, texels // 4)).astype(np.float32)

@@ -1,25 +1,43 @@
-"""An image file as the arena floor (``arena.texture = "image"``), with the lines and text the
-other floors take drawn over it."""
+"""An image file as the arena floor (``arena.texture = "image"``): the picture is the floor,
+at its own texel grid, with no lines or text drawn over it."""
 
 from __future__ import annotations
 
 import cv2
 import numpy as np
+import pytest
 
 from arenabench.generator.scene import IMAGE_TEXTURE, ArenaSpec
+from arenabench.generator.texture_store import import_texture
 from arenabench.generator.textures import floor_texture
 
 
-def test_border_line_is_drawn_over_an_image_floor_of_another_size(tmp_path):
-    """The picture's own size sets the texel grid of the lines drawn over it (a 512-texel
-    picture under the default 2048-texel grid used to fail with an IndexError)."""
+@pytest.fixture
+def picture(tmp_path, monkeypatch):
+    """A 512-texel grey picture's reference (read into a private texture cache)."""
+    monkeypatch.setenv("ARENABENCH_CACHE_DIR", str(tmp_path / "cache"))
     path = tmp_path / "floor.png"
     cv2.imwrite(str(path), np.full((512, 512, 3), 240, np.uint8))
-    arena = ArenaSpec(side_m=4.0, margin_m=0.5, texture=IMAGE_TEXTURE, texture_file=str(path),
-                      floor_rgb=(255, 255, 255), border_width_m=0.1, border_rgb=(20, 20, 20),
+    return import_texture(path)
+
+
+def test_an_image_floor_of_another_size_keeps_its_own_texel_grid(picture):
+    """A 512-texel picture (the default texel grid is 2048) is the floor texture as it is."""
+    arena = ArenaSpec(side_m=4.0, margin_m=0.5, texture=IMAGE_TEXTURE, texture_file=picture,
+                      texture_size_m=(5.0, 5.0), floor_rgb=(255, 255, 255), border_width_m=0.0,
                       logo_text="")
     img = floor_texture(arena)
     assert img.shape == (512, 512, 3)
-    # the border line's centre (x = 2 m) at texel (2 + 2.5) / 5 * 512 = 460.8; the floor beside
-    assert (img[256, 459:462] == 20).all()
-    assert (img[256, 256] == 240).all() and (img[256, 440] == 240).all()
+    assert (img == 240).all()
+
+
+@pytest.mark.parametrize(("field", "value"), [("border_width_m", 0.1), ("grid_step_m", 0.5),
+                                              ("logo_text", "lab 7")])
+def test_lines_or_text_over_an_image_floor_are_refused(picture, field, value):
+    """The picture is the floor: a border line, grid or text over it is refused in one line
+    naming the field and its value."""
+    base = {"side_m": 4.0, "margin_m": 0.5, "texture": IMAGE_TEXTURE, "texture_file": picture,
+            "texture_size_m": (5.0, 5.0), "border_width_m": 0.0, "logo_text": ""}
+    with pytest.raises(ValueError, match=rf"arena\.{field}={value!r}") as info:
+        ArenaSpec(**{**base, field: value})
+    assert "\n" not in str(info.value)
