@@ -63,8 +63,9 @@ def main(argv: list[str] | None = None) -> int:
         except ImportError:
             print("--count needs tests/pipelines on PYTHONPATH (see --help)", file=sys.stderr)
             return 2
+    from arenabench.generator.param_values import format_value
     from arenabench.generator.preset_files import load_preset_file
-    from arenabench.generator.presets import format_value, resolve
+    from arenabench.generator.presets import resolve
     from arenabench.generator.scene import load_scene
 
     eyrc = resolve("eyrc")
