@@ -41,3 +41,24 @@ def test_lines_or_text_over_an_image_floor_are_refused(picture, field, value):
     with pytest.raises(ValueError, match=rf"arena\.{field}={value!r}") as info:
         ArenaSpec(**{**base, field: value})
     assert "\n" not in str(info.value)
+
+
+def test_a_held_texture_is_read_back_exactly_and_never_cached(tmp_path, monkeypatch):
+    """A texture made in memory (the twin's trial textures) is found by its reference, pixel
+    for pixel, without a file in the cache; released, it is gone."""
+    from arenabench.generator import texture_store
+
+    monkeypatch.setenv("ARENABENCH_CACHE_DIR", str(tmp_path / "cache"))
+    rgb = np.random.default_rng(0).integers(0, 256, (64, 96, 3), dtype=np.uint8)
+    ref = texture_store.hold_texture(rgb)
+    try:
+        assert texture_store.has(ref)
+        assert np.array_equal(texture_store.texture_rgb(ref), rgb)
+        assert not (tmp_path / "cache" / "textures").exists()
+        texture_store.keep_held(ref)
+        assert (tmp_path / "cache" / ref).is_file()
+    finally:
+        texture_store.release_held()
+    other = texture_store.hold_texture(rgb[::-1].copy())
+    texture_store.release_held()
+    assert not texture_store.has(other)
