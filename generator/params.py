@@ -189,6 +189,8 @@ PARAMS: tuple[Param, ...] = (
           _b(-360, 360), lands="markers.rotation_deg"),
     Param("markers.quiet_zone_m", "float", "white quiet zone around markers (m)", _b(0, 10),
           lands="markers.quiet_zone_m"),
+    Param("markers.printed", "bool", "markers printed on the arena.texture=image file (none "
+          "drawn)", neutral=False, lands="markers.printed"),
     Param("obstacles.count", "int", "number of boxes", _b(0, 50), draw="scene"),
     Param("obstacles.length_m", "float", "box length (m), per box", _b(0.01, 100), draw="box"),
     Param("obstacles.width_m", "float", "box width (m), per box", _b(0.01, 100), draw="box"),

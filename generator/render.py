@@ -44,7 +44,7 @@ from arenabench.generator.layout import (
 from arenabench.generator.lens import distort_image, has_distortion, lens_canvas
 from arenabench.generator.lights import apply_spot_light, shadow_mesh_arrays
 from arenabench.generator.renderer_api import RenderOutput, SceneRenderer
-from arenabench.generator.scene import Obstacle, Scene
+from arenabench.generator.scene import IMAGE_TEXTURE, Obstacle, Scene
 from arenabench.generator.shading import floor_factor, shade_factors
 from arenabench.generator.textures import floor_texture, marker_texture
 from arenabench.interrupts import deferred_stops
@@ -236,8 +236,9 @@ class Renderer(SceneRenderer):
         # Marker sheets: one unit quad per marker, kept while the sheet images stay the same;
         # a scene only moves and scales them (node pose), so drawn marker sizes cost nothing.
         mk = scene.markers
-        printed = scene.arena.texture == comp.TEXTURE_NAME and comp.markers_are_printed(
-            mk.dictionary, mk.ids, mk.side_m, mk.rotation_deg)
+        printed = (scene.arena.texture == IMAGE_TEXTURE and mk.printed) or (
+            scene.arena.texture == comp.TEXTURE_NAME and comp.markers_are_printed(
+                mk.dictionary, mk.ids, mk.side_m, mk.rotation_deg))
         sheets = [] if printed else [
             marker_texture(mk.dictionary, marker_id, mk.side_m, mk.quiet_zone_m)
             for marker_id in mk.ids]

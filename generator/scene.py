@@ -96,7 +96,7 @@ class ArenaSpec:
         (:mod:`arenabench.generator.competition_arena`); or an image file (``texture_file``,
         tinted by ``floor_rgb``) covering ``texture_size_m``, which is then the floor: drawn
         as it is (no border line, grid or logo over it), sampled as the competition's
-        texture is.
+        texture is; its markers printed on it (``MarkerSpec.printed``) or drawn over it.
     texture_seed : int
         Seed of the procedural texture.
     border_width_m : float
@@ -210,6 +210,11 @@ class MarkerSpec:
         upright (the generated image's top towards north). 180 is the competition arena.
     quiet_zone_m : float
         Width of the white quiet zone drawn around each marker.
+    printed : bool
+        The markers are printed on an image arena (``arena.texture="image"``): none are
+        drawn. Otherwise they are drawn as marker sheets over the floor (on the competition's
+        texture: unless they are the ones printed on it). A scene file states it only when
+        true.
     """
 
     dictionary: str = COMPETITION_DICTIONARY
@@ -217,9 +222,12 @@ class MarkerSpec:
     side_m: float = 0.48
     rotation_deg: float = 180.0
     quiet_zone_m: float = 0.04
+    printed: bool = False
 
     def __post_init__(self) -> None:
         _finite_fields(self, "markers")
+        if not isinstance(self.printed, bool):
+            raise ValueError(f"markers.printed must be true or false, got {self.printed!r}")
         ids = tuple(int(i) for i in self.ids)
         if len(ids) != 4:
             raise ValueError(f"markers.ids must be 4 ids (nw, ne, se, sw), got {self.ids!r}")
@@ -518,7 +526,8 @@ class Scene:
         The camera is written one way only: ``K`` or ``fov_deg`` for the intrinsics, the
         look-at pose (``eye_m``, ``look_at_m``) or the orbit pose (``altitude_m``,
         ``tilt_deg``, ``yaw_deg``, ``target_m``), never both. ``render`` is written only when
-        it is not the default (:class:`RenderSpec`).
+        it is not the default (:class:`RenderSpec`), :data:`IMAGE_TEXTURE_FIELDS` only with an
+        image texture, ``markers.printed`` only when true.
         """
         out = _listify(asdict(self))
         if self.render == RenderSpec():
@@ -526,6 +535,8 @@ class Scene:
         if out["arena"]["texture"] != IMAGE_TEXTURE:
             for name in IMAGE_TEXTURE_FIELDS:
                 del out["arena"][name]
+        if not out["markers"]["printed"]:
+            del out["markers"]["printed"]
         camera = out["camera"]
         for name in CAMERA_INTRINSIC_FIELDS[camera["K"] is None]:
             del camera[name]

@@ -148,8 +148,39 @@ def texture_path(ref: str) -> Path:
 
 
 def has(ref: str) -> bool:
-    """Whether the cache holds the texture ``ref``."""
-    return is_ref(ref) and (cache_folder() / Path(ref).name).is_file()
+    """Whether the cache (or this process, :func:`hold_texture`) holds the texture ``ref``."""
+    return is_ref(ref) and (ref in _HELD or (cache_folder() / Path(ref).name).is_file())
+
+
+#: Textures made in memory and held by this process only (:func:`hold_texture`).
+_HELD: dict[str, bytes] = {}
+
+
+def hold_texture(rgb: np.ndarray) -> str:
+    """A texture made in memory ((H, W, 3) uint8 RGB, row 0 north), held by this process
+    and not written to the cache (a trial texture, e.g. the twin's), until
+    :func:`release_held`; returns its reference (of its PNG bytes)."""
+    ok, buf = cv2.imencode(".png", cv2.cvtColor(np.ascontiguousarray(rgb), cv2.COLOR_RGB2BGR),
+                           [cv2.IMWRITE_PNG_COMPRESSION, 1])
+    if not ok:  # pragma: no cover - OpenCV encodes any uint8 RGB image
+        raise ValueError("hold_texture: cannot encode the image as PNG")
+    data = buf.tobytes()
+    ref = _checked(data, "a texture made in memory")
+    _HELD[ref] = data
+    return ref
+
+
+def keep_held(ref: str) -> str:
+    """Put the held texture ``ref`` into the cache (so that other processes find it);
+    returns ``ref``."""
+    if ref in _HELD:
+        add_bytes(ref, _HELD[ref])
+    return ref
+
+
+def release_held() -> None:
+    """Forget the textures :func:`hold_texture` holds."""
+    _HELD.clear()
 
 
 def import_ref(ref: str, folder: Path, *, where: str) -> str:
@@ -198,12 +229,14 @@ def export_texture(ref: str, folder: str | os.PathLike[str]) -> Path:
     target = Path(folder) / ref
     if target.is_file() and _hash_of(target) == _sha(ref):
         return target
-    atomic_write_bytes(target, _read(texture_path(ref), ref))
+    atomic_write_bytes(target, texture_bytes(ref))
     return target
 
 
 def texture_bytes(ref: str) -> bytes:
-    """The bytes of the cached texture ``ref`` (checked against its hash)."""
+    """The bytes of the cached (or held) texture ``ref`` (checked against its hash)."""
+    if ref in _HELD:
+        return _HELD[ref]
     data = _read(texture_path(ref), ref)
     if sha256_bytes(data) != _sha(ref):
         raise ValueError(f"{texture_path(ref)}: its bytes are not the texture its name says "

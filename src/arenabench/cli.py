@@ -26,6 +26,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                  "render a dataset of scenes with exact ground truth"),
     "presets": ("arenabench.generator.presets_cli", "list the scene presets"),
     "fit": ("arenabench.generator.fit_cli", "fit a scene file to a real arena image"),
+    "twin": ("arenabench.generator.twin_cli",
+             "a twin of an arena from one real image: preset, fitted scene, pinned/open report"),
     "render": ("arenabench.generator.render_cli", "render one scene file with its ground truth"),
     "contact-sheet": ("arenabench.generator.contact_sheet", "tile a preset's scenes in one image"),
     "eval": ("arenabench.eval.commands.eval",

@@ -76,6 +76,9 @@ def test_every_value_lands_where_it_is_declared():
         if p.lands.split(".")[-1] in IMAGE_TEXTURE_FIELDS:  # written for image textures only
             assert scene["arena"]["texture"] != "image" and values[p.name] == p.neutral
             continue
+        if p.name == "markers.printed":  # written only when true
+            assert "printed" not in scene["markers"] and values[p.name] is False
+            continue
         node = scene
         for part in p.lands.split("."):
             node = node[int(part)] if part.isdigit() else node[part]

@@ -1,0 +1,109 @@
+"""``arenabench twin`` on the competition's published example, given the competition's texture,
+reproduces ``eyrc``'s preset file (generator/assets/presets/eyrc.toml, its only source): the
+camera, the greys, the edges and the JPEG settings, and the camera the competition's world
+file puts there (generator/competition_world.py). The hand-found facts are evidence the twin
+finds again from the image."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from arenabench.generator import camera as cam
+from arenabench.generator.competition_world import competition_camera
+from arenabench.generator.preset_files import load_preset_file
+from arenabench.generator.presets import PRESET_FILES
+from arenabench.generator.scene import CameraSpec
+
+ROOT = Path(__file__).resolve().parent.parent
+IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
+TEXTURE = ROOT / "generator" / "assets" / "arena_texture.png"
+#: The bounds the twin is held to: camera position (m) and angles (deg), greys (levels), the
+#: marker squares of the fitted scene's render (mean absolute grey difference).
+METRES, DEGREES, GREYS, MARKER_SQUARES = 0.05, 0.1, 2, 1.0
+
+pytestmark = pytest.mark.slow
+
+
+@pytest.fixture(scope="module")
+def twin(tmp_path_factory) -> Path:
+    """The twin of the example with the competition's texture, as a user makes it."""
+    out = tmp_path_factory.mktemp("twin") / "example"
+    proc = subprocess.run([sys.executable, "-m", "arenabench", "twin", str(IMAGE), "--out",
+                           str(out), "--texture", str(TEXTURE), "--arena-size", "3.7,3.7",
+                           "--no-progress"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def params(twin) -> dict:
+    return load_preset_file(twin / "preset.toml").params
+
+
+@pytest.fixture(scope="module")
+def eyrc() -> dict:
+    return load_preset_file(PRESET_FILES["eyrc"]).params
+
+
+def _camera(p: dict) -> CameraSpec:
+    return CameraSpec(width=p["camera.width"], height=p["camera.height"],
+                      fov_deg=p["camera.fov_deg"], altitude_m=p["camera.altitude_m"],
+                      tilt_deg=p["camera.tilt_deg"], yaw_deg=p["camera.yaw_deg"],
+                      roll_deg=p["camera.roll_deg"],
+                      target_m=(p["camera.target_x_m"], p["camera.target_y_m"]))
+
+
+def _apart(a: CameraSpec, b: CameraSpec) -> tuple[float, float]:
+    """Distance (m) between the two cameras' centres and the angle (deg) between their
+    orientations."""
+    pa, pb = cam.world_from_camera(a), cam.world_from_camera(b)
+    turn = (np.trace(pa[:3, :3].T @ pb[:3, :3]) - 1) / 2
+    return (float(np.linalg.norm(pa[:3, 3] - pb[:3, 3])),
+            math.degrees(math.acos(float(np.clip(turn, -1, 1)))))
+
+
+@pytest.mark.parametrize("source", ["eyrc.toml", "competition_world"])
+def test_the_camera_is_eyrcs_and_the_world_files(params, eyrc, source):
+    want = _camera(eyrc) if source == "eyrc.toml" else competition_camera()
+    got = _camera(params)
+    metres, degrees = _apart(got, want)
+    assert metres <= METRES and degrees <= DEGREES, (metres, degrees, got, want)
+    assert abs(got.fov_deg - want.fov_deg) <= DEGREES
+    assert abs(got.tilt_deg - want.tilt_deg) <= DEGREES
+
+
+def test_the_greys_are_eyrcs(twin, params, eyrc):
+    for key in ("arena.floor_rgb", "background.gray", "obstacles.gray"):
+        got, want = np.atleast_1d(params[key]), np.atleast_1d(eyrc[key])
+        assert np.abs(got.astype(float) - want).max() <= GREYS, (key, got, want)
+    faces = {f["direction"]: f["gray"] for f in json.loads((twin / "twin.json").read_text())
+             ["shades"]["faces"]}
+    assert abs(faces["south"] - 71) <= GREYS and abs(faces["north"] - 100) <= GREYS, faces
+
+
+def test_the_edges_and_the_file_are_eyrcs(params, eyrc):
+    for key in ("render.edge_samples", "render.edge_resolve", "output.format",
+                "output.jpeg_quality", "output.jpeg_subsampling", "markers.dictionary",
+                "markers.ids", "markers.rotation_deg", "arena.texture"):
+        assert params[key] == eyrc[key], (key, params[key], eyrc[key])
+
+
+def test_the_fitted_scene_matches_the_examples_marker_squares(twin):
+    figures = json.loads((twin / "twin.json").read_text())["figures"]
+    assert figures["mad"]["markers"] <= MARKER_SQUARES, figures
+
+
+def test_the_box_ranges_are_eyrcs(params, eyrc):
+    """What varies, drawn around the example's two boxes, lands on the ranges found by hand
+    from the competition's world files."""
+    for key in ("obstacles.count", "obstacles.length_m", "obstacles.width_m",
+                "obstacles.height_m", "obstacles.yaw_deg", "obstacles.yaw_step_deg",
+                "obstacles.min_gap_m", "obstacles.edge_margin_m"):
+        assert params[key] == eyrc[key], (key, params[key], eyrc[key])

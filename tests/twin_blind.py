@@ -1,0 +1,389 @@
+"""Blind round trips of ``arenabench twin``: "real" images rendered by the generator with
+hidden, randomly drawn parameters, and the comparison of a twin built from the image alone
+with what was hidden.
+
+:func:`hidden_case` draws a case (a scene and how its file is written) from a seed;
+:func:`write_case` renders it and writes the image file (the only thing the twin is given);
+:func:`compare` sets the twin (its folder, as ``arenabench twin`` writes it) against the hidden
+case, with the tolerances of :data:`TOLERANCES`; :func:`round_trip` does all three, running
+``arenabench twin`` as a user would, on the image file alone; :func:`reference_pass_rate`
+scores the reference pipeline on scenes of the twin's preset. ``tools/twin_round_trips.py`` runs the
+full set and prints the figures; ``tests/test_twin_blind.py`` a few cases.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from arenabench.generator import camera as cam
+from arenabench.generator.layout import floor_extent
+from arenabench.generator.scene import (
+    IMAGE_TEXTURE,
+    ArenaSpec,
+    CameraSpec,
+    DirectionalLight,
+    LightingSpec,
+    MarkerSpec,
+    Obstacle,
+    RenderSpec,
+    Scene,
+)
+from arenabench.generator.shading import floor_factor, shade_factors
+from arenabench.generator.texture_store import import_texture
+
+#: Dictionaries drawn from (families of every size, AprilTag and the original ArUco).
+DICTIONARIES = ("DICT_4X4_50", "DICT_4X4_250", "DICT_5X5_100", "DICT_5X5_1000", "DICT_6X6_250",
+                "DICT_7X7_50", "DICT_APRILTAG_36h11", "DICT_ARUCO_ORIGINAL")
+#: Tolerances of the pinned parameters, and why (tools/twin_round_trips.py prints them).
+TOLERANCES: dict[str, tuple[float, str]] = {
+    "camera_px": (0.25, "RMS image distance (px) of floor points inside the arena, hidden "
+                        "camera against the twin's (scaled to the hidden arena): a quarter "
+                        "pixel moves a marker's or a box's outline by less than a pixel's "
+                        "blend"),
+    "fov_deg": (0.5, "pinned: within 0.5 deg; open (a near-nadir view trades the field of view "
+                     "against the altitude): the hidden value inside the range kept, give or "
+                     "take 0.5 deg"),
+    "angle_deg": (0.1, "tilt, heading and roll, where the field of view is pinned (else they "
+                       "follow it along the span that fits as well, and camera_px is the "
+                       "check): 0.1 deg turns a 1000 px image by at most 0.9 px at its "
+                       "corners"),
+    "grey": (2.0, "floor, background, box top and the shades of the faces seen: JPEG rounding "
+                  "and the modes of 8-bit images"),
+    "marker_squares": (1.5, "the bound asked for: mean absolute grey difference of the fitted "
+                            "scene's render in the squares 8 px around each marker"),
+    "pass_rate": (0.95, "the reference pipeline on 100 scenes of the twin's preset"),
+}
+
+
+@dataclass(frozen=True)
+class HiddenCase:
+    """A hidden scene and how its image file is written.
+
+    Attributes
+    ----------
+    seed : int
+        What it was drawn from.
+    scene : Scene
+        The scene (its texture file, for an image arena, in ``texture``).
+    file_format : str
+        ``"png"`` or ``"jpeg"``.
+    jpeg_quality : int
+        JPEG quality (``jpeg`` only).
+    jpeg_subsampling : str
+        ``"420"``, ``"422"`` or ``"444"``.
+    texture : numpy.ndarray or None
+        The image arena's texture (RGB), written beside the image when used.
+    """
+
+    seed: int
+    scene: Scene
+    file_format: str
+    jpeg_quality: int = 95
+    jpeg_subsampling: str = "420"
+    texture: np.ndarray | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def image_name(self) -> str:
+        """The image file's name."""
+        return f"hidden-{self.seed}.{'jpg' if self.file_format == 'jpeg' else 'png'}"
+
+
+def _ids(rng: np.random.Generator, dictionary: str) -> tuple[int, ...]:
+    from arenabench.aruco import aruco_dictionary, symmetric_turn
+
+    size = aruco_dictionary(dictionary).bytesList.shape[0]
+    ids: list[int] = []
+    while len(ids) < 4:
+        i = int(rng.integers(0, size))
+        if i not in ids and symmetric_turn(dictionary, i) is None:
+            ids.append(i)
+    return tuple(ids)
+
+
+def _floor_image(rng: np.random.Generator, texels: int = 1024) -> np.ndarray:
+    """A floor picture for an image arena: mottled concrete-like grey with a few lines."""
+    base = rng.normal(0, 1, (texels // 32, texels // 32)).astype(np.float32)
+    img = 238 + 6 * cv2.resize(base, (texels, texels), interpolation=cv2.INTER_CUBIC)
+    img += rng.normal(0, 1.5, (texels, texels)).astype(np.float32)
+    out = np.clip(img, 0, 255).astype(np.uint8)
+    out = np.repeat(out[:, :, None], 3, axis=2)
+    for _ in range(int(rng.integers(1, 4))):
+        y = int(rng.integers(0, texels))
+        cv2.line(out, (0, y), (texels - 1, y), (150, 150, 150), int(rng.integers(2, 6)))
+    return out
+
+
+def _boxes(rng: np.random.Generator, arena: ArenaSpec, markers: MarkerSpec,
+           grey: int) -> tuple[Obstacle, ...]:
+    from shapely.geometry import Polygon
+
+    from arenabench.generator.layout import box_footprint
+
+    side = arena.side_m
+    inner = side / 2 - markers.side_m - 0.06 * side
+    out: list[Obstacle] = []
+    turned = rng.random() < 0.3
+    for _ in range(int(rng.integers(1, 5))):
+        for _ in range(200):
+            w = float(rng.uniform(0.06, 0.11)) * side
+            ob = Obstacle(center_m=tuple(float(v) for v in rng.uniform(-inner, inner, 2)),
+                          yaw_deg=float(rng.uniform(-60, 60)) if turned
+                          else float(rng.choice([0.0, 90.0])),
+                          length_m=w * float(rng.uniform(1.5, 3.0)), width_m=w,
+                          height_m=float(rng.uniform(0.04, 0.09)) * side,
+                          color_rgb=(grey,) * 3)
+            poly = Polygon(box_footprint(ob))
+            if max(abs(c) for c in np.asarray(poly.exterior.coords).ravel()) > inner:
+                continue
+            if all(poly.distance(Polygon(box_footprint(o))) > 0.05 * side for o in out):
+                out.append(ob)
+                break
+    return tuple(out)
+
+
+def hidden_case(seed: int, *, image_px: int | None = None) -> HiddenCase:
+    """Draw a hidden case from ``seed`` (see the module docstring); ``image_px``: a square
+    image of that side instead of the drawn size (a quicker case)."""
+    from arenabench.generator.sampler import markers_in_view
+
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x7717]))
+    dictionary = str(rng.choice(DICTIONARIES))
+    side = float(rng.uniform(3.0, 9.0))
+    kind = str(rng.choice(["plain", "speckle", "concrete", "image"]))
+    floor = int(rng.integers(228, 253))
+    texture = _floor_image(rng) if kind == "image" else None
+    arena = ArenaSpec(side_m=round(side, 3), margin_m=round(float(rng.uniform(0.04, 0.12))
+                                                            * side, 3),
+                      floor_rgb=(floor,) * 3, texture="plain" if kind == "image" else kind,
+                      texture_seed=int(rng.integers(0, 100)),
+                      border_width_m=round(float(rng.choice([0.0, 0.004, 0.01])) * side, 4),
+                      logo_text=str(rng.choice(["", "arena", "lab 7"])))
+    if kind == "image":  # an image floor is drawn as it is: no line or logo over it
+        arena = replace(arena, border_width_m=0.0, logo_text="")
+    msize = round(float(rng.uniform(0.06, 0.09)) * side, 4)
+    cells = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, dictionary)).markerSize + 2
+    markers = MarkerSpec(dictionary=dictionary, ids=_ids(rng, dictionary), side_m=msize,
+                         rotation_deg=float(rng.choice([0.0, 90.0, 180.0, 270.0])),
+                         quiet_zone_m=round(msize / cells * float(rng.choice([0.5, 1.0, 1.5])),
+                                            4))
+    width, height = (1000, 1000) if rng.random() < 0.7 else (1280, 960)
+    if image_px is not None:
+        width = height = image_px
+    for _ in range(500):
+        fov = float(rng.uniform(45, 75))
+        reach = floor_extent(arena) * float(rng.uniform(1.02, 1.25))
+        camera = CameraSpec(width=width, height=height, fov_deg=round(fov, 4),
+                            altitude_m=round(reach / math.tan(math.radians(fov / 2)), 4),
+                            tilt_deg=round(float(rng.uniform(1.0, 8.0)), 4),
+                            yaw_deg=round(float(rng.uniform(-15, 15)), 4),
+                            roll_deg=round(float(rng.uniform(-2, 2)), 4),
+                            target_m=tuple(round(float(v), 4)
+                                           for v in rng.uniform(-0.03, 0.03, 2) * side))
+        if markers_in_view(arena, markers, camera, margin_px=20):
+            break
+    else:  # pragma: no cover - the draws above always find one
+        raise RuntimeError(f"case {seed}: no camera sees the markers")
+    el, az = math.radians(float(rng.uniform(40, 80))), math.radians(float(rng.uniform(0, 360)))
+    light = LightingSpec(ambient=round(float(rng.uniform(0.45, 0.7)), 4), directional=(
+        DirectionalLight(direction=(-math.cos(el) * math.cos(az), -math.cos(el) * math.sin(az),
+                                    -math.sin(el)), intensity=round(float(rng.uniform(0.25,
+                                                                                       0.5)), 4)),))
+    grey = int(rng.integers(80, min(160, floor - 70)))
+    scene = Scene(arena=arena, markers=markers, obstacles=_boxes(rng, arena, markers, grey),
+                  camera=camera, lighting=light,
+                  background_rgb=(int(rng.integers(150, floor - 12)),) * 3,
+                  render=RenderSpec(edge_samples=int(rng.choice([2, 4])),
+                                    edge_resolve=str(rng.choice(["linear", "srgb"]))))
+    png = rng.random() < 0.3
+    return HiddenCase(seed=seed, scene=scene, file_format="png" if png else "jpeg",
+                      jpeg_quality=int(rng.integers(80, 101)),
+                      jpeg_subsampling=str(rng.choice(["420", "422", "444"])), texture=texture)
+
+
+def write_case(case: HiddenCase, folder: Path, renderer) -> Path:
+    """Render ``case`` and write its image file into ``folder`` (its arena texture, for an
+    image arena, into a private subfolder the twin is not told about). Returns the image."""
+    from arenabench.imageio import encode_image
+
+    folder = Path(folder)
+    folder.mkdir(parents=True, exist_ok=True)
+    scene = case.scene
+    if case.texture is not None:
+        hidden = folder / ".hidden"
+        hidden.mkdir(exist_ok=True)
+        path = hidden / f"floor-{case.seed}.png"
+        cv2.imwrite(str(path), cv2.cvtColor(case.texture, cv2.COLOR_RGB2BGR))
+        side = round(2.0 * floor_extent(scene.arena), 6)  # the image covers the floor square
+        scene = replace(scene, arena=replace(scene.arena, texture=IMAGE_TEXTURE,
+                                             texture_file=import_texture(path),
+                                             texture_size_m=(side, side)))
+    bgr = cv2.cvtColor(renderer.render(scene).rgb, cv2.COLOR_RGB2BGR)
+    data = encode_image(bgr, image_format=case.file_format, jpeg_quality=case.jpeg_quality,
+                        jpeg_subsampling=case.jpeg_subsampling)
+    out = folder / case.image_name
+    out.write_bytes(data)
+    return out
+
+
+def _grey(rgb) -> float:
+    return float(np.mean(rgb))
+
+
+def _camera_px(hidden: Scene, twin_camera: CameraSpec, twin_side: float) -> float:
+    """RMS image distance of floor points inside the arena (a 9 x 9 grid), the twin's camera
+    scaled to the hidden arena: the floor's homography, which the image pins (the field of view
+    and the altitude trade against each other along it, see the twin's open records)."""
+    k = hidden.arena.side_m / twin_side
+    scaled = replace(twin_camera, altitude_m=twin_camera.altitude_m * k,
+                     target_m=tuple(v * k for v in twin_camera.target_m))
+    h = hidden.arena.side_m / 2
+    grid = np.linspace(-h, h, 9)
+    pts = np.array([(x, y, 0.0) for x in grid for y in grid])
+    a = cam.project(pts, cam.intrinsics(hidden.camera), cam.world_from_camera(hidden.camera))
+    b = cam.project(pts, cam.intrinsics(scaled), cam.world_from_camera(scaled))
+    return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
+
+
+def _hidden_face(hidden: Scene, twin: Scene, box: int, direction: str) -> float:
+    """The hidden shade of the face the twin's box ``box`` shows towards ``direction``: the
+    hidden box nearest to it (centres scaled to the hidden arena), its side face whose normal
+    is nearest to that compass direction (a turned box's faces are turned with it)."""
+    from arenabench.generator.twin.shades import COMPASS
+
+    k = hidden.arena.side_m / twin.arena.side_m
+    c = np.asarray(twin.obstacles[box].center_m) * k
+    ob = min(hidden.obstacles, key=lambda o: float(np.linalg.norm(np.asarray(o.center_m) - c)))
+    want = COMPASS.index(direction) * 90.0
+    angle = min((ob.yaw_deg + 90.0 * j for j in range(4)),
+                key=lambda a: abs((a - want + 180.0) % 360.0 - 180.0))
+    a = math.radians(angle)
+    factor = shade_factors(np.array([[math.cos(a), math.sin(a), 0.0]]), hidden.lighting)[0]
+    return float(min(ob.color_rgb[0] * factor, 255.0))
+
+
+def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
+    """What the twin in ``twin_dir`` recovered of ``case``, each check with its outcome."""
+    from arenabench.generator.scene import load_scene
+    from arenabench.generator.twin.markers import _family
+
+    doc = json.loads((Path(twin_dir) / "twin.json").read_text())
+    twin = load_scene(Path(twin_dir) / "scene.json")
+    hidden = case.scene
+    params = doc["parameters"]
+    checks: dict[str, tuple[Any, Any, bool]] = {}
+
+    def check(name: str, want: Any, got: Any, ok: bool) -> None:
+        checks[name] = (want, got, bool(ok))
+
+    fam = _family(hidden.markers.dictionary)
+    got_fam = _family(doc["markers"]["dictionary"])
+    check("markers.dictionary", hidden.markers.dictionary, doc["markers"]["dictionary"],
+          (fam and got_fam and fam[0] == got_fam[0]) or hidden.markers.dictionary.upper()
+          == doc["markers"]["dictionary"].upper())
+    check("markers.ids", list(hidden.markers.ids), doc["markers"]["ids"],
+          list(hidden.markers.ids) == doc["markers"]["ids"])
+    check("markers.rotation_deg", hidden.markers.rotation_deg % 360,
+          doc["markers"]["rotation_deg"], hidden.markers.rotation_deg % 360
+          == doc["markers"]["rotation_deg"])
+    ratio = twin.markers.side_m / twin.arena.side_m
+    want_ratio = hidden.markers.side_m / hidden.arena.side_m
+    check("markers.side / arena.side", round(want_ratio, 5), round(ratio, 5),
+          abs(ratio - want_ratio) <= 0.004 * want_ratio + 1e-4)
+    px = _camera_px(hidden, twin.camera, twin.arena.side_m)
+    check("camera (image px)", 0.0, round(px, 3), px <= TOLERANCES["camera_px"][0])
+    fov = params["camera.fov_deg"]
+    tol = TOLERANCES["fov_deg"][0]
+    if fov["status"] == "open":  # the hidden value inside the range kept
+        lo, hi = fov["range"]
+        check("camera.fov_deg (open: range)", hidden.camera.fov_deg, [lo, hi],
+              lo - tol <= hidden.camera.fov_deg <= hi + tol)
+    else:
+        check("camera.fov_deg", hidden.camera.fov_deg, twin.camera.fov_deg,
+              abs(hidden.camera.fov_deg - twin.camera.fov_deg) <= tol)
+    if fov["status"] == "pinned":  # with an open field of view the tilt moves with it
+        a, b = cam.world_from_camera(hidden.camera), cam.world_from_camera(twin.camera)
+        turn = math.degrees(math.acos(float(np.clip(
+            (np.trace(a[:3, :3].T @ b[:3, :3]) - 1) / 2, -1, 1))))
+        check("camera rotation (deg)", 0.0, round(turn, 4), turn <= TOLERANCES["angle_deg"][0])
+    f = min(floor_factor(hidden.lighting), 1.0)
+    tol = TOLERANCES["grey"][0]
+    floor = _grey(hidden.arena.floor_rgb) * f
+    if case.texture is not None:  # a picture tinted by floor_rgb: its own commonest grey
+        floor *= float(np.median(case.texture)) / 255.0
+    # the floor's grey as the twin read it (a rectified texture's tint, arena.floor_rgb, is
+    # the floor's lightest grey: its record says so)
+    got_floor = _grey(doc["shades"]["floor_rgb"])
+    check("floor grey", round(floor, 1), round(got_floor, 1), abs(floor - got_floor) <= tol)
+    if params["background.gray"]["status"] == "pinned":
+        check("background grey", _grey(hidden.background_rgb), _grey(twin.background_rgb),
+              abs(_grey(hidden.background_rgb) - _grey(twin.background_rgb)) <= tol)
+    if hidden.obstacles and twin.obstacles:
+        top = hidden.obstacles[0].color_rgb[0] * f
+        got = twin.obstacles[0].color_rgb[0] * min(floor_factor(twin.lighting), 1.0)
+        check("box top grey", round(top, 1), round(got, 1), abs(top - got) <= tol)
+        for face in doc["shades"]["faces"]:
+            d = face["direction"]
+            want = _hidden_face(hidden, twin, face["box"], d)
+            check(f"{d} face grey (seen, box {face['box']})", round(want, 1), face["gray"],
+                  abs(want - face["gray"]) <= tol)
+    check("obstacles seen", len(hidden.obstacles), len(twin.obstacles),
+          len(hidden.obstacles) == len(twin.obstacles))
+    for name, want in (("render.edge_samples", hidden.render.edge_samples),
+                       ("render.edge_resolve", hidden.render.edge_resolve)):
+        rec = params[name]
+        if rec["status"] == "pinned":
+            check(name, want, rec["value"], want == rec["value"])
+    image = doc["image"]
+    check("output.format", case.file_format, image["format"], case.file_format == image["format"])
+    if case.file_format == "jpeg":
+        check("output.jpeg_quality", case.jpeg_quality, image["jpeg_quality"],
+              case.jpeg_quality == image["jpeg_quality"])
+        check("output.jpeg_subsampling", case.jpeg_subsampling, image["jpeg_subsampling"],
+              case.jpeg_subsampling == image["jpeg_subsampling"])
+    mad = doc["figures"]["mad"]["markers"]
+    check("marker squares (grey levels)", TOLERANCES["marker_squares"][0], mad,
+          mad <= TOLERANCES["marker_squares"][0])
+    opened = sorted(k for k, v in params.items() if v["status"] == "open" and
+                    (v.get("range") is not None or len(v.get("values", [])) > 1))
+    return {"seed": case.seed, "checks": checks, "open": opened,
+            "ok": all(ok for _, _, ok in checks.values()),
+            "figures": doc["figures"], "timings_s": doc.get("timings_s", {})}
+
+
+def round_trip(case: HiddenCase, folder: Path, renderer, *, reuse: bool = False
+               ) -> dict[str, Any]:
+    """Render ``case`` into ``folder``, run ``arenabench twin`` on the image file alone (a
+    subprocess, as a user runs it; its twin in ``folder/twin``) and :func:`compare`; with
+    ``reuse``, a twin already there is compared again."""
+    out = Path(folder) / "twin"
+    if reuse and (out / "twin.json").exists():
+        return compare(case, out)
+    image = write_case(case, folder, renderer)
+    proc = subprocess.run([sys.executable, "-m", "arenabench", "twin", str(image), "--out",
+                           str(out), "--no-progress"], capture_output=True, text=True)
+    if proc.returncode:
+        raise AssertionError(f"case {case.seed}: arenabench twin exited {proc.returncode}: "
+                             f"{proc.stderr.strip()}")
+    return compare(case, out)
+
+
+def reference_pass_rate(twin_dir: Path, count: int, seed: int = 0) -> float:
+    """The reference pipeline's pass rate (visible area reference) on scenes 0..count-1 of the
+    twin's preset (``tests/pipelines/pass_rates.py``: each image written as the preset says)."""
+    from pass_rates import score_preset
+
+    from arenabench.generator.preset_files import load_preset_file
+
+    preset = load_preset_file(Path(twin_dir) / "preset.toml")
+    tally = score_preset(preset.params, count=count, seed=seed, pipelines=("reference",),
+                         references=("visible",))["reference"]
+    return tally.rate("visible")
