@@ -8,7 +8,7 @@ with what was hidden.
 case, with the tolerances of :data:`TOLERANCES`; :func:`round_trip` does all three, running
 ``arenabench twin`` as a user would, on the image file alone; :func:`reference_pass_rate`
 scores the reference pipeline on scenes of the twin's preset. ``tools/twin_round_trips.py`` runs the
-full set and prints the figures; ``tests/test_twin_blind.py`` a few cases.
+full set and prints the figures; ``tests/generator/twin/test_twin_blind.py`` a few cases.
 """
 
 from __future__ import annotations

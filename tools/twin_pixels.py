@@ -30,6 +30,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT / "tests" / "generator"))  # test_twin_fidelity
 sys.path.insert(0, str(ROOT / "tests" / "pipelines"))  # competition_style, for the corners
 
 from test_twin_fidelity import (  # noqa: E402  (the helpers the tests check these with)

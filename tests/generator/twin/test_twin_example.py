@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from paths import ROOT
 
 from arenabench.generator import camera as cam
 from arenabench.generator.competition_world import competition_camera
@@ -21,7 +22,6 @@ from arenabench.generator.preset_files import load_preset_file
 from arenabench.generator.presets import PRESET_FILES
 from arenabench.generator.scene import CameraSpec
 
-ROOT = Path(__file__).resolve().parent.parent
 IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
 TEXTURE = ROOT / "generator" / "assets" / "arena_texture.png"
 #: The bounds the twin is held to: camera position (m) and angles (deg), greys (levels), the

@@ -4,11 +4,11 @@ rotation) and the camera (fitted freely to the marker pixels, then snapped to ro
 from __future__ import annotations
 
 from dataclasses import replace
-from pathlib import Path
 
 import cv2
 import numpy as np
 import pytest
+from paths import ROOT
 
 from arenabench.generator import camera as cam
 from arenabench.generator import competition_arena as comp
@@ -23,7 +23,6 @@ from arenabench.generator.scene import (
 from arenabench.generator.twin import camera_fit as cf
 from arenabench.generator.twin.markers import DICTIONARIES, MarkersNotFoundError, find_markers
 
-ROOT = Path(__file__).resolve().parent.parent
 IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
 SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
 
