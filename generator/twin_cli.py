@@ -24,6 +24,7 @@ from arenabench.cliopts import (
     usage_error,
     write_failure,
 )
+from arenabench.exitcodes import ExitCode
 
 PROG = "arenabench twin"
 
@@ -125,14 +126,14 @@ def main(argv: list[str] | None = None) -> int:
             why = str(exc).removeprefix("image: ")
             where = "" if why.startswith("--") else f"{args.image}: "
             print(f"{PROG}: error: {where}{why}", file=sys.stderr)
-            return 2
+            return ExitCode.USAGE
         except Interrupted as exc:
             print(f"{PROG}: {exc}; nothing written (an earlier twin in {args.out} is kept)",
                   file=sys.stderr)
             return exc.exit_code
         except OSError as exc:
             print(f"{PROG}: error: {write_failure(exc, args.out)}", file=sys.stderr)
-            return 1
+            return ExitCode.FAILED
     f = twin.figures
     print(f"twin {name}: marker squares {f.mad['markers']:.2f} grey levels from the image, "
           f"whole image {f.whole:.2f}; {sum(r.status == 'pinned' for r in twin.records)} "
@@ -141,7 +142,7 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {', '.join(str(p) for p in written)}")
     print(f"generate from it: arenabench generate --preset {args.out / 'preset.toml'} "
           f"--count 200 --out SET")
-    return 0
+    return ExitCode.OK
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -40,6 +40,7 @@ def _round_trip(case, folder, renderer, scenes: int) -> None:
     assert rate >= TOLERANCES["pass_rate"][0], (case.seed, rate)
 
 
+@pytest.mark.slow  # a minute each on 2 cores
 @pytest.mark.parametrize(("seed", "px"), FAST_CASES)
 def test_blind_round_trip(seed, px, tmp_path, renderer):
     _round_trip(hidden_case(seed, image_px=px), tmp_path, renderer, SCENES["fast"])
