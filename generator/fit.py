@@ -27,7 +27,12 @@ from arenabench.aruco import aruco_dictionary
 from arenabench.frame import CORNER_ORDER
 from arenabench.generator import camera as cam
 from arenabench.generator import competition_arena as comp
-from arenabench.generator.layout import MARKER_Z, box_vertices, marker_corners_world
+from arenabench.generator.layout import (
+    MARKER_Z,
+    box_vertices,
+    facing_side_faces,
+    marker_corners_world,
+)
 from arenabench.generator.params import PARAMETERS
 from arenabench.generator.scene import (
     ArenaSpec,
@@ -411,16 +416,8 @@ def _refine_box(ob: Obstacle, target: np.ndarray, K, pose) -> tuple[float, Obsta
 
 def _side_faces(gray, ob: Obstacle, K, pose, side_mask) -> tuple:
     """(world normal, median grey) of each visible side face covering >= 30 side px."""
-    v = box_vertices(ob)
-    eye = pose[:3, 3]
     out = []
-    for i in range(4):
-        j = (i + 1) % 4
-        quad = v[[i, j, j + 4, i + 4]]
-        edge = v[j, :2] - v[i, :2]
-        normal = np.array([edge[1], -edge[0], 0.0]) / np.linalg.norm(edge)
-        if normal @ (eye - quad.mean(axis=0)) <= 0:
-            continue
+    for quad, normal in facing_side_faces(ob, pose[:3, 3]):
         px = cam.project(quad, K, pose)
         m = np.zeros(gray.shape, np.uint8)
         cv2.fillPoly(m, [np.round(px).astype(np.int32)], 1)

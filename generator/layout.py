@@ -120,3 +120,19 @@ def box_vertices(obstacle: Obstacle) -> np.ndarray:
     low = np.column_stack([fp, np.zeros(4)])
     high = np.column_stack([fp, np.full(4, obstacle.height_m)])
     return np.vstack([low, high])
+
+
+def facing_side_faces(obstacle: Obstacle, eye: np.ndarray) -> list[tuple[np.ndarray, np.ndarray]]:
+    """The side faces of a box that face the point ``eye`` (a camera's position), as
+    ``(quad, normal)``: the face's 4 world vertices (bottom edge, then top) and its outward
+    horizontal unit normal."""
+    v = box_vertices(obstacle)
+    out = []
+    for i in range(4):
+        j = (i + 1) % 4
+        quad = v[[i, j, j + 4, i + 4]]
+        edge = v[j, :2] - v[i, :2]
+        normal = np.array([edge[1], -edge[0], 0.0]) / np.linalg.norm(edge)
+        if normal @ (eye - quad.mean(axis=0)) > 0:
+            out.append((quad, normal))
+    return out

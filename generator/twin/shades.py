@@ -23,7 +23,12 @@ import numpy as np
 from arenabench.frame import CORNER_ORDER
 from arenabench.generator import camera as cam
 from arenabench.generator.fit import BoxObservation, fit_boxes, fit_lighting
-from arenabench.generator.layout import box_vertices, floor_extent, marker_corners_world
+from arenabench.generator.layout import (
+    box_vertices,
+    facing_side_faces,
+    floor_extent,
+    marker_corners_world,
+)
 from arenabench.generator.scene import (
     ArenaSpec,
     CameraSpec,
@@ -170,16 +175,8 @@ def side_faces(gray: np.ndarray, index: int, ob: Obstacle, camera: CameraSpec,
     """The side faces of box ``ob`` that the camera sees in :data:`MIN_FACE_PX` or more
     pixels 2 px inside their outline (and inside the box's blob)."""
     K, pose = cam.intrinsics(camera), cam.world_from_camera(camera)
-    v = box_vertices(ob)
-    eye = pose[:3, 3]
     out = []
-    for i in range(4):
-        j = (i + 1) % 4
-        quad = v[[i, j, j + 4, i + 4]]
-        edge = v[j, :2] - v[i, :2]
-        normal = np.array([edge[1], -edge[0], 0.0]) / np.linalg.norm(edge)
-        if normal @ (eye - quad.mean(axis=0)) <= 0:
-            continue
+    for quad, normal in facing_side_faces(ob, pose[:3, 3]):
         m = _polygon_mask(gray.shape, cam.project(quad, K, pose)).astype(np.uint8)
         m = cv2.erode(m, np.ones((5, 5), np.uint8)).astype(bool) & blob
         if m.sum() >= MIN_FACE_PX:
