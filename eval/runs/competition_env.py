@@ -38,6 +38,7 @@ import platform
 import re
 import shlex
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -55,6 +56,7 @@ from arenabench.cmdtemplate import (
     placeholders,
     replace_placeholder,
 )
+from arenabench.interrupts import deferred_stops
 from arenabench.limits import COMPETITION_ENV_BUILD_TIMEOUT_S
 from arenabench.usercache import cache_dir
 
@@ -383,8 +385,10 @@ def _build(folder: Path, *, progress: bool, prog: str) -> None:
     start = time.monotonic()
     print(f"{prog}: making the competition's Python environment ({pins_text()}) from the "
           f"package index into {folder}: once, about a minute", file=sys.stderr, flush=True)
-    tmp = Path(tempfile.mkdtemp(dir=envs, prefix=prefix))
+    tmp: Path | None = None
     try:
+        with deferred_stops():  # a stop lands before the folder is made or after it is named
+            tmp = Path(tempfile.mkdtemp(dir=envs, prefix=prefix))
         python = tmp / "bin" / "python"
         _run([sys.executable, "-m", "venv", str(tmp)], what="python -m venv",
              show=None)
@@ -408,7 +412,8 @@ def _build(folder: Path, *, progress: bool, prog: str) -> None:
         os.chmod(tmp, 0o755)  # as python -m venv makes it (mkdtemp's is private)
         os.rename(tmp, folder)
     except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+        if tmp is not None:
+            shutil.rmtree(tmp, ignore_errors=True)
         raise
     print(f"{prog}: made it in {time.monotonic() - start:.0f} s ({versions_text(versions)}; "
           f"recorded in {folder / RECORD_FILE})", file=sys.stderr, flush=True)
@@ -428,19 +433,20 @@ def _run(argv: list[str], *, what: str, show: Callable[[str], None] | None) -> N
     BuildError
         One line: the step, and the last error line of its output.
     """
-    proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            stdin=subprocess.DEVNULL, env=_clean_env(), text=True,
-                            errors="replace")
+    # a session (and process group) of its own: ``python -m venv`` runs ensurepip, pip runs
+    # children of its own, and a stopped build must end them all before its folder is removed
     timed_out = threading.Event()
-
-    def kill() -> None:
-        timed_out.set()
-        proc.kill()
-
-    killer = threading.Timer(COMPETITION_ENV_BUILD_TIMEOUT_S, kill)
-    killer.start()
+    proc: subprocess.Popen[str] | None = None
+    killer: threading.Timer | None = None
     lines: list[str] = []
     try:
+        with deferred_stops():  # a stop lands before the step starts or once it is named
+            proc = subprocess.Popen(argv, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                                    stdin=subprocess.DEVNULL, env=_clean_env(), text=True,
+                                    errors="replace", start_new_session=True)
+            killer = threading.Timer(COMPETITION_ENV_BUILD_TIMEOUT_S,
+                                     lambda: (timed_out.set(), _kill_group(proc.pid)))
+            killer.start()
         assert proc.stdout is not None
         for line in proc.stdout:
             lines.append(line.rstrip())
@@ -449,10 +455,16 @@ def _run(argv: list[str], *, what: str, show: Callable[[str], None] | None) -> N
                 show(line)
         rc = proc.wait()
     finally:
-        killer.cancel()
-        if proc.poll() is None:  # interrupted: end the step with us
-            proc.kill()
-            proc.wait()
+        if killer is not None:
+            killer.cancel()
+        if proc is not None:
+            if proc.poll() is None:  # interrupted: end the step, and what it started, with us
+                _kill_group(proc.pid)
+                proc.wait()
+            if proc.returncode != 0:  # stopped, timed out or failed: nothing of it left
+                _wait_group_gone(proc.pid)
+            if proc.stdout is not None:
+                proc.stdout.close()
     if rc == 0:
         return
     if timed_out.is_set():
@@ -467,6 +479,35 @@ def _run(argv: list[str], *, what: str, show: Callable[[str], None] | None) -> N
     else:
         why = last
     raise BuildError(f"{what}: {why[:400]}")
+
+
+def _kill_group(pgid: int) -> None:
+    with contextlib.suppress(OSError):
+        os.killpg(pgid, signal.SIGKILL)
+
+
+def _wait_group_gone(pgid: int, *, deadline_s: float = 10.0) -> None:
+    """Wait until no live process is left in process group ``pgid`` (each is sent SIGKILL
+    again), so nothing writes into a folder about to be removed; at most ``deadline_s``."""
+    end = time.monotonic() + deadline_s
+    while time.monotonic() < end and _live_in_group(pgid):
+        _kill_group(pgid)
+        time.sleep(0.01)
+
+
+def _live_in_group(pgid: int) -> bool:
+    for entry in os.scandir("/proc"):
+        if not entry.name.isdigit():
+            continue
+        try:
+            with open(f"/proc/{entry.name}/stat", "rb") as fh:
+                stat = fh.read()
+        except OSError:
+            continue
+        fields = stat[stat.rindex(b")") + 2 :].split()
+        if fields[0] not in (b"Z", b"X") and int(fields[2]) == pgid:
+            return True
+    return False
 
 
 def _probe(python: Path) -> dict[str, str]:

@@ -121,9 +121,11 @@ def test_a_second_command_waits_for_the_one_making_it_and_reuses_its_work(
 
 
 @pytest.mark.slow
-def test_a_stopped_build_leaves_nothing_half_made(tmp_path):
-    """SIGINT while the environment is being made: the command stops, its pip is ended and
-    its temporary folder removed; no environment folder appears."""
+@pytest.mark.parametrize("when", ["starting", "installing"])
+def test_a_stopped_build_leaves_nothing_half_made(tmp_path, when):
+    """SIGINT while the environment is being made (as it starts, or while pip installs): the
+    command stops, every process of the build is ended and its temporary folder removed; no
+    environment folder appears."""
     cache = tmp_path / "cache"
     folder = env_folder(cache)
     code = ("from arenabench.interrupts import Interrupted, stop_on_signals\n"
@@ -136,9 +138,16 @@ def test_a_stopped_build_leaves_nothing_half_made(tmp_path):
     proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE,
                             stderr=subprocess.PIPE, text=True)
     assert proc.stderr.readline().startswith("stopped: making the competition's")
+    if when == "installing":
+        for line in proc.stderr:  # pip's first step line: venv and ensurepip are done
+            if line.startswith("  pip: "):
+                break
+        else:
+            pytest.fail("pip showed no step")
     proc.send_signal(signal.SIGINT)
     out, _ = proc.communicate(timeout=120)
     assert out.strip() == "STOPPED"
+    assert not _processes_naming(str(cache))
     assert [p.name for p in folder.parent.iterdir()] == [folder.name + ".lock"]
 
 
@@ -167,3 +176,18 @@ def test_eval_and_sweep_run_competition_python_commands(competition_cache, tmp_p
     assert proc.returncode == 0, proc.stdout + proc.stderr
     rows = [json.loads(x) for x in (sweep_out / "results.jsonl").read_text().splitlines()]
     assert len(rows) == 2 and all(r["pass"] for r in rows), rows
+
+
+def _processes_naming(text: str) -> list[str]:
+    """The command lines of live processes that name ``text``."""
+    found = []
+    for entry in os.scandir("/proc"):
+        if entry.name.isdigit():
+            try:
+                with open(f"/proc/{entry.name}/cmdline", "rb") as fh:
+                    cmdline = fh.read().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:
+                continue
+            if text in cmdline:
+                found.append(cmdline)
+    return found
