@@ -6,6 +6,7 @@ either as a default of its own."""
 from __future__ import annotations
 
 import ast
+import functools
 from pathlib import Path
 
 import pytest
@@ -19,6 +20,12 @@ PACKAGES = ("src/arenabench", "generator", "eval")
 NAMING_KEYWORDS = ("default", "preset", "area_reference")
 
 
+@functools.cache
+def _tree(source: str) -> ast.AST:
+    """``source`` parsed, once per text (both literals are looked for in the same trees)."""
+    return ast.parse(source)
+
+
 def literal_defaults(source: str, literal: str) -> list[str]:
     """``line: code`` of each place ``literal`` is a default: of a parameter, of a dataclass
     field (a class-level annotated value), a ``default=`` / ``preset=`` / ``area_reference=``
@@ -28,7 +35,7 @@ def literal_defaults(source: str, literal: str) -> list[str]:
         return isinstance(node, ast.Constant) and node.value == literal
 
     found = []
-    for node in ast.walk(ast.parse(source)):
+    for node in ast.walk(_tree(source)):
         hits: list[ast.AST] = []
         if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
             hits = [d for d in (*node.args.defaults, *node.args.kw_defaults) if is_it(d)]

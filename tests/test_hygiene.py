@@ -20,8 +20,8 @@ MIRRORS = {
         "scoring", "runs", "datasets", "commands", "reports", "sweep", "grade", "bench")},
 }
 #: Tests of the repository as a whole, kept at the top of tests/.
-TOP_LEVEL = {"test_import_graph.py", "test_lint.py", "test_clirun.py", "test_system_deps.py",
-             "test_hygiene.py", "test_default_facts.py"}
+TOP_LEVEL = {"test_import_graph.py", "test_lint.py", "test_clirun.py", "test_marks.py",
+             "test_system_deps.py", "test_hygiene.py", "test_default_facts.py"}
 ISSUE = re.compile(r"\b[Ii]ssues? #?\d+\b")
 
 

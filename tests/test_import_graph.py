@@ -20,6 +20,7 @@ import statement of the core names the generator or the harness (checked here to
 run time below)."""
 
 import ast
+import functools
 import subprocess
 import sys
 from pathlib import Path
@@ -93,7 +94,7 @@ def imported_names(source: str, current: str, is_pkg: bool = False, *,
     ``runtime``, imports under ``if TYPE_CHECKING:`` are left out.
     """
     found: list[tuple[int, str]] = []
-    for node in _nodes(ast.parse(source), runtime=runtime):
+    for node in _nodes(_tree(source), runtime=runtime):
         if isinstance(node, ast.Import):
             found += [(node.lineno, alias.name) for alias in node.names]
         elif isinstance(node, ast.ImportFrom):
@@ -109,6 +110,12 @@ def imported_names(source: str, current: str, is_pkg: bool = False, *,
             ):
                 found.append((node.lineno, first.value))
     return found
+
+
+@functools.cache
+def _tree(source: str) -> ast.AST:
+    """``source`` parsed, once per text (the tests read the trees, never change them)."""
+    return ast.parse(source)
 
 
 def _banned(name: str, banned: tuple[str, ...]) -> bool:
@@ -150,7 +157,7 @@ def _runtime_targets(source: str, current: str, is_pkg: bool,
         targets.update(".".join(parts[:k]) for k in range(1, len(parts))
                        if ".".join(parts[:k]) not in own)
 
-    for node in _nodes(ast.parse(source), runtime=True):
+    for node in _nodes(_tree(source), runtime=True):
         names: list[str] = []
         if isinstance(node, ast.Import):
             names = [alias.name for alias in node.names]
@@ -229,9 +236,16 @@ def cycles(graph: dict[str, set[str]]) -> list[list[str]]:
     return found
 
 
+@functools.cache
+def _sources() -> dict[str, tuple[str, bool]]:
+    """Every module's source and whether it is a package, read once per session."""
+    return {name: (path.read_text(), is_pkg) for name, (path, is_pkg) in _modules().items()}
+
+
+@functools.cache
 def _project_graph() -> dict[str, set[str]]:
-    return import_graph({name: (path.read_text(), is_pkg)
-                         for name, (path, is_pkg) in _modules().items()})
+    """The project's import graph, built once per session (callers that change it copy it)."""
+    return import_graph(_sources())
 
 
 def test_no_module_imports_itself_round_a_cycle():
@@ -243,14 +257,16 @@ def test_no_module_imports_itself_round_a_cycle():
 
 @pytest.mark.parametrize("lazy", [False, True], ids=["top-level", "in-a-function"])
 def test_the_cycle_check_catches_an_added_cycle(lazy):
-    modules = {name: (path.read_text(), is_pkg) for name, (path, is_pkg) in _modules().items()}
-    assert not cycles(import_graph(modules))
-    source, is_pkg = modules["arenabench.eval.scoring.metrics"]
+    graph = dict(_project_graph())
+    assert not cycles(graph)
+    name = "arenabench.eval.scoring.metrics"
+    source, is_pkg = _sources()[name]
     extra = "from arenabench.eval.evaluation import evaluate\n"
     if lazy:
         extra = "def _late():\n    " + extra
-    modules["arenabench.eval.scoring.metrics"] = (source + "\n" + extra, is_pkg)
-    found = cycles(import_graph(modules))
+    # each module's edges come from its own source alone: rebuild the one changed
+    graph[name] = _runtime_targets(source + "\n" + extra, name, is_pkg, set(graph))
+    found = cycles(graph)
     assert any({"arenabench.eval.scoring.metrics", "arenabench.eval.evaluation"} <= set(c)
                for c in found), found
 

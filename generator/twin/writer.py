@@ -20,6 +20,7 @@ from arenabench.generator.preset_files import write_preset_file
 from arenabench.generator.texture_store import TEXTURES_FOLDER
 from arenabench.generator.twin.build import Twin
 from arenabench.generator.twin.records import TWIN_SCHEMA
+from arenabench.interrupts import deferred_stops
 
 #: What a twin folder holds (``textures/`` only with an image texture), ``twin.json`` last.
 TWIN_FILES = (TEXTURES_FOLDER, "preset.toml", "scene.json", "report.html", "twin.json")
@@ -71,8 +72,10 @@ def write_twin(out: Path, twin: Twin, *, name: str) -> list[Path]:
 
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=".twin-", suffix=".tmp", dir=out))
+    stage: Path | None = None
     try:
+        with deferred_stops():  # a stop lands before the staging folder is made or once named
+            stage = Path(tempfile.mkdtemp(prefix=".twin-", suffix=".tmp", dir=out))
         written = []
         # an image texture's reference, textures/<sha256>.png, is also its path in the folder
         write_preset(stage / "preset.toml", twin, name=name, evidence=_evidence(twin))
@@ -94,4 +97,5 @@ def write_twin(out: Path, twin: Twin, *, name: str) -> list[Path]:
             os.replace(stage / item, out / item)
         return [out / item for item in written]
     finally:
-        shutil.rmtree(stage, ignore_errors=True)
+        if stage is not None:
+            shutil.rmtree(stage, ignore_errors=True)

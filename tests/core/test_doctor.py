@@ -16,6 +16,7 @@ def _gl_available():
     return True
 
 
+@pytest.mark.slow
 def test_checks_without_context_pass_here():
     report = doctor.run_checks(context=False)
     names = [c.name for c in report.checks]
@@ -60,6 +61,7 @@ def test_text_report_and_bad_option():
     assert doctor.main(["--timeout", "0"]) == 2
 
 
+@pytest.mark.slow
 def test_command_line_json_no_context():
     proc = run_cli("doctor", "--json", "--no-context")
     data = json.loads(proc.stdout)
@@ -67,6 +69,7 @@ def test_command_line_json_no_context():
     assert {c["name"] for c in data["checks"]} >= {"python", "opencv", "opengl platform"}
 
 
+@pytest.mark.slow
 def test_sandbox_and_browser_checks_run_for_real(monkeypatch, tmp_path):
     import shutil
 

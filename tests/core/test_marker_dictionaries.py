@@ -8,6 +8,7 @@ import cv2
 import numpy as np
 import pytest
 from clirun import run_cli
+from marks import slow_but
 
 from arenabench.aruco import aruco_dictionary
 from arenabench.generator.make import make_sample
@@ -64,7 +65,7 @@ SAMPLE = [
 ]
 
 
-@pytest.mark.parametrize(("preset", "name", "rotation"), SAMPLE)
+@pytest.mark.parametrize(("preset", "name", "rotation"), slow_but(SAMPLE, first=3))
 def test_a_sample_of_dictionaries_and_turns_is_found_as_drawn(renderer, preset, name, rotation):
     if name not in AVAILABLE:
         pytest.skip(f"this OpenCV has no {name}")

@@ -9,6 +9,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from marks import slow_but
 
 from arenabench.aruco import aruco_dictionary
 from arenabench.pipeline import ALL_DICTIONARIES, PUBLISHED_DICTIONARIES
@@ -77,15 +78,15 @@ def test_stages_cover_every_dictionary_in_order_and_start_with_the_competition()
         assert [run for run, _ in pass_plan(plan_stages(NAMES)[0])] == ["DICT_4X4_100"]
 
 
-@pytest.mark.parametrize("name, ids", [
+@pytest.mark.parametrize("name, ids", slow_but([
     ("DICT_4X4_50", (3, 7, 12, 20)),
     ("DICT_4X4_100", (80, 85, 90, 95)),
     ("DICT_4X4_250", (10, 120, 200, 249)),
     ("DICT_5X5_250", (1, 60, 130, 240)),
     ("DICT_7X7_100", (5, 55, 70, 99)),
     ("DICT_6X6_1000", (300, 500, 700, 999)),
-])
-@pytest.mark.parametrize("rule", ["reference", "seed"])
+], first=3))
+@pytest.mark.parametrize("rule", slow_but(["reference", "seed"], "reference"))
 def test_same_result_as_one_pass_per_dictionary(name, ids, rule):
     img = _sheet(name, ids)
     img = cv2.GaussianBlur(img, (3, 3), 0.8)

@@ -13,6 +13,7 @@ import json
 import cv2
 import numpy as np
 import pytest
+from marks import slow_but
 from paths import TESTS
 
 from arenabench.aruco import aruco_dictionary
@@ -92,8 +93,9 @@ def test_blank_and_boxes_keep_their_results(monkeypatch):
     assert fast == [_result(blank, c) for c in CONFIGS]
 
 
-@pytest.mark.parametrize("sigma", [0.0, 6.0, 15.0, 25.0, 40.0,
-                                   pytest.param(80.0, marks=pytest.mark.slow)])
+@pytest.mark.parametrize("sigma", slow_but([0.0, 6.0, 15.0, 25.0, 40.0,
+                                            pytest.param(80.0, marks=pytest.mark.slow)],
+                                           0.0, 15.0))
 def test_the_example_at_every_noise_level(sigma, monkeypatch):
     image = cv2.imread(str(EXAMPLE))
     image = _noisy(image, sigma, 7) if sigma else image

@@ -88,6 +88,7 @@ def test_option_values():
     assert resolve_phases(3, ["warehouse"]) == 3
 
 
+@pytest.mark.slow
 def test_phase_dependent_failures_get_some_passes_and_passing_images_are_not_rerun(twin,
                                                                                   tmp_path):
     pipe = Counting(edge_phase.detect)
@@ -128,6 +129,7 @@ def test_phase_dependent_failures_get_some_passes_and_passing_images_are_not_rer
     assert first["phase_class"] == "phase_dependent" and first["phase_n"] == str(PHASES)
 
 
+@pytest.mark.slow
 def test_an_always_wrong_pipeline_fails_every_phase(twin):
     pipe = Counting(edge_phase.always_wrong)
     report = evaluate(pipe, twin, workers=2, limit=1, phases=PHASES)
@@ -176,6 +178,7 @@ def test_only_answers_scored_wrong_are_phase_checked():
     assert CHECKED_CATEGORIES <= set(CATEGORIES)
 
 
+@pytest.mark.slow
 def test_a_sweep_phase_checks_its_failures_in_the_worker():
     from arenabench.eval.sweep.execution import run_sweep
     from arenabench.eval.sweep.grid import parse_varies

@@ -6,6 +6,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from marks import slow_but
 from test_twin_fidelity import SCENE
 
 from arenabench.generator.edges import (
@@ -151,7 +152,7 @@ def test_offset_pass_samples_where_it_says(example):
         assert right < 0.0005 and wrong > 20 * right, (dx, dy, right, wrong)
 
 
-@pytest.mark.parametrize("preset", ["eyrc", "eyrc-oblique"])
+@pytest.mark.parametrize("preset", slow_but(["eyrc", "eyrc-oblique"], "eyrc-oblique"))
 def test_region_holds_every_obstacle_pixel(renderer, preset):
     for index in range(8):
         scene = sample_scene(preset, seed=5, index=index).scene

@@ -62,6 +62,7 @@ def grey(example, renderer) -> dict:
 
 # ----------------------------------------------------------------------------- edges
 
+@pytest.mark.slow
 def test_one_and_two_samples_render_the_former_bytes(example, renderer, grey):
     """One sample is the former hard-edged render (``antialias=False``), whatever the resolve;
     two samples in linear light is the default, and a scene states no render section then."""
@@ -113,6 +114,7 @@ def test_four_samples_give_quarter_blends_and_srgb_values_give_160(example, grey
     assert count((4, "srgb"), 115, 204) > 30  # the quarter blends of 71 and 248 in sRGB values
 
 
+@pytest.mark.slow
 def test_four_samples_reuse_the_static_layer_to_the_byte():
     """The twin's consecutive scenes share the static layer under any edge model: a reused
     renderer gives a fresh renderer's bytes."""

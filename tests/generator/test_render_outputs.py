@@ -133,6 +133,7 @@ def test_gt_scene_re_renders_the_same_image(renderer):
     assert again.rgb.tobytes() == s.rgb.tobytes()
 
 
+@pytest.mark.slow
 def test_antialiased_renders_keep_markers_and_masks_exact():
     scene = sample_scene("eyrc-jitter", seed=3, index=0).scene
     with Renderer(antialias=True) as r:

@@ -44,6 +44,7 @@ def _equal(a, b) -> None:
             np.testing.assert_array_equal(x, y, err_msg=name)
 
 
+@pytest.mark.slow
 def test_a_scene_seen_again_is_not_drawn_again_and_gives_the_same_bytes():
     a, b = _scenes()
     want_a, want_b = _fresh(a, depth=True, masks=True), _fresh(b)
@@ -135,6 +136,7 @@ def test_a_noise_sweep_gives_the_images_of_a_fresh_renderer(tmp_path):
         assert png == encode_png(sample.bgr), (p, s)
 
 
+@pytest.mark.slow
 def test_a_render_interrupted_between_two_node_updates_leaves_the_renderer_usable():
     """Ctrl-C may land anywhere in a render; the next render must still be right (it failed
     with "node not in the digraph" when the camera had been removed and not added back)."""

@@ -111,6 +111,7 @@ except ImportError as e:
 """
 
 
+@pytest.mark.slow
 def test_importing_the_compat_module_refuses_another_pyrender_release():
     proc = subprocess.run([sys.executable, "-c", _WRONG_VERSION], capture_output=True,
                           text=True, timeout=120)
@@ -160,6 +161,7 @@ print(rgb.shape, scipy.spatial.ConvexHull([[0, 0], [1, 0], [0, 1]]).volume)
 """
 
 
+@pytest.mark.slow
 def test_pyrender_is_imported_without_scipy_which_stays_importable():
     proc = subprocess.run([sys.executable, "-c", _WITHOUT_SCIPY], capture_output=True,
                           text=True, timeout=120)

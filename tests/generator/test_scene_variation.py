@@ -11,6 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
+from marks import slow_but
 from shapely.geometry import Polygon
 
 from arenabench.generator.distractors import patch_corners
@@ -75,7 +76,7 @@ LENSES = [
 ]
 
 
-@pytest.mark.parametrize("lens", LENSES)
+@pytest.mark.parametrize("lens", slow_but(LENSES, first=1))
 def test_distorted_gt_corners_match_aruco_and_h_stays_undistorted(renderer, lens):
     for index in range(2):
         s = _sample(renderer, lens, index=index, masks=True)
@@ -144,13 +145,13 @@ def test_an_id_outside_the_dictionary_is_refused(renderer):
         _sample(renderer, ["markers.dictionary=DICT_4X4_50", "markers.ids=80,85,90,95"])
 
 
-@pytest.mark.parametrize("sets", [
+@pytest.mark.parametrize("sets", slow_but([
     ["camera.yaw_deg=180"],
     ["camera.yaw_deg=-180"],
     ["camera.yaw_deg=-135", "camera.altitude_m=12.5:13"],
     ["camera.yaw_deg=90", "camera.tilt_deg=20", "camera.altitude_m=11"],
     ["camera.yaw_deg=-180:180", "camera.altitude_m=12.5:13"],
-])
+], first=2))
 def test_camera_heading_all_the_way_round(renderer, sets):
     for index in range(2):
         s = _sample(renderer, sets, index=index)

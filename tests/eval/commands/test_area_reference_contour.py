@@ -34,6 +34,7 @@ def _eval(dataset: Path, out: Path, reference: str) -> dict:
     return json.loads((out / "report.json").read_text())
 
 
+@pytest.mark.slow
 def test_contour_reference_scores_against_contour_px(eyrc, tmp_path):
     contour = _eval(eyrc, tmp_path / "contour", "contour")
     visible = _eval(eyrc, tmp_path / "visible", "visible")

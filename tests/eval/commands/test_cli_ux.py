@@ -47,6 +47,7 @@ def toy(tmp_path_factory) -> Path:
 
 # ----------------------------------------------------------------------------- closed pipes
 
+@pytest.mark.slow
 @pytest.mark.parametrize("module", [["-m", "arenabench", "detect"], ["-m", "arenabench.detect"]])
 def test_closed_pipe_exits_quietly(tmp_path, module):
     """The reader is gone before the command writes: no traceback, exit status 141."""
@@ -64,6 +65,7 @@ def test_closed_pipe_exits_quietly(tmp_path, module):
     assert "Exception ignored" not in proc.stderr
 
 
+@pytest.mark.slow
 def test_head_one_in_a_shell_pipeline(tmp_path):
     cmd = (f"{sys.executable} -m arenabench detect --image {EXAMPLE} --json --indent 2 "
            "--contours | head -1")
@@ -73,6 +75,7 @@ def test_head_one_in_a_shell_pipeline(tmp_path):
     assert "Traceback" not in proc.stderr and "Broken" not in proc.stderr
 
 
+@pytest.mark.slow
 def test_every_command_goes_through_the_quiet_wrapper(tmp_path):
     read_end, write_end = os.pipe()
     os.close(read_end)
@@ -107,6 +110,7 @@ def test_detect_json_is_one_compact_line_contours_on_request(tmp_path):
     assert len(json.loads(full)["obstacles"][0]["contour"]) >= 4
 
 
+@pytest.mark.slow
 def test_eval_reads_what_our_own_detector_writes(toy, tmp_path):
     """The README's command line: every image is answered (none is bad_output)."""
     proc = _run("eval", str(toy), "--cmd", "{python} -m arenabench.detect --image {image} --json",
@@ -233,6 +237,7 @@ def test_help_formatter_appends_defaults_once():
 
 # ----------------------------------------------------------------------------- messages
 
+@pytest.mark.slow
 def test_pipeline_module_in_the_current_folder(tmp_path, monkeypatch, toy):
     from arenabench.eval.pipelines import load_callable
 
@@ -390,6 +395,7 @@ def test_sweep_point_colours():
 SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
 
 
+@pytest.mark.slow
 def test_demo_ends_saying_how_to_run_arenabench_from_a_shell():
     venv_bin = Path(sys.executable).parent
     if not (venv_bin / "arenabench").is_file():

@@ -248,6 +248,7 @@ def test_plugin_module_imports_cheaply():
     assert out.stdout.strip() == "[]"
 
 
+@pytest.mark.slow
 def test_an_interrupted_dataset_is_scored_with_a_warning(toy, tmp_path, capsys):
     import shutil
 

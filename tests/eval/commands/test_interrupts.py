@@ -442,6 +442,7 @@ def test_eval_stopped_before_any_image_still_writes_empty_partial_reports(toy3, 
 
 
 
+@pytest.mark.slow
 def test_a_stop_during_the_pyrender_import_waits_for_it_to_finish():
     """trimesh imports ``trimesh.path`` inside ``except BaseException`` and keeps an
     ExceptionWrapper in its place: a stop landing there was swallowed and broke the process
@@ -613,6 +614,7 @@ def test_eval_stopped_before_any_image_ran_writes_an_empty_partial_report(
     assert "INCOMPLETE: 0" in (out / "report.md").read_text()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("where", ["closing the pipeline", "writing the reports"])
 def test_eval_stopped_after_its_last_image_writes_the_whole_report(toy3, tmp_path, monkeypatch,
                                                                    where):

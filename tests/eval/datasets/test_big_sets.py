@@ -71,6 +71,7 @@ def test_big_set_scores_as_its_builder_says(small_set):
     assert report.summary.n_passed == small_set.passes > 0
 
 
+@pytest.mark.slow
 def test_spilled_run_gives_the_same_report_files(small_set, tmp_path):
     """A run's results kept in a file give the same report files as in memory (the same
     report written both ways), and the same results as a run kept in memory."""
@@ -132,6 +133,7 @@ def _first_error(root, workers):
     return None
 
 
+@pytest.mark.slow
 def test_several_processes_refuse_junk_ids_and_gt_values_first_as_one_does(small_set,
                                                                           tmp_path):
     import shutil

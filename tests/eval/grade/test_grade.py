@@ -285,6 +285,7 @@ def test_interrupted_grade_keeps_finished_teams(dataset, tmp_path):
     assert len(again.rows) == 3
 
 
+@pytest.mark.slow
 def test_odd_team_names_are_escaped_and_linked(dataset, tmp_path):
     import html
     import re
@@ -305,6 +306,7 @@ def test_odd_team_names_are_escaped_and_linked(dataset, tmp_path):
     assert {r["team"] for r in rows} == {name, "plain"}
 
 
+@pytest.mark.slow
 def test_team_folders_named_like_placeholders_are_graded_as_any_other(dataset, tmp_path):
     names = ("x{image}y", "x{submission}y", "plain")
     subs = _fast_teams(tmp_path / "subs", dict.fromkeys(names, 1))

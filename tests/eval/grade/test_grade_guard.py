@@ -215,6 +215,7 @@ def test_a_set_whose_every_seed_is_big_passes_the_seed_check(seed3_set, tmp_path
     check_dataset_seed(load_dataset(weak), allow_guessable=True)
 
 
+@pytest.mark.slow
 def test_answers_beyond_any_scene_are_bad_output_and_every_team_is_ranked(seed3_set, tmp_path):
     """2**53 once stopped a team's report ("array is too big") and 6000 took minutes and
     gigabytes (the count confusion grew with the count squared): both are bad_output now, and
@@ -290,6 +291,7 @@ Path("obstacles.txt").write_text("Aruco ID: [80, 85, 90, 95]\\nObstacles: 0\\nAr
 """
 
 
+@pytest.mark.slow
 @needs_bwrap
 @pytest.mark.parametrize("warm", [False, True], ids=["cold", "warm"])
 def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp_path, warm):
@@ -343,6 +345,7 @@ def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp
     assert os.environ["PATH"] not in seen["environ"]
 
 
+@pytest.mark.slow
 @needs_bwrap
 def test_symlinked_team_grades_like_its_target(seed3_set, tmp_path):
     elsewhere = _team(tmp_path / "real", "team_src", ANSWER.format(count=1))
@@ -635,6 +638,7 @@ def test_sweep_page_of_a_partial_sweep_shows_the_banner(tmp_path):
     assert "INCOMPLETE: 1 of 2 images" in page and 'id="incomplete"' in page
 
 
+@pytest.mark.slow
 def test_a_submission_too_large_to_fingerprint_is_refused_alone(seed3_set, tmp_path,
                                                                  monkeypatch):
     from arenabench.eval.grade import submissions

@@ -108,6 +108,7 @@ def _grade_argv(dataset: Path, subs: Path, out: Path) -> list[str]:
             "--allow-guessable-seed", "--no-progress", "--formats", "json"]
 
 
+@pytest.mark.slow
 @needs_root_unshare
 def test_grade_without_a_pids_cgroup_stops_before_any_team(one_image, tmp_path):
     out = tmp_path / "out"

@@ -71,6 +71,7 @@ def test_process_pool_matches_thread_pool(toy):
     assert _per_image(procs) == _per_image(threads)
 
 
+@pytest.mark.slow
 def test_crashing_command_is_a_crash_with_its_stderr(toy, tmp_path, capsys):
     rc = eval_main(
         [
@@ -222,8 +223,8 @@ def test_adapter_arguments_are_validated():
     [
         ("crash.py", "crash", 1),
         pytest.param("hang.py", "timeout", 1, marks=pytest.mark.slow),
-        ("garbage.py", "bad_output", 1),
-        ("total_area.py", None, 0),
+        pytest.param("garbage.py", "bad_output", 1, marks=pytest.mark.slow),
+        pytest.param("total_area.py", None, 0, marks=pytest.mark.slow),
     ],
 )
 def test_broken_pipelines_through_the_cli(script, category, status, toy, tmp_path, capsys):

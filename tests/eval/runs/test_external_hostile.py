@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 import toy_arena
 from hostile_util import processes_with, wait_for
+from marks import slow_but
 from paths import TESTS
 
 from arenabench.eval.evaluation import EvaluationFailed, evaluate
@@ -79,6 +80,7 @@ def test_a_submission_under_tmp_runs_and_still_sees_no_dataset(toy, run_tmp, tmp
         assert seen["target"] == ["<No such file or directory>"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_private_directory_and_scrubbed_environment(sandbox, toy, run_tmp, monkeypatch):
     monkeypatch.setenv("SECRET_TOKEN", "s3cr3t")
@@ -95,6 +97,7 @@ def test_private_directory_and_scrubbed_environment(sandbox, toy, run_tmp, monke
         assert str(toy) not in json.dumps([seen["argv"], seen["env"]])
 
 
+@pytest.mark.slow
 @needs_bwrap
 def test_loopback_connection_fails_under_bwrap(toy, run_tmp):
     server = socket.socket()
@@ -124,7 +127,7 @@ def test_writes_outside_the_private_directory_fail_under_bwrap(toy, run_tmp, tmp
         assert r.prediction.stdout.count("refused") == 3
 
 
-@pytest.mark.parametrize("sandbox", SANDBOXES)
+@pytest.mark.parametrize("sandbox", slow_but(SANDBOXES, "bwrap"))
 def test_detached_daemons_are_gone_and_do_not_hold_the_run(sandbox, toy, run_tmp):
     marker = f"daemon-marker-{os.getpid()}-{sandbox}"
     images = _one("daemon.py", sandbox, toy, env={"MARKER": marker})
@@ -136,7 +139,7 @@ def test_detached_daemons_are_gone_and_do_not_hold_the_run(sandbox, toy, run_tmp
     assert processes_with(marker) == []
 
 
-@pytest.mark.parametrize("sandbox", SANDBOXES)
+@pytest.mark.parametrize("sandbox", slow_but(SANDBOXES, "none"))
 def test_memory_past_the_limit_is_a_limit(sandbox, toy, run_tmp):
     images = _one("memory.py", sandbox, toy, env={"MB": "1024"}, memory_bytes=256 * 1024**2)
     for r in images:
@@ -144,7 +147,7 @@ def test_memory_past_the_limit_is_a_limit(sandbox, toy, run_tmp):
         assert r.prediction.message.startswith("memory limit (--memory-limit 256M)")
 
 
-@pytest.mark.parametrize("sandbox", SANDBOXES)
+@pytest.mark.parametrize("sandbox", slow_but(SANDBOXES, "none"))
 def test_fork_bomb_past_max_procs_is_a_limit(sandbox, toy, run_tmp):
     if pids_cgroup_parent() is None and os.getuid() == 0:
         pytest.skip("root without a writable pids cgroup: --max-procs is not enforceable")
@@ -191,6 +194,7 @@ def test_100_mb_of_stdout_keeps_a_bounded_tail_and_flat_memory(toy, run_tmp):
     assert peak[0] - base < 40, f"harness RSS grew by {peak[0] - base:.0f} MB"
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_file_size_limit_and_oversized_answer(sandbox, toy, run_tmp):
     big = _one("bigfile.py", sandbox, toy, env={"MB": "64"}, max_file_size=8 * 1024**2)
@@ -318,6 +322,7 @@ def test_sandbox_bwrap_where_it_does_not_work_is_a_usage_error(toy, capsys, monk
     assert len(err) == 1 and "bubblewrap (bwrap) is not installed" in err[0]
 
 
+@pytest.mark.slow
 def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
     toy, run_tmp, monkeypatch, capsys
 ):
@@ -336,6 +341,7 @@ def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
     assert seen["cwd_files"] == ["image.png"] and seen["env"]["HOME"] == seen["cwd"]
 
 
+@pytest.mark.slow
 def test_limit_is_a_failure_category_everywhere(toy, run_tmp):
     from arenabench.eval.scoring.results import CATEGORIES, STATUSES
     from arenabench.eval.scoring.thresholds import check_thresholds, parse_thresholds
@@ -520,6 +526,7 @@ def test_sigterm_with_a_command_that_ignores_it_is_not_exit_0(toy, tmp_path, tar
     assert wait_for(gone, timeout=10)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("warm", [False, True])
 def test_a_run_whose_pids_cgroup_cannot_be_made_is_not_run(warm, toy, run_tmp, tmp_path):
     """The pids cgroup parent was probed writable but the run's own cgroup cannot be made (here:

@@ -359,6 +359,7 @@ USES_NUMPY = textwrap.dedent("""\
 """)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sandbox", [pytest.param("bwrap", marks=needs_bwrap), "none"])
 def test_a_submission_module_shadowing_a_preload_runs_as_cold_does(sandbox, toy, tmp_path,
                                                                    run_tmp, capfd):
@@ -383,6 +384,7 @@ CRASHES = textwrap.dedent("""\
 """)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sandbox", [pytest.param("bwrap", marks=needs_bwrap), "none"])
 def test_a_warm_crash_prints_the_scripts_traceback_alone(sandbox, toy, tmp_path, run_tmp):
     script = tmp_path / "crash.py"
@@ -462,6 +464,7 @@ DETACHES = textwrap.dedent(f"""\
 """)
 
 
+@pytest.mark.slow
 def test_an_in_process_pipelines_detached_child_dies_with_eval(toy, tmp_path):
     (tmp_path / "detaching.py").write_text(DETACHES)
     result = run_cli("eval", str(toy), "--pipeline", "detaching:detect", "--no-progress",
@@ -485,6 +488,7 @@ def _tiny_tmpdir(tmp_path: Path) -> tuple[list[str], Path]:
             f'mount -t tmpfs -o size=4k none {tiny} && exec "$@"', "sh"], tiny
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("warm", [True, False])
 def test_a_full_tmpdir_is_the_harness_failure_never_the_scripts(warm, toy, tmp_path):
     prefix, tiny = _tiny_tmpdir(tmp_path)

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pytest
 import toy_arena  # tests/pipelines (pytest's pythonpath)
+from marks import slow_but
 from paths import TESTS
 
 from arenabench.eval.evaluation import evaluate
@@ -92,11 +93,11 @@ def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-@pytest.mark.parametrize("sandbox", SANDBOXES)
+@pytest.mark.parametrize("sandbox", slow_but(SANDBOXES, "bwrap"))
 @pytest.mark.parametrize("mode, category, limits", [
     pytest.param("hang", "timeout", {"timeout_s": 3.0}, marks=pytest.mark.slow),
     ("memory", "limit", {"memory_bytes": 1024**3}),
-    ("forkbomb", "limit", {"max_procs": 16}),
+    pytest.param("forkbomb", "limit", {"max_procs": 16}, marks=pytest.mark.slow),
 ])
 def test_a_misbehaving_run_ends_alone_and_the_server_goes_on(sandbox, mode, category, limits,
                                                              toy, runs):
@@ -136,6 +137,7 @@ print(len(kids))
 """
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_max_procs_gives_a_warm_run_the_processes_of_a_cold_one(sandbox, toy, run_tmp,
                                                                  tmp_path):
@@ -174,6 +176,7 @@ def _standby_cgroups(server):
     return found
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, toy, runs):
     from concurrent.futures import ThreadPoolExecutor
@@ -231,6 +234,7 @@ def test_no_warm_is_an_option_of_eval_sweep_and_grade(module, argv):
     assert run_settings_from_args(parser.parse_args(argv)).warm is True
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_a_server_outlives_the_thread_that_started_it(sandbox, toy, runs):
     # PR_SET_PDEATHSIG follows the thread that started the keeper: the end of that thread

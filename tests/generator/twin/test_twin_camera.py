@@ -59,6 +59,7 @@ def test_two_markers_are_not_an_arena(example):
         find_markers(half)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize(("dictionary", "ids", "rotation"), [
     ("DICT_5X5_250", (3, 17, 42, 199), 90.0),
     ("DICT_6X6_50", (0, 1, 2, 3), 0.0),
