@@ -56,6 +56,7 @@ from arenabench.cmdtemplate import (
     placeholders,
     replace_placeholder,
 )
+from arenabench.eval.runs.proctools import live_processes
 from arenabench.interrupts import deferred_stops
 from arenabench.limits import COMPETITION_ENV_BUILD_TIMEOUT_S
 from arenabench.usercache import cache_dir
@@ -496,18 +497,7 @@ def _wait_group_gone(pgid: int, *, deadline_s: float = 10.0) -> None:
 
 
 def _live_in_group(pgid: int) -> bool:
-    for entry in os.scandir("/proc"):
-        if not entry.name.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry.name}/stat", "rb") as fh:
-                stat = fh.read()
-        except OSError:
-            continue
-        fields = stat[stat.rindex(b")") + 2 :].split()
-        if fields[0] not in (b"Z", b"X") and int(fields[2]) == pgid:
-            return True
-    return False
+    return any(int(fields[2]) == pgid for _, fields in live_processes())
 
 
 def _probe(python: Path) -> dict[str, str]:

@@ -25,6 +25,7 @@ import ctypes
 import os
 import signal
 import time
+from collections.abc import Iterator
 
 PR_SET_PDEATHSIG = 1
 PR_SET_DUMPABLE = 4
@@ -66,20 +67,30 @@ def prctl(option: int, value: int) -> None:
         raise OSError(err, f"prctl({option}) failed: {os.strerror(err)}")
 
 
+def stat_fields(pid: int | str) -> list[bytes] | None:
+    """The fields of ``/proc/PID/stat`` after the command's name (state, ppid, pgrp, ...), or
+    None when the process is gone."""
+    try:
+        with open(f"/proc/{pid}/stat", "rb") as fh:
+            stat = fh.read()
+    except OSError:
+        return None
+    return stat[stat.rindex(b")") + 2 :].split()
+
+
+def live_processes() -> Iterator[tuple[int, list[bytes]]]:
+    """(pid, :func:`stat_fields`) of every process that is not a zombie."""
+    for entry in os.scandir("/proc"):
+        if entry.name.isdigit():
+            fields = stat_fields(entry.name)
+            if fields is not None and fields[0] not in (b"Z", b"X"):
+                yield int(entry.name), fields
+
+
 def children_map() -> dict[int, list[int]]:
     children: dict[int, list[int]] = {}
-    for entry in os.scandir("/proc"):
-        if not entry.name.isdigit():
-            continue
-        try:
-            with open(f"/proc/{entry.name}/stat", "rb") as fh:
-                stat = fh.read()
-        except OSError:
-            continue
-        fields = stat[stat.rindex(b")") + 2 :].split()
-        if fields[0] in (b"Z", b"X"):
-            continue  # zombies: reaped below, nothing to kill
-        children.setdefault(int(fields[1]), []).append(int(entry.name))
+    for pid, fields in live_processes():  # zombies: reaped below, nothing to kill
+        children.setdefault(int(fields[1]), []).append(pid)
     return children
 
 
