@@ -54,9 +54,6 @@ from .scoring.results import (
 DEFAULT_PHASES = 8
 #: Largest ``--phase-check N``.
 MAX_PHASES = 64
-#: Presets whose runs check failures' phases unless told ``--phase-check off``: the
-#: hidden-test twin, whose renderer blends box edges only at some sub-pixel phases.
-DEFAULT_ON_PRESETS = frozenset({"eyrc"})
 #: The one sentence every report prints beside the rates.
 PHASE_DEPENDENT_MEANING = (
     "phase-dependent: passes at some sub-pixel positions of the boxes and fails at others: on "
@@ -106,15 +103,43 @@ def add_phase_check_argument(parser: argparse.ArgumentParser) -> None:
         f"(luck); one that passes at none is re-run under the other values of the preset's "
         f"open parameters: 'depends-on-open' when one passes, else 'robust'; runs that crash, "
         f"time out or hit a limit do not count. auto (default): {DEFAULT_PHASES} phases on "
-        f"{', '.join(sorted(DEFAULT_ON_PRESETS))} scenes, off otherwise",
+        f"scenes of a twin (a preset that declares open parameters, eyrc among them), off "
+        f"otherwise",
     )
 
 
-def resolve_phases(value: str | int, presets: Sequence[str]) -> int:
-    """Phases to check for ``--phase-check value`` on scenes of ``presets`` (0 = off)."""
+def declares_open(preset: Any) -> bool:
+    """Whether ``preset`` is a twin: a preset that declares parameters its evidence leaves
+    open (``preset``: a :class:`~arenabench.generator.preset_files.ResolvedPreset`, or the
+    name a GT file records, which counts only when it names a built-in preset).
+
+    A twin's scenes are the hidden tests' look-alikes: a failure there is worth telling apart
+    as robust, phase-dependent or depending on what is open, so ``--phase-check auto`` is on
+    for them (``eyrc`` declares its unseen east and west fills open).
+    """
+    from arenabench.generator.presets import builtin_preset, preset_names
+
+    if isinstance(preset, str):
+        if preset not in preset_names():
+            return False
+        preset = builtin_preset(preset)
+    return bool(getattr(preset, "open", None))
+
+
+def resolve_phases(value: str | int, presets: Sequence[Any]) -> int:
+    """Phases to check for ``--phase-check value`` on scenes of ``presets`` (0 = off):
+    ``auto`` is :data:`DEFAULT_PHASES` when one of them is a twin (:func:`declares_open`)."""
     if value == "auto":
-        return DEFAULT_PHASES if any(p in DEFAULT_ON_PRESETS for p in presets) else 0
+        return DEFAULT_PHASES if any(declares_open(p) for p in presets) else 0
     return int(value)
+
+
+def set_presets(data: Any) -> list[Any]:
+    """The presets a set's scenes were drawn from, for :func:`resolve_phases`: the definition
+    its ``dataset.json`` records, else the names its GT files record."""
+    source = dataset_scene_source(data.root, None if data.meta is None else data.meta.doc,
+                                  warn=False)
+    return [source.preset] if source is not None else list(data.presets())
 
 
 # ------------------------------------------------------------------------------ the phases
@@ -241,9 +266,11 @@ class SceneSource:
         return rounded(again.scene.to_dict()) == gt.to_dict()["scene"]
 
 
-def dataset_scene_source(root: str | Path, doc: Any) -> SceneSource | None:
+def dataset_scene_source(root: str | Path, doc: Any, *, warn: bool = True
+                         ) -> SceneSource | None:
     """The :class:`SceneSource` of a set from its ``dataset.json`` content ``doc``
-    (``preset_definition`` and ``args.overrides``); ``None`` when it records none."""
+    (``preset_definition`` and ``args.overrides``); ``None`` when it records none, or one
+    that cannot be read again (said on stderr when ``warn``)."""
     from arenabench.generator.param_values import parse_override
     from arenabench.generator.preset_files import preset_from_document
 
@@ -256,8 +283,9 @@ def dataset_scene_source(root: str | Path, doc: Any) -> SceneSource | None:
         stored = (doc.get("args") or {}).get("overrides") or {}
         overrides = dict(parse_override(f"{k}={v}") for k, v in stored.items())
     except ValueError as exc:
-        _warn(f"phase check: {path}: its preset cannot be read again ({exc}): open "
-              "parameters are not varied")
+        if warn:
+            _warn(f"phase check: {path}: its preset cannot be read again ({exc}): open "
+                  "parameters are not varied")
         return None
     return SceneSource(preset=preset, overrides=overrides)
 

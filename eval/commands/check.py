@@ -340,7 +340,7 @@ def _main(argv: list[str] | None) -> int:
         make_pipeline(_template(OWN_PYTHON_PLACEHOLDER, script), str(script.parent)).close()
     except ValueError as exc:
         return _error(str(exc))
-    phases = resolve_phases(args.phase_check, [preset.name])
+    phases = resolve_phases(args.phase_check, [preset])
     progress = not args.no_progress
 
     interpreter = _interpreter(python, progress=progress)

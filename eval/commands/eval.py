@@ -258,7 +258,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
                 empty_report,
                 evaluate,
             )
-            from arenabench.eval.phase_check import resolve_phases
+            from arenabench.eval.phase_check import resolve_phases, set_presets
             from arenabench.eval.pipelines import make_pipeline
             from arenabench.eval.reports.summary_rows import first_failure_line, headline
             from arenabench.eval.runs import (
@@ -325,8 +325,7 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
             area_reference=args.area_reference,
             executor=args.executor,
             progress=not args.no_progress,
-            phases=resolve_phases(args.phase_check,
-                                  dataset.presets()),
+            phases=resolve_phases(args.phase_check, set_presets(dataset)),
             isolate=True,
             timeout_s=args.timeout,
         )

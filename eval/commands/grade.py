@@ -151,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.eval.datasets.reader import DatasetError, load_dataset
     from arenabench.eval.grade.grading import GradeOptions, check_out_dir, grade
     from arenabench.eval.grade.submissions import SubmissionsError, find_teams
-    from arenabench.eval.phase_check import resolve_phases
+    from arenabench.eval.phase_check import resolve_phases, set_presets
     from arenabench.eval.runs import run_settings_from_args
 
     formats = args.formats
@@ -159,8 +159,7 @@ def main(argv: list[str] | None = None) -> int:
         return _error(problem)
     try:
         dataset = load_dataset(args.dataset)
-        phases = resolve_phases(args.phase_check,
-                                dataset.presets())
+        phases = resolve_phases(args.phase_check, set_presets(dataset))
         options = GradeOptions(command=args.cmd, output=args.output, tolerance=args.tolerance,
                                area_reference=args.area_reference,
                                settings=run_settings_from_args(args), formats=formats,

@@ -184,7 +184,7 @@ def main(argv: list[str] | None = None) -> int:
             threshold=args.threshold, breakdown_mode=args.breakdown_mode,
             keep="all" if args.keep_images else "failures" if args.keep_failures else "none",
             independent_scenes=args.independent_scenes,
-            phases=resolve_phases(args.phase_check, [args.preset.name]),
+            phases=resolve_phases(args.phase_check, [args.preset]),
         )
     except ValueError as exc:
         return _error(str(exc))

@@ -11,6 +11,7 @@ import edge_phase
 import numpy as np
 import pytest
 
+from arenabench.eval.datasets.reader import load_dataset
 from arenabench.eval.evaluation import evaluate
 from arenabench.eval.phase_check import (
     PHASE_DEPENDENT_MEANING,
@@ -19,11 +20,14 @@ from arenabench.eval.phase_check import (
     parse_phase_check,
     phase_offsets,
     resolve_phases,
+    set_presets,
     shifted_scene,
 )
 from arenabench.eval.scoring.results import Report, VariantResult
 from arenabench.generator.camera import intrinsics, project, world_from_camera
 from arenabench.generator.dataset_writer import generate_dataset
+from arenabench.generator.preset_files import write_preset_file
+from arenabench.generator.presets import builtin_preset, resolve_preset
 from arenabench.generator.sampler import sample_scene
 
 PHASES = 8
@@ -86,6 +90,41 @@ def test_option_values():
     assert resolve_phases("auto", ["eyrc"]) == PHASES
     assert resolve_phases("auto", ["eyrc-jitter"]) == 0
     assert resolve_phases(3, ["warehouse"]) == 3
+    assert resolve_phases(parse_phase_check("off"), ["eyrc"]) == 0
+
+
+def _preset_file(folder, *, name, open_):
+    eyrc = builtin_preset("eyrc")
+    path = folder / f"{name}.toml"
+    write_preset_file(path, eyrc.params, name=name, description=name,
+                      open={k: eyrc.open[k] for k in open_})
+    return resolve_preset(str(path))
+
+
+def test_auto_is_on_for_a_twin_whatever_its_name(tmp_path):
+    """``auto`` follows what a preset declares, not its name: a twin (open parameters) is
+    checked, the same parameters with nothing open are not, and a name recorded in GT counts
+    only when it names a built-in preset."""
+    twin = _preset_file(tmp_path, name="my-arena", open_=["lighting.east_fill"])
+    pinned = _preset_file(tmp_path, name="eyrc-pinned", open_=[])
+    assert resolve_phases("auto", [twin]) == PHASES
+    assert resolve_phases("auto", [pinned]) == 0
+    assert resolve_phases("auto", [pinned, twin]) == PHASES
+    assert resolve_phases("auto", ["my-arena"]) == 0  # a GT name alone cannot say
+    assert resolve_phases("auto", [builtin_preset("eyrc-jitter")]) == 0
+
+
+@pytest.mark.slow
+def test_a_set_drawn_from_a_twin_file_is_checked_on_auto(tmp_path):
+    """``eval`` and ``grade`` decide from the definition the set's ``dataset.json`` records,
+    so a twin's set is checked with no preset file at hand."""
+    for name, open_, want in (("my-arena", ["lighting.west_fill"], PHASES),
+                              ("eyrc-pinned", [], 0)):
+        preset = _preset_file(tmp_path, name=name, open_=open_)
+        out = tmp_path / f"set-{name}"
+        generate_dataset(out, preset=preset, count=1, seed=0, workers=1, progress=False)
+        (tmp_path / f"{name}.toml").unlink()  # the set must carry it
+        assert resolve_phases("auto", set_presets(load_dataset(out))) == want
 
 
 @pytest.mark.slow
