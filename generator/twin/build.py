@@ -458,8 +458,12 @@ def _fov_trade(fit: cf.CameraFit, key: str, value: float) -> Range:
     return Range(round(min(lo, value), 6), round(max(hi, value), 6))
 
 
-#: The marker sheets' white must be this share of 255 or less for the light to be dimmed to it.
-DIM_BELOW = 0.97
+#: The marker sheets' white is clipped (paper under a light brighter than it: nothing to dim)
+#: when at least this share of the white pixels is 255. Measured on the blind round trips'
+#: images: 0.70-1.00 where the light saturates white, 0.00 everywhere else, whites of 250
+#: included (a threshold on the white itself, 0.97 of 255, left those undimmed: the sheets
+#: came out 5 levels too light, 1.9-3.1 grey levels over the marker squares).
+CLIPPED_SHARE = 0.5
 
 
 #: The share of the floor's pixels at most as light as the rectified texture's tint (the rest
@@ -491,8 +495,9 @@ def _floor_tint(real: np.ndarray, scene: Scene, shades: Shades, finding: MarkerF
 def _sheet_white(scene: Scene, gray: np.ndarray, finding: MarkerFinding, steps: _Steps, *,
                  floor: float) -> Scene:
     """``scene`` lit so that white paper shows the image's marker white: drawn marker sheets
-    are white (255) lit like the floor, so a white well below 255 means a dimmer light over
-    lighter albedos (floor and box greys divided by the same factor, every face's shade kept).
+    are white (255) lit like the floor, so a white below 255 that is not clipped (fewer than
+    :data:`CLIPPED_SHARE` of its pixels at 255) means a dimmer light over lighter albedos
+    (floor and box greys divided by the same factor, every face's shade kept).
     The white is the median of the marker squares' pixels above the middle between the floor
     and their 99th percentile (the white modules and quiet zones; the percentile alone would
     take JPEG ringing's overshoot)."""
@@ -506,7 +511,8 @@ def _sheet_white(scene: Scene, gray: np.ndarray, finding: MarkerFinding, steps: 
     bright = values[values >= (floor + top) / 2.0]
     white = float(np.median(bright)) if bright.size else top
     k = white / 255.0
-    if k > DIM_BELOW or k * 255.0 < floor or floor / k > 255.0:
+    clipped = bright.size == 0 or float(np.mean(bright >= 254.5)) >= CLIPPED_SHARE
+    if clipped or k * 255.0 < floor or floor / k > 255.0:
         return scene
     lit = scene.lighting
     lighting = replace(lit, ambient=round(lit.ambient * k / floor_factor(lit), 6),

@@ -110,8 +110,13 @@ class CameraFit:
     altitude_range: tuple[float, float] | None = None
 
 
-#: Field-of-view offsets (deg) scanned by :func:`fov_range`, nearest first, each way.
-FOV_SCAN_DEG = (0.25, 0.5, 1.0, 2.0, 4.0)
+#: Field-of-view offsets (deg) scanned by :func:`fov_range`, nearest first, each way, until
+#: the markers no longer fit as well. Out to 32 deg: a blind round trip seen 2 deg from the
+#: nadir still fitted as well 4 deg off (the scan's end then), with the hidden value 6.6 deg
+#: off.
+FOV_SCAN_DEG = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
+#: The fields of view :func:`fov_range` keeps to (deg): a pinhole camera's sensible span.
+FOV_SCAN_BOUNDS = (10.0, 150.0)
 
 
 def fov_range(objective: Objective, v: np.ndarray, extra: np.ndarray, rms_ref: float, *,
@@ -129,8 +134,11 @@ def fov_range(objective: Objective, v: np.ndarray, extra: np.ndarray, rms_ref: f
     for sign in (-1.0, 1.0):
         best = v
         for offset in FOV_SCAN_DEG:
+            fov = v[k] + sign * offset
+            if not FOV_SCAN_BOUNDS[0] <= fov <= FOV_SCAN_BOUNDS[1]:
+                break
             trial = best.copy()
-            trial[k] = v[k] + sign * offset
+            trial[k] = fov
             trial[a] = best[a] * math.tan(math.radians(best[k] / 2)) / math.tan(
                 math.radians(trial[k] / 2))  # the floor's image about the same
             tv, _, trms = levenberg_marquardt(objective, trial, extra, free=free,

@@ -44,8 +44,17 @@ MIN_FACE_PX = 30
 COMPASS = ("east", "north", "west", "south")
 #: The smallest dark blob (px) taken as a box.
 MIN_BOX_PX = 400
+#: Dark lines this wide (px) or thinner are printed lines, not boxes: cut off before the blobs
+#: are sized (the arena's border and lane lines are 1-4 px in the images seen; a box is
+#: hundreds of pixels).
+THIN_LINE_PX = 4
 #: Background pixels needed to read the background grey.
 MIN_BACKGROUND_PX = 500
+#: Levels from the floor's grey past which a pixel outside the arena can be background: a
+#: plain floor's margin reaches past the markers' square by an amount the image has not yet
+#: told, so pixels of the floor's own grey there are floor (arena_geometry's floor edge needs
+#: the two this far apart too).
+BACKGROUND_APART = 8
 
 
 @dataclass(frozen=True)
@@ -142,7 +151,9 @@ def floor_level(values: np.ndarray) -> int:
     median = int(np.median(v))
     near = v[np.abs(v - median) <= 20]
     hist = np.bincount(near, minlength=256).astype(np.float64)
-    hist = np.convolve(hist, np.ones(5) / 5.0, mode="same")  # a textured floor's spread
+    # a textured floor's spread; a peaked kernel, so that a plain floor's one grey stays the
+    # peak (a flat one ties over five levels and argmax took the darkest: 2 levels low)
+    hist = np.convolve(hist, np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0, mode="same")
     return int(np.argmax(hist))
 
 
@@ -150,6 +161,26 @@ def _polygon_mask(shape: tuple[int, int], px: np.ndarray) -> np.ndarray:
     m = np.zeros(shape, np.uint8)
     cv2.fillPoly(m, [np.round(px * 16).astype(np.int32)], 1, shift=4)
     return m.astype(bool)
+
+
+def background_pixels(gray: np.ndarray, camera: CameraSpec, arena: ArenaSpec,
+                      floor_gray: float) -> np.ndarray:
+    """Pixels of the background: outside the arena's floor square (as far as ``arena`` places
+    it), at least :data:`BACKGROUND_APART` levels from the floor's grey, in regions that reach
+    the image's border (the background lies beyond the floor's edge; a logo or a line printed
+    on a margin the arena does not yet know of does not reach the border).
+
+    Without a texture the margin is not known when the greys are read, so the floor past the
+    markers' square is "outside" too; read as it was, its grey outvoted the background's.
+    """
+    outside = ~floor_square_mask(camera, gray.shape, floor_extent(arena) + 0.02)
+    apart = outside & (np.abs(gray - floor_gray) > BACKGROUND_APART)
+    n, labels = cv2.connectedComponents(apart.astype(np.uint8), connectivity=8)
+    edge = np.concatenate([labels[0], labels[-1], labels[:, 0], labels[:, -1]])
+    keep = np.zeros(n, bool)
+    keep[np.unique(edge)] = True
+    keep[0] = False
+    return keep[labels]
 
 
 def floor_square_mask(camera: CameraSpec, shape: tuple[int, int], half: float) -> np.ndarray:
@@ -215,7 +246,7 @@ def read_shades(bgr: np.ndarray, camera: CameraSpec, arena: ArenaSpec,
     grown = cv2.dilate(box_mask.astype(np.uint8), np.ones((7, 7), np.uint8)).astype(bool)
     floor_px = inner & ~grown
     floor_rgb = tuple(floor_level(bgr[..., 2 - c][floor_px]) for c in range(3))
-    outside = ~floor_square_mask(camera, shape, floor_extent(arena) + 0.02)
+    outside = background_pixels(gray, camera, arena, floor_gray)
     background_rgb = None
     if outside.sum() >= MIN_BACKGROUND_PX:
         background_rgb = tuple(_mode(bgr[..., 2 - c][outside]) for c in range(3))
@@ -255,7 +286,12 @@ def _box_candidates(gray: np.ndarray, camera: CameraSpec, arena: ArenaSpec,
     out[~floor_square_mask(camera, gray.shape, arena.side_m / 2.0)] = floor_gray
     dark = ((out < floor_gray - 40)
             & ~marker_mask(camera, arena, markers, gray.shape, markers.quiet_zone_m + 0.02))
-    n, labels, stats, _ = cv2.connectedComponentsWithStats(dark.astype(np.uint8), connectivity=8)
+    # thin printed lines cut off first: a line that touches a box made one blob with it, too
+    # long for a box, and the box was painted over with the line
+    square = np.ones((THIN_LINE_PX + 1,) * 2, np.uint8)
+    thick = cv2.morphologyEx(dark.astype(np.uint8), cv2.MORPH_OPEN, square)
+    out[dark & ~cv2.dilate(thick, np.ones((3, 3), np.uint8)).astype(bool)] = floor_gray
+    n, labels, stats, _ = cv2.connectedComponentsWithStats(thick, connectivity=8)
     for i in range(1, n):
         if stats[i, cv2.CC_STAT_AREA] < MIN_BOX_PX:
             continue
@@ -263,7 +299,8 @@ def _box_candidates(gray: np.ndarray, camera: CameraSpec, arena: ArenaSpec,
         (_, _), (w, h), _ = cv2.minAreaRect(pts)
         long, short = max(w, h), max(min(w, h), 1.0)
         if long / short > MAX_BLOB_ASPECT or stats[i, cv2.CC_STAT_AREA] < MIN_BLOB_FILL * w * h:
-            out[labels == i] = floor_gray
+            blob = cv2.dilate((labels == i).astype(np.uint8), np.ones((3, 3), np.uint8))
+            out[blob.astype(bool) & dark] = floor_gray
     return out
 
 
