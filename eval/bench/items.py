@@ -71,6 +71,7 @@ from typing import Any
 import numpy as np
 
 from arenabench.generator.presets import DEFAULT_PRESET
+from arenabench.interrupts import deferred_stops
 from arenabench.local_pool import local_pool
 from arenabench.workers import init_worker, llvmpipe_threads, usable_cores
 
@@ -452,10 +453,12 @@ def run_bench(
     workers = cfg.workers or usable_cores()
     notify = on_item or (lambda key, sec: None)
     start = time.perf_counter()
-    scratch = Path(tempfile.mkdtemp(prefix="arenabench-bench-", dir=workdir))
     figures: dict[str, float] = {}
     details: dict[str, Any] = {"workers": workers, "load_avg_start": _load_avg()}
+    scratch: Path | None = None
     try:
+        with deferred_stops():  # a stop lands before the folder is made or after it is named
+            scratch = Path(tempfile.mkdtemp(prefix="arenabench-bench-", dir=workdir))
         from arenabench.generator.dataset_writer import DatasetArgs, generate_dataset
 
         ext = DatasetArgs(preset=cfg.preset, count=cfg.count, seed=cfg.seed).image_ext
@@ -607,7 +610,8 @@ def run_bench(
         figures.update(bigset_figures)
         notify("bigset_load_s_per_10k", time.perf_counter() - t0)
     finally:
-        shutil.rmtree(scratch, ignore_errors=True)
+        if scratch is not None:
+            shutil.rmtree(scratch, ignore_errors=True)
     details["load_avg_end"] = _load_avg()
     figures["disk_vs_naive"] = figures["generate_disk_ips"] / figures["naive_ips"]
     figures["disk_vs_floor"] = figures["generate_disk_ips"] / figures["encode_floor_ips"]
@@ -670,9 +674,11 @@ def script_per_image(images: list[Path]) -> tuple[dict[str, float], dict[str, An
     cpu: dict[str, float] = {}
     wall: dict[str, float] = {}
     answers: dict[str, list[tuple]] = {}
-    work = Path(tempfile.mkdtemp(prefix="arenabench-bench-script-"))
     old_cwd, old_argv = os.getcwd(), sys.argv
+    work: Path | None = None
     try:
+        with deferred_stops():  # as above
+            work = Path(tempfile.mkdtemp(prefix="arenabench-bench-script-"))
         os.chdir(work)
         for i in range(len(images) + 1):  # the first run warms up (imports)
             if i == 1:
@@ -686,7 +692,8 @@ def script_per_image(images: list[Path]) -> tuple[dict[str, float], dict[str, An
     finally:
         os.chdir(old_cwd)
         sys.argv = old_argv
-        shutil.rmtree(work, ignore_errors=True)
+        if work is not None:
+            shutil.rmtree(work, ignore_errors=True)
     for name, warm in (("cold", False), ("warm", True)):
         c0, t0 = _cpu_seconds(), time.perf_counter()
         pipe = CommandPipeline(cmd, settings=RunSettings(warm=warm))
