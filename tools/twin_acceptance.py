@@ -67,6 +67,7 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.generator.preset_files import load_preset_file
     from arenabench.generator.presets import resolve
     from arenabench.generator.scene import load_scene
+    from arenabench.generator.shading import floor_factor
 
     eyrc = resolve("eyrc")
     eyrc_scene = load_scene(ROOT / "generator" / "scenes" / "task1c_example.json")
@@ -89,10 +90,17 @@ def main(argv: list[str] | None = None) -> int:
         print(f"{run}:")
         print("\n".join(_camera_lines(scene, eyrc_scene)))
         sh = doc["shades"]
+        # a box top as the image shows it: albedo times the light on a face looking up (the
+        # image pins the product; a twin that reads a marker white below 255 as a dimmer light
+        # records a lighter albedo under it)
         boxes = sorted({o.color_rgb[0] for o in scene.obstacles})
+        lit = sorted({round(o.color_rgb[0] * floor_factor(scene.lighting))
+                      for o in scene.obstacles})
+        eyrc_lit = round(eyrc["obstacles.gray"] * floor_factor(eyrc_scene.lighting))
         print(f"  greys: floor {sh['floor_rgb']} (eyrc {list(eyrc['arena.floor_rgb'])}), "
               f"background {sh['background_rgb']} (eyrc {eyrc['background.gray']}), box tops "
-              f"{boxes} (eyrc {eyrc['obstacles.gray']}), faces "
+              f"lit {lit} (eyrc {eyrc_lit}; albedo {boxes}, eyrc {eyrc['obstacles.gray']}), "
+              "faces "
               + ", ".join(f"{f['direction']} {f['gray']:g}" for f in sh["faces"])
               + " (eyrc's render: south 71, north 100)")
         fig = doc["figures"]

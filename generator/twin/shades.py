@@ -151,10 +151,12 @@ def floor_level(values: np.ndarray) -> int:
     median = int(np.median(v))
     near = v[np.abs(v - median) <= 20]
     hist = np.bincount(near, minlength=256).astype(np.float64)
-    # a textured floor's spread; a peaked kernel, so that a plain floor's one grey stays the
-    # peak (a flat one ties over five levels and argmax took the darkest: 2 levels low)
-    hist = np.convolve(hist, np.array([1.0, 2.0, 3.0, 2.0, 1.0]) / 9.0, mode="same")
-    return int(np.argmax(hist))
+    smooth = np.convolve(hist, np.ones(5) / 5.0, mode="same")  # a textured floor's spread
+    # a plain floor's one grey ties over five levels (argmax took the darkest, 2 levels low):
+    # among the tied levels, the commonest. (A peaked kernel instead moves a lit concrete
+    # floor's level onto its pile of clipped 255s.)
+    tied = np.flatnonzero(smooth >= smooth.max() * (1.0 - 1e-12))
+    return int(tied[np.argmax(hist[tied])])
 
 
 def _polygon_mask(shape: tuple[int, int], px: np.ndarray) -> np.ndarray:

@@ -38,6 +38,10 @@ def test_a_plain_floors_grey_is_its_own():
     assert floor_level(np.full(5000, 234.0)) == 234
     spread = np.concatenate([np.full(3000, 230.0), np.full(2000, 231.0), np.full(900, 120.0)])
     assert floor_level(spread) == 230
+    # a lit textured floor spread about 252 and clipped at 255: not the pile of 255s
+    rng = np.random.default_rng(0)
+    clipped = np.clip(np.rint(rng.normal(252.0, 3.0, 50_000)), 0, 255)
+    assert abs(floor_level(clipped) - 252) <= 1
 
 
 @pytest.mark.slow
