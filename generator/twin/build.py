@@ -459,10 +459,9 @@ def _fov_trade(fit: cf.CameraFit, key: str, value: float) -> Range:
 
 
 #: The marker sheets' white is clipped (paper under a light brighter than it: nothing to dim)
-#: when at least this share of the white pixels is 255. Measured on the blind round trips'
-#: images: 0.70-1.00 where the light saturates white, 0.00 everywhere else, whites of 250
-#: included (a threshold on the white itself, 0.97 of 255, left those undimmed: the sheets
-#: came out 5 levels too light, 1.9-3.1 grey levels over the marker squares).
+#: when at least this share of the white pixels is 255: on the blind round trips' images the
+#: share is 0.70-1.00 where the light saturates white and 0.00 everywhere else, whites of 250
+#: included (docs/measurements.md).
 CLIPPED_SHARE = 0.5
 
 

@@ -111,9 +111,9 @@ class CameraFit:
 
 
 #: Field-of-view offsets (deg) scanned by :func:`fov_range`, nearest first, each way, until
-#: the markers no longer fit as well. Out to 32 deg: a blind round trip seen 2 deg from the
-#: nadir still fitted as well 4 deg off (the scan's end then), with the hidden value 6.6 deg
-#: off.
+#: the markers no longer fit as well. Out to 32 deg: seen 2 deg from the nadir, markers can fit
+#: as well more than 6 deg from the fitted field of view (docs/measurements.md, the blind
+#: round trips).
 FOV_SCAN_DEG = (0.25, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 32.0)
 #: The fields of view :func:`fov_range` keeps to (deg): a pinhole camera's sensible span.
 FOV_SCAN_BOUNDS = (10.0, 150.0)

@@ -44,9 +44,9 @@ MIN_FACE_PX = 30
 COMPASS = ("east", "north", "west", "south")
 #: The smallest dark blob (px) taken as a box.
 MIN_BOX_PX = 400
-#: Dark lines this wide (px) or thinner are printed lines, not boxes: cut off before the blobs
-#: are sized (the arena's border and lane lines are 1-4 px in the images seen; a box is
-#: hundreds of pixels).
+#: Dark lines this wide (px) or thinner are taken for printed lines, not boxes, and cut off
+#: before the blobs are sized (a box's blob is at least :data:`MIN_BOX_PX` and tens of pixels
+#: across).
 THIN_LINE_PX = 4
 #: Background pixels needed to read the background grey.
 MIN_BACKGROUND_PX = 500
@@ -152,9 +152,8 @@ def floor_level(values: np.ndarray) -> int:
     near = v[np.abs(v - median) <= 20]
     hist = np.bincount(near, minlength=256).astype(np.float64)
     smooth = np.convolve(hist, np.ones(5) / 5.0, mode="same")  # a textured floor's spread
-    # a plain floor's one grey ties over five levels (argmax took the darkest, 2 levels low):
-    # among the tied levels, the commonest. (A peaked kernel instead moves a lit concrete
-    # floor's level onto its pile of clipped 255s.)
+    # a plain floor's one grey ties over five levels: among the tied levels, the commonest (a
+    # peaked kernel instead would move a lit concrete floor's level onto its clipped 255s)
     tied = np.flatnonzero(smooth >= smooth.max() * (1.0 - 1e-12))
     return int(tied[np.argmax(hist[tied])])
 
@@ -173,7 +172,7 @@ def background_pixels(gray: np.ndarray, camera: CameraSpec, arena: ArenaSpec,
     on a margin the arena does not yet know of does not reach the border).
 
     Without a texture the margin is not known when the greys are read, so the floor past the
-    markers' square is "outside" too; read as it was, its grey outvoted the background's.
+    markers' square is "outside" too, and would outvote the background.
     """
     outside = ~floor_square_mask(camera, gray.shape, floor_extent(arena) + 0.02)
     apart = outside & (np.abs(gray - floor_gray) > BACKGROUND_APART)
@@ -288,8 +287,8 @@ def _box_candidates(gray: np.ndarray, camera: CameraSpec, arena: ArenaSpec,
     out[~floor_square_mask(camera, gray.shape, arena.side_m / 2.0)] = floor_gray
     dark = ((out < floor_gray - 40)
             & ~marker_mask(camera, arena, markers, gray.shape, markers.quiet_zone_m + 0.02))
-    # thin printed lines cut off first: a line that touches a box made one blob with it, too
-    # long for a box, and the box was painted over with the line
+    # thin printed lines cut off first: a line that touches a box would make one blob with
+    # it, too long for a box, and the box would be painted over with the line
     square = np.ones((THIN_LINE_PX + 1,) * 2, np.uint8)
     thick = cv2.morphologyEx(dark.astype(np.uint8), cv2.MORPH_OPEN, square)
     out[dark & ~cv2.dilate(thick, np.ones((3, 3), np.uint8)).astype(bool)] = floor_gray
