@@ -305,7 +305,13 @@ class Variant:
 
 def open_variants(source: SceneSource, gt: GroundTruth) -> list[Variant]:
     """The other values the preset's open parameters allow for ``gt``'s scene, one parameter
-    at a time: a range's ends, or each listed value, other than the scene's own value."""
+    at a time: a range's ends, or each listed value, other than the scene's own value.
+
+    A parameter the preset draws per scene (a range: a twin's box count, sizes and yaw, open
+    because one image is one draw) is not varied: another draw is another scene, with other
+    boxes and another answer, which the set's other scenes already are; it says nothing of
+    what the example could not show about this one.
+    """
     from arenabench.generator.params import PARAMETERS, Range
     from arenabench.generator.presets import resolve
 
@@ -315,8 +321,8 @@ def open_variants(source: SceneSource, gt: GroundTruth) -> list[Variant]:
     out = []
     for name, entry in source.open.items():
         own = params.get(name)
-        if isinstance(own, Range):  # drawn per scene: the GT records the value
-            own = (gt.params or {}).get(name)
+        if isinstance(own, Range):  # drawn per scene
+            continue
         if entry.range is not None:
             candidates = [entry.range.lo, entry.range.hi]
             if PARAMETERS[name].kind == "int":

@@ -114,6 +114,29 @@ def test_auto_is_on_for_a_twin_whatever_its_name(tmp_path):
     assert resolve_phases("auto", [builtin_preset("eyrc-jitter")]) == 0
 
 
+def test_parameters_drawn_per_scene_are_not_varied(tmp_path):
+    """A twin's box count is open because one image is one draw: another count is another
+    scene, not something the example hid about this one, so only the fixed open parameter
+    (the east fill) gets variants."""
+    from arenabench.eval.phase_check import SceneSource, open_variants
+    from arenabench.generator.make import ground_truth_record
+    from arenabench.generator.params import Range
+    from arenabench.generator.preset_files import OpenParam
+
+    eyrc = builtin_preset("eyrc")
+    assert isinstance(eyrc.params["obstacles.count"], Range)  # drawn per scene
+    path = tmp_path / "twin.toml"
+    write_preset_file(path, eyrc.params, name="twin", open={
+        "lighting.east_fill": eyrc.open["lighting.east_fill"],
+        "obstacles.count": OpenParam(name="obstacles.count", reason="one image is one draw",
+                                     range=Range(1, 6))})
+    preset = resolve_preset(str(path))
+    gt = ground_truth_record(sample_scene(preset, seed=0, index=0).scene, sid="000000",
+                             preset="twin")
+    variants = open_variants(SceneSource(preset), gt)
+    assert variants and {v.param for v in variants} == {"lighting.east_fill"}
+
+
 @pytest.mark.slow
 def test_a_set_drawn_from_a_twin_file_is_checked_on_auto(tmp_path):
     """``eval`` and ``grade`` decide from the definition the set's ``dataset.json`` records,
