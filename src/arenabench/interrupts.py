@@ -323,6 +323,10 @@ def children_ignore_sigint() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
+#: Seconds to wait for a child ended by SIGKILL to be reaped.
+KILLED_JOIN_S = 5.0
+
+
 def stop_workers(*, grace_s: float = WORKER_GRACE_S,
                  processes: Sequence[multiprocessing.process.BaseProcess] | None = None) -> int:
     """End every live ``multiprocessing`` child of this process: SIGTERM, then SIGKILL.
@@ -349,5 +353,5 @@ def stop_workers(*, grace_s: float = WORKER_GRACE_S,
     for child in children:
         if child.is_alive():
             child.kill()
-            child.join(1.0)
+            child.join(KILLED_JOIN_S)  # SIGKILL cannot be refused; a busy machine reaps late
     return len(children)

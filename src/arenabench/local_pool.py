@@ -142,9 +142,16 @@ def local_executor(
 def end_executor(pool: ProcessPoolExecutor, *, grace_s: float = WORKER_GRACE_S) -> None:
     """End ``pool`` at a stop: its queued work is cancelled and its processes ended (SIGTERM
     unwinds a task, SIGKILL after ``grace_s``: :func:`arenabench.interrupts.stop_workers`)."""
-    processes = list((getattr(pool, "_processes", None) or {}).values())
+    def current() -> dict[int, Any]:
+        return dict(getattr(pool, "_processes", None) or {})
+
+    seen = current()
     pool.shutdown(wait=False, cancel_futures=True)
-    stop_workers(grace_s=grace_s, processes=processes)
+    for _ in range(3):  # a worker the pool started while it was being shut down, too
+        seen.update(current())
+        stop_workers(grace_s=grace_s, processes=list(seen.values()))
+        if current().keys() <= seen.keys():
+            break
 
 
 def local_map(
