@@ -396,6 +396,7 @@ def reference_on_image(case: HiddenCase, image: Path) -> tuple[bool, str]:
     the hidden scene's ground truth), with a short account: where it fails the real arena
     (lines it counts as boxes, say), a twin's scenes that it fails too are the twin being
     faithful, and the pass-rate check does not apply."""
+    from arenabench.competition import DEFAULT_TOLERANCE
     from arenabench.eval.datasets.reader import DatasetItem
     from arenabench.eval.pipelines import make_pipeline
     from arenabench.eval.scoring.metrics import score_image
@@ -406,7 +407,7 @@ def reference_on_image(case: HiddenCase, image: Path) -> tuple[bool, str]:
     item = DatasetItem(id="hidden", image_path=Path(image), gt_path=Path("hidden.json"), gt=gt)
     truth = item.truth(area_reference="visible")
     pred = make_pipeline("reference").run_image(load_image(image))
-    s = score_image(truth, pred, tolerance=0.05)
+    s = score_image(truth, pred, tolerance=DEFAULT_TOLERANCE)
     return bool(s.passed), (f"passed (answered {pred.count})" if s.passed else
                             f"{s.category}: answered {pred.count} obstacles, hidden "
                             f"{len(case.scene.obstacles)}")
