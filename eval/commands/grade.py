@@ -75,8 +75,9 @@ interruption that had finished. A team an interruption stopped half-way keeps th
 its finished images (teams/TEAM/partial-results.jsonl): only the others run again.
 
 A team whose runs time out N times in a row (in image order; --give-up-after N) is given up:
-its later images are not run and count as timeouts ("not run: N consecutive timeouts before
-it"); its report.json says how many (given_up).
+its later images are not run, and every image after the first such run counts as a timeout
+("skipped: N consecutive timeouts before it"), whether it ran or not; its report.json says how
+many (given_up).
 
 exit status: 0 done; 1 some team could not be graded; 2 usage error or a failed check before
 any team ran; 3 most teams failed alike (the setup, not the teams); 4 the harness could not run
@@ -123,7 +124,7 @@ def build_parser() -> CommandParser:
     p.add_argument("--give-up-after", type=GIVE_UP_AFTER_RULE.argtype("--give-up-after"),
                    default=DEFAULT_GIVE_UP_AFTER, metavar="N",
                    help="after N timeouts in a row (in image order) run none of that team's "
-                   "later images: they are recorded as timeouts, 'not run' (0: never; "
+                   "later images: they are recorded as timeouts, 'skipped' (0: never; "
                    "default: %(default)s)")
     add_phase_check_argument(p)
     add_run_options(p, placeholders=GRADE_PLACEHOLDERS, refused=GRADE_REFUSED)

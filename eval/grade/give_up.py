@@ -6,15 +6,21 @@ on 200 images, 60 s and 2 workers: 100 minutes). The rule, with ``N`` = ``--give
 - a team's images run in image order (its units are queued in that order and the workers take
   them first come, first served);
 - as the team's results come back, grade looks for ``N`` images in a row, in image order, whose
-  runs have all come back as ``timeout``: the order in which results come back (which depends
-  on the workers) does not matter, only which images timed out;
-- once it finds such a run (images ``a`` to ``b``), it gives up on the team: every image after
-  ``b`` whose result is not back is not run (or, when running, stopped) and recorded as a
-  ``timeout`` with the message ``not run: K consecutive timeouts before it (a to b)``; results
-  that came back before stand, and so do the images before ``a`` still running.
+  runs have all come back as ``timeout``. Once it finds such a run, it runs none of the team's
+  images after it: a queued one never starts, a running one is stopped. This is only a saving
+  of time; it does not decide the verdicts;
+- the verdicts are settled when the team's last result is in (:func:`settle`): the first ``N``
+  timeouts in a row in image order (images ``a`` to ``b``) decide, and **every** image after
+  ``b`` is recorded as a ``timeout`` with the message ``skipped: N consecutive timeouts before
+  it (a to b)``, whether it ran or not. Images up to ``b`` keep their own results (those still
+  running when grade gave up end within their own timeout).
 
-``N = 0`` never gives up. The skipped images count as timeouts in every figure; the team's
-``report.json`` and ``grade-state.json`` say how many were not run (``given_up``).
+So how many workers ran at once, and the order their results came back in, changes how much
+time a hanging team costs but never its verdicts: with 4 workers, images 0 to 3 of a team
+that hangs all run and all time out; with 1 worker, image 3 never starts; both record images
+0 to 2 as timeouts and image 3 onwards as skipped. ``N = 0`` never gives up. The skipped images
+count as timeouts in every figure; the team's ``report.json`` and ``grade-state.json`` say how
+many were skipped (``given_up``).
 """
 
 from __future__ import annotations
@@ -38,35 +44,35 @@ class GiveUp:
         Ids of the first and last image of the run of timeouts.
     timeouts : int
         Images in the run (at least ``after``).
-    not_run : int
-        Images recorded as timeouts without (a whole) run.
+    skipped : int
+        Images after the run, recorded as timeouts whether they ran or not.
     """
 
     after: int
     first: str
     last: str
     timeouts: int
-    not_run: int
+    skipped: int
 
     @property
     def message(self) -> str:
-        """The message of every image not run."""
-        return (f"not run: {self.timeouts} consecutive timeouts before it ({self.first} to "
+        """The message of every image skipped."""
+        return (f"skipped: {self.timeouts} consecutive timeouts before it ({self.first} to "
                 f"{self.last}); grade gave up on this team (--give-up-after {self.after})")
 
     def prediction(self) -> Prediction:
-        """What an image not run is recorded as."""
+        """What an image skipped is recorded as."""
         return Prediction(status="timeout", message=self.message)
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form (``given_up`` of the team's ``report.json`` and ``grade-state.json``)."""
         return {"after": self.after, "first": self.first, "last": self.last,
-                "timeouts": self.timeouts, "not_run": self.not_run}
+                "timeouts": self.timeouts, "skipped": self.skipped}
 
     def text(self) -> str:
         """One line for grade's output."""
         return (f"gave up after {self.timeouts} consecutive timeouts ({self.first} to "
-                f"{self.last}): {self.not_run} images not run")
+                f"{self.last}): {self.skipped} later images skipped")
 
 
 def _timed_out(pred: Prediction | None) -> bool:
@@ -101,3 +107,54 @@ def first_timeout_run(preds: Sequence[Prediction | None], after: int) -> tuple[i
             return run
         index = run[1] + 1
     return None
+
+
+def settle(preds: list[Prediction | None], after: int,
+           ids: Sequence[str]) -> GiveUp | None:
+    """Settle a team's verdicts once its last result is in: the first ``after`` timeouts in a
+    row, in image order, decide, and every image after them is recorded as skipped (in
+    ``preds``, in place), whether it ran or not.
+
+    Parameters
+    ----------
+    preds : list of Prediction or None
+        The team's predictions in image order. ``None`` (not run) may only follow a run of
+        ``after`` timeouts: every image up to the end of the first such run must hold its own
+        result, which is what grade guarantees (it stops running a team only after such a run).
+    after : int
+        ``--give-up-after`` (0: never).
+    ids : sequence of str
+        The images' ids, in the same order.
+
+    Returns
+    -------
+    GiveUp or None
+        Where grade gave up (``None``: it did not).
+
+    Raises
+    ------
+    ValueError
+        When an image has no result and no run of ``after`` timeouts comes before it.
+    """
+    end = None
+    if after >= 1:
+        row = 0
+        for j, pred in enumerate(preds):
+            row = row + 1 if _timed_out(pred) else 0
+            if pred is None:
+                break
+            if row >= after:
+                end = j
+                break
+    if end is None:
+        missing = [ids[j] for j, p in enumerate(preds) if p is None]
+        if missing:
+            raise ValueError(f"preds: image {missing[0]} has no result and no run of {after} "
+                             "timeouts comes before it")
+        return None
+    given_up = GiveUp(after=after, first=ids[end - after + 1], last=ids[end], timeouts=after,
+                      skipped=len(preds) - end - 1)
+    skip = given_up.prediction()
+    for j in range(end + 1, len(preds)):
+        preds[j] = skip
+    return given_up

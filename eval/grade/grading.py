@@ -67,7 +67,7 @@ from ..evaluation import build_report
 from ..reports import FORMATS, write_reports
 from ..reports.feedback_report import FEEDBACK_FILES, write_feedback
 from ..scoring.metrics import score_sample
-from .give_up import GiveUp, first_timeout_run, timeout_run
+from .give_up import GiveUp, first_timeout_run, settle, timeout_run
 from .leaderboard import LeaderboardRow, leaderboard_dict, rank_rows
 from .leaderboard_report import LEADERBOARD_FILES, write_leaderboard
 from .partial import PARTIAL_FILE, PartialLog, read_partial
@@ -104,7 +104,8 @@ class GradeOptions:
         sub-pixel phases re-rendered per failure, the team's command re-run on each; 0 = off.
     give_up_after : int
         Timeouts in a row, in image order, after which a team's later images are not run
-        (recorded as timeouts; :mod:`arenabench.eval.grade.give_up`); 0 = never.
+        and are recorded as timeouts, skipped (:mod:`arenabench.eval.grade.give_up`); 0 =
+        never.
     """
 
     command: str = DEFAULT_COMMAND
@@ -650,17 +651,19 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
             emit(line)
 
     def give_up(tr: _TeamRun, run: tuple[int, int]) -> list[int]:
-        """Record the team's images after ``run`` whose results are not back as not run;
-        their indices."""
+        """Run none of the team's images after ``run`` whose results are not back (they are
+        skipped; :func:`settle` decides the verdicts when the team is done); their indices."""
         first, last = run
         later = [j for j in range(last + 1, n_images) if tr.preds[j] is None]
         tr.given_up = GiveUp(after=opts.give_up_after, first=ids[first], last=ids[last],
-                             timeouts=last - first + 1, not_run=len(later))
+                             timeouts=last - first + 1, skipped=len(later))
         skip = tr.given_up.prediction()
         for j in later:
             tr.preds[j] = skip
         tr.done += len(later)
-        say(f"{tr.team.name}: {tr.given_up.text()} (--give-up-after {opts.give_up_after})")
+        say(f"{tr.team.name}: giving up after {last - first + 1} consecutive timeouts "
+            f"({ids[first]} to {ids[last]}): {len(later)} later images not run "
+            f"(--give-up-after {opts.give_up_after})")
         return later
 
     for tr in runs:  # the kept results may hold a run of timeouts already
@@ -711,11 +714,14 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
 
     def finish(tr: _TeamRun) -> None:
         tr.log.close()
+        # the verdicts do not depend on how many images ran at once nor on the order their
+        # results came back: every image after the first run of timeouts is skipped
+        given_up = settle(tr.preds, opts.give_up_after, ids)
         job = _FinishJob(team=tr.team, digest=tr.digest,
                          preds=[p for p in tr.preds if p is not None],
                          dataset_root=str(data.root), root=str(root), opts=opts,
                          expect_common=expect_common, sandbox=sandbox,
-                         given_up=None if tr.given_up is None else tr.given_up.to_dict())
+                         given_up=None if given_up is None else given_up.to_dict())
         tr.preds, tr.submitted = [], True  # the job holds them now
         finishing[finisher.submit(job, data)] = job
 
@@ -893,7 +899,7 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
         path = team_dir / FORMATS["json"]
         doc = json.loads(path.read_text(encoding="utf-8"))
         doc["sandbox"] = job.sandbox
-        doc["given_up"] = job.given_up  # images not run after a run of timeouts (give_up)
+        doc["given_up"] = job.given_up  # images skipped after a run of timeouts (give_up)
         atomic_write_json(path, doc)
     state = {
         "schema": STATE_SCHEMA,

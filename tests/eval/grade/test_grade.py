@@ -5,6 +5,7 @@ submissions or options are graded again, an interrupted grade resumes; usage err
 the leaderboard page works in a real headless chromium."""
 
 import csv
+import hashlib
 import json
 import os
 import shutil
@@ -592,21 +593,89 @@ def test_a_team_that_times_out_in_a_row_is_given_up(toy8, tmp_path, capsys):
     report = json.loads((out / "teams" / "b_hangs" / "report.json").read_text())
     images = report["images"]
     assert [i["status"] for i in images] == ["timeout"] * 8
-    assert all("not run" not in i["message"] for i in images[:2])
-    assert all(i["message"].startswith("not run: 2 consecutive timeouts before it "
+    assert all("skipped" not in i["message"] for i in images[:2])
+    assert all(i["message"].startswith("skipped: 2 consecutive timeouts before it "
                                        "(000000 to 000001)") for i in images[2:])
     assert report["given_up"] == {"after": 2, "first": "000000", "last": "000001",
-                                  "timeouts": 2, "not_run": 6}
+                                  "timeouts": 2, "skipped": 6}
     assert report["summary"]["failures"]["timeout"] == 8
     state = json.loads((out / "teams" / "b_hangs" / STATE_FILE).read_text())
-    assert state["given_up"]["not_run"] == 6
+    assert state["given_up"]["skipped"] == 6
     said = capsys.readouterr().out
-    assert ("b_hangs: gave up after 2 consecutive timeouts (000000 to 000001): 6 images not run"
-            in said)
+    assert ("b_hangs: giving up after 2 consecutive timeouts (000000 to 000001): 6 later images "
+            "not run" in said)
     assert "b_hangs: graded (0/8 passed; gave up after 2 consecutive timeouts" in said
     # the other team is untouched by it
     fast = json.loads((out / "teams" / "a_fast" / "report.json").read_text())
     assert fast["given_up"] is None and len(fast["images"]) == 8
+
+
+#: A team script that sleeps on the images whose SHA-256 is in HANG and answers the others at
+#: once (it sees a copy of the image under another name).
+HANGS_ON_IMAGES = """\
+import hashlib, sys, time
+from pathlib import Path
+image = Path(sys.argv[sys.argv.index("--image") + 1])
+if hashlib.sha256(image.read_bytes()).hexdigest() in {hang!r}:
+    time.sleep(300)
+Path("obstacles.txt").write_text("Aruco ID: [80, 85, 90, 95]\\nObstacles: 1\\nArea: 1.0\\n")
+"""
+
+
+@pytest.mark.slow
+def test_giving_up_gives_the_same_verdicts_whatever_the_workers(toy8, tmp_path):
+    # images 000001 and 000002 hang; the others answer at once. One worker never starts the
+    # images after 000002; four run 000003 to 000007 (and have their answers back) while
+    # 000001 and 000002 are still sleeping. The verdicts must not tell the two apart.
+    subs = tmp_path / "subs"
+    (subs / "hangs").mkdir(parents=True)
+    hang = {hashlib.sha256((toy8 / "images" / f"{i}.png").read_bytes()).hexdigest()
+            for i in ("000001", "000002")}
+    (subs / "hangs" / "map.py").write_text(HANGS_ON_IMAGES.format(hang=hang))
+    opts = GradeOptions(command=f"{sys.executable} {{submission}}/map.py --image {{image}}",
+                        formats=("json",), give_up_after=2,
+                        settings=grade_settings(sandbox="none", limits={"timeout_s": 10.0}))
+    reports = []
+    for workers in (1, 4):
+        out = tmp_path / f"w{workers}"
+        result = grade(toy8, subs, out, options=opts, workers=workers, report_workers=1,
+                       allow_guessable_seed=True)
+        assert result.graded == ["hangs"] and not result.errors
+        reports.append(json.loads((out / "teams" / "hangs" / "report.json").read_text()))
+    one, four = reports
+    assert one["given_up"] == four["given_up"] == {
+        "after": 2, "first": "000001", "last": "000002", "timeouts": 2, "skipped": 5}
+    assert _verdicts(one["images"]) == _verdicts(four["images"])
+    assert [i["status"] for i in four["images"]] == ["ok"] + ["timeout"] * 7
+    assert [i["message"].startswith("skipped:") for i in four["images"]] == [False] * 3 + \
+        [True] * 5
+
+
+def test_settling_skips_every_image_after_the_first_run_whatever_ran():
+    from arenabench.eval.grade.give_up import settle
+    from arenabench.eval.scoring.results import Prediction
+
+    t, ok = Prediction(status="timeout"), Prediction(status="ok", count=1, area=1.0)
+    ids = [f"{j:06d}" for j in range(7)]
+    # one worker: nothing after image 3 ran; four workers: images 4 and 5 ran, 6 timed out
+    few = [ok, t, t, t, None, None, None]
+    many = [ok, t, t, t, ok, ok, t]
+    settled = []
+    for preds in (few, many):
+        given_up = settle(preds, 2, ids)
+        assert given_up is not None and given_up.to_dict() == {
+            "after": 2, "first": "000001", "last": "000002", "timeouts": 2, "skipped": 4}
+        settled.append(preds)
+    assert settled[0] == settled[1]
+    assert settled[0][:3] == [ok, t, t]
+    assert all(p.status == "timeout" and p.message.startswith("skipped: 2 consecutive")
+               for p in settled[0][3:])
+    # no run of timeouts: nothing changes; a missing result without one is the grader's error
+    preds = [ok, t, ok, t]
+    assert settle(preds, 2, ids[:4]) is None and preds == [ok, t, ok, t]
+    assert settle([t, t, t], 0, ids[:3]) is None
+    with pytest.raises(ValueError, match="image 000002 has no result"):
+        settle([ok, t, None], 2, ids[:3])
 
 
 def test_consecutive_timeouts_are_counted_in_image_order_whatever_order_they_come_back():
@@ -751,8 +820,8 @@ def test_a_team_given_up_on_a_dask_cluster_has_its_pending_units_cancelled(toy8,
     assert result.graded == ["hangs"]
     assert 2 <= _runs(marks) <= 3  # one unit at a time: the others were cancelled
     report = json.loads((tmp_path / "out" / "teams" / "hangs" / "report.json").read_text())
-    assert report["given_up"]["not_run"] == 6
-    assert [i["message"].startswith("not run:") for i in report["images"]] == [False] * 2 + \
+    assert report["given_up"]["skipped"] == 6
+    assert [i["message"].startswith("skipped:") for i in report["images"]] == [False] * 2 + \
         [True] * 6
 
 
