@@ -292,15 +292,24 @@ def dataset_scene_source(root: str | Path, doc: Any, *, warn: bool = True
 
 @dataclass(frozen=True)
 class Variant:
-    """One open parameter set to another value the evidence allows (``param=value``)."""
+    """One open parameter set to another value the evidence allows (``param=value``), with
+    the parameters that move with it (``also``: the preset's ``moves_with``)."""
 
     param: str
     value: Any
+    also: tuple[tuple[str, Any], ...] = ()
+
+    def settings(self) -> dict[str, Any]:
+        """Every parameter the variant sets: ``param`` and those moving with it."""
+        return {self.param: self.value, **dict(self.also)}
 
     def text(self) -> str:
-        """``lighting.east_fill=0.3``."""
-        return f"{self.param}={self.value:g}" if isinstance(self.value, float) else (
-            f"{self.param}={self.value}")
+        """``lighting.east_fill=0.3``; ``camera.fov_deg=68.34 (camera.altitude_m=3.188)``."""
+        def one(name: str, value: Any) -> str:
+            return f"{name}={value:g}" if isinstance(value, float) else f"{name}={value}"
+
+        more = ", ".join(one(k, v) for k, v in self.also)
+        return one(self.param, self.value) + (f" ({more})" if more else "")
 
 
 def open_variants(source: SceneSource, gt: GroundTruth) -> list[Variant]:
@@ -311,6 +320,10 @@ def open_variants(source: SceneSource, gt: GroundTruth) -> list[Variant]:
     because one image is one draw) is not varied: another draw is another scene, with other
     boxes and another answer, which the set's other scenes already are; it says nothing of
     what the example could not show about this one.
+
+    A parameter that moves with another (an entry's ``moves_with``: the image pins their
+    trade, not either one) is not varied on its own: the other's variants set it too, to its
+    value at the same end.
     """
     from arenabench.generator.params import PARAMETERS, Range
     from arenabench.generator.presets import resolve
@@ -318,10 +331,11 @@ def open_variants(source: SceneSource, gt: GroundTruth) -> list[Variant]:
     if not source.open:
         return []
     params = resolve(source.preset, source.overrides)
+    companions = {c for entry in source.open.values() for c, _ in entry.moves_with}
     out = []
     for name, entry in source.open.items():
         own = params.get(name)
-        if isinstance(own, Range):  # drawn per scene
+        if isinstance(own, Range) or name in companions:  # drawn per scene; moved by another
             continue
         if entry.range is not None:
             candidates = [entry.range.lo, entry.range.hi]
@@ -333,7 +347,7 @@ def open_variants(source: SceneSource, gt: GroundTruth) -> list[Variant]:
             same = (isinstance(value, (int, float)) and isinstance(own, (int, float))
                     and math.isclose(float(value), float(own), abs_tol=1e-9))
             if not same and value != own:
-                out.append(Variant(name, value))
+                out.append(Variant(name, value, tuple(sorted(entry.at(value).items()))))
     return out
 
 
@@ -571,7 +585,7 @@ class _Job:
             for k, variant in enumerate(todo):
                 tally = _Tally()
                 try:
-                    sampled = self.source.sample(gt, {variant.param: variant.value})
+                    sampled = self.source.sample(gt, variant.settings())
                 except Exception as exc:
                     for _ in range(self.phases):
                         tally.add(None, False, f"{type(exc).__name__}: {exc}")
@@ -581,7 +595,8 @@ class _Job:
                 variants.append((variant, tally))
         return PhaseResult(
             phases=self.phases, runs=own.runs, completed=own.completed, passes=own.passes,
-            variants=tuple(VariantResult(v.param, v.value, t.runs, t.completed, t.passes)
+            variants=tuple(VariantResult(v.param, v.value, t.runs, t.completed, t.passes,
+                                         also=v.also)
                            for v, t in variants),
             first_error=own.first_error or next((t.first_error for _, t in variants
                                                  if t.first_error), ""))

@@ -20,6 +20,11 @@ where its values came from. The format is documented in docs/formats.md ("Preset
     range = [0.0, 360.0]
     reason = "east and west faces not visible"
 
+    [open."camera.fov_deg"]                # open, but the evidence pins a trade: at the
+    range = [68.3, 70.6]                   # range's ends, other parameters take these values
+    moves_with = {"camera.altitude_m" = [3.19, 3.06]}
+    reason = "the markers fit as well over this span of fields of view"
+
 Public API (everything a command or another module needs; the rest is private):
 
 - :func:`load_preset_file` (path -> :class:`ResolvedPreset`): read and validate a file; every
@@ -72,8 +77,9 @@ else:  # pragma: no cover - Python 3.10
 PRESET_SCHEMA = "arenabench.preset/1"
 #: Keys of the ``[preset]`` table.
 PRESET_KEYS = ("name", "description", "evidence")
-#: Keys of an ``[open]`` entry: the range (numbers) or the values it allows, and why.
-OPEN_KEYS = ("range", "values", "reason")
+#: Keys of an ``[open]`` entry: the range (numbers) or the values it allows, what moves with
+#: it, and why.
+OPEN_KEYS = ("range", "values", "moves_with", "reason")
 #: Top-level keys that are not parameter sections.
 RESERVED_KEYS = ("schema", "preset", "open")
 #: A preset name: what GT files, dataset.json and cache folder names record.
@@ -102,16 +108,37 @@ class OpenParam:
         The range it allows (numeric parameters).
     values : tuple or None
         The values it allows (any parameter), when not a range.
+    moves_with : tuple of (str, (float, float))
+        Parameters the evidence ties to this one (with a range only): their values when this
+        one is at ``range.lo`` and at ``range.hi``. The image pins the trade, not either
+        parameter: a field of view and the altitude that keeps the floor's image, say. A
+        variant at one end sets them too, and they are never varied on their own.
     """
 
     name: str
     reason: str
     range: Range | None = None
     values: tuple[Value, ...] | None = None
+    moves_with: tuple[tuple[str, tuple[float, float]], ...] = ()
 
     def __post_init__(self) -> None:
         if (self.range is None) == (self.values is None):
             raise ValueError(f"open {self.name}: give a range or values, not both or neither")
+        if self.moves_with and self.range is None:
+            raise ValueError(f"open {self.name}: moves_with needs a range (the values at its "
+                             "two ends)")
+
+    def at(self, value: Value) -> dict[str, float]:
+        """The values of :attr:`moves_with` when this parameter is at ``value``, one of the
+        range's ends (``{}`` when nothing moves with it)."""
+        if not self.moves_with:
+            return {}
+        assert self.range is not None
+        if value not in (self.range.lo, self.range.hi):
+            raise ValueError(f"open {self.name}: {value!r} is not an end of its range "
+                             f"[{self.range.lo}, {self.range.hi}]")
+        end = 0 if value == self.range.lo else 1
+        return {name: ends[end] for name, ends in self.moves_with}
 
     def allows(self, value: Value) -> bool:
         """Whether the preset's ``value`` (a fixed value or a :class:`Range`) lies inside."""
@@ -127,6 +154,8 @@ class OpenParam:
             out["range"] = _file_value(self.range)
         else:
             out["values"] = [_file_value(v) for v in self.values or ()]
+        if self.moves_with:
+            out["moves_with"] = {name: list(ends) for name, ends in self.moves_with}
         out["reason"] = self.reason
         return out
 
@@ -536,8 +565,12 @@ def _open_table(ctx: _Context, table: Any, params: dict[str, Value]) -> dict[str
             if not isinstance(value, Range):
                 raise ctx.fail(f"{where}.range", raw, "a range of one value: an open "
                                "parameter allows more than one")
-            item = OpenParam(key, reason.strip(), range=value)
+            moves = _moves_with(ctx, where, key, entry.get("moves_with", {}), params)
+            item = OpenParam(key, reason.strip(), range=value, moves_with=moves)
         else:
+            if "moves_with" in entry:
+                raise ctx.fail(f"{where}.moves_with", entry["moves_with"], "needs range = "
+                               "[lo, hi]: its values are those at the range's two ends")
             raw = entry["values"]
             if not isinstance(raw, list) or len(raw) < 2:
                 raise ctx.fail(f"{where}.values", raw, "a list of at least two values")
@@ -550,7 +583,46 @@ def _open_table(ctx: _Context, table: Any, params: dict[str, Value]) -> dict[str
             raise ctx.fail(where, entry, f"the preset's own {key} = "
                            f"{_shown(_file_value(params[key]))} is not among what it allows")
         out[key] = item
+    leaders: dict[str, str] = {}
+    for key, item in out.items():
+        for name, _ in item.moves_with:
+            if name in leaders:
+                raise ctx.fail(f"open.{key}.moves_with", name, "already moves with "
+                               f"{leaders[name]}: a parameter moves with one other at most")
+            if out.get(name) is not None and out[name].moves_with:
+                raise ctx.fail(f"open.{key}.moves_with", name, "has a moves_with of its own: "
+                               "name every parameter of the trade in one entry")
+            leaders[name] = key
     return out
+
+
+def _moves_with(ctx: _Context, where: str, key: str, table: Any, params: dict[str, Value]
+                ) -> tuple[tuple[str, tuple[float, float]], ...]:
+    """An ``[open]`` entry's ``moves_with`` table, validated: other numeric parameters the
+    preset holds fixed, each with two numbers (at the range's low and high end)."""
+    if not isinstance(table, dict):
+        raise ctx.fail(f"{where}.moves_with", table, 'a table: {"PARAM" = [at lo, at hi]}')
+    out = []
+    for spelled, raw in table.items():
+        at = f"{where}.moves_with.{spelled}"
+        name = canonical_key(spelled)
+        if name not in PARAMETERS:
+            raise ctx.fail(at, raw, "unknown parameter"
+                           f"{did_you_mean(spelled, [*PARAMETERS, *ALIASES])}")
+        if name == key:
+            raise ctx.fail(at, raw, "the entry's own parameter")
+        if not PARAMETERS[name].numeric:
+            raise ctx.fail(at, raw, f"{name} is not a number")
+        if isinstance(params[name], Range):
+            raise ctx.fail(at, raw, f"the preset draws {name} per scene (a range): only a "
+                           "fixed value can move with another")
+        if not isinstance(raw, list) or len(raw) != 2:
+            raise ctx.fail(at, raw, "two numbers: the value at the range's low end, then at "
+                           "its high end")
+        ends = tuple(float(_param_value(ctx, name, v, spelled_as=at, fixed_only=True))
+                     for v in raw)
+        out.append((name, (ends[0], ends[1])))
+    return tuple(sorted(out))
 
 
 # --------------------------------------------------------------------------- the --preset rule
@@ -612,6 +684,14 @@ def _open_params(open: Mapping[str, OpenParam | Mapping[str, Any]] | None,
         if key not in PARAMETERS or not entry.allows(params[key]):
             raise ValueError(f"open {key}: not a parameter, or the preset's value is not "
                              "among what it allows")  # an OpenParam made in code
+        for name, _ in entry.moves_with:
+            if (name not in PARAMETERS or not PARAMETERS[name].numeric or name == key
+                    or isinstance(params[name], Range)):
+                raise ValueError(f"open {key}: moves_with {name}: not another numeric "
+                                 "parameter the preset holds fixed")
+    # the file's own checks (one leader per parameter, no chains) on the written form
+    _open_table(_Context("open", Path.cwd(), what=""),
+                {k: v.to_dict() for k, v in out.items()}, params)
     return out
 
 

@@ -238,6 +238,15 @@ def _grey(rgb) -> float:
     return float(np.mean(rgb))
 
 
+def _preset_camera(p: dict[str, Any]) -> CameraSpec:
+    """The camera of a preset's fixed camera parameters."""
+    return CameraSpec(width=p["camera.width"], height=p["camera.height"],
+                      fov_deg=p["camera.fov_deg"], altitude_m=p["camera.altitude_m"],
+                      tilt_deg=p["camera.tilt_deg"], yaw_deg=p["camera.yaw_deg"],
+                      roll_deg=p["camera.roll_deg"],
+                      target_m=(p["camera.target_x_m"], p["camera.target_y_m"]))
+
+
 def _camera_px(hidden: Scene, twin_camera: CameraSpec, twin_side: float) -> float:
     """RMS image distance of floor points inside the arena (a 9 x 9 grid), the twin's camera
     scaled to the hidden arena: the floor's homography, which the image pins (the field of view
@@ -309,6 +318,19 @@ def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
     else:
         check("camera.fov_deg", hidden.camera.fov_deg, twin.camera.fov_deg,
               abs(hidden.camera.fov_deg - twin.camera.fov_deg) <= tol)
+    if fov["status"] == "open":  # its variants move the camera along the trade the image pins
+        from arenabench.generator.preset_files import load_preset_file
+
+        preset = load_preset_file(Path(twin_dir) / "preset.toml")
+        entry = preset.open["camera.fov_deg"]
+        for end in (entry.range.lo, entry.range.hi):
+            moved = _preset_camera({**preset.params, "camera.fov_deg": end, **entry.at(end)})
+            px = _camera_px(hidden, moved, twin.arena.side_m)  # as the pinned camera's
+            check(f"camera at fov {end:g} (image px)", 0.0, round(px, 3),
+                  px <= TOLERANCES["camera_px"][0])
+        # a length open only up to scale is not varied (alone it gives another image)
+        gauge = sorted(k for k in preset.open if params[k].get("gauge"))
+        check("[open] without scale-only lengths", [], gauge, not gauge)
     if fov["status"] == "pinned":  # with an open field of view the tilt moves with it
         a, b = cam.world_from_camera(hidden.camera), cam.world_from_camera(twin.camera)
         turn = math.degrees(math.acos(float(np.clip(

@@ -496,6 +496,8 @@ class VariantResult:
         The value it was given.
     runs, completed, passes : int
         Runs tried (one per phase), completed (not a crash, timeout or limit) and passed.
+    also : tuple of (str, value)
+        The parameters that moved with it (the preset's ``moves_with``) and their values.
     """
 
     param: str
@@ -503,20 +505,25 @@ class VariantResult:
     runs: int
     completed: int
     passes: int
+    also: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
         _counts(self.runs, self.completed, self.passes, f"variant {self.param}")
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form (an entry of a phase record's ``open``)."""
-        return {"param": self.param, "value": self.value, "runs": self.runs,
-                "completed": self.completed, "passes": self.passes}
+        out = {"param": self.param, "value": self.value, "runs": self.runs,
+               "completed": self.completed, "passes": self.passes}
+        if self.also:
+            out["with"] = dict(self.also)
+        return out
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> VariantResult:
         """Inverse of :meth:`to_dict`."""
         return cls(param=str(d["param"]), value=d["value"], runs=int(d["runs"]),
-                   completed=int(d["completed"]), passes=int(d["passes"]))
+                   completed=int(d["completed"]), passes=int(d["passes"]),
+                   also=tuple(sorted(dict(d.get("with", {})).items())))
 
 
 @dataclass(frozen=True)

@@ -448,13 +448,40 @@ def _fov_open(fit: cf.CameraFit) -> bool:
     return fit.fov_range is not None and fit.fov_range[1] - fit.fov_range[0] > FOV_PINNED_SPAN_DEG
 
 
+def _trade_ends(fit: cf.CameraFit, key: str, own: float, metres: float) -> tuple[float, float]:
+    """Orbit parameter ``key`` (:data:`~.camera_fit.ORBIT`) at the two ends of the
+    field-of-view trade, for a camera whose value is ``own``: ``own`` moved as the fits at
+    the ends (:attr:`CameraFit.fov_ends`) moved from the free fit, lengths times ``metres``
+    (the fit's units to metres). The preset's camera is the free fit snapped and refined; it
+    moves along the same trade."""
+    assert fit.fov_ends is not None
+    free = dict(zip(cf.ORBIT, cf.orbit_vector(fit.free), strict=True))
+    unit = metres if key in ("target_x", "target_y", "altitude_m") else 1.0
+    lo, hi = (round(own + (end[key] - free[key]) * unit, 6) for end in fit.fov_ends)
+    return lo, hi
+
+
+def _fov_companions(fit: cf.CameraFit, params: dict[str, Value], names: dict[str, str]
+                    ) -> tuple[tuple[str, tuple[float, float]], ...]:
+    """The camera parameters that move with the field of view along its open range
+    (:func:`_trade_ends`), at its low and high end. The altitude always moves; another
+    parameter when it moves by at least its pinned-residual step (1 mm, 0.01 deg)."""
+    metres = params["camera.altitude_m"] / fit.camera.altitude_m
+    out = []
+    for key, name in names.items():
+        if key == "fov_deg":
+            continue
+        own = float(params[name])
+        ends = _trade_ends(fit, key, own, metres)
+        if key == "altitude_m" or max(abs(e - own) for e in ends) >= cf.SENSITIVITY_STEPS[key]:
+            out.append((name, ends))
+    return tuple(sorted(out))
+
+
 def _fov_trade(fit: cf.CameraFit, key: str, value: float) -> Range:
-    """The range of the field of view (``key`` ``fov_deg``) or the altitude (``value``: the
-    fitted camera's, in metres) that fit as well (:attr:`CameraFit.fov_range`), holding
-    ``value``."""
-    metres = value / fit.camera.altitude_m  # the fit's units to metres
-    ends = fit.fov_range if key == "fov_deg" else tuple(a * metres for a in fit.altitude_range)
-    lo, hi = sorted(ends)
+    """The range of the field of view (``key`` ``fov_deg``) or of the altitude (``value``:
+    the preset's, in metres) along the trade that fits as well (:func:`_trade_ends`)."""
+    lo, hi = sorted(_trade_ends(fit, key, value, value / fit.camera.altitude_m))
     return Range(round(min(lo, value), 6), round(max(hi, value), 6))
 
 
@@ -690,14 +717,18 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
             r[name] = rec.open_range(name, params[name], _scale_range(name, params[name]),
                                      "the image fixes the camera only up to scale (no "
                                      "--arena-size): every length scales with its distance",
-                                     evidence=how)
+                                     evidence=how, gauge=True)
         elif key in ("fov_deg", "altitude_m") and _fov_open(fit):
             r[name] = rec.open_range(name, params[name], _fov_trade(fit, key, params[name]),
                                      f"the markers fit as well from {fit.fov_range[0]:.2f} to "
                                      f"{fit.fov_range[1]:.2f} deg of field of view: a near-nadir "
                                      "view of a flat arena trades the field of view against the "
                                      "altitude, only the weak perspective of the tilt tells "
-                                     "them apart", evidence=how)
+                                     "them apart" + ("; the camera moves with it" if key ==
+                                                     "fov_deg" else "; moves with the field of"
+                                                     " view"), evidence=how,
+                                     moves_with=(_fov_companions(fit, params, cam_names)
+                                                 if key == "fov_deg" else ()))
         else:
             if key in ("tilt_deg", "yaw_deg", "roll_deg") and _fov_open(fit):
                 how += (" (for the field of view held: along the span of fields of view that "
@@ -747,7 +778,7 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
             r[name] = rec.open_range(name, params[name], _scale_range(name, params[name]),
                                      "the image fixes the arena only up to scale (no "
                                      "--arena-size or texture): any size, every length "
-                                     "scaled alike")
+                                     "scaled alike", gauge=True)
         else:
             r[name] = rec.pinned(name, params[name], f"from the {scale_source}")
     r["arena.floor_rgb"] = rec.pinned("arena.floor_rgb", params["arena.floor_rgb"],

@@ -92,8 +92,9 @@ class CameraFit:
     fov_range : tuple of float or None
         The fields of view (deg, lowest and highest) at which the markers fit as well, the
         other parameters refitted (:func:`fov_range`); ``None`` where not scanned.
-    altitude_range : tuple of float or None
-        The altitudes (m, in the fit's units) of those two fits.
+    fov_ends : tuple of dict or None
+        The two fits at those fields of view: each :data:`ORBIT` parameter's value (lengths in
+        the fit's units), at the lowest, then at the highest.
     """
 
     camera: CameraSpec
@@ -107,7 +108,14 @@ class CameraFit:
     snapped: dict[str, tuple[str, float]] = field(default_factory=dict)
     sensitivity: dict[str, float] = field(default_factory=dict)
     fov_range: tuple[float, float] | None = None
-    altitude_range: tuple[float, float] | None = None
+    fov_ends: tuple[dict[str, float], dict[str, float]] | None = None
+
+    @property
+    def altitude_range(self) -> tuple[float, float] | None:
+        """The altitudes (the fit's units) at the ends of :attr:`fov_range`."""
+        if self.fov_ends is None:
+            return None
+        return self.fov_ends[0]["altitude_m"], self.fov_ends[1]["altitude_m"]
 
 
 #: Field-of-view offsets (deg) scanned by :func:`fov_range`, nearest first, each way, until
@@ -120,13 +128,14 @@ FOV_SCAN_BOUNDS = (10.0, 150.0)
 
 
 def fov_range(objective: Objective, v: np.ndarray, extra: np.ndarray, rms_ref: float, *,
-              iterations: int = 8) -> tuple[tuple[float, float], tuple[float, float]]:
+              iterations: int = 8
+              ) -> tuple[tuple[float, float], tuple[dict[str, float], dict[str, float]]]:
     """The fields of view at which the markers fit as well as at ``v`` (the residual within
     :data:`SNAP_TOLERANCE` of ``rms_ref``), every other parameter refitted, scanned out to
     :data:`FOV_SCAN_DEG` each way: a near-nadir view of a flat arena trades the field of view
     against the altitude (every floor point keeps its pixel), so only the perspective of a
     tilted view, weak at a few degrees, tells them apart. Returns ((lowest, highest) field of
-    view, (altitude there, altitude there))."""
+    view, (the fit there, the fit there)), each fit as {:data:`ORBIT` name: value}."""
     k, a = ORBIT.index("fov_deg"), ORBIT.index("altitude_m")
     limit = rms_ref * (1.0 + SNAP_TOLERANCE)
     free = tuple(i for i in range(len(ORBIT)) if i != k)
@@ -148,8 +157,8 @@ def fov_range(objective: Objective, v: np.ndarray, extra: np.ndarray, rms_ref: f
             best = tv
         ends.append(best)
     lo, hi = ends
-    return ((round(float(lo[k]), 4), round(float(hi[k]), 4)),
-            (round(float(lo[a]), 6), round(float(hi[a]), 6)))
+    fits = tuple({name: round(float(e[i]), 6) for i, name in enumerate(ORBIT)} for e in ends)
+    return (round(float(lo[k]), 4), round(float(hi[k]), 4)), (fits[0], fits[1])
 
 
 def world_corners(arena: ArenaSpec, markers: MarkerSpec) -> np.ndarray:
@@ -494,7 +503,7 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
         progress(f"camera fitted freely to the marker pixels: fov {free_camera.fov_deg:.3f} "
                  f"deg, {free_camera.altitude_m:.4f} m up, tilt {free_camera.tilt_deg:.3f} "
                  f"deg (RMS {rms_free:.2f})")
-    fovs, altitudes = fov_range(objective, v, extra, rms_free)
+    fovs, fov_ends = fov_range(objective, v, extra, rms_free)
     if progress:
         progress(f"the markers fit as well from {fovs[0]:.2f} to {fovs[1]:.2f} deg of field of "
                  "view")
@@ -511,7 +520,7 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
                      sigma_px=round(sigma, 4), rms_free=round(rms_free, 4), rms=round(rms, 4),
                      stage="markers", corner_rms_px=round(corner_rms, 4), snapped=snapped,
                      sensitivity=sensitivity(objective, orbit_vector(camera), extra),
-                     fov_range=fovs, altitude_range=altitudes)
+                     fov_range=fovs, fov_ends=fov_ends)
 
 
 def refine_with_renderer(fit: CameraFit, scene: Scene, gray: np.ndarray, mask: np.ndarray,

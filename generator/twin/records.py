@@ -51,6 +51,14 @@ class Record:
         Open: why the image leaves it open.
     varies : bool
         Whether the preset draws it per scene (the boxes: the target varies them too).
+    moves_with : tuple of (str, (float, float))
+        Open, with a range: the parameters the image ties to this one, with their values at
+        the range's low and high end (:attr:`OpenParam.moves_with`).
+    gauge : bool
+        Open only as every length is (the image fixes lengths up to one scale): at any scale,
+        every length scaled alike, the images and the answers in the rectified frame are the
+        same, and alone it would give another image. It is not an ``[open]`` entry of the
+        preset file (there is nothing to vary); ``twin.json`` keeps the record.
     """
 
     name: str
@@ -63,6 +71,8 @@ class Record:
     values: tuple[Value, ...] | None = None
     reason: str = ""
     varies: bool = False
+    moves_with: tuple[tuple[str, tuple[float, float]], ...] = ()
+    gauge: bool = False
 
     def __post_init__(self) -> None:
         if self.status not in STATUSES:
@@ -86,17 +96,22 @@ class Record:
             else:
                 out["values"] = [_plain(v) for v in self.values or ()]
             out["reason"] = self.reason
+            if self.moves_with:
+                out["moves_with"] = {name: list(ends) for name, ends in self.moves_with}
         if self.varies:
             out["varies"] = True
+        if self.gauge:
+            out["gauge"] = True
         return out
 
     def open_param(self) -> OpenParam | None:
         """The preset file's ``[open]`` entry of an open record that matters (one whose range
         or values hold more than the preset's value), else None."""
-        if self.status != "open":
+        if self.status != "open" or self.gauge:
             return None
         if self.range is not None:
-            return OpenParam(self.name, self.reason, range=self.range)
+            return OpenParam(self.name, self.reason, range=self.range,
+                             moves_with=self.moves_with)
         if self.values is not None and len(self.values) > 1:
             return OpenParam(self.name, self.reason, values=tuple(self.values))
         return None
@@ -118,9 +133,12 @@ def pinned(name: str, value: Value, evidence: str, residual: float | None = None
 
 
 def open_range(name: str, value: Value, range_: Range, reason: str, *, evidence: str = "",
-               varies: bool = False) -> Record:
-    """An open record keeping a range."""
-    return Record(name, "open", value, evidence, range=range_, reason=reason, varies=varies)
+               varies: bool = False,
+               moves_with: tuple[tuple[str, tuple[float, float]], ...] = (),
+               gauge: bool = False) -> Record:
+    """An open record keeping a range (and what moves with it)."""
+    return Record(name, "open", value, evidence, range=range_, reason=reason, varies=varies,
+                  moves_with=moves_with, gauge=gauge)
 
 
 def open_values(name: str, value: Value, values: tuple[Value, ...], reason: str, *,

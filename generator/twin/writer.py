@@ -62,6 +62,11 @@ def _evidence(twin: Twin) -> dict[str, Any]:
         "fit": f"marker squares {f['figures']['mad']['markers']:.2f} grey levels from the "
                f"image, whole image {f['figures']['whole']:.2f}",
         "open": ", ".join(sorted(twin.open_params)) or "none",
+        **({"scale": "open: the image fixes lengths only up to one scale (no --arena-size or "
+                     "texture); the twin's lengths are in units of the generator's default "
+                     "arena, and at any scale, every length scaled alike, its images and "
+                     "answers are the same"}
+           if f["scale"]["source"] == "default" else {}),
     }
 
 

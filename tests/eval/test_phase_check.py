@@ -137,6 +137,53 @@ def test_parameters_drawn_per_scene_are_not_varied(tmp_path):
     assert variants and {v.param for v in variants} == {"lighting.east_fill"}
 
 
+def test_a_trade_the_image_pins_is_varied_as_one(tmp_path):
+    """A twin's field of view is open, but the image pins its trade with the altitude (and
+    the tilt): a variant at one end of the range sets them too, to their values there, and
+    the altitude, open as well, is never varied on its own (alone it would move every marker
+    off the example's pixels)."""
+    from arenabench.eval.phase_check import SceneSource, open_variants
+    from arenabench.eval.scoring.results import PhaseResult, VariantResult
+    from arenabench.generator.make import ground_truth_record
+    from arenabench.generator.params import Range
+    from arenabench.generator.preset_files import OpenParam
+
+    eyrc = builtin_preset("eyrc")
+    fov, alt = eyrc.params["camera.fov_deg"], eyrc.params["camera.altitude_m"]
+    path = tmp_path / "twin.toml"
+    write_preset_file(path, eyrc.params, name="twin", open={
+        "camera.fov_deg": OpenParam(
+            "camera.fov_deg", "the markers fit as well", range=Range(fov - 0.4, fov + 1.8),
+            moves_with=(("camera.altitude_m", (alt + 0.025, alt - 0.105)),
+                        ("camera.tilt_deg", (4.08, 3.91)))),
+        "camera.altitude_m": OpenParam("camera.altitude_m", "moves with the field of view",
+                                       range=Range(alt - 0.105, alt + 0.025))})
+    preset = resolve_preset(str(path))
+    assert preset.open["camera.fov_deg"].at(fov - 0.4) == {"camera.altitude_m": alt + 0.025,
+                                                          "camera.tilt_deg": 4.08}
+    gt = ground_truth_record(sample_scene(preset, seed=0, index=0).scene, sid="000000",
+                             preset="twin")
+    variants = open_variants(SceneSource(preset), gt)
+    assert [(v.param, v.settings()) for v in variants] == [
+        ("camera.fov_deg", {"camera.fov_deg": fov - 0.4, "camera.altitude_m": alt + 0.025,
+                            "camera.tilt_deg": 4.08}),
+        ("camera.fov_deg", {"camera.fov_deg": fov + 1.8, "camera.altitude_m": alt - 0.105,
+                            "camera.tilt_deg": 3.91})]
+    assert variants[0].text().startswith("camera.fov_deg=")
+    assert "(camera.altitude_m=" in variants[0].text()
+    # the scene drawn for a variant has all three
+    scene = SceneSource(preset).sample(gt, variants[1].settings()).scene
+    assert (scene.camera.fov_deg, scene.camera.altitude_m, scene.camera.tilt_deg) == (
+        pytest.approx(fov + 1.8), pytest.approx(alt - 0.105), pytest.approx(3.91))
+    # a phase record says what moved with it, and reads back
+    record = VariantResult("camera.fov_deg", fov + 1.8, 4, 4, 1,
+                           also=variants[1].also)
+    assert record.to_dict()["with"] == {"camera.altitude_m": alt - 0.105,
+                                        "camera.tilt_deg": 3.91}
+    phase = PhaseResult(phases=4, runs=4, completed=4, passes=0, variants=(record,))
+    assert PhaseResult.from_dict(phase.to_dict()) == phase
+
+
 @pytest.mark.slow
 def test_a_set_drawn_from_a_twin_file_is_checked_on_auto(tmp_path):
     """``eval`` and ``grade`` decide from the definition the set's ``dataset.json`` records,

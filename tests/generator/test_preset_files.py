@@ -157,6 +157,64 @@ def test_open_entries_are_stored_validated_and_written_back(tmp_path):
         "range": [0.0, 360.0], "reason": "east and west faces not visible"}
 
 
+def test_an_open_entry_names_what_moves_with_it(tmp_path):
+    text = _eyrc_text() + (
+        '\n[open."camera.fov_deg"]\nrange = [68.3, 70.6]\n'
+        'moves_with = { "camera.altitude_m" = [3.19, 3.06], "camera.tilt_deg" = [4.1, 3.9] }\n'
+        'reason = "the markers fit as well"\n')
+    p = load_preset_file(_write(tmp_path, text))
+    entry = p.open["camera.fov_deg"]
+    assert entry.moves_with == (("camera.altitude_m", (3.19, 3.06)),
+                                ("camera.tilt_deg", (4.1, 3.9)))
+    assert entry.at(70.6) == {"camera.altitude_m": 3.06, "camera.tilt_deg": 3.9}
+    with pytest.raises(ValueError, match="not an end of its range"):
+        entry.at(69.0)
+    again = load_preset_file(write_preset_file(tmp_path / "again.toml", p.params, name=p.name,
+                                               open=p.open))
+    assert again.open == p.open
+
+
+MOVES_BAD = [
+    ('moves_with = { "camera.altitud_m" = [3.1, 3.0] }', "unknown parameter (did you mean"),
+    ('moves_with = { "camera.fov_deg" = [68.0, 69.0] }', "the entry's own parameter"),
+    ('moves_with = { "camera.altitude_m" = [3.1] }', "two numbers: the value at the range's"),
+    ('moves_with = { "camera.tilt_deg" = [3.1, 95.0] }', "out of range"),
+    ('moves_with = { "obstacles.count" = [1, 2] }', "draws obstacles.count per scene"),
+    ('moves_with = { "markers.dictionary" = ["a", "b"] }', "is not a number"),
+    ('moves_with = [1, 2]', "a table"),
+]
+
+
+@pytest.mark.parametrize("line,why", MOVES_BAD, ids=[w for _, w in MOVES_BAD])
+def test_a_bad_moves_with_is_one_line(tmp_path, line, why):
+    text = _eyrc_text() + ('\n[open."camera.fov_deg"]\nrange = [68.3, 70.6]\n' + line
+                           + '\nreason = "the markers fit as well"\n')
+    with pytest.raises(PresetFileError) as err:
+        load_preset_file(_write(tmp_path, text))
+    message = str(err.value)
+    assert "\n" not in message and "open.camera.fov_deg.moves_with" in message
+    assert why in message
+
+
+def test_a_parameter_moves_with_one_other_at_most(tmp_path):
+    base = _eyrc_text() + (
+        '\n[open."camera.fov_deg"]\nrange = [68.3, 70.6]\n'
+        'moves_with = { "camera.altitude_m" = [3.19, 3.06] }\nreason = "trade"\n')
+    twice = base + ('\n[open."camera.tilt_deg"]\nrange = [3.0, 5.0]\n'
+                    'moves_with = { "camera.altitude_m" = [3.1, 3.2] }\nreason = "trade"\n')
+    with pytest.raises(PresetFileError, match=r"already moves with camera\.fov_deg"):
+        load_preset_file(_write(tmp_path, twice))
+    chained = base + ('\n[open."camera.altitude_m"]\nrange = [3.0, 3.3]\n'
+                      'moves_with = { "camera.tilt_deg" = [3.1, 3.2] }\nreason = "trade"\n')
+    with pytest.raises(PresetFileError, match="has a moves_with of its own"):
+        load_preset_file(_write(tmp_path, chained))
+    values = _eyrc_text() + ('\n[open."output.jpeg_quality"]\nvalues = [90, 95]\n'
+                             'moves_with = { "camera.altitude_m" = [3.1, 3.2] }\n'
+                             'reason = "one example"\n')
+    with pytest.raises(PresetFileError, match="needs range = \\[lo, hi\\]"):
+        load_preset_file(_write(tmp_path, values))
+
+
 def test_the_preset_rule_names_and_files(tmp_path, monkeypatch):
     assert resolve_preset("eyrc-hard") == builtin_preset("eyrc-hard")
     path = _write(tmp_path, _eyrc_text(), "mine.toml")

@@ -107,3 +107,30 @@ def test_the_box_ranges_are_eyrcs(params, eyrc):
                 "obstacles.height_m", "obstacles.yaw_deg", "obstacles.yaw_step_deg",
                 "obstacles.min_gap_m", "obstacles.edge_margin_m"):
         assert params[key] == eyrc[key], (key, params[key], eyrc[key])
+
+
+def test_the_field_of_view_is_varied_with_the_camera_that_keeps_the_markers(twin, params):
+    """The example leaves the field of view open but pins its trade with the altitude (and
+    the tilt): the preset's fov entry names what moves with it, so a variant at either end
+    keeps the markers where the example has them, which the field of view alone does not;
+    the altitude, open too, is not varied on its own."""
+    from arenabench.frame import CORNER_ORDER
+    from arenabench.generator.layout import marker_corners_world
+    from arenabench.generator.scene import load_scene
+
+    entry = load_preset_file(twin / "preset.toml").open["camera.fov_deg"]
+    assert dict(entry.moves_with).keys() >= {"camera.altitude_m", "camera.tilt_deg"}
+    scene = load_scene(twin / "scene.json")
+    world = np.vstack([np.c_[marker_corners_world(scene.arena, scene.markers, c), np.zeros(4)]
+                       for c in CORNER_ORDER])
+
+    def corners(p: dict) -> np.ndarray:
+        c = _camera(p)
+        return cam.project(world, cam.intrinsics(c), cam.world_from_camera(c))
+
+    base = corners(params)
+    for end in (entry.range.lo, entry.range.hi):
+        alone = np.linalg.norm(corners({**params, "camera.fov_deg": end}) - base, axis=1)
+        moved = np.linalg.norm(corners({**params, "camera.fov_deg": end, **entry.at(end)})
+                               - base, axis=1)
+        assert alone.max() > 2.0 and moved.max() < 0.5, (end, alone.max(), moved.max())
