@@ -108,37 +108,45 @@ class OpenParam:
         The range it allows (numeric parameters).
     values : tuple or None
         The values it allows (any parameter), when not a range.
-    moves_with : tuple of (str, (float, float))
-        Parameters the evidence ties to this one (with a range only): their values when this
-        one is at ``range.lo`` and at ``range.hi``. The image pins the trade, not either
-        parameter: a field of view and the altitude that keeps the floor's image, say. A
-        variant at one end sets them too, and they are never varied on their own.
+    moves_with : tuple of (str, tuple of float)
+        Parameters the evidence ties to this one: their values when this one is at
+        ``range.lo`` and at ``range.hi`` (a range), or at each of ``values`` in turn. The image
+        pins the trade, not either parameter: a field of view and the altitude that keeps the
+        floor's image, or a light's azimuth and the elevation, intensity and ambient that keep
+        the faces seen. A variant sets them too, and they are never varied on their own.
     """
 
     name: str
     reason: str
     range: Range | None = None
     values: tuple[Value, ...] | None = None
-    moves_with: tuple[tuple[str, tuple[float, float]], ...] = ()
+    moves_with: tuple[tuple[str, tuple[float, ...]], ...] = ()
 
     def __post_init__(self) -> None:
         if (self.range is None) == (self.values is None):
             raise ValueError(f"open {self.name}: give a range or values, not both or neither")
-        if self.moves_with and self.range is None:
-            raise ValueError(f"open {self.name}: moves_with needs a range (the values at its "
-                             "two ends)")
+        for name, at in self.moves_with:
+            if len(at) != len(self._points()):
+                raise ValueError(f"open {self.name}: moves_with {name} needs one value per "
+                                 f"{'end of the range' if self.range else 'value'}")
+
+    def _points(self) -> tuple[Value, ...]:
+        """What :attr:`moves_with` lists values for: the range's ends, or the values."""
+        return (self.range.lo, self.range.hi) if self.range is not None else tuple(
+            self.values or ())
 
     def at(self, value: Value) -> dict[str, float]:
-        """The values of :attr:`moves_with` when this parameter is at ``value``, one of the
-        range's ends (``{}`` when nothing moves with it)."""
+        """The values of :attr:`moves_with` when this parameter is at ``value`` (an end of the
+        range, or one of the values; ``{}`` when nothing moves with it)."""
         if not self.moves_with:
             return {}
-        assert self.range is not None
-        if value not in (self.range.lo, self.range.hi):
-            raise ValueError(f"open {self.name}: {value!r} is not an end of its range "
-                             f"[{self.range.lo}, {self.range.hi}]")
-        end = 0 if value == self.range.lo else 1
-        return {name: ends[end] for name, ends in self.moves_with}
+        points = self._points()
+        if value not in points:
+            raise ValueError(f"open {self.name}: {value!r} is not "
+                             + ("an end of its range" if self.range is not None else
+                                "one of its values") + f" {list(points)}")
+        k = points.index(value)
+        return {name: at[k] for name, at in self.moves_with}
 
     def allows(self, value: Value) -> bool:
         """Whether the preset's ``value`` (a fixed value or a :class:`Range`) lies inside."""
@@ -565,12 +573,9 @@ def _open_table(ctx: _Context, table: Any, params: dict[str, Value]) -> dict[str
             if not isinstance(value, Range):
                 raise ctx.fail(f"{where}.range", raw, "a range of one value: an open "
                                "parameter allows more than one")
-            moves = _moves_with(ctx, where, key, entry.get("moves_with", {}), params)
+            moves = _moves_with(ctx, where, key, entry.get("moves_with", {}), params, 2)
             item = OpenParam(key, reason.strip(), range=value, moves_with=moves)
         else:
-            if "moves_with" in entry:
-                raise ctx.fail(f"{where}.moves_with", entry["moves_with"], "needs range = "
-                               "[lo, hi]: its values are those at the range's two ends")
             raw = entry["values"]
             if not isinstance(raw, list) or len(raw) < 2:
                 raise ctx.fail(f"{where}.values", raw, "a list of at least two values")
@@ -578,7 +583,9 @@ def _open_table(ctx: _Context, table: Any, params: dict[str, Value]) -> dict[str
                                         fixed_only=True) for v in raw)
             if len(set(values)) != len(values):
                 raise ctx.fail(f"{where}.values", raw, "a value is listed twice")
-            item = OpenParam(key, reason.strip(), values=values)
+            moves = _moves_with(ctx, where, key, entry.get("moves_with", {}), params,
+                                len(values))
+            item = OpenParam(key, reason.strip(), values=values, moves_with=moves)
         if not item.allows(params[key]):
             raise ctx.fail(where, entry, f"the preset's own {key} = "
                            f"{_shown(_file_value(params[key]))} is not among what it allows")
@@ -596,12 +603,16 @@ def _open_table(ctx: _Context, table: Any, params: dict[str, Value]) -> dict[str
     return out
 
 
-def _moves_with(ctx: _Context, where: str, key: str, table: Any, params: dict[str, Value]
-                ) -> tuple[tuple[str, tuple[float, float]], ...]:
+def _moves_with(ctx: _Context, where: str, key: str, table: Any, params: dict[str, Value],
+                count: int) -> tuple[tuple[str, tuple[float, ...]], ...]:
     """An ``[open]`` entry's ``moves_with`` table, validated: other numeric parameters the
-    preset holds fixed, each with two numbers (at the range's low and high end)."""
+    preset holds fixed, each with ``count`` numbers (at the range's low and high end, or at
+    each of the entry's values)."""
+    points = "the range's low end, then at its high end" if count == 2 else (
+        f"each of the {count} values, in their order")
     if not isinstance(table, dict):
-        raise ctx.fail(f"{where}.moves_with", table, 'a table: {"PARAM" = [at lo, at hi]}')
+        raise ctx.fail(f"{where}.moves_with", table, 'a table: {"PARAM" = [at lo, at hi]} (or '
+                       "one value per listed value)")
     out = []
     for spelled, raw in table.items():
         at = f"{where}.moves_with.{spelled}"
@@ -616,12 +627,10 @@ def _moves_with(ctx: _Context, where: str, key: str, table: Any, params: dict[st
         if isinstance(params[name], Range):
             raise ctx.fail(at, raw, f"the preset draws {name} per scene (a range): only a "
                            "fixed value can move with another")
-        if not isinstance(raw, list) or len(raw) != 2:
-            raise ctx.fail(at, raw, "two numbers: the value at the range's low end, then at "
-                           "its high end")
-        ends = tuple(float(_param_value(ctx, name, v, spelled_as=at, fixed_only=True))
-                     for v in raw)
-        out.append((name, (ends[0], ends[1])))
+        if not isinstance(raw, list) or len(raw) != count:
+            raise ctx.fail(at, raw, f"{count} numbers: the value at {points}")
+        out.append((name, tuple(float(_param_value(ctx, name, v, spelled_as=at,
+                                                   fixed_only=True)) for v in raw)))
     return tuple(sorted(out))
 
 

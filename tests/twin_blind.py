@@ -262,6 +262,39 @@ def _camera_px(hidden: Scene, twin_camera: CameraSpec, twin_side: float) -> floa
     return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
 
 
+def _preset_light(p: dict[str, Any]):
+    """The main light of a preset's fixed ``lighting.*`` parameters."""
+    from arenabench.generator.scene import DirectionalLight, LightingSpec
+
+    el, az = math.radians(p["lighting.elevation_deg"]), math.radians(p["lighting.azimuth_deg"])
+    d = (-math.cos(el) * math.cos(az), -math.cos(el) * math.sin(az), -math.sin(el))
+    return LightingSpec(ambient=p["lighting.ambient"],
+                        directional=(DirectionalLight(direction=d,
+                                                      intensity=p["lighting.intensity"]),))
+
+
+def _light_off(twin: Scene, faces: list[dict[str, Any]], own: dict[str, Any],
+               other: dict[str, Any]) -> float:
+    """The largest change (grey levels) of the floor's factor (times 255), a box top's and a
+    seen face's shade when the light of ``own`` becomes that of ``other``."""
+    from arenabench.generator.twin.shades import COMPASS
+
+    a, b = _preset_light(own), _preset_light(other)
+    off = 255.0 * abs(floor_factor(a) - floor_factor(b))
+    for face in faces:
+        ob = twin.obstacles[face["box"]]
+        want = COMPASS.index(face["direction"]) * 90.0
+        angle = min((ob.yaw_deg + 90.0 * j for j in range(4)),
+                    key=lambda x: abs((x - want + 180.0) % 360.0 - 180.0))
+        n = np.array([[math.cos(math.radians(angle)), math.sin(math.radians(angle)), 0.0],
+                      [0.0, 0.0, 1.0]])
+        top = ob.color_rgb[0]
+        fa, fb = shade_factors(n, a), shade_factors(n, b)
+        off = max(off, *(abs(min(top * x, 255.0) - min(top * y, 255.0))
+                         for x, y in zip(fa, fb, strict=True)))
+    return float(off)
+
+
 def _hidden_face(hidden: Scene, twin: Scene, box: int, direction: str) -> float:
     """The hidden shade of the face the twin's box ``box`` shows towards ``direction``: the
     hidden box nearest to it (centres scaled to the hidden arena), its side face whose normal
@@ -359,6 +392,17 @@ def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
             want = _hidden_face(hidden, twin, face["box"], d)
             check(f"{d} face grey (seen, box {face['box']})", round(want, 1), face["gray"],
                   abs(want - face["gray"]) <= tol)
+        if params["lighting.azimuth_deg"]["status"] == "open":
+            # each light the phase check tries keeps the floor, the tops and the faces seen
+            from arenabench.generator.preset_files import load_preset_file
+
+            preset = load_preset_file(Path(twin_dir) / "preset.toml")
+            entry = preset.open["lighting.azimuth_deg"]
+            off = max(_light_off(twin, doc["shades"]["faces"], preset.params,
+                                 {**preset.params, "lighting.azimuth_deg": az, **entry.at(az)})
+                      for az in entry.values or ())
+            check(f"shades seen, {len(entry.values or ()) - 1} other lights (grey levels)", 0.0,
+                  round(off, 2), off <= tol)
     check("obstacles seen", len(hidden.obstacles), len(twin.obstacles),
           len(hidden.obstacles) == len(twin.obstacles))
     for name, want in (("render.edge_samples", hidden.render.edge_samples),

@@ -485,6 +485,47 @@ def _fov_trade(fit: cf.CameraFit, key: str, value: float) -> Range:
     return Range(round(min(lo, value), 6), round(max(hi, value), 6))
 
 
+def _open_light(params: dict[str, Value], shades: Shades, unseen: list[str],
+                evidence: str) -> dict[str, rec.Record]:
+    """The light's records where fewer than two side-face directions are seen: many lights
+    give the faces seen (:mod:`~arenabench.generator.twin.light_span`). The azimuth is open
+    with one value per light that makes an unseen direction's faces darkest or lightest, and
+    the ambient, intensity and elevation move with it (their ranges span those lights)."""
+    from arenabench.generator.twin.light_span import FACE_TOLERANCE, Light, light_extremes
+
+    own = Light(ambient=float(params["lighting.ambient"]),
+                intensity=float(params["lighting.intensity"]),
+                elevation_deg=float(params["lighting.elevation_deg"]),
+                azimuth_deg=float(params["lighting.azimuth_deg"]))
+    lights = [own]
+    floor = own.ambient + own.intensity * math.sin(math.radians(own.elevation_deg))
+    for extreme in light_extremes(shades.boxes, unseen, floor=floor):
+        if extreme.light not in lights:
+            lights.append(extreme.light)
+    azimuths: list[float] = []
+    for light in lights:  # the azimuth names the variant: two lights never share one
+        az = light.azimuth_deg
+        while az in azimuths:
+            az = round(az + 0.001, 6)
+        azimuths.append(az)
+    keys = ("lighting.ambient", "lighting.elevation_deg", "lighting.intensity")
+    moves = tuple((k, tuple(float(light.params()[k]) for light in lights)) for k in keys)
+    seen = ", ".join(shades.directions_seen) or "none"
+    why = (f"side faces seen: {seen}: many lights give them (each within "
+           f"{FACE_TOLERANCE:g} grey level of the best); the variants are the lights that make "
+           f"the {', '.join(unseen)} faces darkest and lightest")
+    out = {"lighting.azimuth_deg": rec.open_values(
+        "lighting.azimuth_deg", params["lighting.azimuth_deg"], tuple(azimuths), why,
+        evidence=evidence, moves_with=moves)}
+    for k, values in moves:
+        lo, hi = min(values), max(values)
+        out[k] = (rec.open_range(k, params[k], Range(lo, hi), f"moves with the light's "
+                                 f"azimuth: {why}", evidence=evidence) if hi > lo else
+                  rec.open_values(k, params[k], (params[k],), f"the same in every light that "
+                                  f"gives the faces seen: {why}", evidence=evidence))
+    return out
+
+
 #: The marker sheets' white is clipped (paper under a light brighter than it: nothing to dim)
 #: when at least this share of the white pixels is 255: on the blind round trips' images the
 #: share is 0.70-1.00 where the light saturates white and 0.00 everywhere else, whites of 250
@@ -807,13 +848,8 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                                  "gives them (an unseen face keeps about the ambient shade)",
                                  res.get("lighting"), "grey levels MAD over the faces seen "
                                  "per 1 % of light")
-        else:
-            lo, hi = {"lighting.ambient": (0.0, 1.0), "lighting.intensity": (0.0, 1.0),
-                      "lighting.elevation_deg": (0.0, 90.0),
-                      "lighting.azimuth_deg": (-180.0, 180.0)}[name]
-            r[name] = rec.open_range(name, params[name], Range(lo, hi),
-                                     f"only {len(shades.directions_seen)} side face direction(s) "
-                                     "seen: the light is not fixed", evidence=light_evidence)
+    if len(shades.directions_seen) < 2:
+        r.update(_open_light(params, shades, unseen, light_evidence))
     for side in ("east", "west"):
         name = f"lighting.{side}_fill"
         if side in unseen:

@@ -51,9 +51,9 @@ class Record:
         Open: why the image leaves it open.
     varies : bool
         Whether the preset draws it per scene (the boxes: the target varies them too).
-    moves_with : tuple of (str, (float, float))
-        Open, with a range: the parameters the image ties to this one, with their values at
-        the range's low and high end (:attr:`OpenParam.moves_with`).
+    moves_with : tuple of (str, tuple of float)
+        Open: the parameters the image ties to this one, with their values at the range's low
+        and high end, or at each of the values (:attr:`OpenParam.moves_with`).
     gauge : bool
         Open only as every length is (the image fixes lengths up to one scale): at any scale,
         every length scaled alike, the images and the answers in the rectified frame are the
@@ -71,7 +71,7 @@ class Record:
     values: tuple[Value, ...] | None = None
     reason: str = ""
     varies: bool = False
-    moves_with: tuple[tuple[str, tuple[float, float]], ...] = ()
+    moves_with: tuple[tuple[str, tuple[float, ...]], ...] = ()
     gauge: bool = False
 
     def __post_init__(self) -> None:
@@ -113,7 +113,8 @@ class Record:
             return OpenParam(self.name, self.reason, range=self.range,
                              moves_with=self.moves_with)
         if self.values is not None and len(self.values) > 1:
-            return OpenParam(self.name, self.reason, values=tuple(self.values))
+            return OpenParam(self.name, self.reason, values=tuple(self.values),
+                             moves_with=self.moves_with)
         return None
 
 
@@ -142,10 +143,11 @@ def open_range(name: str, value: Value, range_: Range, reason: str, *, evidence:
 
 
 def open_values(name: str, value: Value, values: tuple[Value, ...], reason: str, *,
-                evidence: str = "", varies: bool = False) -> Record:
-    """An open record keeping values."""
+                evidence: str = "", varies: bool = False,
+                moves_with: tuple[tuple[str, tuple[float, ...]], ...] = ()) -> Record:
+    """An open record keeping values (and what moves with it, a value for each)."""
     return Record(name, "open", value, evidence, values=tuple(values), reason=reason,
-                  varies=varies)
+                  varies=varies, moves_with=moves_with)
 
 
 def complete(records: dict[str, Record], params: dict[str, Value]) -> list[Record]:

@@ -177,7 +177,7 @@ def test_an_open_entry_names_what_moves_with_it(tmp_path):
 MOVES_BAD = [
     ('moves_with = { "camera.altitud_m" = [3.1, 3.0] }', "unknown parameter (did you mean"),
     ('moves_with = { "camera.fov_deg" = [68.0, 69.0] }', "the entry's own parameter"),
-    ('moves_with = { "camera.altitude_m" = [3.1] }', "two numbers: the value at the range's"),
+    ('moves_with = { "camera.altitude_m" = [3.1] }', "2 numbers: the value at the range's"),
     ('moves_with = { "camera.tilt_deg" = [3.1, 95.0] }', "out of range"),
     ('moves_with = { "obstacles.count" = [1, 2] }', "draws obstacles.count per scene"),
     ('moves_with = { "markers.dictionary" = ["a", "b"] }', "is not a number"),
@@ -208,11 +208,14 @@ def test_a_parameter_moves_with_one_other_at_most(tmp_path):
                       'moves_with = { "camera.tilt_deg" = [3.1, 3.2] }\nreason = "trade"\n')
     with pytest.raises(PresetFileError, match="has a moves_with of its own"):
         load_preset_file(_write(tmp_path, chained))
-    values = _eyrc_text() + ('\n[open."output.jpeg_quality"]\nvalues = [90, 95]\n'
-                             'moves_with = { "camera.altitude_m" = [3.1, 3.2] }\n'
-                             'reason = "one example"\n')
-    with pytest.raises(PresetFileError, match="needs range = \\[lo, hi\\]"):
-        load_preset_file(_write(tmp_path, values))
+    # a values entry: one value per listed value, in their order
+    values = _eyrc_text() + ('\n[open."lighting.azimuth_deg"]\nvalues = [79.999431, 90.0, 180.0]\n'
+                             'moves_with = { "lighting.ambient" = [0.59167, 0.2, 0.4] }\n'
+                             'reason = "the light"\n')
+    entry = load_preset_file(_write(tmp_path, values)).open["lighting.azimuth_deg"]
+    assert entry.at(90.0) == {"lighting.ambient": 0.2}
+    with pytest.raises(PresetFileError, match="3 numbers: the value at each of the 3 values"):
+        load_preset_file(_write(tmp_path, values.replace("0.2, 0.4]", "0.2]")))
 
 
 def test_the_preset_rule_names_and_files(tmp_path, monkeypatch):
