@@ -134,12 +134,16 @@ def test_name_defaults_to_the_file_name(tmp_path):
         load_preset_file(_write(tmp_path, text, "lab arena.toml"))
 
 
+def _eyrc_with(tmp_path, block: str):
+    """The eyrc preset file with ``block`` (``[open]`` entries) added, read back."""
+    return load_preset_file(_write(tmp_path, _eyrc_text() + block))
+
+
 def test_open_entries_are_stored_validated_and_written_back(tmp_path):
-    text = _eyrc_text() + (
-        '\n[open."lighting.azimuth_deg"]\nrange = [0.0, 360.0]\n'
-        'reason = "east and west faces not visible"\n'
-        '\n[open.output]\njpeg_quality = { values = [90, 95], reason = "one example" }\n')
-    p = load_preset_file(_write(tmp_path, text))
+    p = _eyrc_with(tmp_path, '\n[open."lighting.azimuth_deg"]\nrange = [0.0, 360.0]\n'
+                   'reason = "east and west faces not visible"\n'
+                   '\n[open.output]\n'
+                   'jpeg_quality = { values = [90, 95], reason = "one example" }\n')
     assert p.open == {
         "lighting.azimuth_deg": OpenParam("lighting.azimuth_deg",
                                           "east and west faces not visible",
@@ -158,11 +162,9 @@ def test_open_entries_are_stored_validated_and_written_back(tmp_path):
 
 
 def test_an_open_entry_names_what_moves_with_it(tmp_path):
-    text = _eyrc_text() + (
-        '\n[open."camera.fov_deg"]\nrange = [68.3, 70.6]\n'
-        'moves_with = { "camera.altitude_m" = [3.19, 3.06], "camera.tilt_deg" = [4.1, 3.9] }\n'
-        'reason = "the markers fit as well"\n')
-    p = load_preset_file(_write(tmp_path, text))
+    p = _eyrc_with(tmp_path, '\n[open."camera.fov_deg"]\nrange = [68.3, 70.6]\nmoves_with = '
+                   '{ "camera.altitude_m" = [3.19, 3.06], "camera.tilt_deg" = [4.1, 3.9] }\n'
+                   'reason = "the markers fit as well"\n')
     entry = p.open["camera.fov_deg"]
     assert entry.moves_with == (("camera.altitude_m", (3.19, 3.06)),
                                 ("camera.tilt_deg", (4.1, 3.9)))
