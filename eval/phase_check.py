@@ -312,9 +312,11 @@ class Variant:
         return one(self.param, self.value) + (f" ({more})" if more else "")
 
 
-def open_variants(source: SceneSource, gt: GroundTruth) -> list[Variant]:
-    """The other values the preset's open parameters allow for ``gt``'s scene, one parameter
-    at a time: a range's ends, or each listed value, other than the scene's own value.
+def open_variants(source: SceneSource) -> list[Variant]:
+    """The other values the preset's open parameters allow, one parameter at a time (with
+    those that move with it): a range's ends, or each listed value, other than the preset's
+    own value. The same for every scene of the set: a parameter the preset holds fixed has
+    the same value in each.
 
     A parameter the preset draws per scene (a range: a twin's box count, sizes and yaw, open
     because one image is one draw) is not varied: another draw is another scene, with other
@@ -577,7 +579,7 @@ class _Job:
         self._runs(own, result, gt, folder / "own", output=output)
         variants: list[tuple[Variant, _Tally]] = []
         if own.passes == 0 and self.source is not None and self.source.open:
-            todo = open_variants(self.source, gt)
+            todo = open_variants(self.source)
             if todo and not self.source.reproduces(gt):
                 _warn(f"phase check of {result.id}: its scene is not drawn again from the "
                       "set's preset: open parameters are not varied")

@@ -119,7 +119,6 @@ def test_parameters_drawn_per_scene_are_not_varied(tmp_path):
     scene, not something the example hid about this one, so only the fixed open parameter
     (the east fill) gets variants."""
     from arenabench.eval.phase_check import SceneSource, open_variants
-    from arenabench.generator.make import ground_truth_record
     from arenabench.generator.params import Range
     from arenabench.generator.preset_files import OpenParam
 
@@ -131,9 +130,7 @@ def test_parameters_drawn_per_scene_are_not_varied(tmp_path):
         "obstacles.count": OpenParam(name="obstacles.count", reason="one image is one draw",
                                      range=Range(1, 6))})
     preset = resolve_preset(str(path))
-    gt = ground_truth_record(sample_scene(preset, seed=0, index=0).scene, sid="000000",
-                             preset="twin")
-    variants = open_variants(SceneSource(preset), gt)
+    variants = open_variants(SceneSource(preset))
     assert variants and {v.param for v in variants} == {"lighting.east_fill"}
 
 
@@ -163,7 +160,7 @@ def test_a_trade_the_image_pins_is_varied_as_one(tmp_path):
                                                           "camera.tilt_deg": 4.08}
     gt = ground_truth_record(sample_scene(preset, seed=0, index=0).scene, sid="000000",
                              preset="twin")
-    variants = open_variants(SceneSource(preset), gt)
+    variants = open_variants(SceneSource(preset))
     assert [(v.param, v.settings()) for v in variants] == [
         ("camera.fov_deg", {"camera.fov_deg": fov - 0.4, "camera.altitude_m": alt + 0.025,
                             "camera.tilt_deg": 4.08}),
