@@ -144,7 +144,8 @@ def report_html(twin: Twin, *, name: str) -> str:
                  "value; its residual says how much the render moves away from the image when "
                  "the value moves. Open: the image leaves it free; the range kept, and why. "
                  "Open boxes' values vary in the preset's scenes (the target varies them "
-                 "too); other open values stay at one consistent value.</p>")
+                 "too); other open values stay at one consistent value, and the phase check "
+                 "tries the others, with what moves with them.</p>")
     parts.append("<table><tr><th>parameter</th><th>value</th><th>status</th><th>evidence</th>"
                  "<th>residual / range kept, why</th></tr>")
     for r in twin.records:
@@ -155,6 +156,11 @@ def report_html(twin: Twin, *, name: str) -> str:
             kept = (f"{r.range.lo:g} .. {r.range.hi:g}" if r.range is not None
                     else ", ".join(format_value(v) for v in r.values or ()))
             detail = f"{html.escape(kept)}: {html.escape(r.reason)}"
+            if r.moves_with:  # varied together: what each variant sets with it
+                detail += "; moves with it: " + html.escape("; ".join(
+                    f"{name} {', '.join(f'{v:g}' for v in at)}" for name, at in r.moves_with))
+            if r.gauge:
+                detail += " (not varied: every length scaled alike gives the same images)"
         parts.append(f"<tr><td><code>{r.name}</code></td><td>"
                      f"{html.escape(format_value(r.value))}</td><td class={r.status}>{r.status}"
                      f"</td><td>{html.escape(r.evidence)}</td><td>{detail}</td></tr>")
