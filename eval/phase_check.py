@@ -339,17 +339,17 @@ def open_variants(source: SceneSource) -> list[Variant]:
         own = params.get(name)
         if isinstance(own, Range) or name in companions:  # drawn per scene; moved by another
             continue
-        if entry.range is not None:
-            candidates = [entry.range.lo, entry.range.hi]
-            if PARAMETERS[name].kind == "int":
-                candidates = [round(v) for v in candidates]
-        else:
-            candidates = list(entry.values or ())
-        for value in dict.fromkeys(candidates):
+        points = ([entry.range.lo, entry.range.hi] if entry.range is not None
+                  else list(entry.values or ()))
+        tried: dict[Any, Any] = {}  # each value tried -> the point whose companions it takes
+        for point in points:
+            rounded = entry.range is not None and PARAMETERS[name].kind == "int"
+            tried.setdefault(round(point) if rounded else point, point)
+        for value, point in tried.items():
             same = (isinstance(value, (int, float)) and isinstance(own, (int, float))
                     and math.isclose(float(value), float(own), abs_tol=1e-9))
             if not same and value != own:
-                out.append(Variant(name, value, tuple(sorted(entry.at(value).items()))))
+                out.append(Variant(name, value, tuple(sorted(entry.at(point).items()))))
     return out
 
 
