@@ -26,6 +26,7 @@ import numpy as np
 
 from arenabench.generator import camera as cam
 from arenabench.generator.layout import floor_extent
+from arenabench.generator.preset_files import load_preset_file
 from arenabench.generator.scene import (
     IMAGE_TEXTURE,
     ArenaSpec,
@@ -264,8 +265,6 @@ def _camera_px(hidden: Scene, twin_camera: CameraSpec, twin_side: float) -> floa
 
 def _preset_light(p: dict[str, Any]):
     """The main light of a preset's fixed ``lighting.*`` parameters."""
-    from arenabench.generator.scene import DirectionalLight, LightingSpec
-
     el, az = math.radians(p["lighting.elevation_deg"]), math.radians(p["lighting.azimuth_deg"])
     d = (-math.cos(el) * math.cos(az), -math.cos(el) * math.sin(az), -math.sin(el))
     return LightingSpec(ambient=p["lighting.ambient"],
@@ -351,19 +350,18 @@ def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
     else:
         check("camera.fov_deg", hidden.camera.fov_deg, twin.camera.fov_deg,
               abs(hidden.camera.fov_deg - twin.camera.fov_deg) <= tol)
+    preset = load_preset_file(Path(twin_dir) / "preset.toml")
     if fov["status"] == "open":  # its variants move the camera along the trade the image pins
-        from arenabench.generator.preset_files import load_preset_file
-
-        preset = load_preset_file(Path(twin_dir) / "preset.toml")
         entry = preset.open["camera.fov_deg"]
         for end in (entry.range.lo, entry.range.hi):
             moved = _preset_camera({**preset.params, "camera.fov_deg": end, **entry.at(end)})
             px = _camera_px(hidden, moved, twin.arena.side_m)  # as the pinned camera's
             check(f"camera at fov {end:g} (image px)", 0.0, round(px, 3),
                   px <= TOLERANCES["camera_px"][0])
-        # a length open only up to scale is not varied (alone it gives another image)
-        gauge = sorted(k for k in preset.open if params[k].get("gauge"))
-        check("[open] without scale-only lengths", [], gauge, not gauge)
+    # a length open only up to scale is not varied (alone it gives another image)
+    gauge = sorted(k for k in params if params[k].get("gauge"))
+    check("scale-only lengths not in [open]", [], sorted(set(gauge) & set(preset.open)),
+          not set(gauge) & set(preset.open))
     if fov["status"] == "pinned":  # with an open field of view the tilt moves with it
         a, b = cam.world_from_camera(hidden.camera), cam.world_from_camera(twin.camera)
         turn = math.degrees(math.acos(float(np.clip(
@@ -392,11 +390,8 @@ def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
             want = _hidden_face(hidden, twin, face["box"], d)
             check(f"{d} face grey (seen, box {face['box']})", round(want, 1), face["gray"],
                   abs(want - face["gray"]) <= tol)
-        if params["lighting.azimuth_deg"]["status"] == "open":
+        if "lighting.azimuth_deg" in preset.open:
             # each light the phase check tries keeps the floor, the tops and the faces seen
-            from arenabench.generator.preset_files import load_preset_file
-
-            preset = load_preset_file(Path(twin_dir) / "preset.toml")
             entry = preset.open["lighting.azimuth_deg"]
             off = max(_light_off(twin, doc["shades"]["faces"], preset.params,
                                  {**preset.params, "lighting.azimuth_deg": az, **entry.at(az)})
@@ -448,8 +443,6 @@ def reference_pass_rate(twin_dir: Path, count: int, seed: int = 0) -> float:
     """The reference pipeline's pass rate (visible area reference) on scenes 0..count-1 of the
     twin's preset (``tests/pipelines/pass_rates.py``: each image written as the preset says)."""
     from pass_rates import score_preset
-
-    from arenabench.generator.preset_files import load_preset_file
 
     preset = load_preset_file(Path(twin_dir) / "preset.toml")
     tally = score_preset(preset.params, count=count, seed=seed, pipelines=("reference",),
