@@ -155,6 +155,7 @@ def evaluate(
     isolate: bool = False,
     timeout_s: float | None = None,
     spill: bool | None = None,
+    open_from: Any = None,
 ) -> Report:
     """Run ``pipeline`` on every image of ``dataset`` and score it.
 
@@ -196,6 +197,10 @@ def evaluate(
         (:class:`~arenabench.eval.datasets.result_store.ResultStore`; default: for runs of more than
         :data:`~arenabench.eval.datasets.result_store.SPILL_ABOVE` images). The report is the same
         either way; its ``images`` are then read back from the file when used.
+    open_from : ResolvedPreset, optional
+        The preset whose ``[open]`` table the phase check varies (default: the one the set's
+        ``dataset.json`` records). ``arenabench check`` passes the preset it was given: a
+        cached set made from the same parameters records the ``[open]`` table of its day.
 
     Returns
     -------
@@ -286,7 +291,8 @@ def evaluate(
             try:
                 results = _check_phases(results, data, pipe, phases=phases,
                                         tolerance=tolerance, area_reference=area_reference,
-                                        workers=n_workers, progress=progress)
+                                        workers=n_workers, progress=progress,
+                                        open_from=open_from)
             except Interrupted as exc:  # the images are scored; their phase check is not
                 interrupted = exc
             except HarnessError as exc:
@@ -365,7 +371,7 @@ def empty_report(*, pipeline: str, dataset: str, area_reference: str = DEFAULT_A
 
 def _check_phases(results: list[ImageResult], data: Dataset, pipe: Pipeline,
                   *, phases: int, tolerance: float, area_reference: str, workers: int,
-                  progress: bool) -> list[ImageResult]:
+                  progress: bool, open_from: Any = None) -> list[ImageResult]:
     """The phase check of a run's failing images (docs/phase-check.md)."""
     from arenabench.eval.phase_check import check_phases, checked, dataset_scene_source
     from arenabench.progress import progress as progress_bar
@@ -375,6 +381,9 @@ def _check_phases(results: list[ImageResult], data: Dataset, pipe: Pipeline,
         return results
     by_id = data.items_by_id(r.id for r in results)
     source = dataset_scene_source(data.root, None if data.meta is None else data.meta.doc)
+    if (source is not None and open_from is not None  # the preset's [open] of today
+            and source.preset.params == open_from.params):
+        source = replace(source, preset=replace(source.preset, open=dict(open_from.open)))
     with progress_bar(failing, desc=f"phase check {pipe.name}", enabled=progress) as bar:
         return check_phases(results, [by_id[r.id].gt for r in results], pipe.run,
                             phases=phases, tolerance=tolerance, area_reference=area_reference,

@@ -402,7 +402,7 @@ def _main(argv: list[str] | None) -> int:
                     return _error(f"twin set {twin}: {exc}")
                 print(f"{PROG}: {what} of {preset.name}, seed {args.seed}); report folder {out}")
                 report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
-                                  phases=phases)
+                                  phases=phases, open_from=preset)
             except (EvaluationInterrupted, EvaluationFailed, Interrupted) as exc:
                 # partial reports, marked INCOMPLETE
                 partial = (exc.report if isinstance(exc, (EvaluationInterrupted,

@@ -253,6 +253,27 @@ def test_an_always_wrong_pipeline_fails_every_phase(twin):
     assert pipe.calls == 1 + PHASES * (1 + len(opened))
 
 
+@pytest.mark.slow
+def test_the_open_table_given_is_varied_not_the_sets_old_one(twin, tmp_path):
+    """``check`` reuses a cached set made from the same parameters, whose ``dataset.json``
+    records the ``[open]`` table of its day; the preset file it is given now says what is
+    open (a twin made again, a range widened), and that is what the phase check varies."""
+    from dataclasses import replace
+
+    eyrc = builtin_preset("eyrc")
+    now = replace(eyrc, open={"lighting.east_fill": eyrc.open["lighting.east_fill"]})
+    report = evaluate(edge_phase.always_wrong, twin, workers=2, limit=1, phases=PHASES,
+                      open_from=now)
+    (r,) = report.images
+    assert [v.param for v in r.phase.variants] == ["lighting.east_fill"]
+    # other parameters: another set, and the set's own record stands
+    other = replace(now, params={**now.params, "camera.tilt_deg": 1.0})
+    report = evaluate(edge_phase.always_wrong, twin, workers=2, limit=1, phases=PHASES,
+                      open_from=other)
+    assert [v.param for v in report.images[0].phase.variants] == [
+        "lighting.east_fill", "lighting.west_fill"]
+
+
 def test_nothing_is_rerun_when_nothing_fails_or_the_check_is_off(twin):
     good = Counting(edge_phase.reference_answer)
     report = evaluate(good, twin, workers=2, phases=PHASES)
