@@ -323,8 +323,9 @@ def children_ignore_sigint() -> Iterator[None]:
         signal.signal(signal.SIGINT, previous)
 
 
-#: Seconds to wait for a child ended by SIGKILL to be reaped.
-KILLED_JOIN_S = 5.0
+#: Seconds to wait, in all, for the children ended by SIGKILL to be reaped (a loaded machine
+#: reaps late: a worker killed while it reads its imports from a busy disk).
+KILLED_JOIN_S = 10.0
 
 
 def stop_workers(*, grace_s: float = WORKER_GRACE_S,
@@ -350,8 +351,17 @@ def stop_workers(*, grace_s: float = WORKER_GRACE_S,
     deadline = time.monotonic() + grace_s
     for child in children:
         child.join(max(0.0, deadline - time.monotonic()))
-    for child in children:
-        if child.is_alive():
+    killed = [child for child in children if child.is_alive()]
+    for child in killed:
+        child.kill()
+    # SIGKILL cannot be refused, but a child in uninterruptible sleep (reading its imports
+    # from a busy disk, say) dies only when it leaves it: wait for each, up to KILLED_JOIN_S
+    # in all, sending SIGKILL again now and then
+    deadline = time.monotonic() + KILLED_JOIN_S
+    while killed and time.monotonic() < deadline:
+        for child in killed:
+            child.join(min(0.5, max(0.0, deadline - time.monotonic())))
+        killed = [child for child in killed if child.is_alive()]
+        for child in killed:
             child.kill()
-            child.join(KILLED_JOIN_S)  # SIGKILL cannot be refused; a busy machine reaps late
     return len(children)
