@@ -110,13 +110,6 @@ class CameraFit:
     fov_range: tuple[float, float] | None = None
     fov_ends: tuple[dict[str, float], dict[str, float]] | None = None
 
-    @property
-    def altitude_range(self) -> tuple[float, float] | None:
-        """The altitudes (the fit's units) at the ends of :attr:`fov_range`."""
-        if self.fov_ends is None:
-            return None
-        return self.fov_ends[0]["altitude_m"], self.fov_ends[1]["altitude_m"]
-
 
 #: Field-of-view offsets (deg) scanned by :func:`fov_range`, nearest first, each way, until
 #: the markers no longer fit as well. Out to 32 deg: seen 2 deg from the nadir, markers can fit
