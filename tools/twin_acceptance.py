@@ -6,9 +6,14 @@ two orientations, field of view and tilt), the greys (floor, background, box top
 seen), the marker squares of the fitted scene's render (8 px around each marker, mean absolute
 grey difference from the example), the box ranges of the preset against eyrc's, and with
 ``--count N`` the pass counts of the nine competition styles (tests/pipelines) on N scenes of
-the twin's preset and of eyrc (seed 0)::
+the twin's preset and of eyrc (seed 0), and with ``--phases N`` the counts each style is
+expected to reach over N sub-pixel phases of every scene (two of the styles follow sub-pixel
+blends: their count at one phase moves by several scenes under a camera change of half a
+millimetre, which no image pins)::
 
     PYTHONPATH=tests/pipelines .venv/bin/python tools/twin_acceptance.py --count 200
+    PYTHONPATH=tests/pipelines .venv/bin/python tools/twin_acceptance.py --skip-build \
+        --count 200 --phases 8    # and each scene's pass share over 8 sub-pixel phases
     .venv/bin/python tools/twin_acceptance.py --skip-build --out /tmp/acc   # reuse the twins
 
 (``--count`` scores with ``tests/pipelines/pass_rates.py``: that folder on ``PYTHONPATH``.)
@@ -55,11 +60,17 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--out", type=Path, default=Path("/tmp/twin-acceptance"))
     p.add_argument("--count", type=int, default=0, help="scenes for the pass counts (0: none)")
+    p.add_argument("--phases", type=int, default=0,
+                   help="also the pass counts over N sub-pixel phases of every scene (the "
+                        "phase check's offsets; needs --count)")
     p.add_argument("--skip-build", action="store_true", help="reuse the twins in --out")
     args = p.parse_args(argv)
+    if args.phases < 0 or (args.phases and not args.count):
+        print("--phases N: N >= 1, with --count", file=sys.stderr)
+        return 2
     if args.count:  # before any work
         try:
-            from pass_rates import PIPELINES, score_preset
+            from pass_rates import PIPELINES, score_phases, score_preset
         except ImportError:
             print("--count needs tests/pipelines on PYTHONPATH (see --help)", file=sys.stderr)
             return 2
@@ -109,6 +120,11 @@ def main(argv: list[str] | None = None) -> int:
               + f"), box edges {fig['mad']['box edges']:.3f}, faces {fig['mad']['faces']:.3f}, "
               f"floor {fig['mad']['floor']:.3f}, whole {fig['whole']:.3f}, SSIM "
               f"{fig['ssim']:.4f}")
+        if "detector_corners_px" in fig:
+            from arenabench.generator.twin.markers import detector_offset_text
+
+            print("  the default detector's corners on the render: " + detector_offset_text(
+                {int(k): v for k, v in fig["detector_corners_px"].items()}))
         diffs = [f"{k} {format_value(preset.params[k])} (eyrc {format_value(eyrc[k])})"
                  for k in KEYS if preset.params[k] != eyrc[k]]
         print("  box ranges: " + ("equal to eyrc's" if not diffs else "; ".join(diffs)))
@@ -132,6 +148,23 @@ def main(argv: list[str] | None = None) -> int:
                  for n in names[1:]}
         print("\nlargest difference from eyrc (scenes of " + str(args.count) + "): "
               + ", ".join(f"{n} {v}" for n, v in worst.items()))
+    if args.phases:
+        expected = {}
+        for name, preset in presets.items():
+            t = time.monotonic()
+            expected[name] = score_phases(preset, count=args.count, phases=args.phases)
+            print(f"phase-averaged counts of {name} done in {time.monotonic() - t:.0f} s",
+                  file=sys.stderr)
+        names = list(presets)
+        print(f"\nexpected passes over {args.phases} phases of each scene\n"
+              f"| pipeline | {' | '.join(names)} |\n|---|" + "---|" * len(names))
+        for spec in PIPELINES:
+            row = [f"{expected[n][spec]:.1f}" for n in names]
+            print(f"| `{spec.removesuffix(':detect')}` | {' | '.join(row)} |")
+        worst = {n: max(abs(expected[n][s] - expected["eyrc"][s]) for s in PIPELINES)
+                 for n in names[1:]}
+        print(f"\nlargest difference from eyrc over the phases (scenes of {args.count}): "
+              + ", ".join(f"{n} {v:.1f}" for n, v in worst.items()))
     return 0
 
 

@@ -51,7 +51,11 @@ from arenabench.generator.twin import camera_fit as cf
 from arenabench.generator.twin import records as rec
 from arenabench.generator.twin.edge_evidence import EdgeEvidence, outline_band, read_edges
 from arenabench.generator.twin.image_file import FileFacts, as_written, read_file_facts
-from arenabench.generator.twin.markers import MarkerFinding, find_markers
+from arenabench.generator.twin.markers import (
+    MarkerFinding,
+    detector_offset_text,
+    find_markers,
+)
 from arenabench.generator.twin.regions import (
     RegionFigures,
     marker_squares,
@@ -328,7 +332,8 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
     masks = region_masks(scene, finding, gray.shape)
     figures = region_figures(render_gray, gray, masks, finding)
     steps.done("figures", f"marker squares {figures.mad['markers']:.2f} grey levels, whole "
-                          f"image {figures.whole:.2f}")
+                          f"image {figures.whole:.2f}; the default detector's corners "
+                          f"{detector_offset_text(figures.detector_px)}")
     params = _preset_params(scene, varied, facts_file)
     facts = {
         "image": {"file": image_path.name, "width": width, "height": height,
@@ -356,7 +361,8 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
         "figures": {"mad": figures.mad, "pixels": figures.pixels,
                     "per_marker": {str(k): v for k, v in figures.per_marker.items()},
                     "whole": figures.whole,
-                    "ssim": round(ssim(render_gray, gray), 5)},
+                    "ssim": round(ssim(render_gray, gray), 5),
+                    "detector_corners_px": {str(k): v for k, v in figures.detector_px.items()}},
     }
     records = _records(scene, params, fit, shades, edges, edge_table, facts_file, finding,
                        varied, scale_source, figures, renderer, gray)

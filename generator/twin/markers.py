@@ -112,6 +112,52 @@ def _detect(gray: np.ndarray, name: str, *, refine: bool) -> dict[int, np.ndarra
             zip(ids.ravel(), corners, strict=True)}
 
 
+def detector_corner_offsets(gray: np.ndarray, finding: MarkerFinding) -> dict[int, float | None]:
+    """How far ``cv2.aruco``'s default detector (no corner refinement: what competition
+    scripts call) reports ``finding``'s markers on ``gray`` from where it reports them on the
+    image ``finding`` was made from.
+
+    The default detector's corners are whole pixels read off a thresholded outline, so two
+    images whose sub-pixel corners agree within a tenth of a pixel can still give corners a
+    pixel or two apart; a script that warps the arena from them then sees another frame.
+
+    Parameters
+    ----------
+    gray : ndarray
+        (H, W) uint8 image of the same arena (a twin's render of the fitted scene).
+    finding : MarkerFinding
+        The markers found on the image (their ``detector_corners``).
+
+    Returns
+    -------
+    dict
+        Marker id -> the largest of its four corners' distances (px), or ``None`` where the
+        detector does not find that marker on ``gray``.
+    """
+    if gray.ndim != 2 or gray.dtype != np.uint8:
+        raise ValueError(f"gray must be an (H, W) uint8 image, got {gray.shape} {gray.dtype}")
+    found = _detect(gray, finding.dictionary, refine=False)
+    out: dict[int, float | None] = {}
+    for corner, marker_id in zip(CORNER_ORDER, finding.ids, strict=True):
+        quad = found.get(marker_id)
+        out[marker_id] = (None if quad is None else round(float(np.linalg.norm(
+            quad - finding.detector_corners[corner], axis=1).max()), 3))
+    return out
+
+
+def detector_offset_text(offsets: dict[int, float | None]) -> str:
+    """``detector_corner_offsets`` in words: "at the same pixels", "within 2 px (...)" or
+    which markers the detector misses."""
+    missed = [str(k) for k, v in offsets.items() if v is None]
+    if missed:
+        return f"marker(s) {', '.join(missed)} not found by the default detector"
+    worst = max(offsets.values(), default=0.0)
+    if worst == 0:
+        return "at the same pixels"
+    return (f"within {worst:g} px ("
+            + ", ".join(f"{k}: {v:g}" for k, v in offsets.items()) + ")")
+
+
 def marker_bits(gray: np.ndarray, quad: np.ndarray, size: int) -> np.ndarray:
     """The (size, size) bits inside a marker's border, read at its cell centres (Otsu
     threshold of the marker's own pixels), in the marker's own orientation (corner 0 top left)."""

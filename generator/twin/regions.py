@@ -6,6 +6,9 @@ faces, floor; and the figures of each (mean absolute grey difference).
 - **box edges**: pixels within 2 px of the fitted boxes' image outlines;
 - **faces**: the boxes' images, their edges left out;
 - **floor**: the floor square's pixels outside the other regions.
+
+Beside the differences, where the default ``cv2.aruco`` detector puts the markers' corners on
+the render against the image (whole pixels: what scripts that warp from them see).
 """
 
 from __future__ import annotations
@@ -19,7 +22,7 @@ from arenabench.generator import camera as cam
 from arenabench.generator.layout import box_vertices, floor_extent
 from arenabench.generator.scene import Scene
 from arenabench.generator.twin.edge_evidence import outline_band
-from arenabench.generator.twin.markers import MarkerFinding
+from arenabench.generator.twin.markers import MarkerFinding, detector_corner_offsets
 from arenabench.generator.twin.shades import floor_square_mask
 
 #: Pixels around each marker's bounding square in the "markers" region.
@@ -42,12 +45,17 @@ class RegionFigures:
         Marker id -> the difference in its square.
     whole : float
         Over the whole image.
+    detector_px : dict
+        Marker id -> how far the default ``cv2.aruco`` detector's corners on the render are
+        from its corners on the image (px; ``None``: not found on the render), by
+        :func:`~arenabench.generator.twin.markers.detector_corner_offsets`.
     """
 
     mad: dict[str, float | None]
     pixels: dict[str, int]
     per_marker: dict[int, float]
     whole: float
+    detector_px: dict[int, float | None]
 
 
 def marker_squares(finding: MarkerFinding, shape: tuple[int, int],
@@ -94,7 +102,8 @@ def region_figures(render_gray: np.ndarray, real_gray: np.ndarray,
     per = {i: round(float(diff[m].mean()), 4)
            for i, m in sorted(marker_squares(finding, real_gray.shape).items())}
     return RegionFigures(mad, {k: int(m.sum()) for k, m in masks.items()}, per,
-                         round(float(diff.mean()), 4))
+                         round(float(diff.mean()), 4),
+                         detector_corner_offsets(render_gray, finding))
 
 
 def difference_image(render_gray: np.ndarray, real_gray: np.ndarray, *,

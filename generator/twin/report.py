@@ -29,6 +29,7 @@ table{border-collapse:collapse;font-size:13px}td,th{border:1px solid #ccc;paddin
 vertical-align:top;text-align:left}th{background:#f2f2f2}.pinned{color:#175}.open{color:#a50}
 figure{display:inline-block;margin:4px 8px 4px 0;text-align:center;font-size:12px}
 img{image-rendering:pixelated;border:1px solid #bbb}.note{color:#555;font-size:13px}
+.warn{color:#a50}
 """
 
 
@@ -37,6 +38,26 @@ def _png(bgr: np.ndarray) -> str:
     if not ok:  # pragma: no cover - OpenCV failure
         raise RuntimeError("PNG encoding failed")
     return "data:image/png;base64," + base64.b64encode(buf.tobytes()).decode("ascii")
+
+
+def _detector_note(offsets: dict[str, float | None]) -> str:
+    """The default detector's corners on the render against the image, and what it means
+    for scripts that warp from them."""
+    from arenabench.generator.twin.markers import detector_offset_text
+
+    said = detector_offset_text({int(k): v for k, v in offsets.items()})
+    if said == "at the same pixels":
+        return ("<p>The default <code>cv2.aruco</code> detector (no corner refinement, as "
+                "competition scripts call it) reports the markers' corners on the twin's "
+                "render at the same pixels as on the image.</p>")
+    return ("<p class=warn>The default <code>cv2.aruco</code> detector (no corner "
+            "refinement, as competition scripts call it) reports the markers' corners on the "
+            f"twin's render {html.escape(said)} from where it reports them on the image. Its "
+            "corners are whole pixels read off a thresholded outline: they follow the markers' "
+            "finest blends, which the twin matches only as well as the marker squares' "
+            "difference says. A script that warps the arena from them sees a frame that much "
+            "off on the twin's scenes, so its results can differ from the real tests' even "
+            "where the method is sound; a script that refines the corners does not.</p>")
 
 
 def _img(bgr: np.ndarray, caption: str, *, width: int | None = None) -> str:
@@ -113,6 +134,7 @@ def report_html(twin: Twin, *, name: str) -> str:
     parts.append("<h3>Markers</h3><p class=note>Each marker's square, 8 px around it "
                  f"(zoom {MARKER_ZOOM}x); per marker: "
                  + ", ".join(f"{k}: {v:.2f}" for k, v in fig["per_marker"].items()) + "</p>")
+    parts.append(_detector_note(fig["detector_corners_px"]))
     from arenabench.generator.twin.markers import find_markers
     from arenabench.generator.twin.regions import marker_squares, region_masks
 

@@ -21,7 +21,13 @@ from arenabench.generator.scene import (
     load_scene,
 )
 from arenabench.generator.twin import camera_fit as cf
-from arenabench.generator.twin.markers import DICTIONARIES, MarkersNotFoundError, find_markers
+from arenabench.generator.twin.markers import (
+    DICTIONARIES,
+    MarkersNotFoundError,
+    detector_corner_offsets,
+    detector_offset_text,
+    find_markers,
+)
 
 IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
 SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
@@ -57,6 +63,27 @@ def test_two_markers_are_not_an_arena(example):
     with pytest.raises(MarkersNotFoundError, match=r"found 2 marker\(s\) of DICT_4X4_100 "
                                                    r"\(ids 80, 85\), not four"):
         find_markers(half)
+
+
+def test_the_default_detectors_corners_are_compared_in_whole_pixels(example):
+    found = find_markers(example)
+    same = detector_corner_offsets(example, found)
+    assert same == {80: 0.0, 85: 0.0, 90: 0.0, 95: 0.0}
+    assert detector_offset_text(same) == "at the same pixels"
+    # the image moved by one pixel right and two down: every corner moves by sqrt(5) px
+    moved = np.full_like(example, 248)
+    moved[2:, 1:] = example[:-2, :-1]
+    assert detector_corner_offsets(moved, found) == {k: round(5 ** 0.5, 3) for k in same}
+    assert detector_offset_text(detector_corner_offsets(moved, found)).startswith("within 2.236 px")
+    # one marker painted over: named, not a distance
+    quad = found.detector_corners["se"]
+    (x0, y0), (x1, y1) = quad.min(0).astype(int) - 4, quad.max(0).astype(int) + 4
+    hidden = example.copy()
+    hidden[y0:y1, x0:x1] = 248
+    gone = detector_corner_offsets(hidden, found)
+    assert gone[found.ids[2]] is None and gone[found.ids[0]] == 0.0
+    assert detector_offset_text(gone) == (f"marker(s) {found.ids[2]} not found by the default "
+                                          "detector")
 
 
 @pytest.mark.slow

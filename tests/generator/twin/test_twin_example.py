@@ -100,6 +100,14 @@ def test_the_fitted_scene_matches_the_examples_marker_squares(twin):
     assert figures["mad"]["markers"] <= MARKER_SQUARES, figures
 
 
+def test_the_default_detector_sees_the_markers_at_the_examples_pixels(twin):
+    """Scripts that warp from the default detector's whole-pixel corners see the example's
+    frame on the twin's render."""
+    figures = json.loads((twin / "twin.json").read_text())["figures"]
+    assert figures["detector_corners_px"] == {"80": 0.0, "85": 0.0, "90": 0.0, "95": 0.0}
+    assert "at the same pixels" in (twin / "report.html").read_text()
+
+
 def test_the_box_ranges_are_eyrcs(params, eyrc):
     """What varies, drawn around the example's two boxes, lands on the ranges found by hand
     from the competition's world files."""
