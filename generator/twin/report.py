@@ -45,14 +45,19 @@ def _detector_note(offsets: dict[str, float | None]) -> str:
     for scripts that warp from them."""
     from arenabench.generator.twin.markers import detector_offset_text
 
-    said = detector_offset_text({int(k): v for k, v in offsets.items()})
-    if said == "at the same pixels":
+    said = html.escape(detector_offset_text({int(k): v for k, v in offsets.items()}))
+    if any(v is None for v in offsets.values()):
+        return (f"<p class=warn>On the twin's render, {said} (<code>cv2.aruco</code>, no "
+                "corner refinement, as competition scripts call it), which finds it on the "
+                "image: scripts that use that detector can fail the twin's scenes where they pass "
+                "the real ones.</p>")
+    if all(v == 0 for v in offsets.values()):
         return ("<p>The default <code>cv2.aruco</code> detector (no corner refinement, as "
                 "competition scripts call it) reports the markers' corners on the twin's "
                 "render at the same pixels as on the image.</p>")
     return ("<p class=warn>The default <code>cv2.aruco</code> detector (no corner "
             "refinement, as competition scripts call it) reports the markers' corners on the "
-            f"twin's render {html.escape(said)} from where it reports them on the image. Its "
+            f"twin's render {said} from where it reports them on the image. Its "
             "corners are whole pixels read off a thresholded outline: they follow the markers' "
             "finest blends, which the twin matches only as well as the marker squares' "
             "difference says. A script that warps the arena from them sees a frame that much "

@@ -86,6 +86,16 @@ def test_the_default_detectors_corners_are_compared_in_whole_pixels(example):
                                           "detector")
 
 
+def test_the_twins_report_says_what_the_detectors_corners_mean():
+    from arenabench.generator.twin.report import _detector_note
+
+    assert "at the same pixels" in _detector_note({"80": 0.0, "85": 0.0})
+    off = _detector_note({"80": 2.236, "85": 0.0})
+    assert "class=warn" in off and "within 2.236 px (80: 2.236, 85: 0)" in off
+    missed = _detector_note({"80": None, "85": 0.0})
+    assert "class=warn" in missed and "marker(s) 80 not found" in missed
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize(("dictionary", "ids", "rotation"), [
     ("DICT_5X5_250", (3, 17, 42, 199), 90.0),
