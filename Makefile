@@ -20,6 +20,11 @@ $(STAMP): pyproject.toml
 	@# setuptools warns on every editable install that a folder named like the package could
 	@# shadow it (10 lines; none here): hide that one warning, by its text; errors still show
 	PYTHONWARNINGS="ignore:Editable installation" $(PY) -m pip install --quiet -e '.[test]'
+	@# pyrender pins PyOpenGL 3.1.0, which cannot render on Python 3.12+: install the release
+	@# that can over it, where this Python needs it (arenabench.glplatform says which)
+	@req=$$($(PY) -c 'from arenabench.glplatform import pyopengl_requirement as r; print(r())') \
+	  && if [ -n "$$req" ]; then echo "installing $$req over pyrender's PyOpenGL pin (this Python cannot render with 3.1.0)"; \
+	  $(PY) -m pip install --quiet --no-deps "$$req"; fi
 	@touch $(STAMP)
 
 venv: $(STAMP)

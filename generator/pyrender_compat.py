@@ -59,6 +59,9 @@ IMPORT_WITHOUT = ("scipy",)
 
 def _import_pyrender():
     glplatform.configure()  # before the first import of pyrender / OpenGL
+    problem = glplatform.pyopengl_problem()
+    if problem:  # it would fail only at the first texture, deep in a render
+        raise ImportError(problem)
     alone = threading.active_count() == 1
     held = [name for name in IMPORT_WITHOUT if alone and name not in sys.modules]
     for name in held:

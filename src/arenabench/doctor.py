@@ -42,7 +42,8 @@ import json, sys
 from arenabench import glplatform
 platform = glplatform.configure()
 import numpy as np
-import pyrender, trimesh
+from arenabench.generator.pyrender_compat import pyrender  # the generator's import and checks
+import trimesh
 from OpenGL import GL
 mesh = pyrender.Mesh.from_trimesh(trimesh.creation.box(extents=(1, 1, 1)), smooth=False)
 scene = pyrender.Scene(bg_color=[0, 0, 0, 1], ambient_light=[1.0, 1.0, 1.0])
@@ -196,6 +197,25 @@ def check_pyrender(installed: str | None = None) -> Check:
     return Check("pyrender", True, version or "installed")
 
 
+def check_pyopengl(installed: str | None = None, python: tuple[int, int] | None = None) -> Check:
+    """PyOpenGL can render on this Python (pyrender's pinned 3.1.0 cannot from Python 3.12).
+
+    Parameters
+    ----------
+    installed, python : optional
+        As :func:`arenabench.glplatform.pyopengl_problem`'s (default: this interpreter's).
+    """
+    if installed is None:
+        installed = _version("PyOpenGL")
+        if installed is None:
+            return Check("pyopengl", False, "not installed", PYRENDER_FIX)
+    problem = glplatform.pyopengl_problem(installed, python)
+    if problem:
+        return Check("pyopengl", False, problem.split(";")[0],
+                     f"pip install --no-deps '{glplatform.PYOPENGL_REQUIREMENT}'")
+    return Check("pyopengl", True, installed)
+
+
 def check_gl_platform() -> tuple[Check, str | None]:
     """Which OpenGL platform :func:`arenabench.glplatform.configure` will use."""
     try:
@@ -329,11 +349,12 @@ def run_checks(*, context: bool = True, timeout: float = CHECK_TIMEOUT_S) -> Doc
     """
     if timeout <= 0:
         raise ValueError(f"timeout must be > 0, got {timeout!r}")
-    checks = [check_python(), check_numpy(), *check_opencv(), check_pyrender()]
+    renders = [check_pyrender(), check_pyopengl()]
+    checks = [check_python(), check_numpy(), *check_opencv(), *renders]
     platform_check, platform = check_gl_platform()
     checks.append(platform_check)
     if context:
-        if checks[-2].ok:
+        if renders[0].ok:
             checks.append(check_offscreen_context(platform, timeout=timeout))
         else:
             checks.append(Check("offscreen context", False, "skipped: pyrender missing",

@@ -13,6 +13,7 @@ display. :func:`configure` must therefore run before ``import pyrender``. Order 
 from __future__ import annotations
 
 import ctypes.util
+import importlib.metadata
 import os
 import sys
 from dataclasses import dataclass
@@ -21,8 +22,17 @@ from dataclasses import dataclass
 EGL_PACKAGES = ("libegl1", "libegl-mesa0", "libgl1-mesa-dri")
 #: Debian/Ubuntu package that provides OSMesa.
 OSMESA_PACKAGES = ("libosmesa6",)
-#: PyOpenGL release that has working OSMesa bindings (pyrender pins 3.1.0, which lacks some).
-OSMESA_PYOPENGL = "PyOpenGL==3.1.7"
+#: The PyOpenGL release that renders everywhere. pyrender pins 3.1.0, which lacks some OSMesa
+#: bindings and cannot render on Python 3.12 or later (its array handlers reject ctypes'
+#: argument objects: ``ctypes.ArgumentError`` at the first ``glGenTextures``). With this
+#: release the generator's renders are byte-identical to 3.1.0's (docs/rendering.md).
+PYOPENGL_RELEASE = (3, 1, 7)
+#: The requirement that installs it (over pyrender's pin: ``pip install --no-deps``).
+PYOPENGL_REQUIREMENT = "PyOpenGL==" + ".".join(map(str, PYOPENGL_RELEASE))
+#: PyOpenGL release that has working OSMesa bindings.
+OSMESA_PYOPENGL = PYOPENGL_REQUIREMENT
+#: The first Python on which pyrender's PyOpenGL 3.1.0 cannot render.
+PYOPENGL_310_BROKEN_FROM = (3, 12)
 #: The one pyrender release the renderer supports (pinned exactly in pyproject.toml): the
 #: generator uses its private API (arenabench.generator.pyrender_compat checks it on import).
 PYRENDER_VERSION = "0.1.45"
@@ -58,6 +68,51 @@ def find_gl_libraries() -> GLLibraries:
 def install_hint() -> str:
     """The one command that makes EGL off-screen rendering work on Debian/Ubuntu."""
     return "apt-get install -y " + " ".join(EGL_PACKAGES)
+
+
+def _release(version: str) -> tuple[int, ...]:
+    """``"3.1.0"`` -> ``(3, 1, 0)``; a part that is not a number ends the tuple."""
+    parts = []
+    for part in version.split("."):
+        if not part.isdigit():
+            break
+        parts.append(int(part))
+    return tuple(parts)
+
+
+def pyopengl_problem(installed: str | None = None,
+                     python: tuple[int, int] | None = None) -> str | None:
+    """Why the installed PyOpenGL cannot render on this Python, or None when it can.
+
+    Parameters
+    ----------
+    installed : str, optional
+        PyOpenGL's version (default: the installed one; None when it is not installed).
+    python : tuple of int, optional
+        (major, minor) of the interpreter (default: this one).
+
+    Returns
+    -------
+    str or None
+        One line naming both versions and the command that fixes it.
+    """
+    if installed is None:
+        try:
+            installed = importlib.metadata.version("PyOpenGL")
+        except importlib.metadata.PackageNotFoundError:
+            return None  # pyrender's own import says what is missing
+    python = tuple(python or sys.version_info[:2])
+    if python < PYOPENGL_310_BROKEN_FROM or _release(installed) >= PYOPENGL_RELEASE:
+        return None
+    return (f"PyOpenGL {installed} (pyrender's pin) cannot render on Python "
+            f"{python[0]}.{python[1]}; install {PYOPENGL_REQUIREMENT} over it with: "
+            f"pip install --no-deps '{PYOPENGL_REQUIREMENT}'")
+
+
+def pyopengl_requirement() -> str:
+    """The PyOpenGL requirement to install over pyrender's pin here, or ``""`` when none is
+    needed (``make`` installs it after the project)."""
+    return PYOPENGL_REQUIREMENT if pyopengl_problem() else ""
 
 
 def choose_platform(libs: GLLibraries | None = None) -> str:
@@ -106,4 +161,9 @@ def configure() -> str:
             f"PYOPENGL_PLATFORM={platform} in the environment or import arenabench first"
         )
     os.environ["PYOPENGL_PLATFORM"] = platform
+    if platform == "egl":
+        # pyrender imports pyglet's window module (for its viewer) at import; pyglet then
+        # loads X11 libraries (libX11, libXrender) that GPU servers and containers often
+        # lack, and the import fails. Headless, pyglet uses EGL instead (renders unchanged).
+        os.environ.setdefault("PYGLET_HEADLESS", "true")
     return platform
