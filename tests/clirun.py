@@ -25,11 +25,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from arenabench.cli import main
+from arenabench.glplatform import PROCESS_ENV
 
 #: Variables set for the rest of the process, by design: the OpenGL platform is chosen once,
-#: before the first ``import OpenGL`` (:func:`arenabench.glplatform.configure`); OpenCV's
+#: before the first ``import OpenGL`` (:data:`arenabench.glplatform.PROCESS_ENV`); OpenCV's
 #: loader extends the library path at its first import.
-PROCESS_WIDE_ENV = frozenset({"PYOPENGL_PLATFORM", "LD_LIBRARY_PATH"})
+PROCESS_WIDE_ENV = frozenset({*PROCESS_ENV, "LD_LIBRARY_PATH"})
 
 _SIGNALS = (signal.SIGINT, signal.SIGTERM, signal.SIGPIPE, signal.SIGCHLD)
 

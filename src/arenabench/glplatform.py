@@ -38,6 +38,11 @@ PYOPENGL_310_BROKEN_FROM = (3, 12)
 PYRENDER_VERSION = "0.1.45"
 
 
+#: The environment variables :func:`configure` sets for the rest of the process (read once, at
+#: the first import of OpenGL and of pyglet).
+PROCESS_ENV = ("PYOPENGL_PLATFORM", "PYGLET_HEADLESS")
+
+
 class GLPlatformError(RuntimeError):
     """No usable off-screen OpenGL platform; the message says what to install."""
 
