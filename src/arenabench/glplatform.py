@@ -25,7 +25,7 @@ OSMESA_PACKAGES = ("libosmesa6",)
 #: The PyOpenGL release that renders everywhere. pyrender pins 3.1.0, which lacks some OSMesa
 #: bindings and cannot render on Python 3.12 or later (its array handlers reject ctypes'
 #: argument objects: ``ctypes.ArgumentError`` at the first ``glGenTextures``). With this
-#: release the generator's renders are byte-identical to 3.1.0's (docs/rendering.md).
+#: release the generator's renders are byte-identical to 3.1.0's (docs/commands.md).
 PYOPENGL_RELEASE = (3, 1, 7)
 #: The requirement that installs it (over pyrender's pin: ``pip install --no-deps``).
 PYOPENGL_REQUIREMENT = "PyOpenGL==" + ".".join(map(str, PYOPENGL_RELEASE))
