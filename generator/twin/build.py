@@ -35,6 +35,7 @@ import numpy as np
 from arenabench.generator import camera as cam
 from arenabench.generator import competition_arena as comp
 from arenabench.generator import texture_store
+from arenabench.generator.layout import floor_extent
 from arenabench.generator.params import Range, Value
 from arenabench.generator.presets import resolve
 from arenabench.generator.scene import (
@@ -302,8 +303,12 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
             real, scene, shades, finding)))
         scene = _sheet_white(scene, gray, finding, steps, floor=_grey(shades.floor_rgb))
         checkpoint()
+        margin = scene.arena.margin_m
         texture_rgb, scene, fit = _own_texture(real, gray, scene, fit, shades, finding,
                                                renderer, options, steps)
+        if scale_source == "floor edge" and scene.arena.margin_m != margin:
+            # the printed markers' texel grid placed the floor's edge: that edge is the size
+            scale = options.arena_size_m[0] / (2.0 * floor_extent(scene.arena))
         steps.done("texture", f"rectified from the image, {texture_rgb.shape[1]} texels a "
                               f"side; camera {fit.camera.altitude_m:.4f} m up, marker side "
                               f"{scene.markers.side_m:.4f} m")
@@ -385,13 +390,15 @@ def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
                  steps: _Steps) -> tuple[np.ndarray, Scene, cf.CameraFit]:
     """Without a texture: the markers either drawn as the generator draws marker sheets, or
     painted into a texture rectified from the image; for each, the camera (and the marker
-    side, the quiet zone of drawn ones) refined on its render, and the one whose marker
-    squares match the image better kept; then the texture rectified through that camera and
-    corrected by back-projection."""
+    side, the quiet zone of drawn ones, the texel grid of painted ones) refined on its render,
+    and the one whose marker squares match the image better kept; then the texture rectified
+    through that camera and corrected by back-projection."""
     from arenabench.generator.twin.rectify import (
         Rectification,
         marker_side_search,
         rectified_arena,
+        texel_grid_search,
+        with_extent,
         with_texture,
     )
 
@@ -430,19 +437,30 @@ def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
     painted = replace(scene, markers=replace(scene.markers, printed=True, quiet_zone_m=0.0))
     fit_p = fit
     cost_p = math.inf
+    texels = None
     if best_q[0] > DRAWN_MATCH:
+        grid = texel_grid_search(real, gray, painted, shades.box_mask, squares, renderer,
+                                 progress=steps.say)
+        texels = grid.side
+        steps.say(f"texel grid: {texels} texels a side over "
+                  f"{grid.extent_m / floor_extent(scene.arena):.5f} of the floor's extent as "
+                  f"its edge gave it, the markers' outer corners on texel boundaries "
+                  f"({grid.cost:.2f} grey levels over the marker squares)")
+        painted = with_extent(painted, grid.extent_m)
+        rect = Rectification(real, painted, shades.box_mask, texels=texels)
         side, cost_p = marker_side_search(gray, painted, rect, squares, renderer)
         painted = replace(painted, markers=replace(painted.markers, side_m=side))
         fit_p = replace(fit_p, marker_side_m=side)
         steps.say(f"markers painted into the texture: {cost_p:.2f} grey levels over the marker "
                   "squares")
     if best_q[0] <= cost_p:
-        chosen, fit = replace(drawn, arena=scene.arena), fit_d
-    else:
-        chosen, fit = replace(painted, arena=scene.arena), fit_p
+        chosen, fit, texels = replace(drawn, arena=scene.arena), fit_d, None
+    else:  # the floor's extent the texel grid gives
+        chosen, fit = replace(painted, arena=replace(scene.arena,
+                                                     margin_m=painted.arena.margin_m)), fit_p
     chosen = replace(chosen, obstacles=scene.obstacles)
     texture_rgb, chosen = rectified_arena(real, chosen, shades.box_mask, renderer,
-                                          progress=steps.say)
+                                          texels=texels, progress=steps.say)
     return texture_rgb, chosen, fit
 
 
@@ -798,8 +816,9 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                            else rec.pinned("markers.side_m", params["markers.side_m"],
                                            "fitted to the markers' pixels with the camera"))
     if scene.arena.texture == IMAGE_TEXTURE and scale_source != "texture":
-        how = ("painted into the rectified texture (their pixels fit better so than drawn as "
-               "marker sheets)" if scene.markers.printed else
+        how = ("painted into the rectified texture, on the texel grid that puts their outer "
+               "corners on texel boundaries and matches them best (their pixels fit better so "
+               "than drawn as marker sheets)" if scene.markers.printed else
                "drawn as marker sheets over the rectified texture (their pixels match the "
                "image's better than painted ones, or within 1.5 grey levels)")
         r["markers.printed"] = rec.pinned("markers.printed", params["markers.printed"], how)
@@ -826,6 +845,10 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                                      "the image fixes the arena only up to scale (no "
                                      "--arena-size or texture): any size, every length "
                                      "scaled alike", gauge=True)
+        elif (scale_source == "floor edge" and scene.markers.printed
+              and scene.arena.texture == IMAGE_TEXTURE):
+            r[name] = rec.pinned(name, params[name], "from the floor edge, placed to within "
+                                 "a texel by the texel grid of the printed markers")
         else:
             r[name] = rec.pinned(name, params[name], f"from the {scale_source}")
     r["arena.floor_rgb"] = rec.pinned("arena.floor_rgb", params["arena.floor_rgb"],

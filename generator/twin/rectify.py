@@ -10,12 +10,16 @@ Sampling a texture twice (once by the camera that took the image, once by the tw
 blurs it twice; so the texture is then corrected by back-projection (:data:`ROUNDS` rounds): the
 twin's render of the floor, boxes left out, is compared with the image, and the difference,
 looked up through the same map, is added to the texture.
+
+Markers painted into the texture (where drawn sheets do not match the image) are painted on
+the texel grid that matches them best (:func:`texel_grid_search`): their finest blends, and
+the default ArUco detector's whole-pixel corners with them, depend on it.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import cv2
 import numpy as np
@@ -33,6 +37,40 @@ ROUNDS = 4
 TEXELS_PER_PX = 2.0
 #: The largest texture side.
 MAX_TEXELS = 2048
+#: Painted markers: the texture sides tried (:func:`texel_grid_search`) lie in this range.
+GRID_SIDES = (2048, 4096)
+#: ... and put the markers' outer corners this many texels apart from the texture's edge: an
+#: arena image is drawn on its own pixel grid, so its markers' outer edges lie on pixel
+#: boundaries (the competition's: 144 texels in, a multiple of 16), and on the boundaries of
+#: the texture's first mipmap levels too, which a renderer blends between at these scales.
+GRID_ALIGN = 4
+#: Then sides this far either way of the best, each with the floor's extent that keeps the
+#: markers' corners on the same boundary: the extent moves by under 0.05 %, which the
+#: floor's edge in the image places no better (about 0.6 mm of 3.7 m).
+GRID_REFINE = 12
+
+
+@dataclass(frozen=True)
+class TexelGrid:
+    """The grid painted markers are printed on: ``side`` texels over a floor square of half
+    side ``extent_m`` (scene units); ``cost`` the painted markers' difference from the image
+    (mean absolute grey over the marker squares)."""
+
+    side: int
+    extent_m: float
+    cost: float
+
+
+def aligned_extent(scene: Scene, side: int, inside: int) -> float:
+    """The floor square's half side (scene units) on which a grid of ``side`` texels puts
+    ``scene``'s markers' outer corners ``inside`` texels in from the texture's edge."""
+    return scene.arena.side_m / 2.0 / (1.0 - 2.0 * inside / side)
+
+
+def with_extent(scene: Scene, extent_m: float) -> Scene:
+    """``scene`` with its floor square's half side ``extent_m`` (the margin changed)."""
+    return replace(scene, arena=replace(scene.arena,
+                                        margin_m=round(extent_m - scene.arena.side_m / 2, 9)))
 #: Pixels around the boxes left out of the texture (their edges blend with the floor).
 BOX_PAD_PX = 4
 
@@ -59,6 +97,27 @@ def texture_side(scene: Scene) -> int:
     while n < TEXELS_PER_PX * px_per_side and n < MAX_TEXELS:
         n *= 2
     return n
+
+
+def aligned_sides(scene: Scene, *, sides: tuple[int, int] = GRID_SIDES,
+                  align: int = GRID_ALIGN) -> list[int]:
+    """Texture sides within ``sides`` on which ``scene``'s markers' outer corners lie a
+    multiple of ``align`` texels in from the texture's edge (the floor square's edge), the
+    nearest whole side to each such grid.
+
+    Raises
+    ------
+    ValueError
+        When the arena's floor has no margin outside the markers (nothing to align).
+    """
+    e = floor_extent(scene.arena)
+    share = (e - scene.arena.side_m / 2.0) / (2.0 * e)  # texels in, per texel a side
+    if share <= 0:
+        raise ValueError(f"arena.margin_m must be > 0 to align a texel grid, got "
+                         f"{scene.arena.margin_m!r}")
+    lo, hi = sides
+    ks = range(int(np.ceil(lo * share / align)), int(np.floor(hi * share / align)) + 1)
+    return sorted({round(align * k / share) for k in ks})
 
 
 def paint_markers(texture: np.ndarray, scene: Scene, *, supersample: int = 4) -> np.ndarray:
@@ -157,9 +216,12 @@ class Rectification:
     """The floor square looked up in the image through ``scene``'s camera (the texture before
     its markers are painted and before back-projection), with what it could not see."""
 
-    def __init__(self, real_bgr: np.ndarray, scene: Scene, box_mask: np.ndarray) -> None:
+    def __init__(self, real_bgr: np.ndarray, scene: Scene, box_mask: np.ndarray, *,
+                 texels: int | None = None, fill_hidden: bool = True) -> None:
+        """``texels``: the texture's side (default :func:`texture_side`); ``fill_hidden``:
+        inpaint the texels under the boxes (not needed where only the markers are looked at)."""
         self.scene = scene
-        n = texture_side(scene)
+        n = texture_side(scene) if texels is None else int(texels)
         self.mx, self.my = texel_map(scene, n)
         h, w = real_bgr.shape[:2]
         seen = (self.mx >= 0) & (self.mx <= w - 1) & (self.my >= 0) & (self.my <= h - 1)
@@ -180,7 +242,7 @@ class Rectification:
         texture = np.clip(raw * self.scale, 0, 255)
         texture[~seen] = 255.0
         texture = texture.astype(np.uint8)
-        if (hidden & seen).any():
+        if fill_hidden and (hidden & seen).any():
             texture = cv2.inpaint(texture, (hidden & seen).astype(np.uint8), 5,
                                   cv2.INPAINT_TELEA)
         self.texture = texture
@@ -218,13 +280,14 @@ class Rectification:
 
 
 def rectified_arena(real_bgr: np.ndarray, scene: Scene, box_mask: np.ndarray, renderer, *,
-                    rounds: int = ROUNDS,
+                    rounds: int = ROUNDS, texels: int | None = None,
                     progress: Callable[[str], None] | None = None) -> tuple[np.ndarray, Scene]:
-    """The texture (RGB uint8, row 0 north) and ``scene`` showing it (``arena.texture`` image,
-    its texture held in memory, which the caller keeps when it is the twin's): the markers
-    painted into it when ``scene.markers.printed``, else left to the drawn sheets (the
-    texture under them untouched)."""
-    rect = Rectification(real_bgr, scene, box_mask)
+    """The texture (RGB uint8, row 0 north; ``texels`` a side, default :func:`texture_side`)
+    and ``scene`` showing it (``arena.texture`` image, its texture held in memory, which the
+    caller keeps when it is the twin's): the markers painted into it when
+    ``scene.markers.printed``, else left to the drawn sheets (the texture under them
+    untouched)."""
+    rect = Rectification(real_bgr, scene, box_mask, texels=texels)
     if scene.markers.printed:
         texture, keep = rect.painted(scene)
     else:
@@ -234,21 +297,82 @@ def rectified_arena(real_bgr: np.ndarray, scene: Scene, box_mask: np.ndarray, re
                              progress=progress)
 
 
+def painted_cost(real_gray: np.ndarray, scene: Scene, rect: Rectification, mask,
+                 renderer) -> float:
+    """Mean absolute grey difference in ``mask`` between the image and the render of
+    ``scene``'s markers painted into ``rect``'s texture (boxes left out)."""
+    checkpoint()
+    s = replace(scene, markers=replace(scene.markers, printed=True))
+    texture, _ = rect.painted(s)
+    shown = with_texture(replace(s, obstacles=()), texture)
+    got = cv2.cvtColor(renderer.render(shown).rgb, cv2.COLOR_RGB2GRAY)[mask]
+    return float(np.abs(got - real_gray.astype(np.float64)[mask]).mean())
+
+
+def texel_grid_search(real_bgr: np.ndarray, real_gray: np.ndarray, scene: Scene,
+                      box_mask: np.ndarray, mask, renderer, *,
+                      sides: tuple[int, int] = GRID_SIDES, refine: int = GRID_REFINE,
+                      progress: Callable[[str], None] | None = None) -> TexelGrid:
+    """The texel grid whose painted markers match the image best in ``mask``.
+
+    A printed marker's finest blends (the default detector's whole-pixel corners follow them)
+    depend on the grid of the texture it was printed on: its outer edges sharp where they
+    lie on texel boundaries, its modules blended as they fall across texels. The image gives
+    neither the grid's side nor, to a texel at the markers, the floor's extent. First the
+    sides within ``sides`` that put the outer corners on boundaries at the floor's own
+    extent (:func:`aligned_sides`; 27 between 2,048 and 4,096 texels for the competition's
+    arena); then the ``refine`` sides either way of the best, each with the extent that keeps
+    the corners on the same boundary. The painted markers' difference picks one out
+    (docs/measurements.md).
+
+    Raises
+    ------
+    ValueError
+        When ``sides`` holds no aligned side.
+    """
+    tried = aligned_sides(scene, sides=sides)
+    if not tried:
+        raise ValueError(f"sides {sides!r} hold no side that aligns the markers' corners")
+    e = floor_extent(scene.arena)
+    half = scene.arena.side_m / 2.0
+
+    def cost(n: int, extent: float) -> float:
+        s = with_extent(scene, extent)
+        rect = Rectification(real_bgr, s, box_mask, texels=n, fill_hidden=False)
+        return painted_cost(real_gray, s, rect, mask, renderer)
+
+    best = None
+    for i, n in enumerate(tried, 1):
+        grid = TexelGrid(n, e, cost(n, e))
+        if best is None or grid.cost < best.cost:
+            best = grid
+        if progress:
+            progress(f"texel grid {i}/{len(tried)}: {n} texels a side, {grid.cost:.2f} grey "
+                     f"levels (best {best.side}: {best.cost:.2f})")
+    inside = round((e - half) * best.side / (2.0 * e))  # texels from the edge to the corners
+    near = [n for n in range(best.side - refine, best.side + refine + 1)
+            if n != best.side and n > 2 * inside]
+    for i, n in enumerate(near, 1):
+        extent = aligned_extent(scene, n, inside)
+        grid = TexelGrid(n, extent, cost(n, extent))
+        if grid.cost < best.cost:
+            best = grid
+        if progress:
+            progress(f"texel grid, refined {i}/{len(near)}: {n} texels over "
+                     f"{extent / e:.5f} of the floor's extent, {grid.cost:.2f} grey levels "
+                     f"(best {best.side}: {best.cost:.2f})")
+    return best
+
+
 def marker_side_search(real_gray: np.ndarray, scene: Scene, rect: Rectification, mask,
                        renderer, *, span: float = 0.01, count: int = 9
                        ) -> tuple[float, float]:
     """The marker side (within ``span`` of ``scene``'s, relative) whose painted markers,
     rendered, match the image best in ``mask`` (mean absolute grey difference): a grid of
     ``count`` sides, then a parabola through the best three. Returns (side, difference)."""
-    target = real_gray.astype(np.float64)[mask]
-
     def cost(side: float) -> float:
-        checkpoint()
-        s = replace(scene, markers=replace(scene.markers, side_m=side, printed=True))
-        texture, _ = rect.painted(s)
-        shown = with_texture(replace(s, obstacles=()), texture)
-        got = cv2.cvtColor(renderer.render(shown).rgb, cv2.COLOR_RGB2GRAY)[mask]
-        return float(np.abs(got - target).mean())
+        s = replace(scene, markers=replace(scene.markers, side_m=side))
+        return painted_cost(real_gray, s, rect, mask, renderer)
 
     base = scene.markers.side_m
     sides = np.linspace(base * (1 - span), base * (1 + span), count)
