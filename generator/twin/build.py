@@ -439,15 +439,19 @@ def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
     cost_p = math.inf
     texels = None
     if best_q[0] > DRAWN_MATCH:
-        grid = texel_grid_search(real, gray, painted, shades.box_mask, squares, renderer,
-                                 progress=steps.say)
-        texels = grid.side
-        steps.say(f"texel grid: {texels} texels a side over "
-                  f"{grid.extent_m / floor_extent(scene.arena):.5f} of the floor's extent as "
-                  f"its edge gave it, the markers' outer corners on texel boundaries "
-                  f"({grid.cost:.2f} grey levels over the marker squares)")
-        painted = with_extent(painted, grid.extent_m)
-        rect = Rectification(real, painted, shades.box_mask, texels=texels)
+        try:
+            grid = texel_grid_search(real, gray, painted, shades.box_mask, squares, renderer,
+                                     progress=steps.say)
+        except ValueError as exc:  # no floor outside the markers: no boundary to align to
+            steps.say(f"texel grid: the default one ({exc})")
+        else:
+            texels = grid.side
+            steps.say(f"texel grid: {texels} texels a side over "
+                      f"{grid.extent_m / floor_extent(scene.arena):.5f} of the floor's extent "
+                      f"as its edge gave it, the markers' outer corners on texel boundaries "
+                      f"({grid.cost:.2f} grey levels over the marker squares)")
+            painted = with_extent(painted, grid.extent_m)
+            rect = Rectification(real, painted, shades.box_mask, texels=texels)
         side, cost_p = marker_side_search(gray, painted, rect, squares, renderer)
         painted = replace(painted, markers=replace(painted.markers, side_m=side))
         fit_p = replace(fit_p, marker_side_m=side)
