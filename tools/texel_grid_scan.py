@@ -51,8 +51,6 @@ def _start(scene_path: str, image_path: str) -> None:
 
 
 def _cost(job: tuple[int, float]) -> dict:
-    import cv2
-
     from arenabench.frame import CORNER_ORDER
     from arenabench.generator import camera as cam
     from arenabench.generator.layout import floor_extent, marker_corners_world
@@ -62,9 +60,7 @@ def _cost(job: tuple[int, float]) -> dict:
     base = _STATE["scene"]
     e = floor_extent(base.arena)
     scale = n * (2 * e * COMPETITION_SCALE / COMPETITION_SIDE) * texel_rel / (2 * e)
-    arena = replace(base.arena, margin_m=(base.arena.side_m / 2 + base.arena.margin_m) * scale
-                    - base.arena.side_m / 2)
-    scene = replace(base, arena=arena)
+    scene = rectify.with_extent(base, e * scale)
     k, pose = cam.intrinsics(scene.camera), cam.world_from_camera(scene.camera)
     squares = np.zeros(_STATE["gray"].shape, bool)
     for corner in CORNER_ORDER:
@@ -74,14 +70,10 @@ def _cost(job: tuple[int, float]) -> dict:
         x1, y1 = np.ceil(px.max(0)).astype(int) + 8
         squares[y0:y1, x0:x1] = True
     printed = replace(scene, markers=replace(scene.markers, printed=True, quiet_zone_m=0.0))
-    rectify.texture_side = lambda _scene, n=n: n  # the side tried, not the power of two
     t = time.perf_counter()
-    texture, _ = rectify.Rectification(_STATE["real"], printed, _STATE["boxes"]).painted(printed)
-    rgb = _STATE["renderer"].render(rectify.with_texture(replace(printed, obstacles=()),
-                                                         texture)).rgb
-    gray = cv2.cvtColor(rgb, cv2.COLOR_RGB2GRAY).astype(float)
-    return {"n": n, "texel_rel": texel_rel, "scale": scale,
-            "cost": float(np.abs(gray - _STATE["gray"])[squares].mean()),
+    rect = rectify.Rectification(_STATE["real"], printed, _STATE["boxes"], texels=n)
+    cost = rectify.painted_cost(_STATE["gray"], printed, rect, squares, _STATE["renderer"])
+    return {"n": n, "texel_rel": texel_rel, "scale": scale, "cost": cost,
             "s": time.perf_counter() - t}
 
 

@@ -48,6 +48,8 @@ GRID_ALIGN = 4
 #: markers' corners on the same boundary: the extent moves by under 0.05 %, which the
 #: floor's edge in the image places no better (about 0.6 mm of 3.7 m).
 GRID_REFINE = 12
+#: Pixels around the boxes left out of the texture (their edges blend with the floor).
+BOX_PAD_PX = 4
 
 
 @dataclass(frozen=True)
@@ -71,8 +73,6 @@ def with_extent(scene: Scene, extent_m: float) -> Scene:
     """``scene`` with its floor square's half side ``extent_m`` (the margin changed)."""
     return replace(scene, arena=replace(scene.arena,
                                         margin_m=round(extent_m - scene.arena.side_m / 2, 9)))
-#: Pixels around the boxes left out of the texture (their edges blend with the floor).
-BOX_PAD_PX = 4
 
 
 def texel_map(scene: Scene, texels: int) -> tuple[np.ndarray, np.ndarray]:
