@@ -396,6 +396,7 @@ def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
     from arenabench.generator.twin.rectify import (
         Rectification,
         marker_side_search,
+        painted_cost,
         rectified_arena,
         texel_grid_search,
         with_extent,
@@ -431,9 +432,11 @@ def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
     drawn, best_q = quiet_zone(drawn)
     steps.say(f"markers drawn as sheets: {best_q[0]:.2f} grey levels over the marker squares "
               f"(quiet zone {best_q[1]:g} modules)")
-    # painted into the texture: the marker model's camera kept (how a printed marker's pixels
-    # look depends on the unknown texel grid of the texture it was printed on, which a render
-    # at another grid cannot match: the camera would follow the aliasing, not the geometry)
+    # painted into the texture: how a printed marker's pixels look depends on the texel grid
+    # of the texture it was printed on, which a render at another grid cannot match (a camera
+    # refined there follows the aliasing, not the geometry); so the grid is searched first,
+    # and only on the grid found is the camera refined on the render of the painted markers
+    # (on the default grid the marker model's camera is kept)
     painted = replace(scene, markers=replace(scene.markers, printed=True, quiet_zone_m=0.0))
     fit_p = fit
     cost_p = math.inf
@@ -455,6 +458,14 @@ def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
         side, cost_p = marker_side_search(gray, painted, rect, squares, renderer)
         painted = replace(painted, markers=replace(painted.markers, side_m=side))
         fit_p = replace(fit_p, marker_side_m=side)
+        if texels is not None:
+            shown = with_texture(painted, rect.painted(painted)[0])
+            fit_p = cf.refine_with_renderer(fit_p, shown, gray, squares, renderer,
+                                            snap=options.snap, progress=steps.say)
+            painted = replace(painted, camera=fit_p.camera)
+            rect = Rectification(real, painted, shades.box_mask, texels=texels,
+                                 fill_hidden=False)
+            cost_p = painted_cost(gray, painted, rect, squares, renderer)
         steps.say(f"markers painted into the texture: {cost_p:.2f} grey levels over the marker "
                   "squares")
     if best_q[0] <= cost_p:

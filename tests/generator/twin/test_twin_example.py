@@ -2,7 +2,8 @@
 reproduces ``eyrc``'s preset file (generator/assets/presets/eyrc.toml, its only source): the
 camera, the greys, the edges and the JPEG settings, and the camera the competition's world
 file puts there (generator/competition_world.py). The hand-found facts are evidence the twin
-finds again from the image."""
+finds again from the image. Given no texture, only the floor's size, it finds the same camera
+and matches the example's marker squares within the same bound."""
 
 from __future__ import annotations
 
@@ -38,6 +39,18 @@ def twin(tmp_path_factory) -> Path:
     proc = subprocess.run([sys.executable, "-m", "arenabench", "twin", str(IMAGE), "--out",
                            str(out), "--texture", str(TEXTURE), "--arena-size", "3.7,3.7",
                            "--no-progress"], capture_output=True, text=True)
+    assert proc.returncode == 0, proc.stderr
+    return out
+
+
+@pytest.fixture(scope="module")
+def own(tmp_path_factory) -> Path:
+    """The twin of the example given no texture, only the floor's size (its markers painted
+    into a texture rectified from the image)."""
+    out = tmp_path_factory.mktemp("twin") / "own"
+    proc = subprocess.run([sys.executable, "-m", "arenabench", "twin", str(IMAGE), "--out",
+                           str(out), "--arena-size", "3.7,3.7", "--no-progress"],
+                          capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
     return out
 
@@ -142,3 +155,20 @@ def test_the_field_of_view_is_varied_with_the_camera_that_keeps_the_markers(twin
         moved = np.linalg.norm(corners({**params, "camera.fov_deg": end, **entry.at(end)})
                                - base, axis=1)
         assert alone.max() > 2.0 and moved.max() < 0.5, (end, alone.max(), moved.max())
+
+
+@pytest.mark.parametrize("source", ["eyrc.toml", "competition_world"])
+def test_without_a_texture_the_camera_is_eyrcs(own, eyrc, source):
+    want = _camera(eyrc) if source == "eyrc.toml" else competition_camera()
+    got = _camera(load_preset_file(own / "preset.toml").params)
+    metres, degrees = _apart(got, want)
+    assert metres <= METRES and degrees <= DEGREES, (metres, degrees, got, want)
+    assert abs(got.fov_deg - want.fov_deg) <= DEGREES
+
+
+def test_without_a_texture_the_fitted_scene_matches_the_examples_marker_squares(own):
+    """The markers painted into the rectified texture, on the texel grid the image picks and
+    under the camera refined on their render."""
+    figures = json.loads((own / "twin.json").read_text())["figures"]
+    assert figures["mad"]["markers"] <= MARKER_SQUARES, figures
+    assert figures["detector_corners_px"] == {"80": 0.0, "85": 0.0, "90": 0.0, "95": 0.0}
