@@ -9,6 +9,11 @@ case, with the tolerances of :data:`TOLERANCES`; :func:`round_trip` does all thr
 ``arenabench twin`` as a user would, on the image file alone; :func:`reference_pass_rate`
 scores the reference pipeline on scenes of the twin's preset. ``tools/twin_round_trips.py`` runs the
 full set and prints the figures; ``tests/generator/twin/test_twin_blind.py`` a few cases.
+
+A picture floor's markers are, in about half the cases (:data:`PRINTED_SHARE`), printed on
+the picture as an arena's author prints them (:func:`_print_markers`: sRGB means, not the
+twin's painter), on a texture side the twin is not told; then the twin has to find the texel
+grid they were printed on, and :func:`compare` checks it.
 """
 
 from __future__ import annotations
@@ -62,6 +67,13 @@ TOLERANCES: dict[str, tuple[float, str]] = {
     "marker_squares": (1.5, "the bound asked for: mean absolute grey difference of the fitted "
                             "scene's render in the squares 8 px around each marker"),
     "pass_rate": (0.95, "the reference pipeline on 100 scenes of the twin's preset"),
+    "texel": (0.25, "markers printed on an image: the twin's texel grid against the hidden "
+                    "one across a marker (texels, both grids with the markers' outer corners "
+                    "on a texel boundary): the relative error of the texel's width over the "
+                    "arena's side times the marker's side in hidden texels; a quarter texel "
+                    "is the step of the twin's painter (4 samples a texel), and the texture's "
+                    "own side is not pinned, only the texel (the floor beyond the markers may "
+                    "lie outside the image)"),
 }
 
 
@@ -121,6 +133,77 @@ def _floor_image(rng: np.random.Generator, texels: int = 1024) -> np.ndarray:
         y = int(rng.integers(0, texels))
         cv2.line(out, (0, y), (texels - 1, y), (150, 150, 150), int(rng.integers(2, 6)))
     return out
+
+
+#: An image arena's markers are printed on its texture in this share of the cases that have one
+#: (drawn apart from the other draws, so the other cases stay as they were).
+PRINTED_SHARE = 0.5
+#: The sides of a texture markers are printed on (texels; the twin's search covers
+#: 2,048-4,096, :data:`arenabench.generator.twin.rectify.GRID_SIDES`).
+PRINTED_SIDES = (2100, 4000)
+#: Samples a texel (a side) of the printer; its blends are sRGB means, as an image editor or an
+#: SVG rasteriser makes them (the competition's texture: 230 where a marker's edge covers a
+#: fifth of a texel), not the twin's painter's linear-light ones.
+PRINTER_SAMPLES = 8
+
+
+def _print_markers(texture: np.ndarray, arena: ArenaSpec, markers: MarkerSpec) -> np.ndarray:
+    """``texture`` (RGB, covering ``arena``'s floor square) with the four markers printed on it
+    by an arena's author: each marker's module image (``cv2.aruco.generateImageMarker``, one
+    pixel a module) placed at its corners (:func:`~arenabench.generator.layout.
+    marker_corners_world`, the generator's convention), every texel the sRGB mean of
+    :data:`PRINTER_SAMPLES` squared samples."""
+    from arenabench.frame import CORNER_ORDER
+    from arenabench.generator.layout import marker_corners_world
+
+    out = texture.copy()
+    n = out.shape[0]
+    e = floor_extent(arena)
+    texel = 2.0 * e / n
+    mk = markers
+    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, mk.dictionary))
+    cells = d.markerSize + 2
+    offs = (np.arange(PRINTER_SAMPLES) + 0.5) / PRINTER_SAMPLES
+    for corner, marker_id in zip(CORNER_ORDER, mk.ids, strict=True):
+        modules = cv2.aruco.generateImageMarker(d, int(marker_id), cells, borderBits=1)
+        c = marker_corners_world(arena, mk, corner)  # image TL, TR, BR, BL
+        inv = np.linalg.inv(np.column_stack([c[1] - c[0], c[3] - c[0]]))
+        j0, j1 = (int(np.floor((c[:, 0].min() + e) / texel)) - 1,
+                  int(np.ceil((c[:, 0].max() + e) / texel)) + 1)
+        i0, i1 = (int(np.floor((e - c[:, 1].max()) / texel)) - 1,
+                  int(np.ceil((e - c[:, 1].min()) / texel)) + 1)
+        block = out[i0:i1, j0:j1].astype(np.float64)
+        total = np.zeros(block.shape)
+        jj, ii = np.meshgrid(np.arange(j0, j1), np.arange(i0, i1))
+        for dy in offs:
+            for dx in offs:
+                x, y = (jj + dx) * texel - e, e - (ii + dy) * texel
+                uv = np.einsum("ij,jkl->ikl", inv, np.stack([x - c[0, 0], y - c[0, 1]]))
+                ok = (uv[0] >= 0) & (uv[0] < 1) & (uv[1] >= 0) & (uv[1] < 1)
+                cu = np.clip((uv[0] * cells).astype(int), 0, cells - 1)
+                cv = np.clip((uv[1] * cells).astype(int), 0, cells - 1)
+                total += np.where(ok[..., None], modules[cv, cu][..., None].astype(float), block)
+        out[i0:i1, j0:j1] = np.rint(total / PRINTER_SAMPLES ** 2).astype(np.uint8)
+    return out
+
+
+def _printed(seed: int, arena: ArenaSpec, markers: MarkerSpec, floor: np.ndarray
+             ) -> tuple[ArenaSpec, MarkerSpec, np.ndarray] | None:
+    """For an image arena, whether its markers are printed on its texture (drawn from ``seed``
+    apart from the case's other draws): if so the arena with the margin that puts the
+    markers' outer corners a multiple of 4 texels in from the texture's edge on a side drawn
+    in :data:`PRINTED_SIDES` (an author places them on the image's pixel grid), the markers
+    printed, and the texture at that side with them printed on it; else None."""
+    rng = np.random.default_rng(np.random.SeedSequence([seed, 0x7717, 2]))
+    if rng.random() >= PRINTED_SHARE:
+        return None
+    n = int(rng.integers(*PRINTED_SIDES))
+    e = floor_extent(arena)
+    k = 4 * max(1, round(arena.margin_m * n / (2.0 * e) / 4))  # texels in, as near as drawn
+    arena = replace(arena, margin_m=round(k * arena.side_m / (n - 2 * k), 9))
+    markers = replace(markers, printed=True, quiet_zone_m=0.0)
+    big = cv2.resize(floor, (n, n), interpolation=cv2.INTER_LINEAR)
+    return arena, markers, _print_markers(big, arena, markers)
 
 
 def _boxes(rng: np.random.Generator, arena: ArenaSpec, markers: MarkerSpec,
@@ -205,9 +288,30 @@ def hidden_case(seed: int, *, image_px: int | None = None) -> HiddenCase:
                   render=RenderSpec(edge_samples=int(rng.choice([2, 4])),
                                     edge_resolve=str(rng.choice(["linear", "srgb"]))))
     png = rng.random() < 0.3
+    printed = _printed(seed, arena, markers, texture) if texture is not None else None
+    if printed is not None:
+        arena, markers, texture = printed
+        scene = replace(scene, arena=arena, markers=markers)
     return HiddenCase(seed=seed, scene=scene, file_format="png" if png else "jpeg",
                       jpeg_quality=int(rng.integers(80, 101)),
                       jpeg_subsampling=str(rng.choice(["420", "422", "444"])), texture=texture)
+
+
+def hidden_scene(case: HiddenCase, folder: Path) -> Scene:
+    """``case``'s scene as the renderer takes it: an image arena's texture written into a
+    private subfolder of ``folder`` (``.hidden``, which the twin is not told about) and
+    imported."""
+    scene = case.scene
+    if case.texture is None:
+        return scene
+    hidden = Path(folder) / ".hidden"
+    hidden.mkdir(parents=True, exist_ok=True)
+    path = hidden / f"floor-{case.seed}.png"
+    cv2.imwrite(str(path), cv2.cvtColor(case.texture, cv2.COLOR_RGB2BGR))
+    side = round(2.0 * floor_extent(scene.arena), 6)  # the image covers the floor square
+    return replace(scene, arena=replace(scene.arena, texture=IMAGE_TEXTURE,
+                                        texture_file=import_texture(path),
+                                        texture_size_m=(side, side)))
 
 
 def write_case(case: HiddenCase, folder: Path, renderer) -> Path:
@@ -217,17 +321,7 @@ def write_case(case: HiddenCase, folder: Path, renderer) -> Path:
 
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
-    scene = case.scene
-    if case.texture is not None:
-        hidden = folder / ".hidden"
-        hidden.mkdir(exist_ok=True)
-        path = hidden / f"floor-{case.seed}.png"
-        cv2.imwrite(str(path), cv2.cvtColor(case.texture, cv2.COLOR_RGB2BGR))
-        side = round(2.0 * floor_extent(scene.arena), 6)  # the image covers the floor square
-        scene = replace(scene, arena=replace(scene.arena, texture=IMAGE_TEXTURE,
-                                             texture_file=import_texture(path),
-                                             texture_size_m=(side, side)))
-    bgr = cv2.cvtColor(renderer.render(scene).rgb, cv2.COLOR_RGB2BGR)
+    bgr = cv2.cvtColor(renderer.render(hidden_scene(case, folder)).rgb, cv2.COLOR_RGB2BGR)
     data = encode_image(bgr, image_format=case.file_format, jpeg_quality=case.jpeg_quality,
                         jpeg_subsampling=case.jpeg_subsampling)
     out = folder / case.image_name
@@ -398,6 +492,20 @@ def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
                       for az in entry.values or ())
             check(f"shades seen, {len(entry.values or ()) - 1} other lights (grey levels)", 0.0,
                   round(off, 2), off <= tol)
+    printed = params.get("markers.printed")
+    if printed is not None and printed["status"] == "pinned":  # drawn sheets or printed
+        check("markers.printed", hidden.markers.printed, printed["value"],
+              hidden.markers.printed == printed["value"])
+        if hidden.markers.printed and printed["value"]:  # on the texel grid found
+            texels = cv2.imread(str(Path(twin_dir) / params["arena.texture_file"]["value"]),
+                                cv2.IMREAD_UNCHANGED).shape[1]
+            hidden_texel = 2.0 * floor_extent(hidden.arena) / case.texture.shape[1]
+            want = hidden_texel / hidden.arena.side_m
+            got = twin.arena.texture_size_m[0] / texels / twin.arena.side_m
+            drift = abs(got / want - 1.0) * hidden.markers.side_m / hidden_texel
+            check(f"printed markers' texel grid (texels of drift across a marker; texture "
+                  f"sides {case.texture.shape[1]}, {texels})", 0.0, round(drift, 3),
+                  drift <= TOLERANCES["texel"][0])
     check("obstacles seen", len(hidden.obstacles), len(twin.obstacles),
           len(hidden.obstacles) == len(twin.obstacles))
     for name, want in (("render.edge_samples", hidden.render.edge_samples),
