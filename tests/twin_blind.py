@@ -160,13 +160,12 @@ def _print_markers(texture: np.ndarray, arena: ArenaSpec, markers: MarkerSpec) -
     n = out.shape[0]
     e = floor_extent(arena)
     texel = 2.0 * e / n
-    mk = markers
-    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, mk.dictionary))
+    d = cv2.aruco.getPredefinedDictionary(getattr(cv2.aruco, markers.dictionary))
     cells = d.markerSize + 2
     offs = (np.arange(PRINTER_SAMPLES) + 0.5) / PRINTER_SAMPLES
-    for corner, marker_id in zip(CORNER_ORDER, mk.ids, strict=True):
+    for corner, marker_id in zip(CORNER_ORDER, markers.ids, strict=True):
         modules = cv2.aruco.generateImageMarker(d, int(marker_id), cells, borderBits=1)
-        c = marker_corners_world(arena, mk, corner)  # image TL, TR, BR, BL
+        c = marker_corners_world(arena, markers, corner)  # image TL, TR, BR, BL
         inv = np.linalg.inv(np.column_stack([c[1] - c[0], c[3] - c[0]]))
         j0, j1 = (int(np.floor((c[:, 0].min() + e) / texel)) - 1,
                   int(np.ceil((c[:, 0].max() + e) / texel)) + 1)

@@ -30,15 +30,13 @@ STYLE = "style_otsu_every_contour:detect"
 
 
 def corners_px(scene) -> np.ndarray:
-    """Image px of the four markers' corners, (4, 4, 2)."""
-    from arenabench.frame import CORNER_ORDER
+    """Image px of the 16 marker corners (:func:`~arenabench.generator.twin.camera_fit.
+    world_corners`' order), (16, 2)."""
     from arenabench.generator import camera as cam
-    from arenabench.generator.layout import marker_corners_world
+    from arenabench.generator.twin.camera_fit import world_corners
 
-    k, pose = cam.intrinsics(scene.camera), cam.world_from_camera(scene.camera)
-    return np.array([cam.project(np.column_stack([w, np.zeros(4)]), k, pose)
-                     for w in (marker_corners_world(scene.arena, scene.markers, c)
-                               for c in CORNER_ORDER)])
+    return cam.project(world_corners(scene.arena, scene.markers),
+                       cam.intrinsics(scene.camera), cam.world_from_camera(scene.camera))
 
 
 def main(argv: list[str] | None = None) -> int:

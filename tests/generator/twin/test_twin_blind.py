@@ -63,7 +63,6 @@ def test_the_twin_is_given_the_image_alone(tmp_path, renderer):
     assert sorted(p.name for p in tmp_path.iterdir()) == [".hidden", image.name]
 
 
-
 def test_printed_markers_lie_where_the_generator_places_markers():
     """The cases whose markers are printed on their image texture (tests/twin_blind.py's own
     printer, not the twin's painter): on the texture itself, the detector's sub-pixel corners
