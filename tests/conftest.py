@@ -1,12 +1,41 @@
-"""Fixtures shared by the test modules of external commands."""
+"""The fixtures shared by every test module: the run folders of external commands, the
+generated sets and the renderer every module reads, and the competition's Python environment,
+each made once per run. The tiers are a plugin of their own (tests/tiers.py)."""
 
 from __future__ import annotations
 
 import tempfile
 
 import pytest
+from shared_data import SharedSets, file_lock, shared_root
 
 from arenabench.eval.runs.context import RunContext
+
+# tiers: the tiers' markers, --tier and the budget summary (tests/tiers.py); pytester: the
+# tier selection is tested on a toy suite
+pytest_plugins = ["tiers", "pytester"]
+
+# ------------------------------------------------------------------------ shared run data
+
+
+@pytest.fixture(scope="session")
+def shared_sets(tmp_path_factory):
+    """Generated datasets keyed by (preset, count, seed, GENERATOR_VERSION), rendered once per
+    run whichever worker asks first (tests/shared_data.py); read-only: a test that changed one
+    fails the run here."""
+    sets = SharedSets(shared_root(tmp_path_factory.getbasetemp()) / "shared-sets")
+    yield sets
+    changed = sets.verify()
+    assert changed == [], f"a test wrote into a shared set: {changed[:5]}"
+
+
+@pytest.fixture(scope="session")
+def renderer():
+    """One off-screen renderer for every test of this worker that renders in process."""
+    from arenabench.generator.render import Renderer
+
+    with Renderer() as r:
+        yield r
 
 
 @pytest.fixture()
@@ -31,11 +60,14 @@ def runs(run_tmp):
 @pytest.fixture(scope="session")
 def competition_cache(tmp_path_factory):
     """A cache folder (``ARENABENCH_CACHE_DIR``) holding the competition's Python environment,
-    made once per test session from the package index exactly as ``arenabench check`` makes it
-    (a real second virtual environment with the competition's numpy and OpenCV)."""
+    made once per run for every worker from the package index exactly as ``arenabench check``
+    makes it (a real second virtual environment with the competition's numpy and OpenCV; the
+    product's own build lock makes the other workers wait for it and reuse it)."""
     from arenabench.eval.runs.competition_env import competition_python
 
-    cache = tmp_path_factory.mktemp("competition-cache")
+    cache = shared_root(tmp_path_factory.getbasetemp()) / "competition-cache"
+    with file_lock(cache.with_name(cache.name + ".lock")):
+        cache.mkdir(exist_ok=True)
     made = competition_python(cache=cache, progress=False, prog="tests")
     if made.source != "competition":
         pytest.fail(f"the competition environment could not be made: {made.problem}")

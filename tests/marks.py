@@ -1,11 +1,12 @@
-"""Which cases of a parametrized test the inner loop runs.
+"""Which cases of a parametrized test the inner loop (the ``unit`` tier) runs.
 
-``make test-fast`` deselects tests marked ``slow``; ``make test`` (and CI) runs every case. A
-family of cases that each start processes, render scenes or run a command end to end keeps one
-or two representatives in the inner loop and marks the rest slow::
+``make test-fast`` runs the ``unit`` tier; ``make test`` (and CI) runs ``integration`` too
+(tests/tiers.py). A family of cases that each start processes, render scenes or run a command
+end to end keeps one or two representatives in the inner loop and marks the rest
+``integration``::
 
-    @pytest.mark.parametrize("name", slow_but(sorted(liar.ANSWERS), "nan_area", "bool_count"))
-    @pytest.mark.parametrize(("args", "needle"), slow_but([...], first=2))
+    @pytest.mark.parametrize("name", integration_but(sorted(liar.ANSWERS), "nan_area"))
+    @pytest.mark.parametrize(("args", "needle"), integration_but([...], first=2))
 """
 
 from __future__ import annotations
@@ -15,9 +16,9 @@ from collections.abc import Iterable
 import pytest
 
 
-def slow_but(values: Iterable[object], *fast: object, first: int = 0) -> list[object]:
+def integration_but(values: Iterable[object], *fast: object, first: int = 0) -> list[object]:
     """``values`` for ``pytest.mark.parametrize``, every one but those in ``fast`` (and the
-    ``first`` ones) marked slow.
+    ``first`` ones) marked ``integration``.
 
     Parameters
     ----------
@@ -50,12 +51,12 @@ def slow_but(values: Iterable[object], *fast: object, first: int = 0) -> list[ob
         if hit or position < first:
             out.append(value)
         elif isinstance(value, param_set):
-            out.append(pytest.param(*value.values, marks=(*value.marks, pytest.mark.slow),
+            out.append(pytest.param(*value.values, marks=(*value.marks, pytest.mark.integration),
                                     id=value.id))
         else:
             args = value if isinstance(value, tuple) else (value,)
-            out.append(pytest.param(*args, marks=pytest.mark.slow))
+            out.append(pytest.param(*args, marks=pytest.mark.integration))
     missing = [f for i, f in enumerate(fast) if i not in seen]
     if missing:
-        raise ValueError(f"slow_but: fast case(s) {missing!r} not among the values")
+        raise ValueError(f"integration_but: fast case(s) {missing!r} not among the values")
     return out

@@ -55,7 +55,7 @@ def test_dispatcher_runs_detect(tmp_path, monkeypatch):
     assert out.count == 2
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_markers_not_found_exit_3_with_parseable_file(tmp_path, capsys, monkeypatch):
     img, _ = draw_arena(obstacles=STANDARD_BOXES)
     img[860:930, 860:930] = 248  # erase marker 90

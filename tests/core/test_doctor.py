@@ -16,7 +16,7 @@ def _gl_available():
     return True
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_checks_without_context_pass_here():
     report = doctor.run_checks(context=False)
     names = [c.name for c in report.checks]
@@ -28,7 +28,7 @@ def test_checks_without_context_pass_here():
 
 
 @pytest.mark.skipif(not _gl_available(), reason="no EGL/OSMesa on this machine")
-@pytest.mark.slow
+@pytest.mark.integration
 def test_full_doctor_creates_a_context_and_exits_0(capsys):
     assert doctor.main(["--json"]) == 0
     data = json.loads(capsys.readouterr().out)
@@ -37,7 +37,7 @@ def test_full_doctor_creates_a_context_and_exits_0(capsys):
     assert ctx["ok"] and ctx["detail"].split(":")[0] in ("egl", "osmesa")
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_broken_platform_fails_with_fix_and_exit_1(monkeypatch, capsys):
     # A platform name PyOpenGL does not know: the subprocess fails, the caller survives.
     monkeypatch.setenv("PYOPENGL_PLATFORM", "nosuchplatform")
@@ -61,7 +61,7 @@ def test_text_report_and_bad_option():
     assert doctor.main(["--timeout", "0"]) == 2
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_command_line_json_no_context():
     proc = run_cli("doctor", "--json", "--no-context")
     data = json.loads(proc.stdout)
@@ -69,7 +69,7 @@ def test_command_line_json_no_context():
     assert {c["name"] for c in data["checks"]} >= {"python", "opencv", "opengl platform"}
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_sandbox_and_browser_checks_run_for_real(monkeypatch, tmp_path):
     import shutil
 

@@ -53,6 +53,7 @@ def _library_paths(name: str) -> list[str]:
     return sorted(p for p in paths if os.path.exists(p))
 
 
+@pytest.mark.integration  # a fresh interpreter in a sandbox renders: seconds
 def test_the_renderer_starts_where_no_x11_library_is_installed():
     """pyrender imports pyglet's window module, which loads libXrender unless pyglet runs
     headless; GPU servers and containers often have no X11 libraries."""

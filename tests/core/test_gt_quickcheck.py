@@ -60,7 +60,7 @@ def test_real_records_pass(records):
         assert schemas.gt_problem(record) is None
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_mutations_agree_with_jsonschema(records):
     quick = schemas._quick_gt_check()
     rng = random.Random(0)

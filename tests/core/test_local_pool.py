@@ -56,7 +56,7 @@ def test_bad_worker_counts_are_refused():
             list(local_map(_pid_and_square, range(3), workers=bad))
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_two_workers_give_the_same_results_in_other_processes():
     out = list(local_map(_pid_and_square, range(8), workers=2))
     assert sorted(sq for _, sq in out) == [x * x for x in range(8)]
@@ -64,14 +64,14 @@ def test_two_workers_give_the_same_results_in_other_processes():
     assert not multiprocessing.active_children()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_failing_task_is_raised_here_and_no_worker_is_left():
     with pytest.raises(ValueError, match="scene 3 cannot be placed"):
         list(local_map(_refuse_three, range(6), workers=2))
     assert not multiprocessing.active_children()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_closing_early_ends_the_workers(tmp_path):
     """Closed while every worker is inside a task (the first result comes at once, its worker
     takes the next task): the workers are ended, not waited for."""
@@ -99,7 +99,7 @@ print(round(time.monotonic() - start, 1), len(multiprocessing.active_children())
 """
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_closing_when_the_workers_are_idle_does_not_hang():
     # an idle worker waits for its next task holding the task queue's read lock; ended there,
     # it never releases it, and Pool.terminate() takes that lock without a timeout (in a
@@ -154,7 +154,7 @@ def _start_and_wait(folder: str) -> int:
     return 0
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_local_pool_joins_its_workers_after_the_block_and_ends_them_after_an_error(tmp_path):
     with local_pool(2) as pool:
         pids = set(pool.map(_pid, range(4), chunksize=1))
@@ -171,7 +171,7 @@ def test_local_pool_joins_its_workers_after_the_block_and_ends_them_after_an_err
     assert not multiprocessing.active_children()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_end_executor_ends_a_busy_worker(tmp_path):
     from hostile_util import wait_for
 

@@ -8,11 +8,10 @@ import cv2
 import numpy as np
 import pytest
 from clirun import run_cli
-from marks import slow_but
+from marks import integration_but
 
 from arenabench.aruco import aruco_dictionary
 from arenabench.generator.make import make_sample
-from arenabench.generator.render import Renderer
 from arenabench.generator.scene import MarkerSpec
 from arenabench.pipeline import detect
 from arenabench.pipeline.config import ALL_DICTIONARIES
@@ -29,12 +28,6 @@ def _ids(name: str) -> tuple[int, int, int, int]:
     the last: DICT_ARUCO_ORIGINAL's last, 1023, is refused, see below)."""
     size = aruco_dictionary(name).bytesList.shape[0]
     return (size - 2, size - 3, 0, size // 2)
-
-
-@pytest.fixture(scope="module")
-def renderer():
-    with Renderer() as r:
-        yield r
 
 
 def _check(renderer, preset: str, name: str, rotation: float, ids=None) -> None:
@@ -65,14 +58,14 @@ SAMPLE = [
 ]
 
 
-@pytest.mark.parametrize(("preset", "name", "rotation"), slow_but(SAMPLE, first=3))
+@pytest.mark.parametrize(("preset", "name", "rotation"), integration_but(SAMPLE, first=3))
 def test_a_sample_of_dictionaries_and_turns_is_found_as_drawn(renderer, preset, name, rotation):
     if name not in AVAILABLE:
         pytest.skip(f"this OpenCV has no {name}")
     _check(renderer, preset, name, rotation)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("name", AVAILABLE)
 def test_every_dictionary_at_every_turn_is_found_as_drawn(renderer, name):
     for rotation in (0.0, 90.0, 180.0, 270.0):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from marks import slow_but
+from marks import integration_but
 
 from arenabench.aruco import aruco_dictionary
 from arenabench.pipeline import ALL_DICTIONARIES, PUBLISHED_DICTIONARIES
@@ -78,7 +78,7 @@ def test_stages_cover_every_dictionary_in_order_and_start_with_the_competition()
         assert [run for run, _ in pass_plan(plan_stages(NAMES)[0])] == ["DICT_4X4_100"]
 
 
-@pytest.mark.parametrize("name, ids", slow_but([
+@pytest.mark.parametrize("name, ids", integration_but([
     ("DICT_4X4_50", (3, 7, 12, 20)),
     ("DICT_4X4_100", (80, 85, 90, 95)),
     ("DICT_4X4_250", (10, 120, 200, 249)),
@@ -86,7 +86,7 @@ def test_stages_cover_every_dictionary_in_order_and_start_with_the_competition()
     ("DICT_7X7_100", (5, 55, 70, 99)),
     ("DICT_6X6_1000", (300, 500, 700, 999)),
 ], first=3))
-@pytest.mark.parametrize("rule", slow_but(["reference", "seed"], "reference"))
+@pytest.mark.parametrize("rule", integration_but(["reference", "seed"], "reference"))
 def test_same_result_as_one_pass_per_dictionary(name, ids, rule):
     img = _sheet(name, ids)
     img = cv2.GaussianBlur(img, (3, 3), 0.8)

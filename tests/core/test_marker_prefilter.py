@@ -13,7 +13,7 @@ import json
 import cv2
 import numpy as np
 import pytest
-from marks import slow_but
+from marks import integration_but
 from paths import TESTS
 
 from arenabench.aruco import aruco_dictionary
@@ -82,7 +82,7 @@ def test_noise_is_skipped_without_a_pass():
         assert result.details["marker_passes"] == 0
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_blank_and_boxes_keep_their_results(monkeypatch):
     images = markerless_images(3)
     _assert_same_either_way(images["boxes"], monkeypatch, "boxes")
@@ -93,8 +93,8 @@ def test_blank_and_boxes_keep_their_results(monkeypatch):
     assert fast == [_result(blank, c) for c in CONFIGS]
 
 
-@pytest.mark.parametrize("sigma", slow_but([0.0, 6.0, 15.0, 25.0, 40.0,
-                                            pytest.param(80.0, marks=pytest.mark.slow)],
+@pytest.mark.parametrize("sigma", integration_but([0.0, 6.0, 15.0, 25.0, 40.0,
+                                            pytest.param(80.0, marks=pytest.mark.integration)],
                                            0.0, 15.0))
 def test_the_example_at_every_noise_level(sigma, monkeypatch):
     image = cv2.imread(str(EXAMPLE))
@@ -104,7 +104,7 @@ def test_the_example_at_every_noise_level(sigma, monkeypatch):
         assert '"status": "ok"' in fast[0]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("name", ["DICT_4X4_100", "DICT_5X5_250", "DICT_7X7_50",
                                   "DICT_APRILTAG_36h11"])
 def test_sheets_of_one_to_three_markers(name, monkeypatch):
@@ -124,7 +124,7 @@ def test_sheets_of_one_to_three_markers(name, monkeypatch):
 
 
 @pytest.mark.parametrize("side", [24, 48, 96])
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_marker_pasted_on_noise(side, monkeypatch):
     image = np.random.default_rng(side).integers(0, 256, (1000, 1000), dtype=np.uint8)
     q = side // 2
@@ -136,7 +136,7 @@ def test_a_marker_pasted_on_noise(side, monkeypatch):
     assert '"marker_ids": [80]' in fast[0]
 
 
-@pytest.mark.slow
+@pytest.mark.acceptance  # every preset's scenes rendered and detected twice: minutes
 def test_every_preset_gives_the_same_results(tmp_path, monkeypatch):
     from arenabench.generator.generate_cli import main as generate_main
     from arenabench.generator.presets import preset_names

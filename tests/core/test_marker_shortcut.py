@@ -46,7 +46,7 @@ def _noisy(image: np.ndarray, sigma: float, seed: int) -> np.ndarray:
     return np.clip(image.astype(np.float64) + noise, 0, 255).astype(np.uint8)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_an_image_of_only_boxes_ends_after_one_pass_per_source(seed, monkeypatch):
     fast, full, passes_fast, passes_full = _both(_boxes(seed), monkeypatch)
@@ -63,7 +63,7 @@ def test_the_example_gives_the_same_result(sigma, monkeypatch):
         assert fast["status"] == "ok"
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_markers_covered_by_a_box_still_searched(monkeypatch):
     image = cv2.imread(str(EXAMPLE))
     covered = image.copy()
@@ -73,7 +73,7 @@ def test_markers_covered_by_a_box_still_searched(monkeypatch):
     assert fast == full and fast["status"] == "markers_not_found"
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_twin_scenes_give_the_same_result(tmp_path, monkeypatch):
     from arenabench.generator.generate_cli import main as generate_main
 

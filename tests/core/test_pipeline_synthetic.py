@@ -125,7 +125,7 @@ def test_seed_twists_the_frame_when_ids_are_laid_out_differently():
 # --- markers missing --------------------------------------------------------------------------
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_three_markers_is_markers_not_found_with_found_ids():
     img, _ = draw_arena(obstacles=STANDARD_BOXES)
     img[860:930, 860:930] = 248  # erase the SE marker (90)

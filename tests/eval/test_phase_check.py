@@ -36,10 +36,8 @@ COUNT = 4
 
 
 @pytest.fixture(scope="module")
-def twin(tmp_path_factory):
-    out = tmp_path_factory.mktemp("twin") / "eyrc"
-    generate_dataset(out, preset="eyrc", count=COUNT, seed=0, workers=1, progress=False)
-    return out
+def twin(shared_sets):
+    return shared_sets.generated("eyrc", count=COUNT, seed=0)
 
 
 class Counting:
@@ -181,7 +179,7 @@ def test_a_trade_the_image_pins_is_varied_as_one(tmp_path):
     assert PhaseResult.from_dict(phase.to_dict()) == phase
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_set_drawn_from_a_twin_file_is_checked_on_auto(tmp_path):
     """``eval`` and ``grade`` decide from the definition the set's ``dataset.json`` records,
     so a twin's set is checked with no preset file at hand."""
@@ -194,7 +192,7 @@ def test_a_set_drawn_from_a_twin_file_is_checked_on_auto(tmp_path):
         assert resolve_phases("auto", set_presets(load_dataset(out))) == want
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_phase_dependent_failures_get_some_passes_and_passing_images_are_not_rerun(twin,
                                                                                   tmp_path):
     pipe = Counting(edge_phase.detect)
@@ -235,7 +233,7 @@ def test_phase_dependent_failures_get_some_passes_and_passing_images_are_not_rer
     assert first["phase_class"] == "phase_dependent" and first["phase_n"] == str(PHASES)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_an_always_wrong_pipeline_fails_every_phase(twin):
     pipe = Counting(edge_phase.always_wrong)
     report = evaluate(pipe, twin, workers=2, limit=1, phases=PHASES)
@@ -253,7 +251,7 @@ def test_an_always_wrong_pipeline_fails_every_phase(twin):
     assert pipe.calls == 1 + PHASES * (1 + len(opened))
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_the_open_table_given_is_varied_not_the_sets_old_one(twin, tmp_path):
     """``check`` reuses a cached set made from the same parameters, whose ``dataset.json``
     records the ``[open]`` table of its day; the preset file it is given now says what is
@@ -305,7 +303,7 @@ def test_only_answers_scored_wrong_are_phase_checked():
     assert CHECKED_CATEGORIES <= set(CATEGORIES)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_sweep_phase_checks_its_failures_in_the_worker():
     from arenabench.eval.sweep.execution import run_sweep
     from arenabench.eval.sweep.grid import parse_varies

@@ -37,15 +37,13 @@ def _script(name: str, **env: str) -> CommandPipeline:
 
 
 @pytest.fixture(scope="module")
-def twin(tmp_path_factory):
-    out = tmp_path_factory.mktemp("verdicts") / "eyrc"
-    generate_dataset(out, preset="eyrc", count=3, seed=0, workers=1, progress=False)
-    return out
+def twin(shared_sets):
+    return shared_sets.generated("eyrc", count=3, seed=0)
 
 
 # ------------------------------------------------------------------------- the image recipe
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_phase_images_are_encoded_as_the_set_and_the_unmoved_scene_is_its_image(tmp_path):
     out = tmp_path / "set"
     generate_dataset(out, preset="eyrc", count=1, seed=0, workers=1, progress=False,
@@ -79,7 +77,7 @@ def test_phase_images_are_encoded_as_the_set_and_the_unmoved_scene_is_its_image(
 
 # ------------------------------------------------------------------- runs that do not complete
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_runs_that_crash_are_not_failed_runs(twin, tmp_path):
     log = tmp_path / "log"
     log.mkdir()
@@ -137,7 +135,7 @@ def _dark(path: Path) -> int:
     return dark_pixels(load_image(path))
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_failure_that_flips_with_an_open_parameter_names_it(east_open, tmp_path):
     data = load_dataset(east_open)
     source = dataset_scene_source(data.root, data.meta.doc)
@@ -210,7 +208,7 @@ def test_a_failure_that_flips_with_an_open_parameter_names_it(east_open, tmp_pat
 
 # ----------------------------------------------------------------------- a loaded machine
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_the_same_failures_get_the_same_labels_on_a_loaded_machine(twin):
     def labels():
         pipe = _script("style_canny.py")

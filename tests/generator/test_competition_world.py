@@ -94,7 +94,7 @@ def test_known_camera_of_another_size_is_refused():
         fit_scene(cv2.imread(str(IMAGE)), options=FitOptions(camera=camera))
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_fit_writes_the_shipped_example():
     """``arenabench fit`` (the known camera, boxes snapped when the render gets closer) gives
     the shipped scene's camera and boxes."""

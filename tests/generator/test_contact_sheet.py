@@ -34,7 +34,7 @@ def test_every_preset_resolves_and_hard_adds_real_degradations():
         assert isinstance(hard[key], Range) and hard[key].hi > 0, key
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_cli_writes_a_sheet(tmp_path):
     out = tmp_path / "sheet.png"
     proc = subprocess.run(

@@ -93,7 +93,7 @@ def test_png_on_request_keeps_the_gt(one_worker, tmp_path):
     assert gt_png == gt_jpg
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_two_workers_write_byte_identical_files(one_worker, tmp_path):
     out, _ = one_worker
     proc = _generate(tmp_path / "two", "--workers", "2")
@@ -101,7 +101,7 @@ def test_two_workers_write_byte_identical_files(one_worker, tmp_path):
     assert _files(tmp_path / "two") == _files(out)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_rerun_does_nothing_and_interrupted_run_resumes(one_worker, tmp_path):
     out, _ = one_worker
     reference = _files(out)
@@ -147,7 +147,7 @@ def test_different_arguments_are_refused(one_worker, extra, kwargs, needle):
     assert _files(out) == before
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_larger_count_extends_the_set_byte_identically(one_worker, tmp_path):
     """Extending a set with the same seed gives the files of the larger count at once."""
     out, _ = one_worker

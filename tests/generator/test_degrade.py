@@ -24,13 +24,6 @@ from arenabench.generator.make import degrade_rng, make_sample
 from arenabench.generator.param_values import parse_overrides
 from arenabench.generator.params import NEUTRAL, PARAMETERS
 from arenabench.generator.presets import resolve
-from arenabench.generator.render import Renderer
-
-
-@pytest.fixture(scope="module")
-def renderer():
-    with Renderer() as r:
-        yield r
 
 
 @pytest.fixture(scope="module")

@@ -6,7 +6,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from marks import slow_but
+from marks import integration_but
 from test_twin_fidelity import SCENE
 
 from arenabench.generator.edges import (
@@ -130,12 +130,6 @@ def example():
     return load_scene(SCENE)
 
 
-@pytest.fixture(scope="module")
-def renderer():
-    with Renderer() as r:
-        yield r
-
-
 def test_offset_pass_samples_where_it_says(example):
     """A pass at offset (dx, dy) shows at pixel (x, y) what the centre pass shows at
     (x + dx, y + dy): checked with whole-pixel offsets (geometry lands exactly; texture
@@ -152,7 +146,7 @@ def test_offset_pass_samples_where_it_says(example):
         assert right < 0.0005 and wrong > 20 * right, (dx, dy, right, wrong)
 
 
-@pytest.mark.parametrize("preset", slow_but(["eyrc", "eyrc-oblique"], "eyrc-oblique"))
+@pytest.mark.parametrize("preset", integration_but(["eyrc", "eyrc-oblique"], "eyrc-oblique"))
 def test_region_holds_every_obstacle_pixel(renderer, preset):
     for index in range(8):
         scene = sample_scene(preset, seed=5, index=index).scene
@@ -169,7 +163,7 @@ def test_region_is_none_without_obstacles(example):
     assert obstacle_region(replace(example, obstacles=())) is None
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("preset", ["eyrc", "eyrc-jitter", "warehouse"])
 def test_static_layer_gives_the_same_bytes_as_a_fresh_renderer(preset):
     """A renderer reuses the floor, markers and background of consecutive scenes that share

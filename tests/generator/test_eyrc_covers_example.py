@@ -87,7 +87,7 @@ def test_example_boxes_keep_the_twins_edge_margin(example):
     assert eyrc["obstacles.edge_margin_m"] <= min(margins)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_twin_box_images_stay_inside_the_marker_frame():
     """Like the example's (closest 22.3 px), every twin box's image, leaning top included,
     lies inside the frame: no box is cut by the warp's border (Canny-style loops stay closed).
@@ -114,7 +114,7 @@ def _frame_clearance(gt) -> float:
     return min(min(x, y, 1000 - x, 1000 - y) for x, y in pts)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_twin_scenes_keep_the_real_images_marker_order():
     """cv2.aruco sorts markers by outline length: every twin scene must give the real order."""
     real = _detected_order(cv2.imread(str(IMAGE), cv2.IMREAD_GRAYSCALE))

@@ -60,7 +60,7 @@ def test_similarity_basics():
         ssim(a, a[:32])
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_shipped_scene_render_matches_real_image(tmp_path, real, real_detection):
     proc = _cli("render", str(SCENE), "--out", str(tmp_path))
     assert proc.returncode == 0, proc.stderr
@@ -76,7 +76,7 @@ def test_shipped_scene_render_matches_real_image(tmp_path, real, real_detection)
     assert gt["area"]["visible_px"] == pytest.approx(real_detection.area, rel=0.025)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_fit_cli_end_to_end(tmp_path, real, real_detection):
     out = tmp_path / "scene.json"
     proc = _cli("fit", str(IMAGE), "--out", str(out), "--report")
@@ -131,7 +131,7 @@ def test_fit_cli_missing_image(tmp_path):
     assert not (tmp_path / "s.json").exists()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_fit_recovers_a_known_scene():
     """Round trip on a render with a different camera and boxes: the fit finds them again."""
     from dataclasses import replace
@@ -192,7 +192,7 @@ def test_fit_cli_image_without_markers(tmp_path):
     assert len(lines) == 1 and "marker id 80" in lines[0]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_fit_cli_fits_the_camera_on_request(tmp_path, real, real_detection):
     """``--fit-camera``: the camera from the markers (solvePnP at the example camera's field of
     view, then the detector-matching nudge) instead of the known one; still a close render."""

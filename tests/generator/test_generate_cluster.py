@@ -34,7 +34,7 @@ def local_run(tmp_path_factory):
     return out
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_cluster_run_writes_the_same_bytes_as_a_local_run(local_run, tmp_path):
     distributed = pytest.importorskip("distributed")
     out = tmp_path / "dask"
@@ -53,7 +53,7 @@ def test_cluster_run_writes_the_same_bytes_as_a_local_run(local_run, tmp_path):
         assert _files(out) == reference
 
 
-@pytest.mark.slow  # imports Dask
+@pytest.mark.integration  # imports Dask
 def test_unreachable_scheduler_exits_2_before_writing(tmp_path):
     out = tmp_path / "never"
     proc = _generate(out, "--scheduler", "tcp://127.0.0.1:9",

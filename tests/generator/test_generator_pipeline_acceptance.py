@@ -17,7 +17,7 @@ SEED = 2024
 TOLERANCE = 0.05
 
 
-@pytest.mark.slow
+@pytest.mark.acceptance
 def test_reference_pipeline_passes_on_95_percent_of_eyrc_scenes():
     config = DetectConfig()
     passed, failures = 0, []

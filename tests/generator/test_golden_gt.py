@@ -47,7 +47,7 @@ def test_hashes_ignore_float_noise_and_ring_start_but_see_real_changes():
     assert {p for p in base if parts[p] != base[p]} == {"obstacles", "count"}
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_update_refuses_to_change_the_hashes_of_a_recorded_version(tmp_path, monkeypatch,
                                                                    capsys):
     path = tmp_path / "golden_gt.json"

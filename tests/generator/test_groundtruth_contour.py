@@ -52,7 +52,7 @@ def rows() -> list[tuple[float, float, float, int]]:
     return out
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_contour_px_matches_rasterised_contour_area(rows):
     contour, _, measured, _ = np.array(rows).T
     rel = (measured - contour) / measured
@@ -64,7 +64,7 @@ def test_contour_px_matches_rasterised_contour_area(rows):
     assert np.median(contour / measured) == pytest.approx(1.0, abs=5e-4)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_contour_px_perimeter_term_with_phase_noise_removed(rows):
     contour, visible, measured, pixels = np.array(rows).T
     predicted = contour - visible + pixels  # the same formula, from the raster's pixel count
@@ -73,7 +73,7 @@ def test_contour_px_perimeter_term_with_phase_noise_removed(rows):
     assert abs(d.mean()) < 1.5
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_contour_px_is_below_visible_by_about_half_a_perimeter(rows):
     contour, visible, _, _ = np.array(rows).T
     low = 1 - contour / visible

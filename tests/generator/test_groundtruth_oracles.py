@@ -18,7 +18,7 @@ from arenabench.generator.param_values import parse_overrides
 from arenabench.generator.render import Renderer
 
 #: 50 renders with instance masks (about 8 s): `make test`, not `make test-fast`
-pytestmark = pytest.mark.slow
+pytestmark = pytest.mark.integration
 
 N_SCENES = 50
 OVERRIDES = ["camera.tilt_deg=0:30", "camera.altitude_m=9:11"]

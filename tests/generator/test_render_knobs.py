@@ -40,12 +40,6 @@ def example() -> Scene:
 
 
 @pytest.fixture(scope="module")
-def renderer():
-    with Renderer() as r:
-        yield r
-
-
-@pytest.fixture(scope="module")
 def grey(example, renderer) -> dict:
     """Grey renders of the example under every edge model; "hard" by ``antialias=False``
     (how hard edges were asked for before the parameter) and "default" with no render
@@ -62,7 +56,7 @@ def grey(example, renderer) -> dict:
 
 # ----------------------------------------------------------------------------- edges
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_one_and_two_samples_render_the_former_bytes(example, renderer, grey):
     """One sample is the former hard-edged render (``antialias=False``), whatever the resolve;
     two samples in linear light is the default, and a scene states no render section then."""
@@ -114,7 +108,7 @@ def test_four_samples_give_quarter_blends_and_srgb_values_give_160(example, grey
     assert count((4, "srgb"), 115, 204) > 30  # the quarter blends of 71 and 248 in sRGB values
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_four_samples_reuse_the_static_layer_to_the_byte():
     """The twin's consecutive scenes share the static layer under any edge model: a reused
     renderer gives a fresh renderer's bytes."""

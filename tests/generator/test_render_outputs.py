@@ -17,12 +17,6 @@ from arenabench.generator.sampler import sample_scene
 from arenabench.generator.scene import Scene
 
 
-@pytest.fixture(scope="module")
-def renderer():
-    with Renderer() as r:
-        yield r
-
-
 def _detect(bgr, dictionary="DICT_4X4_100"):
     params = cv2.aruco.DetectorParameters()
     params.cornerRefinementMethod = cv2.aruco.CORNER_REFINE_SUBPIX
@@ -133,7 +127,7 @@ def test_gt_scene_re_renders_the_same_image(renderer):
     assert again.rgb.tobytes() == s.rgb.tobytes()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_antialiased_renders_keep_markers_and_masks_exact():
     scene = sample_scene("eyrc-jitter", seed=3, index=0).scene
     with Renderer(antialias=True) as r:

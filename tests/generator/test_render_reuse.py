@@ -44,7 +44,7 @@ def _equal(a, b) -> None:
             np.testing.assert_array_equal(x, y, err_msg=name)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_scene_seen_again_is_not_drawn_again_and_gives_the_same_bytes():
     a, b = _scenes()
     want_a, want_b = _fresh(a, depth=True, masks=True), _fresh(b)
@@ -117,7 +117,7 @@ def test_batches_keep_each_scene_s_points_together_when_only_post_render_varies(
     assert not post_render_only(tilt)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_noise_sweep_gives_the_images_of_a_fresh_renderer(tmp_path):
     """Two workers, each scene's points in one batch (its render reused): every kept image
     has the bytes of that scene rendered and degraded on its own."""
@@ -136,7 +136,7 @@ def test_a_noise_sweep_gives_the_images_of_a_fresh_renderer(tmp_path):
         assert png == encode_png(sample.bgr), (p, s)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_render_interrupted_between_two_node_updates_leaves_the_renderer_usable():
     """Ctrl-C may land anywhere in a render; the next render must still be right (it failed
     with "node not in the digraph" when the camera had been removed and not added back)."""

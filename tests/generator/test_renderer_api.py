@@ -75,7 +75,7 @@ print(json.dumps({"shape": list(rgb.shape), "dtype": str(rgb.dtype),
 """
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_the_naive_baseline_renders_through_the_interface():
     proc = subprocess.run([sys.executable, "-c", _NAIVE], capture_output=True, text=True,
                           timeout=300)
@@ -111,7 +111,7 @@ except ImportError as e:
 """
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_importing_the_compat_module_refuses_another_pyrender_release():
     proc = subprocess.run([sys.executable, "-c", _WRONG_VERSION], capture_output=True,
                           text=True, timeout=120)
@@ -161,7 +161,7 @@ print(rgb.shape, scipy.spatial.ConvexHull([[0, 0], [1, 0], [0, 1]]).volume)
 """
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_pyrender_is_imported_without_scipy_which_stays_importable():
     proc = subprocess.run([sys.executable, "-c", _WITHOUT_SCIPY], capture_output=True,
                           text=True, timeout=120)

@@ -11,7 +11,7 @@ from __future__ import annotations
 import cv2
 import numpy as np
 import pytest
-from marks import slow_but
+from marks import integration_but
 from shapely.geometry import Polygon
 
 from arenabench.generator.distractors import patch_corners
@@ -20,16 +20,9 @@ from arenabench.generator.lens import undistort_points
 from arenabench.generator.lights import shadow_alpha
 from arenabench.generator.make import make_sample
 from arenabench.generator.param_values import parse_overrides
-from arenabench.generator.render import Renderer
 from arenabench.generator.scene import Scene
 
 SEED = 5
-
-
-@pytest.fixture(scope="module")
-def renderer():
-    with Renderer() as r:
-        yield r
 
 
 def _sample(renderer, sets, *, index=0, masks=False):
@@ -76,7 +69,7 @@ LENSES = [
 ]
 
 
-@pytest.mark.parametrize("lens", slow_but(LENSES, first=1))
+@pytest.mark.parametrize("lens", integration_but(LENSES, first=1))
 def test_distorted_gt_corners_match_aruco_and_h_stays_undistorted(renderer, lens):
     for index in range(2):
         s = _sample(renderer, lens, index=index, masks=True)
@@ -145,7 +138,7 @@ def test_an_id_outside_the_dictionary_is_refused(renderer):
         _sample(renderer, ["markers.dictionary=DICT_4X4_50", "markers.ids=80,85,90,95"])
 
 
-@pytest.mark.parametrize("sets", slow_but([
+@pytest.mark.parametrize("sets", integration_but([
     ["camera.yaw_deg=180"],
     ["camera.yaw_deg=-180"],
     ["camera.yaw_deg=-135", "camera.altitude_m=12.5:13"],

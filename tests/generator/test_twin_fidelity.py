@@ -197,7 +197,7 @@ def test_ground_truth_does_not_depend_on_antialiasing(scene):
     assert gt["count"] == 2
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_antialiased_render_does_not_depend_on_earlier_scenes():
     """Edge samples on depth ties (a box's bottom edge on the floor) follow the draw order, and
     a renderer may reuse its static layer: neither may depend on what it drew before."""

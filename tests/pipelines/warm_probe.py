@@ -4,7 +4,7 @@ marks in every writable place it knows, and answers like the toy detector.
 Used by tests/eval/runs/test_warm.py: a warm run finds cv2 already imported, no mark of an
 earlier run,
 ``__name__ == "__main__"`` and the command line's ``sys.argv``. ``$PROBE_MODE`` = ``hang``,
-``memory`` or ``forkbomb`` misbehaves instead, ``slow`` takes two seconds first, for the image
+``memory`` or ``forkbomb`` misbehaves instead, ``slow`` takes three seconds first, for the image
 whose sha256 is ``$PROBE_BAD``.
 """
 
@@ -24,7 +24,7 @@ if digest == os.environ.get("PROBE_BAD"):
     elif mode == "memory":
         block = bytearray(1024 * 1024**2)
     elif mode == "slow":
-        time.sleep(2)
+        time.sleep(3)
     elif mode == "forkbomb":
         for _ in range(500):
             if os.fork() == 0:

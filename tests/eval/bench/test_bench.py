@@ -34,7 +34,7 @@ def quick_run(tmp_path_factory) -> tuple[subprocess.CompletedProcess, dict]:
     return proc, json.loads((out / "bench.json").read_text())
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_bench_json_holds_every_figure(quick_run):
     _, data = quick_run
     for key in (*DOCUMENTED_KEYS, *FIGURE_KEYS):
@@ -59,7 +59,7 @@ def test_bench_json_holds_every_figure(quick_run):
     assert len(rates) == 4 and sum(rates.values()) / len(rates) >= 0.5
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_bench_prints_every_row(quick_run):
     proc, _ = quick_run
     for label in ("generation to disk", "generation in memory", "naive baseline", "floor",
@@ -72,7 +72,7 @@ def test_bench_prints_every_row(quick_run):
     assert "docs/benchmark.md" in proc.stdout
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_quick_bench_json_has_no_verdicts(quick_run):
     _, data = quick_run
     assert data["quick"] is True

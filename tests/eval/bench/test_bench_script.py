@@ -14,7 +14,7 @@ from arenabench.eval.bench.items import script_per_image
 EXAMPLE = TESTS / "data" / "task1c_image.jpg"
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_script_item_reports_every_figure_and_warm_answers_as_cold(tmp_path):
     images = []
     for i in range(3):

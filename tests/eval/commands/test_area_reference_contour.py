@@ -34,7 +34,7 @@ def _eval(dataset: Path, out: Path, reference: str) -> dict:
     return json.loads((out / "report.json").read_text())
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_contour_reference_scores_against_contour_px(eyrc, tmp_path):
     contour = _eval(eyrc, tmp_path / "contour", "contour")
     visible = _eval(eyrc, tmp_path / "visible", "visible")
@@ -102,7 +102,7 @@ def test_truth_without_contour_px_raises_naming_the_file():
     assert sample.truth(area_reference="contour").area == 8.5
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_sweep_with_contour_reference(tmp_path):
     # --workers 2: worker processes, so no renderer is left cached in this test process
     out = tmp_path / "sweep"

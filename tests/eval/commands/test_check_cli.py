@@ -30,7 +30,7 @@ def cache(competition_cache):
     return competition_cache
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_good_script_passes_and_the_set_is_reused(cache, tmp_path):
     out = tmp_path / "report"
     proc = _check(str(PIPELINES / "style_blur127.py"), "--count", str(COUNT), "--out", str(out),
@@ -48,7 +48,7 @@ def test_a_good_script_passes_and_the_set_is_reused(cache, tmp_path):
     assert again.returncode == 0 and f"reused twin set {twin}" in again.stdout
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_canny_script_fails_by_luck(cache, tmp_path):
     out = tmp_path / "report"
     proc = _check(str(PIPELINES / "style_canny.py"), "--count", str(COUNT), "--out", str(out),
@@ -73,7 +73,7 @@ def test_a_canny_script_fails_by_luck(cache, tmp_path):
     assert ok.returncode == 0 and "phase-dependent" not in ok.stdout
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_crashing_script_fails_with_its_message(cache, tmp_path):
     proc = _check(str(PIPELINES / "crash.py"), "--count", str(COUNT), "--out",
                   str(tmp_path / "report"), cache=cache)
@@ -116,7 +116,7 @@ def test_the_gates_former_name_still_works_and_says_the_new_one(value, tmp_path)
     assert not cache.exists()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("warm", ["warm", "--no-warm"])
 def test_a_script_reads_files_beside_it_from_its_working_directory(cache, tmp_path, warm):
     """As when the competition ran map.py in its folder: the working directory holds (a copy
@@ -164,7 +164,7 @@ def _own_versions() -> tuple[str, str, str]:
     return platform.python_version(), numpy.__version__, cv2.__version__
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_an_old_api_script_passes_under_the_competition_opencv_by_default(cache, tmp_path):
     """A script calling cv2.aruco.detectMarkers (OpenCV 4.x; removed in 5) runs, by default,
     under the competition's numpy and OpenCV, and says so in its output and its reports."""
@@ -209,7 +209,7 @@ def test_a_python_without_cv2_is_refused_before_any_scene_is_rendered(tmp_path):
     assert not (cache / "reports").exists()  # nothing run or written
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_offline_the_check_falls_back_in_one_line_naming_the_versions_that_ran(tmp_path):
     """No package index (a closed local port): one line says the competition environment
     cannot be made and names the versions that ran instead; nothing half-made is left."""
@@ -247,7 +247,7 @@ def test_offline_the_check_falls_back_in_one_line_naming_the_versions_that_ran(t
 # ----------------------------------------------------------------------------- report folders
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_report_folders_are_keyed_by_what_changes_the_result_and_sets_are_reused(tmp_path):
     """check then check --count N (another count, preset or interpreter) keeps both reports;
     a smaller count reuses the first scenes of a larger cached set, which are the scenes a set

@@ -47,7 +47,7 @@ def toy(tmp_path_factory) -> Path:
 
 # ----------------------------------------------------------------------------- closed pipes
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("module", [["-m", "arenabench", "detect"], ["-m", "arenabench.detect"]])
 def test_closed_pipe_exits_quietly(tmp_path, module):
     """The reader is gone before the command writes: no traceback, exit status 141."""
@@ -65,7 +65,7 @@ def test_closed_pipe_exits_quietly(tmp_path, module):
     assert "Exception ignored" not in proc.stderr
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_head_one_in_a_shell_pipeline(tmp_path):
     cmd = (f"{sys.executable} -m arenabench detect --image {EXAMPLE} --json --indent 2 "
            "--contours | head -1")
@@ -75,7 +75,7 @@ def test_head_one_in_a_shell_pipeline(tmp_path):
     assert "Traceback" not in proc.stderr and "Broken" not in proc.stderr
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_every_command_goes_through_the_quiet_wrapper(tmp_path):
     read_end, write_end = os.pipe()
     os.close(read_end)
@@ -110,7 +110,7 @@ def test_detect_json_is_one_compact_line_contours_on_request(tmp_path):
     assert len(json.loads(full)["obstacles"][0]["contour"]) >= 4
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_eval_reads_what_our_own_detector_writes(toy, tmp_path):
     """The README's command line: every image is answered (none is bad_output)."""
     proc = _run("eval", str(toy), "--cmd", "{python} -m arenabench.detect --image {image} --json",
@@ -237,7 +237,7 @@ def test_help_formatter_appends_defaults_once():
 
 # ----------------------------------------------------------------------------- messages
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_pipeline_module_in_the_current_folder(tmp_path, monkeypatch, toy):
     from arenabench.eval.pipelines import load_callable
 
@@ -340,7 +340,7 @@ def test_eval_progress_in_a_log_is_plain_lines(toy):
     assert "eval reference: 3/3 img (100 %)" in proc.stderr
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_generate_progress_in_a_log_is_plain_lines(tmp_path):
     proc = _run("generate", "--count", "2", "--out", str(tmp_path / "g"), "--workers", "1")
     assert proc.returncode == 0, proc.stderr
@@ -351,7 +351,7 @@ def test_generate_progress_in_a_log_is_plain_lines(tmp_path):
 
 # ----------------------------------------------------------------------------- packaging
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_wheel_builds_without_warnings_and_holds_the_package_data(tmp_path):
     """A wheel of a copy of the project: no setuptools warning about undeclared packages, and
     every subpackage and the scene files inside."""
@@ -395,7 +395,7 @@ def test_sweep_point_colours():
 SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_demo_ends_saying_how_to_run_arenabench_from_a_shell():
     venv_bin = Path(sys.executable).parent
     if not (venv_bin / "arenabench").is_file():
@@ -416,7 +416,7 @@ def test_demo_ends_saying_how_to_run_arenabench_from_a_shell():
     assert "source" not in proc.stdout and "arenabench --help" in proc.stdout
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_render_writes_a_one_image_dataset_that_eval_scores(tmp_path):
     out = tmp_path / "one"
     proc = _run("render", str(SCENE), "--out", str(out))
@@ -431,7 +431,7 @@ def test_render_writes_a_one_image_dataset_that_eval_scores(tmp_path):
     assert (summary["n"], summary["n_passed"]) == (1, 1)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_pytest_plugin_without_the_cache_provider_uses_a_temporary_folder(tmp_path,
                                                                           tmp_path_factory):
     (tmp_path / "test_team.py").write_text(
@@ -454,7 +454,7 @@ def test_pytest_plugin_without_the_cache_provider_uses_a_temporary_folder(tmp_pa
     assert list(basetemp.glob("arenabench*/*/manifest.jsonl"))  # the session's temporary one
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_html_frame_outlines_follow_a_pipeline_warping_to_the_outer_corners():
     """eyrc-upright: the reference pipeline with outer corners warps to another frame than the
     GT's (inner corners); the GT outlines drawn on its warp must sit on its boxes."""
@@ -483,7 +483,7 @@ def test_html_frame_outlines_follow_a_pipeline_warping_to_the_outer_corners():
     assert gt_frame_polygons(gt, np.asarray(gt["homography"])) == as_is
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_sweep_whose_points_all_pass_says_the_breakdown_cannot_be_determined(tmp_path):
     proc = _run("sweep", "--vary", "camera.tilt_deg=0,2", "--pipeline", "reference",
                 "--per-point", "1", "--workers", "1", "--no-progress", "--no-plots",

@@ -13,7 +13,7 @@ import sys
 import cv2
 import numpy as np
 import pytest
-from marks import slow_but
+from marks import integration_but
 from pass_rates import STYLES, score_preset  # tests/pipelines (pytest's pythonpath)
 from paths import ROOT, TESTS
 
@@ -45,7 +45,7 @@ def test_style_is_right_on_the_real_example(style, real_image):
     assert sorted(result["marker_ids"]) == [80, 85, 90, 95]
 
 
-@pytest.mark.parametrize("style", slow_but(STYLES, first=2))
+@pytest.mark.parametrize("style", integration_but(STYLES, first=2))
 def test_style_command_writes_the_competition_file(style, real_image, tmp_path):
     proc = subprocess.run([sys.executable, str(PIPES / f"{style}.py"), "--image", str(REAL)],
                           cwd=tmp_path, capture_output=True, text=True, timeout=60)
@@ -58,7 +58,7 @@ def test_style_command_writes_the_competition_file(style, real_image, tmp_path):
     )
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_style_command_without_markers_exits_3(tmp_path):
     blank = tmp_path / "blank.png"
     cv2.imwrite(str(blank), np.full((600, 600, 3), 255, dtype=np.uint8))
@@ -76,7 +76,7 @@ def tiny_set(tmp_path_factory):
     return data
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_style_as_a_graded_command_matches_in_process(tiny_set, tmp_path):
     data = tiny_set
     script = PIPES / "style_warp400.py"
@@ -108,7 +108,7 @@ def fitted_render():
     return {"png": bgr, "jpeg": decode_image(encode_jpeg(bgr, quality=95))}
 
 
-@pytest.mark.parametrize("style", slow_but(STYLES, first=2))
+@pytest.mark.parametrize("style", integration_but(STYLES, first=2))
 def test_style_counts_the_fitted_render_as_the_real_example(style, fitted_render):
     """The render of the fitted example (the same scene) gives every style the real image's
     count and an area within 1 % of its answer there, as a PNG and as the twin's JPEG."""
@@ -140,7 +140,8 @@ TWIN_KNOWN_FAILURES = {
 }
 
 
-@pytest.mark.slow
+@pytest.mark.acceptance
+@pytest.mark.xdist_group("twin_tallies")  # the tallies are made once, on one worker
 @pytest.mark.parametrize("style", [
     pytest.param(s, marks=pytest.mark.xfail(strict=True, reason=TWIN_KNOWN_FAILURES[s]))
     if s in TWIN_KNOWN_FAILURES else s

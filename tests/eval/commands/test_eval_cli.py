@@ -98,7 +98,7 @@ def test_csv_junit_markdown_html_written(run_dir):
     assert html.startswith("<!DOCTYPE html>") and "data:image/png;base64," in html
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_fail_under_thresholds_and_directions(toy, tmp_path, capsys):
     base = ["eval", str(toy), "--pipeline", "toy_arena:detect", "--no-progress"]
     assert arenabench_main([*base, "--fail-under", "pass_rate=0.95,count_exact_rate=1"]) == 0
@@ -207,7 +207,7 @@ def test_compare_shows_metrics_and_verdict_changes(toy, tmp_path, capsys):
     assert "pass_rate" in out and "(worse)" in out
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_pytest_plugin_fixture_and_score(toy, tmp_path):
     test_file = tmp_path / "test_team.py"
     test_file.write_text(
@@ -248,7 +248,7 @@ def test_plugin_module_imports_cheaply():
     assert out.stdout.strip() == "[]"
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_an_interrupted_dataset_is_scored_with_a_warning(toy, tmp_path, capsys):
     import shutil
 

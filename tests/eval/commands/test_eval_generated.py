@@ -46,7 +46,7 @@ def _per_image(report):
     ]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_reference_same_in_process_by_command_and_by_callable(eyrc, tmp_path, monkeypatch):
     # "python" on PATH must be this interpreter (the venv's), as it is for a user in the venv
     monkeypatch.setenv("PATH", f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
@@ -75,7 +75,7 @@ def test_reference_same_in_process_by_command_and_by_callable(eyrc, tmp_path, mo
     assert "camera.tilt_deg" not in reports["builtin"].breakdown
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_demo_ends_with_the_report_and_its_path(tmp_path, capsys):
     example = TESTS / "data" / "task1c_image.jpg"
     assert demo_main(["--out", str(tmp_path / "demo"), "--count", "4", "--workers", "2",

@@ -25,7 +25,7 @@ import liar
 import pytest
 import toy_arena
 from clirun import run_cli
-from marks import slow_but
+from marks import integration_but
 from paths import ROOT, TESTS
 
 from arenabench.fileio import LOCK_FILE, dumps_json, dumps_json_line, lock_folder
@@ -93,7 +93,7 @@ def toy(tmp_path_factory):
 # ------------------------------------------------------------------------- wrong scores
 
 
-@pytest.mark.parametrize("name", slow_but(sorted(liar.ANSWERS), "nan_area"))
+@pytest.mark.parametrize("name", integration_but(sorted(liar.ANSWERS), "nan_area"))
 def test_impossible_answer_of_a_callable_is_bad_output(toy, tmp_path, name):
     proc = run("eval", str(toy), "--pipeline", f"liar:{name}", "--out", str(tmp_path),
                "--no-progress", "--formats", "json", "--fail-under", "pass_rate=0.01")
@@ -107,7 +107,7 @@ def test_impossible_answer_of_a_callable_is_bad_output(toy, tmp_path, name):
         assert image["pred"]["area"] is None or math.isfinite(image["pred"]["area"])
 
 
-@pytest.mark.slow  # a pool of 2 processes per case, the endless ones wait out a timeout
+@pytest.mark.integration  # a pool of 2 processes per case, the endless ones wait out a timeout
 @pytest.mark.parametrize("executor", ["thread", "process"])
 @pytest.mark.parametrize(
     ("name", "category", "message"),
@@ -133,7 +133,7 @@ def test_a_callable_that_exits_or_hangs_fails_its_images_only(toy, tmp_path, exe
 
 @pytest.mark.parametrize(
     ("args", "needle"),
-    slow_but([
+    integration_but([
         (("--output", "json", "--json", '{"count": 1, "area": NaN}'), "area is not a finite"),
         (("--output", "json", "--json", '{"count": 1, "area": 1e400}'), "area is not a finite"),
         (("--output", "json", "--json", '{"count": true, "area": 5}'), "count is not an integer"),
@@ -337,7 +337,7 @@ def test_no_json_is_written_outside_the_shared_helpers():
     assert not offenders, offenders
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_compare_reads_reports_with_undefined_numbers(toy, tmp_path):
     a, b = tmp_path / "a", tmp_path / "b"
     assert run("eval", str(toy), "--pipeline", "liar:nan_area", "--out", str(a),
@@ -443,7 +443,7 @@ def test_detect_on_a_fifo_is_refused_without_blocking(tmp_path):
     assert_clean_error(proc, "not a regular file", prog="detect")
 
 
-@pytest.mark.parametrize("command", slow_but(["compare", "render", "eval-gt"], "compare"))
+@pytest.mark.parametrize("command", integration_but(["compare", "render", "eval-gt"], "compare"))
 def test_other_inputs_that_are_fifos_are_refused_without_blocking(toy, tmp_path, command):
     import shutil
 
@@ -464,9 +464,9 @@ def test_other_inputs_that_are_fifos_are_refused_without_blocking(toy, tmp_path,
         assert_clean_error(proc, "gt/000001.json is not a regular file", prog="eval")
 
 
-@pytest.mark.parametrize("name", slow_but(["dataset.json", "manifest.jsonl", "gt/000001.json",
-                                           "images/000001.png"], "manifest.jsonl"))
-@pytest.mark.parametrize("command", slow_but(["eval", "grade"], "eval"))
+@pytest.mark.parametrize("name", integration_but(
+    ["dataset.json", "manifest.jsonl", "gt/000001.json", "images/000001.png"], "manifest.jsonl"))
+@pytest.mark.parametrize("command", integration_but(["eval", "grade"], "eval"))
 def test_dataset_files_that_are_fifos_are_refused_without_blocking(toy, tmp_path, command,
                                                                     name):
     import shutil
@@ -529,7 +529,7 @@ def test_detect_writes_through_devices_and_never_replaces_them(tmp_path, device)
 # ------------------------------------------------------------------ manifest hashes
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("damage", ["truncate", "swap", "gt"])
 def test_damaged_dataset_is_refused_and_no_verify_skips_the_check(toy, tmp_path, damage):
     import shutil
@@ -560,8 +560,8 @@ def test_damaged_dataset_is_refused_and_no_verify_skips_the_check(toy, tmp_path,
         assert "Traceback" not in proc.stderr and proc.returncode in (0, 1), proc.stderr
 
 
-@pytest.mark.parametrize("damage", slow_but(["truncated", "empty", "text"], "truncated"))
-@pytest.mark.parametrize("verify", slow_but([True, False], True))
+@pytest.mark.parametrize("damage", integration_but(["truncated", "empty", "text"], "truncated"))
+@pytest.mark.parametrize("verify", integration_but([True, False], True))
 def test_damaged_image_with_matching_hash_is_a_damaged_dataset(toy, tmp_path, damage, verify):
     import shutil
 
@@ -644,7 +644,7 @@ def test_cmd_template_without_image_is_refused(toy, tmp_path, command):
     assert not (tmp_path / "o").exists()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_cmd_name_and_compare_gate(toy, tmp_path):
     good, bad = tmp_path / "good", tmp_path / "bad"
     proc = run("eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(good),
@@ -683,7 +683,7 @@ def test_detect_into_a_closed_pipe_exits_141_quietly(tmp_path):
         assert proc.stderr == "", proc.stderr
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_manifest_without_hashes_needs_no_verify(toy, tmp_path):
     import shutil
 
@@ -738,7 +738,7 @@ def test_every_command_writing_a_folder_takes_generates_lock(toy, tmp_path, comm
         assert sorted(p.name for p in out.iterdir()) == ["report.json"]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_resumed_generate_removes_stale_temp_files_and_leaves_no_lock(tmp_path):
     out = tmp_path / "ds"
     proc = run("generate", "--count", "1", "--seed", "4", "--out", str(out), "--no-progress")
@@ -759,7 +759,7 @@ def test_resumed_generate_removes_stale_temp_files_and_leaves_no_lock(tmp_path):
     assert not (out / LOCK_FILE).exists()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_two_generate_runs_at_once_the_second_is_refused_then_the_first_resumes(tmp_path):
     import signal
     import time
@@ -813,7 +813,7 @@ def test_generate_values_that_fail_when_drawn_are_refused_before_any_file(tmp_pa
     assert not out.exists()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_generate_scene_failing_after_the_first_leaves_the_folder_as_it_was(tmp_path):
     """Seed 1 with obstacles.count=1:12: scenes 0-2 place their boxes, scene 3 cannot (so the
     check of scene 0 passes and the failure comes from a worker of the pool)."""
@@ -834,7 +834,7 @@ def test_generate_scene_failing_after_the_first_leaves_the_folder_as_it_was(tmp_
     assert proc.returncode == 0 and "already complete: 3 images" in proc.stdout, proc.stderr
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_generate_into_a_folder_whose_dataset_json_is_a_fifo_is_refused(tmp_path):
     out = tmp_path / "ds"
     out.mkdir()
@@ -866,7 +866,7 @@ def _scene_text(edit: str) -> str:
 
 @pytest.mark.parametrize(
     ("edit", "needle"),
-    slow_but([
+    integration_but([
         ("height-inf", "obstacle.height_m must be a finite number"),
         ("length-1e309", "obstacle.length_m must be a finite number"),
         ("center-1e300", "obstacle.center_m must be a finite number in [-1000000, 1000000]"),
@@ -910,7 +910,7 @@ def _broken_gl() -> dict[str, str]:
     return {"PYOPENGL_PLATFORM": "osmesa"}
 
 
-@pytest.mark.parametrize("command", slow_but(["generate", "sweep", "render", "contact-sheet",
+@pytest.mark.parametrize("command", integration_but(["generate", "sweep", "render", "contact-sheet",
                                               "bench"], "render"))
 def test_broken_opengl_is_one_line_pointing_at_doctor_and_leaves_nothing(tmp_path, command):
     env = _broken_gl()
@@ -966,7 +966,7 @@ def small_disk(tmp_path):
     subprocess.run(["umount", str(mnt)], check=True)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_disk_full_while_writing_reports_is_one_line(toy, small_disk):
     out = small_disk / "out"
     proc = run("eval", str(toy), "--pipeline", "toy_arena:detect", "--out", str(out),
@@ -1062,7 +1062,7 @@ def test_check_out_inside_its_twin_set_is_refused(tmp_path, monkeypatch):
     assert not cache.exists()
 
 
-@pytest.mark.parametrize("command", slow_but(["eval", "sweep", "check"], "eval"))
+@pytest.mark.parametrize("command", integration_but(["eval", "sweep", "check"], "eval"))
 def test_out_holding_other_files_is_refused_and_an_earlier_report_is_not(toy, tmp_path,
                                                                          command):
     out = tmp_path / "mine"
@@ -1146,7 +1146,7 @@ def test_cmd_naming_a_script_that_does_not_exist_is_refused(toy, tmp_path, comma
 # ----------------------------------------------------------- --pipeline that is no pipeline
 
 
-@pytest.mark.parametrize(("spec", "needle"), slow_but([
+@pytest.mark.parametrize(("spec", "needle"), integration_but([
     ("../ci/mypipe.py:detect", "the part before ':' is a module name, not a file: name it "
                                "'mypipe:detect' and run from ../ci (or put ../ci on PYTHONPATH)"),
     ("refernce", "got 'refernce' (did you mean 'reference'?)"),
@@ -1158,7 +1158,7 @@ def test_cmd_naming_a_script_that_does_not_exist_is_refused(toy, tmp_path, comma
     ("hostile_callables:tuple_answer", "returned tuple (2, 72000.0) for an image, not a result "
                                        "(a mapping, or an object with count and area"),
 ], first=2))
-@pytest.mark.parametrize("command", slow_but(["eval", "sweep"], "eval"))
+@pytest.mark.parametrize("command", integration_but(["eval", "sweep"], "eval"))
 def test_pipeline_that_is_no_pipeline_is_refused_before_any_image(toy, tmp_path, command, spec,
                                                                    needle):
     argv = {"eval": ("eval", str(toy)),
@@ -1187,7 +1187,7 @@ def _png_declaring(width: int, height: int) -> bytes:
             + chunk(b"IDAT", zlib.compress(b"\x00" * 64)) + chunk(b"IEND", b""))
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize(("width", "height"), [(20000, 20000), (1000, 0), (8193, 10)])
 def test_image_header_promising_an_impossible_size_is_a_damaged_dataset(toy, tmp_path, width,
                                                                          height):
@@ -1244,8 +1244,8 @@ def _without_read_permission() -> list[str]:
     return [setpriv, "--bounding-set=-dac_override,-dac_read_search", "--"]
 
 
-@pytest.mark.parametrize("what", slow_but(["manifest.jsonl", "images"], "images"))
-@pytest.mark.parametrize("command", slow_but(["eval", "grade"], "grade"))
+@pytest.mark.parametrize("what", integration_but(["manifest.jsonl", "images"], "images"))
+@pytest.mark.parametrize("command", integration_but(["eval", "grade"], "grade"))
 def test_unreadable_dataset_file_or_folder_is_one_line(toy, tmp_path, command, what):
     import shutil
 
@@ -1270,7 +1270,7 @@ def test_unreadable_dataset_file_or_folder_is_one_line(toy, tmp_path, command, w
     assert not (tmp_path / "o").exists()
 
 
-@pytest.mark.slow  # renders the two scenes of check's twin set
+@pytest.mark.integration  # renders the two scenes of check's twin set
 def test_check_out_on_a_full_disk_is_one_line(small_disk, tmp_path):
     out = small_disk / "out"
     proc = run_cli("check", str(PIPES / "crash.py"), "--count", "2", "--out", str(out),

@@ -196,7 +196,7 @@ def test_a_command_that_returns_0_after_a_stop_exits_with_its_status(capsys):
     assert run(lambda: 0) == 0  # the next command starts afresh
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize(("sig", "workers"), [(signal.SIGINT, 2), (signal.SIGTERM, 1)])
 def test_generate_stops_keeps_what_finished_and_resumes_byte_identical(
         tmp_path, uninterrupted, sig, workers):
@@ -234,7 +234,7 @@ def test_generate_stops_keeps_what_finished_and_resumes_byte_identical(
     assert _files(out) == _files(uninterrupted)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_generate_workers_die_with_a_killed_parent(tmp_path):
     out = tmp_path / "ds"
     proc = _arenabench(*_generate_args(out, 2))
@@ -256,7 +256,7 @@ def _sweep_args(out: Path, workers: int, *pipes: str) -> list[str]:
             "--workers", str(workers), "--no-progress", "--no-plots"]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_sweep_stops_and_writes_what_finished(tmp_path):
     out = tmp_path / "sweep"
     proc = _arenabench(*_sweep_args(out, 2, "--pipeline", "reference", "--keep-images"))
@@ -279,7 +279,7 @@ def test_sweep_stops_and_writes_what_finished(tmp_path):
     assert (out / "sweep.csv").is_file()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("workers", [1, 2])
 def test_sweep_stop_ends_hanging_commands(tmp_path, workers):
     out = tmp_path / "sweep"
@@ -301,7 +301,7 @@ def test_sweep_stop_ends_hanging_commands(tmp_path, workers):
     assert doc["complete"] is False and doc["run"]["samples_done"] == 0
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_sweep_on_a_dask_cluster_stops_and_cancels_its_tasks(tmp_path):
     distributed = pytest.importorskip("distributed")
     out = tmp_path / "sweep"
@@ -375,7 +375,7 @@ def _marked(folder: Path, *, fast: int) -> tuple[Path, Path]:
     return script, marks
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("delay", [0.05, 0.3])
 def test_second_sigint_eval_cmd_still_writes_every_partial_report(toy3, tmp_path, delay):
     script, marks = _marked(tmp_path, fast=1)
@@ -394,7 +394,7 @@ def test_second_sigint_eval_cmd_still_writes_every_partial_report(toy3, tmp_path
     assert "after 1 of 3 images" in err
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("delay", [0.05, 0.3])
 def test_second_sigint_generate_exits_130_and_resumes(tmp_path, delay):
     out = tmp_path / "ds"
@@ -408,7 +408,7 @@ def test_second_sigint_generate_exits_130_and_resumes(tmp_path, delay):
     assert len((out / "manifest.jsonl").read_text().splitlines()) == meta["finished"]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("delay", [0.05, 0.3])
 def test_second_sigint_grade_exits_130(toy3, tmp_path, delay):
     teams = tmp_path / "teams"
@@ -427,7 +427,7 @@ def test_second_sigint_grade_exits_130(toy3, tmp_path, delay):
     assert not (out / ".arenabench.lock").exists()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_eval_stopped_before_any_image_still_writes_empty_partial_reports(toy3, tmp_path):
     script, marks = _marked(tmp_path, fast=0)
     out = tmp_path / "out"
@@ -442,7 +442,7 @@ def test_eval_stopped_before_any_image_still_writes_empty_partial_reports(toy3, 
 
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_stop_during_the_pyrender_import_waits_for_it_to_finish():
     """trimesh imports ``trimesh.path`` inside ``except BaseException`` and keeps an
     ExceptionWrapper in its place: a stop landing there was swallowed and broke the process
@@ -501,13 +501,9 @@ open("obstacles.txt", "w").write("Obstacles: 99\\nArea: 1.0\\n")
 
 
 @pytest.fixture(scope="module")
-def twin2(tmp_path_factory):
+def twin2(shared_sets):
     """Two eyrc scenes: failures there are phase-checked (--phase-check auto)."""
-    from arenabench.generator.dataset_writer import generate_dataset
-
-    out = tmp_path_factory.mktemp("twin2") / "eyrc"
-    generate_dataset(out, preset="eyrc", count=2, seed=0, workers=1, progress=False)
-    return out
+    return shared_sets.generated("eyrc", count=2, seed=0)
 
 
 def _phase_hang(folder: Path, marks: Path, images: int) -> Path:
@@ -518,7 +514,7 @@ def _phase_hang(folder: Path, marks: Path, images: int) -> Path:
     return script
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_eval_stopped_in_the_phase_check_ends_its_runs_at_once(twin2, tmp_path, sig):
     marks = tmp_path / "marks"
@@ -539,7 +535,7 @@ def test_eval_stopped_in_the_phase_check_ends_its_runs_at_once(twin2, tmp_path, 
     assert all(i["category"] == "wrong_count" and "phase" not in i for i in report["images"])
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_grade_stopped_in_a_team_phase_check_ends_its_report_workers(twin2, tmp_path, sig):
     marks = tmp_path / "marks"
@@ -614,7 +610,7 @@ def test_eval_stopped_before_any_image_ran_writes_an_empty_partial_report(
     assert "INCOMPLETE: 0" in (out / "report.md").read_text()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("where", ["closing the pipeline", "writing the reports"])
 def test_eval_stopped_after_its_last_image_writes_the_whole_report(toy3, tmp_path, monkeypatch,
                                                                    where):
@@ -639,7 +635,7 @@ def test_eval_stopped_after_its_last_image_writes_the_whole_report(toy3, tmp_pat
     assert report["complete"] is True and len(report["images"]) == 3
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_check_stopped_while_loading_its_twin_set_writes_an_empty_partial_report(
         tmp_path, monkeypatch):
     from clirun import run_cli

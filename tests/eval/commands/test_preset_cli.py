@@ -84,7 +84,7 @@ def _image_preset(folder: Path, *, texture: str = "floor/lab.png", **extra) -> P
 # ------------------------------------------------------------------------ byte for byte
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("name", list(PRESETS))
 def test_presets_show_writes_a_file_that_generates_the_same_bytes(name, tmp_path):
     toml = tmp_path / f"{name}.toml"
@@ -211,7 +211,7 @@ def test_a_set_records_its_preset_and_open_table_and_refuses_another(tmp_path):
                     "[1, 2], now [1, 3]")
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_set_needs_no_texture_file_afterwards(tmp_path, monkeypatch):
     """Generated from a preset file whose texture is a relative path; the file and the preset
     deleted and the cache emptied, the set is extended from its own dataset.json (the same
@@ -254,7 +254,7 @@ def test_a_set_needs_no_texture_file_afterwards(tmp_path, monkeypatch):
     assert floor is not None and floor.std() > 10  # the textured floor, not a blank one
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_cluster_workers_get_the_texture_with_their_tasks(tmp_path, monkeypatch):
     """Dask workers whose cache never saw the texture (as on another machine) render the same
     bytes as local workers: the tasks carry it."""
@@ -350,7 +350,7 @@ def test_phase_images_keep_the_jpeg_quality_of_a_preset_file(tmp_path):
 # ------------------------------------------------------------------- check, sweep, plugin
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_check_takes_a_preset_file(tmp_path, own_cache):
     preset = tmp_path / "two.toml"
     p = builtin_preset("eyrc")
@@ -372,7 +372,7 @@ def test_check_takes_a_preset_file(tmp_path, own_cache):
     assert report["summary"]["n"] == 3
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_sweep_takes_a_preset_file(tmp_path, monkeypatch):
     preset = _image_preset(tmp_path / "p")
     _texture(tmp_path / "p" / "floor/lab.png")

@@ -71,7 +71,7 @@ def test_big_set_scores_as_its_builder_says(small_set):
     assert report.summary.n_passed == small_set.passes > 0
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_spilled_run_gives_the_same_report_files(small_set, tmp_path):
     """A run's results kept in a file give the same report files as in memory (the same
     report written both ways), and the same results as a run kept in memory."""
@@ -99,7 +99,7 @@ def test_spilled_run_gives_the_same_report_files(small_set, tmp_path):
     assert saved == json.loads(dumps_json(held.to_dict()))
 
 
-@pytest.mark.slow
+@pytest.mark.acceptance  # a measurement against a bound: minutes
 def test_100k_images_evaluate_in_under_1_gb(tmp_path):
     """``arenabench eval`` of a synthetic 100,000-entry set with a do-nothing pipeline: the
     command's largest process stays under 1 GB and the report counts every image."""
@@ -133,7 +133,7 @@ def _first_error(root, workers):
     return None
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_several_processes_refuse_junk_ids_and_gt_values_first_as_one_does(small_set,
                                                                           tmp_path):
     import shutil
@@ -163,7 +163,7 @@ def test_several_processes_refuse_junk_ids_and_gt_values_first_as_one_does(small
     assert _first_error(root, 2) == first
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_checking_on_several_processes_gives_the_same_dataset_and_first_error(tmp_path):
     big = write_big_set(tmp_path / "set", 5000, templates=4)
     one, two = load_dataset(big.root, workers=1), load_dataset(big.root, workers=2)

@@ -37,12 +37,9 @@ raise RuntimeError("{SECRET} " + str(image[:4, :4].tolist()))
 
 
 @pytest.fixture(scope="module")
-def graded(tmp_path_factory):
-    from arenabench.generator.dataset_writer import generate_dataset
-
+def graded(tmp_path_factory, shared_sets):
     root = tmp_path_factory.mktemp("feedback")
-    data = root / "hidden-set"
-    generate_dataset(data, preset="eyrc", count=4, seed=0, workers=2, progress=False)
+    data = shared_sets.generated("eyrc", count=4, seed=0, workers=2)
     subs = root / "submissions"
     (subs / "minarea").mkdir(parents=True)
     for name in ("competition_style.py", "style_blur127.py"):
@@ -69,7 +66,7 @@ def _numbers(value: float) -> set[str]:
             str(round(value, 3))}
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_feedback_holds_no_hidden_image_and_no_number_of_one(graded):
     data, _, out, _ = graded
     gts = [json.loads(p.read_text()) for p in sorted((data / "gt").glob("*.json"))]
@@ -90,7 +87,7 @@ def test_feedback_holds_no_hidden_image_and_no_number_of_one(graded):
                             name, team, value)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_feedback_says_what_failed_and_how_many(graded):
     _, _, out, _ = graded
     md = _texts(out, "leaky")["feedback.md"]
@@ -112,7 +109,7 @@ def test_feedback_says_what_failed_and_how_many(graded):
         "dataset"]["manifest_sha256"]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_team_without_its_feedback_is_graded_again(graded):
     data, subs, out, opts = graded
     again = grade(data, subs, out, options=opts, workers=2, allow_guessable_seed=True)

@@ -91,13 +91,8 @@ def _distinct_seed() -> int:
 
 
 @pytest.fixture(scope="module")
-def dataset(tmp_path_factory):
-    from arenabench.generator.dataset_writer import generate_dataset
-
-    out = tmp_path_factory.mktemp("grade-data") / "hidden"
-    generate_dataset(out, preset="eyrc", count=COUNT, seed=_distinct_seed(), workers=1,
-                     progress=False)
-    return out
+def dataset(shared_sets):
+    return shared_sets.generated("eyrc", count=COUNT, seed=_distinct_seed())
 
 
 @pytest.fixture(scope="module")
@@ -122,7 +117,7 @@ def _gt_counts(dataset):
     return [json.loads(p.read_text())["count"] for p in sorted((dataset / "gt").glob("*.json"))]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_six_teams_are_ranked_as_expected(graded, dataset):
     jsonschema = pytest.importorskip("jsonschema")
     out, proc = graded
@@ -174,7 +169,7 @@ def test_six_teams_are_ranked_as_expected(graded, dataset):
     assert proc.stdout.count(": graded (") == 6
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_cheating_team_cannot_read_the_ground_truth(graded):
     # Each run sees a private copy of its image under a neutral name (and, with bubblewrap,
     # nothing of the dataset): the cheat finds no GT, answers 0 obstacles on every image and
@@ -187,7 +182,7 @@ def test_cheating_team_cannot_read_the_ground_truth(graded):
     assert [t["team"] for t in doc["teams"]][-2:] == ["cheating", "slow"]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_grading_again_skips_every_team(graded, dataset, submissions):
     out, _ = graded
     before = (out / "leaderboard.json").read_bytes()
@@ -202,7 +197,7 @@ def test_grading_again_skips_every_team(graded, dataset, submissions):
     assert not list(submissions.rglob("__pycache__"))  # submissions are only read
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_dask_local_cluster_gives_the_same_leaderboard(graded, dataset, submissions, tmp_path,
                                                        monkeypatch):
     distributed = pytest.importorskip("distributed")
@@ -245,7 +240,7 @@ def _opts(**kw) -> GradeOptions:
                         formats=("json",), settings=grade_settings(), **kw)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_changed_submission_or_options_are_graded_again(dataset, tmp_path):
     subs = _fast_teams(tmp_path / "subs", {"a": 1, "b": 2, "c": 3})
     out = tmp_path / "out"
@@ -267,7 +262,7 @@ def test_changed_submission_or_options_are_graded_again(dataset, tmp_path):
     assert {r.team for r in fourth.rows} == {"a", "b"}
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_interrupted_grade_keeps_finished_teams(dataset, tmp_path):
     subs = _fast_teams(tmp_path / "subs", {"a": 1, "b": 2, "c": 3})
     out = tmp_path / "out"
@@ -286,7 +281,7 @@ def test_interrupted_grade_keeps_finished_teams(dataset, tmp_path):
     assert len(again.rows) == 3
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_odd_team_names_are_escaped_and_linked(dataset, tmp_path):
     import html
     import re
@@ -307,7 +302,7 @@ def test_odd_team_names_are_escaped_and_linked(dataset, tmp_path):
     assert {r["team"] for r in rows} == {name, "plain"}
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_team_folders_named_like_placeholders_are_graded_as_any_other(dataset, tmp_path):
     names = ("x{image}y", "x{submission}y", "plain")
     subs = _fast_teams(tmp_path / "subs", dict.fromkeys(names, 1))
@@ -436,7 +431,7 @@ def test_bad_inputs_exit_2_naming_them(dataset, tmp_path, capsys):
     assert sorted(p.name for p in (subs / "a").iterdir()) == ["map.py"]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_leaderboard_page_sorts_in_headless_chromium(graded, tmp_path):
     from browser import CHROMIUM_FLAGS, find_chromium
 
@@ -467,7 +462,7 @@ def test_leaderboard_page_sorts_in_headless_chromium(graded, tmp_path):
     assert by_timeouts[0] == "slow"
 
 
-@pytest.mark.slow  # imports Dask
+@pytest.mark.integration  # imports Dask
 def test_unreachable_scheduler_exits_2_before_writing(dataset, tmp_path):
     subs = _fast_teams(tmp_path / "subs", {"a": 1})
     out = tmp_path / "out"
@@ -483,7 +478,7 @@ def test_unreachable_scheduler_exits_2_before_writing(dataset, tmp_path):
     assert not out.exists()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
 def test_signal_stops_running_commands_and_keeps_finished_teams(sig, dataset, tmp_path):
     subs = _fast_teams(tmp_path / "subs", {"a": 1})
@@ -575,7 +570,7 @@ def toy8(tmp_path_factory):
     return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("toy8") / "toy", n=8, seed=1)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_team_that_times_out_in_a_row_is_given_up(toy8, tmp_path, capsys):
     subs = _fast_teams(tmp_path / "subs", {"a_fast": 1})
     marks = _marked_team(subs, "b_hangs", tmp_path / "marks", hang_from=0)
@@ -622,7 +617,7 @@ Path("obstacles.txt").write_text("Aruco ID: [80, 85, 90, 95]\\nObstacles: 1\\nAr
 """
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_giving_up_gives_the_same_verdicts_whatever_the_workers(toy8, tmp_path):
     # images 000001 and 000002 hang; the others answer at once. One worker never starts the
     # images after 000002; four run 000003 to 000007 (and have their answers back) while
@@ -708,7 +703,7 @@ def test_give_up_after_is_refused_when_not_a_count(toy8, tmp_path, capsys):
         GradeOptions(give_up_after=-1)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_an_interrupted_team_keeps_its_finished_images_and_resumes_from_there(toy8, tmp_path):
     subs = _fast_teams(tmp_path / "subs", {"a_first": 1})
     marks = _marked_team(subs, "b_stopped", tmp_path / "marks", hang_from=3)
@@ -767,7 +762,7 @@ def test_an_interrupted_team_keeps_its_finished_images_and_resumes_from_there(to
     assert doc["complete"] is True and doc["unfinished"] == []
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_kept_results_are_reused_only_for_the_same_submission(toy8, tmp_path):
     from arenabench.eval.grade.partial import PARTIAL_FILE, PARTIAL_SCHEMA
 
@@ -805,7 +800,7 @@ def test_kept_results_are_reused_only_for_the_same_submission(toy8, tmp_path):
     assert not keep.exists()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_team_given_up_on_a_dask_cluster_has_its_pending_units_cancelled(toy8, tmp_path):
     distributed = pytest.importorskip("distributed")
     subs = tmp_path / "subs"

@@ -79,12 +79,8 @@ def random_set(tmp_path_factory):
 
 
 @pytest.fixture(scope="module")
-def seed3_set(tmp_path_factory):
-    from arenabench.generator.dataset_writer import generate_dataset
-
-    out = tmp_path_factory.mktemp("guard-seed3") / "hidden"
-    generate_dataset(out, preset="eyrc", count=1, seed=3, workers=1, progress=False)
-    return out
+def seed3_set(shared_sets):
+    return shared_sets.generated("eyrc", count=1, seed=3)
 
 
 # ----------------------------------------------------------------------------- seeds
@@ -215,7 +211,7 @@ def test_a_set_whose_every_seed_is_big_passes_the_seed_check(seed3_set, tmp_path
     check_dataset_seed(load_dataset(weak), allow_guessable=True)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_answers_beyond_any_scene_are_bad_output_and_every_team_is_ranked(seed3_set, tmp_path):
     """2**53 once stopped a team's report ("array is too big") and 6000 took minutes and
     gigabytes (the count confusion grew with the count squared): both are bad_output now, and
@@ -242,7 +238,7 @@ def test_answers_beyond_any_scene_are_bad_output_and_every_team_is_ranked(seed3_
     assert {t["team"] for t in doc["teams"]} == {"huge", "many", "plain"}
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @needs_bwrap
 def test_seed_brute_force_wins_on_seed_3_and_fails_on_a_random_set(random_set, seed3_set,
                                                                    tmp_path):
@@ -291,7 +287,7 @@ Path("obstacles.txt").write_text("Aruco ID: [80, 85, 90, 95]\\nObstacles: 0\\nAr
 """
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @needs_bwrap
 @pytest.mark.parametrize("warm", [False, True], ids=["cold", "warm"])
 def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp_path, warm):
@@ -345,7 +341,7 @@ def test_pics_folder_keeps_gt_hidden_and_proc_names_no_host_paths(seed3_set, tmp
     assert os.environ["PATH"] not in seen["environ"]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @needs_bwrap
 def test_symlinked_team_grades_like_its_target(seed3_set, tmp_path):
     elsewhere = _team(tmp_path / "real", "team_src", ANSWER.format(count=1))
@@ -375,7 +371,7 @@ def teams_venv(competition_cache):
     return env_folder(competition_cache)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @needs_bwrap
 @pytest.mark.parametrize("named", ["by its path", "{competition_python}"])
 def test_a_second_venv_grades_a_correct_team_100(seed3_set, teams_venv, competition_cache,
@@ -465,7 +461,7 @@ def test_a_relative_interpreter_is_named_as_relative_to_each_team_folder(seed3_s
     assert _no_team_graded(out)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_sandbox_none_is_required_without_bubblewrap(seed3_set, tmp_path):
     # a PATH without bubblewrap (the harness is started by its absolute path)
     nobwrap = tmp_path / "bin"
@@ -489,7 +485,7 @@ def test_sandbox_none_is_required_without_bubblewrap(seed3_set, tmp_path):
 # ----------------------------------------------------------------------------- leaderboard
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_six_teams_failing_alike_exit_non_zero(seed3_set, tmp_path):
     subs = tmp_path / "subs"
     for i in range(6):
@@ -504,7 +500,7 @@ def test_six_teams_failing_alike_exit_non_zero(seed3_set, tmp_path):
     assert (out / "leaderboard.json").is_file()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_an_all_timeout_team_ranks_last_with_null_latency(seed3_set, tmp_path):
     subs = tmp_path / "subs"
     _team(subs, "a_sleeps", "import time\ntime.sleep(60)\n")
@@ -521,7 +517,7 @@ def test_an_all_timeout_team_ranks_last_with_null_latency(seed3_set, tmp_path):
     assert "latency" not in json.dumps(doc["ranking"])
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_byte_identical_submissions_share_one_rank_every_run(seed3_set, tmp_path):
     subs = tmp_path / "subs"
     for name in ("x", "y", "z"):
@@ -561,12 +557,9 @@ def _dom(page: Path, tmp_path: Path) -> str:
     return proc.stdout
 
 
-@pytest.mark.slow
-def test_interrupted_grade_and_eval_show_the_banner(seed3_set, tmp_path):
-    from arenabench.generator.dataset_writer import generate_dataset
-
-    data = tmp_path / "three"
-    generate_dataset(data, preset="eyrc", count=3, seed=3, workers=1, progress=False)
+@pytest.mark.integration
+def test_interrupted_grade_and_eval_show_the_banner(shared_sets, tmp_path):
+    data = shared_sets.generated("eyrc", count=3, seed=3)
     # eval: the second image hangs (after leaving a mark); SIGINT once it does
     slow, mark = tmp_path / "slow.py", tmp_path / "sleeping"
     slow.write_text("import sys, time\nfrom pathlib import Path\n"
@@ -581,11 +574,9 @@ def test_interrupted_grade_and_eval_show_the_banner(seed3_set, tmp_path):
          "--formats", "json,md,html", "--no-progress", "--timeout", "300", "--sandbox", "none"],
         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=_env())
     try:
-        import time
+        from hostile_util import wait_for
 
-        deadline = time.monotonic() + 120
-        while not mark.exists() and time.monotonic() < deadline:
-            time.sleep(0.1)
+        assert wait_for(mark.exists, timeout=120), "the second image never started"
         proc.send_signal(signal.SIGINT)
         proc.communicate(timeout=120)
     finally:
@@ -638,7 +629,7 @@ def test_sweep_page_of_a_partial_sweep_shows_the_banner(tmp_path):
     assert "INCOMPLETE: 1 of 2 images" in page and 'id="incomplete"' in page
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_submission_too_large_to_fingerprint_is_refused_alone(seed3_set, tmp_path,
                                                                  monkeypatch):
     from arenabench.eval.grade import submissions

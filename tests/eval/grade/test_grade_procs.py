@@ -72,12 +72,8 @@ def _cli(*args: str, prefix: list[str] | None = None) -> subprocess.CompletedPro
 
 
 @pytest.fixture(scope="module")
-def one_image(tmp_path_factory):
-    from arenabench.generator.dataset_writer import generate_dataset
-
-    out = tmp_path_factory.mktemp("procs") / "hidden"
-    generate_dataset(out, preset="eyrc", count=1, seed=3, workers=1, progress=False)
-    return out
+def one_image(shared_sets):
+    return shared_sets.generated("eyrc", count=1, seed=3)
 
 
 def _teams(root: Path, script: str = ANSWER) -> Path:
@@ -108,7 +104,7 @@ def _grade_argv(dataset: Path, subs: Path, out: Path) -> list[str]:
             "--allow-guessable-seed", "--no-progress", "--formats", "json"]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @needs_root_unshare
 def test_grade_without_a_pids_cgroup_stops_before_any_team(one_image, tmp_path):
     out = tmp_path / "out"
@@ -121,7 +117,7 @@ def test_grade_without_a_pids_cgroup_stops_before_any_team(one_image, tmp_path):
     assert not out.exists()  # no team graded, nothing half-written
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @needs_root_unshare
 def test_grade_with_max_procs_0_proceeds_without_a_pids_cgroup(one_image, tmp_path):
     out = tmp_path / "out"
@@ -137,7 +133,7 @@ def test_grade_with_max_procs_0_proceeds_without_a_pids_cgroup(one_image, tmp_pa
     assert f"process limit {NO_PROCESS_LIMIT}" in (out / "leaderboard.html").read_text()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @needs_root_unshare
 def test_eval_without_a_pids_cgroup_keeps_the_warning(one_image, tmp_path):
     team = _teams(tmp_path / "subs") / "a"
@@ -148,7 +144,7 @@ def test_eval_without_a_pids_cgroup_keeps_the_warning(one_image, tmp_path):
     assert len(warnings) == 1 and "--max-procs cannot be enforced" in warnings[0], proc.stderr
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_grade_records_how_the_limit_is_enforced(one_image, tmp_path):
     subs = _teams(tmp_path / "subs")
     out = tmp_path / "out"
@@ -159,7 +155,7 @@ def test_grade_records_how_the_limit_is_enforced(one_image, tmp_path):
     assert box["process_limit"] == expected
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_max_procs_0_lets_a_run_fork(one_image, tmp_path):
     # with a pids cgroup, 0 must become 'max' (a pids.max of 0 would refuse every fork)
     script = tmp_path / "forks.py"

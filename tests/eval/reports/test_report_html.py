@@ -54,7 +54,7 @@ def test_html_report_is_self_contained(report_page):
     assert "- PASS" not in text
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_html_report_renders_in_headless_chromium(chromium, report_page, tmp_path):
     page, _ = report_page
     shot = tmp_path / "report.png"
@@ -67,7 +67,7 @@ def test_html_report_renders_in_headless_chromium(chromium, report_page, tmp_pat
     assert len(np.unique(image.reshape(-1, 3), axis=0)) > 200
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_console_error_detection_works(chromium, tmp_path):
     """Positive control: the same check does see a console error and an uncaught exception."""
     bad = tmp_path / "bad.html"
@@ -101,7 +101,7 @@ def _colour_pixels(image: np.ndarray) -> dict[str, int]:
     }
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_thumbnails_draw_the_builtin_pipelines_contours(chromium, builtin_pages, report_page,
                                                          tmp_path):
     """In the browser's screenshot: the reference pipeline's outlines (magenta) beside the GT

@@ -26,7 +26,7 @@ def toy(tmp_path_factory):
     return toy_arena.write_toy_dataset(tmp_path_factory.mktemp("toyuse") / "toy", n=6, seed=4)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_timed_out_image_has_no_latency_in_any_report(toy, tmp_path):
     report = evaluate(
         CommandPipeline(f"{PY} {PIPES / 'hang.py'} --image {{image}}",
@@ -57,7 +57,7 @@ def test_latency_statistics_keep_the_images_that_have_one(toy):
     assert all(r.to_dict()["latency_ms"] > 0 for r in report.images)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_eval_prints_every_gate_and_its_outcome(toy, tmp_path, capsys):
     rc = eval_main([str(toy), "--pipeline", "toy_arena:detect", "--no-progress", "--workers",
                     "1", "--fail-under", "pass_rate=0.5,area_rel_err.p95=0.5"])
@@ -176,7 +176,7 @@ def test_pytest_plugin_keys_its_set_by_the_generator_version():
     assert dataset_key("eyrc", 12, 0) == f"eyrc-n12-s0-v{GENERATOR_VERSION}"
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_pytest_plugin_caches_under_the_generator_version(tmp_path, tmp_path_factory):
     import subprocess
 

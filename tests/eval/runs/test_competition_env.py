@@ -50,7 +50,7 @@ def test_substitute_replaces_the_placeholder_argument_by_argument():
     assert substitute_competition_python("python3 map.py", "/x") == "python3 map.py"
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_the_environment_holds_the_pins_and_is_reused(competition_cache, capfd):
     folder = env_folder(competition_cache)
     record = json.loads((folder / RECORD_FILE).read_text())
@@ -70,7 +70,7 @@ def test_the_environment_holds_the_pins_and_is_reused(competition_cache, capfd):
     assert capfd.readouterr().err == ""  # reused: nothing made, nothing said
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_half_made_environment_is_never_used(tmp_path, offline, capfd):
     """A folder without its record (a build killed before the rename could not leave one, but
     a hand-made or damaged one can) and a killed build's temporary folder: neither is used, both
@@ -88,7 +88,7 @@ def test_a_half_made_environment_is_never_used(tmp_path, offline, capfd):
     assert len(err) == 2 and "cannot be made" in err[1]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_second_command_waits_for_the_one_making_it_and_reuses_its_work(
         competition_cache, tmp_path, offline):
     """While one command holds the build lock, another waits (and says so in one line), then
@@ -120,7 +120,7 @@ def test_a_second_command_waits_for_the_one_making_it_and_reuses_its_work(
     assert err == ""  # nothing made, no warning
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("when", ["starting", "installing"])
 def test_a_stopped_build_leaves_nothing_half_made(tmp_path, when):
     """SIGINT while the environment is being made (as it starts, or while pip installs): the
@@ -151,7 +151,7 @@ def test_a_stopped_build_leaves_nothing_half_made(tmp_path, when):
     assert [p.name for p in folder.parent.iterdir()] == [folder.name + ".lock"]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_eval_and_sweep_run_competition_python_commands(competition_cache, tmp_path):
     env = {"ARENABENCH_CACHE_DIR": str(competition_cache)}
     data = tmp_path / "set"

@@ -65,7 +65,7 @@ def test_a_multiprocessing_worker_removes_its_folder_before_returning(tmp_path):
     assert still_there is False and not folder.exists()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_the_end_of_a_run_context_waits_for_pending_removals(tmp_path):
     # many files per folder, so that the remover thread is still at work when the block
     # ends: without the wait, the daemon thread would die with the script, folders left

@@ -43,7 +43,7 @@ def _per_image(report):
     ]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_callable_command_and_json_line_give_identical_results(toy):
     by_spec = evaluate("toy_arena:detect", toy, workers=2)
     by_function = evaluate(toy_arena.detect, toy, workers=2)
@@ -64,14 +64,14 @@ def test_callable_command_and_json_line_give_identical_results(toy):
     assert all(r.prediction.latency_ms > 0 for r in by_cmd.images)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_process_pool_matches_thread_pool(toy):
     threads = evaluate("toy_arena:detect", toy, workers=2, executor="thread")
     procs = evaluate("toy_arena:detect", toy, workers=2, executor="process")
     assert _per_image(procs) == _per_image(threads)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_crashing_command_is_a_crash_with_its_stderr(toy, tmp_path, capsys):
     rc = eval_main(
         [
@@ -99,7 +99,7 @@ def test_crashing_command_is_a_crash_with_its_stderr(toy, tmp_path, capsys):
     assert "deliberate crash in the test pipeline" in first.stderr
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_hanging_command_times_out_and_its_children_are_killed(toy, tmp_path):
     from hostile_util import processes_with
 
@@ -139,7 +139,7 @@ def test_missing_obstacles_file_and_missing_executable(toy):
         CommandPipeline("no-such-tool-xyz --image {image}")
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_eight_parallel_commands_never_share_a_working_directory(toy, tmp_path, monkeypatch):
     import tempfile
 
@@ -222,9 +222,9 @@ def test_adapter_arguments_are_validated():
     "script, category, status",
     [
         ("crash.py", "crash", 1),
-        pytest.param("hang.py", "timeout", 1, marks=pytest.mark.slow),
-        pytest.param("garbage.py", "bad_output", 1, marks=pytest.mark.slow),
-        pytest.param("total_area.py", None, 0, marks=pytest.mark.slow),
+        pytest.param("hang.py", "timeout", 1, marks=pytest.mark.integration),
+        pytest.param("garbage.py", "bad_output", 1, marks=pytest.mark.integration),
+        pytest.param("total_area.py", None, 0, marks=pytest.mark.integration),
     ],
 )
 def test_broken_pipelines_through_the_cli(script, category, status, toy, tmp_path, capsys):

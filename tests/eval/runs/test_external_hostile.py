@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 import toy_arena
 from hostile_util import processes_with, wait_for
-from marks import slow_but
+from marks import integration_but
 from paths import TESTS
 
 from arenabench.eval.evaluation import EvaluationFailed, evaluate
@@ -80,7 +80,7 @@ def test_a_submission_under_tmp_runs_and_still_sees_no_dataset(toy, run_tmp, tmp
         assert seen["target"] == ["<No such file or directory>"]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_private_directory_and_scrubbed_environment(sandbox, toy, run_tmp, monkeypatch):
     monkeypatch.setenv("SECRET_TOKEN", "s3cr3t")
@@ -97,7 +97,7 @@ def test_private_directory_and_scrubbed_environment(sandbox, toy, run_tmp, monke
         assert str(toy) not in json.dumps([seen["argv"], seen["env"]])
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @needs_bwrap
 def test_loopback_connection_fails_under_bwrap(toy, run_tmp):
     server = socket.socket()
@@ -127,7 +127,7 @@ def test_writes_outside_the_private_directory_fail_under_bwrap(toy, run_tmp, tmp
         assert r.prediction.stdout.count("refused") == 3
 
 
-@pytest.mark.parametrize("sandbox", slow_but(SANDBOXES, "bwrap"))
+@pytest.mark.parametrize("sandbox", integration_but(SANDBOXES, "bwrap"))
 def test_detached_daemons_are_gone_and_do_not_hold_the_run(sandbox, toy, run_tmp):
     marker = f"daemon-marker-{os.getpid()}-{sandbox}"
     images = _one("daemon.py", sandbox, toy, env={"MARKER": marker})
@@ -139,7 +139,7 @@ def test_detached_daemons_are_gone_and_do_not_hold_the_run(sandbox, toy, run_tmp
     assert processes_with(marker) == []
 
 
-@pytest.mark.parametrize("sandbox", slow_but(SANDBOXES, "none"))
+@pytest.mark.parametrize("sandbox", integration_but(SANDBOXES, "none"))
 def test_memory_past_the_limit_is_a_limit(sandbox, toy, run_tmp):
     images = _one("memory.py", sandbox, toy, env={"MB": "1024"}, memory_bytes=256 * 1024**2)
     for r in images:
@@ -147,7 +147,7 @@ def test_memory_past_the_limit_is_a_limit(sandbox, toy, run_tmp):
         assert r.prediction.message.startswith("memory limit (--memory-limit 256M)")
 
 
-@pytest.mark.parametrize("sandbox", slow_but(SANDBOXES, "none"))
+@pytest.mark.parametrize("sandbox", integration_but(SANDBOXES, "none"))
 def test_fork_bomb_past_max_procs_is_a_limit(sandbox, toy, run_tmp):
     if pids_cgroup_parent() is None and os.getuid() == 0:
         pytest.skip("root without a writable pids cgroup: --max-procs is not enforceable")
@@ -169,7 +169,7 @@ def _rss_mb() -> float:
     raise AssertionError("no VmRSS")
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_100_mb_of_stdout_keeps_a_bounded_tail_and_flat_memory(toy, run_tmp):
     peak = [_rss_mb()]
     base = peak[0]
@@ -194,7 +194,7 @@ def test_100_mb_of_stdout_keeps_a_bounded_tail_and_flat_memory(toy, run_tmp):
     assert peak[0] - base < 40, f"harness RSS grew by {peak[0] - base:.0f} MB"
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_file_size_limit_and_oversized_answer(sandbox, toy, run_tmp):
     big = _one("bigfile.py", sandbox, toy, env={"MB": "64"}, max_file_size=8 * 1024**2)
@@ -243,7 +243,7 @@ def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
 def test_signal_stops_eval_with_a_partial_report(signum, toy, tmp_path):
     marker = f"signal-marker-{os.getpid()}-{int(signum)}"
@@ -271,7 +271,7 @@ def test_signal_stops_eval_with_a_partial_report(signum, toy, tmp_path):
     assert list(tmpdir.iterdir()) == []
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_sigkill_of_the_harness_leaves_no_processes_or_directories(toy, tmp_path):
     marker = f"sigkill-marker-{os.getpid()}"
     children = f"{marker}:child"
@@ -322,7 +322,7 @@ def test_sandbox_bwrap_where_it_does_not_work_is_a_usage_error(toy, capsys, monk
     assert len(err) == 1 and "bubblewrap (bwrap) is not installed" in err[0]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
     toy, run_tmp, monkeypatch, capsys
 ):
@@ -341,7 +341,7 @@ def test_sandbox_auto_without_bwrap_warns_once_and_still_contains(
     assert seen["cwd_files"] == ["image.png"] and seen["env"]["HOME"] == seen["cwd"]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_limit_is_a_failure_category_everywhere(toy, run_tmp):
     from arenabench.eval.scoring.results import CATEGORIES, STATUSES
     from arenabench.eval.scoring.thresholds import check_thresholds, parse_thresholds
@@ -424,7 +424,7 @@ def test_stale_run_dirs_and_cgroups_of_dead_owners_are_swept(tmp_path):
         assert str(group) in removed and not group.exists()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_sigkill_of_the_whole_group_is_swept_by_the_next_run(toy, tmp_path):
     marker = f"killpg-marker-{os.getpid()}"
     tmpdir = tmp_path / "tmp"
@@ -477,7 +477,7 @@ def test_pids_cgroup_probe_is_thread_safe(monkeypatch):
 
 
 @pytest.mark.parametrize("sandbox", SANDBOXES)
-@pytest.mark.slow
+@pytest.mark.integration
 def test_ptrace_of_the_launcher_is_refused_and_the_timeout_holds(sandbox, toy, run_tmp):
     import time
 
@@ -490,7 +490,7 @@ def test_ptrace_of_the_launcher_is_refused_and_the_timeout_holds(sandbox, toy, r
             assert "attach -1" in r.prediction.stdout, r.prediction.stdout
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("target", ["harness", "group"])
 def test_sigterm_with_a_command_that_ignores_it_is_not_exit_0(toy, tmp_path, target):
     script = tmp_path / "ignore_term.py"
@@ -526,7 +526,7 @@ def test_sigterm_with_a_command_that_ignores_it_is_not_exit_0(toy, tmp_path, tar
     assert wait_for(gone, timeout=10)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("warm", [False, True])
 def test_a_run_whose_pids_cgroup_cannot_be_made_is_not_run(warm, toy, run_tmp, tmp_path):
     """The pids cgroup parent was probed writable but the run's own cgroup cannot be made (here:

@@ -171,7 +171,7 @@ def _warm_cgroups_of(pid: int) -> list[str]:
     return [p.name for p in Path(CGROUP).iterdir() if p.name.startswith(f"arenabench-warm-{pid}-")]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @needs_bwrap
 @pytest.mark.parametrize("attack", sorted(ATTACKS))
 def test_one_team_cannot_sink_the_others(attack, toy, honest_alone, tmp_path):
@@ -331,7 +331,7 @@ def _burners(n: int) -> list[subprocess.Popen]:
     return [subprocess.Popen([PY, "-c", PINNED_BUSY, BURNER]) for _ in range(n)]
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("warm", [True, False])
 def test_a_timeout_while_starved_of_cpu_is_run_again_and_said_so(warm, toy, tmp_path, run_tmp):
     busy, hang = tmp_path / "busy.py", tmp_path / "hang.py"
@@ -359,7 +359,7 @@ USES_NUMPY = textwrap.dedent("""\
 """)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sandbox", [pytest.param("bwrap", marks=needs_bwrap), "none"])
 def test_a_submission_module_shadowing_a_preload_runs_as_cold_does(sandbox, toy, tmp_path,
                                                                    run_tmp, capfd):
@@ -384,7 +384,7 @@ CRASHES = textwrap.dedent("""\
 """)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sandbox", [pytest.param("bwrap", marks=needs_bwrap), "none"])
 def test_a_warm_crash_prints_the_scripts_traceback_alone(sandbox, toy, tmp_path, run_tmp):
     script = tmp_path / "crash.py"
@@ -405,7 +405,7 @@ SLOW_MARKED = textwrap.dedent("""\
 """)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @needs_bwrap
 @needs_cgroup
 def test_a_sigkilled_warm_command_leaves_nothing_the_next_sweep_misses(toy, tmp_path):
@@ -464,7 +464,7 @@ DETACHES = textwrap.dedent(f"""\
 """)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_an_in_process_pipelines_detached_child_dies_with_eval(toy, tmp_path):
     (tmp_path / "detaching.py").write_text(DETACHES)
     result = run_cli("eval", str(toy), "--pipeline", "detaching:detect", "--no-progress",
@@ -488,7 +488,7 @@ def _tiny_tmpdir(tmp_path: Path) -> tuple[list[str], Path]:
             f'mount -t tmpfs -o size=4k none {tiny} && exec "$@"', "sh"], tiny
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("warm", [True, False])
 def test_a_full_tmpdir_is_the_harness_failure_never_the_scripts(warm, toy, tmp_path):
     prefix, tiny = _tiny_tmpdir(tmp_path)

@@ -123,12 +123,8 @@ def test_a_flooded_folder_is_looked_at_only_so_far(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def twin8(tmp_path_factory):
-    from arenabench.generator.dataset_writer import generate_dataset
-
-    out = tmp_path_factory.mktemp("twin8") / "twin"
-    generate_dataset(out, preset="eyrc", count=8, seed=0, workers=2, progress=False)
-    return out
+def twin8(shared_sets):
+    return shared_sets.generated("eyrc", count=8, seed=0, workers=2)
 
 
 def _card_images(page: str) -> dict[str, list[str]]:
@@ -141,7 +137,7 @@ def _card_images(page: str) -> dict[str, list[str]]:
     return found
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("warm", [True, False], ids=["warm", "cold"])
 def test_the_failure_card_shows_the_warp_the_script_saved(twin8, tmp_path, warm):
     from arenabench.eval.commands.eval import main as eval_main
@@ -180,7 +176,7 @@ def test_the_failure_card_shows_the_warp_the_script_saved(twin8, tmp_path, warm)
                                     "obstacles_space", "homography"} for img in doc["images"])
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_the_card_renders_in_headless_chromium(twin8, tmp_path):
     from browser import console_messages, find_chromium, render_page
 

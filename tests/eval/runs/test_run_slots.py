@@ -87,7 +87,7 @@ def test_a_slot_is_handed_to_one_waiter_and_stop_wakes_the_others():
         slots.give()
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sandbox", [pytest.param("bwrap", marks=needs_bwrap), "none"])
 @pytest.mark.parametrize("warm", [True, False], ids=["warm", "cold"])
 @pytest.mark.parametrize("workers", [2, 3])
@@ -125,7 +125,7 @@ def test_stop_ends_the_running_command_and_the_one_waiting_for_its_slot(warm, to
         assert slots.free == 1
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("warm", [True, False], ids=["warm", "cold"])
 def test_grade_runs_no_more_commands_at_once_than_workers(warm, toy, run_tmp, tmp_path):
     from arenabench.eval.grade.grading import GradeUnit, _execute

@@ -7,13 +7,12 @@ import hashlib
 import json
 import os
 import sys
-import time
 from dataclasses import dataclass, field, fields
 from pathlib import Path
 
 import pytest
 import toy_arena  # tests/pipelines (pytest's pythonpath)
-from marks import slow_but
+from marks import integration_but
 from paths import TESTS
 
 from arenabench.eval.evaluation import evaluate
@@ -63,7 +62,7 @@ def test_which_commands_run_warm(tmp_path):
         assert pipe.command.warm is None
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_each_image_is_a_fresh_run_of_the_script_as_main(sandbox, toy, run_tmp):
     cold = {r.id: r for r in evaluate(_probe(sandbox, warm=False), toy, workers=1).images}
@@ -93,11 +92,11 @@ def _sha(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
 
-@pytest.mark.parametrize("sandbox", slow_but(SANDBOXES, "bwrap"))
+@pytest.mark.parametrize("sandbox", integration_but(SANDBOXES, "bwrap"))
 @pytest.mark.parametrize("mode, category, limits", [
-    pytest.param("hang", "timeout", {"timeout_s": 3.0}, marks=pytest.mark.slow),
+    pytest.param("hang", "timeout", {"timeout_s": 3.0}, marks=pytest.mark.integration),
     ("memory", "limit", {"memory_bytes": 1024**3}),
-    pytest.param("forkbomb", "limit", {"max_procs": 16}, marks=pytest.mark.slow),
+    pytest.param("forkbomb", "limit", {"max_procs": 16}, marks=pytest.mark.integration),
 ])
 def test_a_misbehaving_run_ends_alone_and_the_server_goes_on(sandbox, mode, category, limits,
                                                              toy, runs):
@@ -137,7 +136,7 @@ print(len(kids))
 """
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_max_procs_gives_a_warm_run_the_processes_of_a_cold_one(sandbox, toy, run_tmp,
                                                                  tmp_path):
@@ -176,7 +175,7 @@ def _standby_cgroups(server):
     return found
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, toy, runs):
     from concurrent.futures import ThreadPoolExecutor
@@ -199,13 +198,14 @@ def test_standby_managers_wait_in_run_cgroups_that_go_with_the_server(sandbox, t
         assert standbys, _standby_cgroups(server)
         seen |= set(standbys)
     assert len(seen) == STANDBYS + 2  # one used by each run after the first
-    # standbys that die while they wait, during a run (2 s): the server reaps them, reports
+    # standbys that die while they wait, during a run (3 s): the server reaps them, reports
     # the run's end as it comes, and forks the next run's manager
+    before = set(_standby_cgroups(server))
     with ThreadPoolExecutor(1) as pool:
         slow = pool.submit(pipe.run, images[3])
-        time.sleep(0.3)
-        waiting = wait_for(lambda s=server: len(_standby_cgroups(s)) == STANDBYS and
-                           _standby_cgroups(s), timeout=1.5)
+        # the run has taken a standby and the server has forked the one that replaces it
+        waiting = wait_for(lambda s=server: len(now := _standby_cgroups(s)) == STANDBYS and
+                           set(now) != before and now)
         assert waiting and not slow.done()
         for group in waiting:
             os.kill(int((group / "cgroup.procs").read_text()), 9)
@@ -234,7 +234,7 @@ def test_no_warm_is_an_option_of_eval_sweep_and_grade(module, argv):
     assert run_settings_from_args(parser.parse_args(argv)).warm is True
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_a_server_outlives_the_thread_that_started_it(sandbox, toy, runs):
     # PR_SET_PDEATHSIG follows the thread that started the keeper: the end of that thread
@@ -249,14 +249,17 @@ def test_a_server_outlives_the_thread_that_started_it(sandbox, toy, runs):
     starter.join()
     assert first[0].status == "ok", (first[0].message, first[0].stderr)
     (server,) = runs.servers.servers()
-    time.sleep(0.5)  # the keeper has had its signal by now
+    # the thread has left the kernel too: a death signal tied to it has been sent by now
+    from hostile_util import wait_for
+
+    assert wait_for(lambda: not Path(f"/proc/self/task/{starter.native_id}").exists())
     assert server.proc.poll() is None, server.proc.returncode
     again = pipe.run(images[1])
     assert again.status == "ok", (again.message, again.stderr)
     assert runs.servers.servers() == [server] and not server.dead
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_sigkill_of_the_harness_ends_the_server_and_its_runs(sandbox, toy, tmp_path):
     import subprocess
@@ -307,16 +310,12 @@ def _keeping_answers(pipe: CommandPipeline) -> _KeepAnswer:
 
 
 @pytest.fixture(scope="module")
-def twin50(tmp_path_factory):
-    from arenabench.generator.generate_cli import main as generate_main
-
-    data = tmp_path_factory.mktemp("twin") / "eyrc"
-    assert generate_main(["--preset", "eyrc", "--count", "50", "--seed", "11", "--out",
-                          str(data), "--no-progress", "--workers", "2"]) == 0
+def twin50(shared_sets):
+    data = shared_sets.generated("eyrc", count=50, seed=11, workers=2)
     return sorted((data / "images").iterdir())
 
 
-@pytest.mark.slow
+@pytest.mark.acceptance  # the seven styles on 50 scenes, warm and cold: minutes
 @pytest.mark.parametrize("sandbox", SANDBOXES)
 def test_competition_styles_answer_byte_for_byte_the_same_warm_and_cold(sandbox, twin50,
                                                                          run_tmp):

@@ -12,7 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from marks import slow_but
+from marks import integration_but
 
 from arenabench.eval.runs import CommandPipeline
 from arenabench.eval.runs.limits import RunSettings
@@ -175,9 +175,9 @@ with open("obstacles.txt", "w") as fh:
 """
 
 
-@pytest.mark.parametrize("sandbox", slow_but([pytest.param("bwrap", marks=pytest.mark.skipif(
+@pytest.mark.parametrize("sandbox", integration_but([pytest.param("bwrap", marks=pytest.mark.skipif(
     bwrap_problem() is not None, reason=str(bwrap_problem()))), "none"], "bwrap"))
-@pytest.mark.parametrize("warm", slow_but([True, False], True))
+@pytest.mark.parametrize("warm", integration_but([True, False], True))
 def test_a_helper_modules_imports_are_preloaded_and_the_helper_runs_in_each_run(
         tmp_path, warm, sandbox):
     """What a submission's own module imports (argparse) is in the server; the module itself

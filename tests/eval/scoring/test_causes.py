@@ -49,14 +49,12 @@ def test_too_few_failures_rank_nothing():
     assert rank_causes(results) == []
 
 
-@pytest.mark.slow
-def test_an_aspect_ratio_filter_is_traced_to_the_boxes_aspect(tmp_path):
+@pytest.mark.integration
+def test_an_aspect_ratio_filter_is_traced_to_the_boxes_aspect(shared_sets, tmp_path):
     from arenabench.eval.evaluation import evaluate
-    from arenabench.generator.dataset_writer import generate_dataset
 
-    generate_dataset(tmp_path / "twin", preset="eyrc", count=60, seed=0, workers=1,
-                     progress=False)
-    report = evaluate(edge_phase.aspect_filter, tmp_path / "twin", workers=2)
+    twin = shared_sets.generated("eyrc", count=60, seed=0, workers=2)
+    report = evaluate(edge_phase.aspect_filter, twin, workers=2)
     assert 0.8 < report.summary.pass_rate < 1.0
     top = report.causes[0]
     assert top["param"] in ("derived.max_visible_aspect_ratio", "derived.max_aspect_ratio")
@@ -115,13 +113,11 @@ def test_an_area_factor_on_most_images_is_systematic():
     assert systematic_errors(scattered, tolerance=0.05) == []
 
 
-def test_gt_facts_are_read_from_the_ground_truth(tmp_path):
+def test_gt_facts_are_read_from_the_ground_truth(shared_sets):
     from arenabench.eval.datasets.reader import load_dataset
     from arenabench.eval.scoring.gt_facts import FACTS, gt_facts
-    from arenabench.generator.dataset_writer import generate_dataset
 
-    generate_dataset(tmp_path / "s", preset="eyrc", count=3, seed=0, workers=1, progress=False)
-    for item in load_dataset(tmp_path / "s").samples:
+    for item in load_dataset(shared_sets.generated("eyrc", count=3, seed=0)).samples:
         facts = gt_facts(item.gt)
         assert set(facts) == set(FACTS)
         counted = [o for o in item.gt.obstacles if o.footprint_area_px > 0]
@@ -136,15 +132,11 @@ def test_gt_facts_are_read_from_the_ground_truth(tmp_path):
 
 
 @pytest.fixture(scope="module")
-def twin40(tmp_path_factory):
-    from arenabench.generator.dataset_writer import generate_dataset
-
-    out = tmp_path_factory.mktemp("twin40") / "twin"
-    generate_dataset(out, preset="eyrc", count=40, seed=0, workers=2, progress=False)
-    return out
+def twin40(shared_sets):
+    return shared_sets.generated("eyrc", count=40, seed=0, workers=2)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_minimum_area_script_is_traced_to_the_smallest_box(twin40, tmp_path):
     """A team script dropping contours under 26000 px: its failures have the smaller
     smallest boxes (a GT fact), not another aspect of the scene."""
@@ -168,18 +160,15 @@ def test_a_minimum_area_script_is_traced_to_the_smallest_box(twin40, tmp_path):
             in (tmp_path / "report.md").read_text())
 
 
-@pytest.mark.slow
-def test_counting_the_markers_as_obstacles_is_named_as_an_offset(tmp_path):
+@pytest.mark.integration
+def test_counting_the_markers_as_obstacles_is_named_as_an_offset(shared_sets, tmp_path):
     """The seed profile on eyrc-upright counts the four markers as obstacles: every answer is
     GT + 4, every image fails alike, and no scene fact can separate them."""
     from arenabench.eval.commands.check import verdict_lines
     from arenabench.eval.evaluation import evaluate
     from arenabench.eval.reports import write_reports
-    from arenabench.generator.dataset_writer import generate_dataset
-
-    generate_dataset(tmp_path / "up", preset="eyrc-upright", count=8, seed=0, workers=2,
-                     progress=False)
-    report = evaluate("seed", tmp_path / "up", workers=2)
+    up = shared_sets.generated("eyrc-upright", count=8, seed=0, workers=2)
+    report = evaluate("seed", up, workers=2)
     assert report.summary.n_passed == 0 and report.causes == ()
     text = "answered GT + 4 on 8 of 8 answered images"
     assert [s["text"] for s in report.systematic if s["kind"] == "count_offset"] == [text]

@@ -35,7 +35,7 @@ def cli_run(tmp_path_factory):
     return out
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_writes_every_output_file(cli_run, capsys):
     out = cli_run
     for name in ("sweep.json", "sweep.csv", "results.jsonl", "sweep.html",
@@ -82,7 +82,7 @@ def test_writes_every_output_file(cli_run, capsys):
     assert "amber</span> = the pass rate clears it" in page
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_dask_local_cluster_gives_identical_results(cli_run):
     distributed = pytest.importorskip("distributed")
     local = [json.loads(line) for line in (cli_run / "results.jsonl").read_text().splitlines()]
@@ -101,7 +101,7 @@ def test_dask_local_cluster_gives_identical_results(cli_run):
     assert _comparable(inline.images) == _comparable(local)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_command_pipeline_sees_the_same_images(tmp_path, monkeypatch):
     monkeypatch.setenv("PATH", f"{Path(sys.executable).parent}{os.pathsep}{os.environ['PATH']}")
     out = tmp_path / "cmd"
@@ -160,7 +160,7 @@ def test_no_pipeline_is_a_usage_error(tmp_path, capsys):
     assert "give --pipeline" in capsys.readouterr().err
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_random_sweep_two_parameters_heat_map_and_kept_failures(tmp_path):
     out = tmp_path / "random"
     argv = ["--vary", "camera.tilt_deg=0:30", "--vary", "lighting.intensity=0.45:0.05",
@@ -182,7 +182,7 @@ def test_random_sweep_two_parameters_heat_map_and_kept_failures(tmp_path):
     assert all((r["image"] != "") == (not r["pass"]) for r in rows)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_load_sweep_round_trips_the_files(cli_run, tmp_path):
     from arenabench.eval.sweep.outputs import load_sweep, write_sweep
 

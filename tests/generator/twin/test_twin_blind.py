@@ -11,8 +11,6 @@ from __future__ import annotations
 import pytest
 from twin_blind import TOLERANCES, hidden_case, reference_pass_rate, round_trip
 
-from arenabench.generator.render import Renderer
-
 #: Cases run on every test run, as small square images (seed, px): quicker, the same kinds of
 #: draws (an ARUCO_ORIGINAL arena turned 180 deg on a plain floor, 4-sample sRGB edges, PNG; a
 #: 5x5 one on concrete, 2-sample sRGB edges). At 480 px most cases' markers are too small to
@@ -25,12 +23,6 @@ SLOW_SEEDS = (1, 3, 7)
 SCENES = {"fast": 10, "slow": 30}
 
 
-@pytest.fixture(scope="module")
-def renderer():
-    with Renderer() as r:
-        yield r
-
-
 def _round_trip(case, folder, renderer, scenes: int) -> None:
     result = round_trip(case, folder, renderer)
     failed = {k: v for k, v in result["checks"].items() if not v[2]}
@@ -41,13 +33,13 @@ def _round_trip(case, folder, renderer, scenes: int) -> None:
     assert rate >= TOLERANCES["pass_rate"][0], (case.seed, rate)
 
 
-@pytest.mark.slow  # a minute each on 2 cores
+@pytest.mark.acceptance  # a minute or more each on 2 cores
 @pytest.mark.parametrize(("seed", "px"), FAST_CASES)
 def test_blind_round_trip(seed, px, tmp_path, renderer):
     _round_trip(hidden_case(seed, image_px=px), tmp_path, renderer, SCENES["fast"])
 
 
-@pytest.mark.slow
+@pytest.mark.acceptance
 @pytest.mark.parametrize("seed", SLOW_SEEDS)
 def test_blind_round_trip_full_size(seed, tmp_path, renderer):
     _round_trip(hidden_case(seed), tmp_path, renderer, SCENES["slow"])

@@ -96,7 +96,7 @@ def test_the_twins_report_says_what_the_detectors_corners_mean():
     assert "class=warn" in missed and "marker(s) 80 not found" in missed
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 @pytest.mark.parametrize(("dictionary", "ids", "rotation"), [
     ("DICT_5X5_250", (3, 17, 42, 199), 90.0),
     ("DICT_6X6_50", (0, 1, 2, 3), 0.0),
@@ -133,7 +133,7 @@ def test_round_angles():
     assert cf.round_angle(61.3, "deg", 1.0) == 61.0
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_the_examples_camera_is_rediscovered(example):
     """From the markers alone (the competition texture's geometry given), the camera lands on
     the one that rendered the example: within 0.05 m and 0.1 deg of eyrc's, and with the

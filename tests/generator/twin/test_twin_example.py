@@ -29,7 +29,8 @@ TEXTURE = ROOT / "generator" / "assets" / "arena_texture.png"
 #: marker squares of the fitted scene's render (mean absolute grey difference).
 METRES, DEGREES, GREYS, MARKER_SQUARES = 0.05, 0.1, 2, 1.0
 
-pytestmark = pytest.mark.slow
+# the module's twins are built once: its tests stay on one worker of make acceptance
+pytestmark = [pytest.mark.acceptance, pytest.mark.xdist_group("twin_example")]
 
 
 @pytest.fixture(scope="module")

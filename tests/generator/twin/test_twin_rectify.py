@@ -57,7 +57,7 @@ def test_the_refined_grids_keep_the_corners_on_the_same_boundary(fitted):
     assert rectify.aligned_extent(fitted, 2880, 144) == pytest.approx(1.85, abs=1e-9)
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_the_search_finds_the_grid_the_markers_were_printed_on(eyrc_scene, fitted):
     """The image: a render of the competition's texture. The scene the twin would have fitted:
     the same, geometry exact. Of the aligned sides near it, the painted markers match the

@@ -44,7 +44,7 @@ def test_a_plain_floors_grey_is_its_own():
     assert abs(floor_level(clipped) - 252) <= 1
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_the_background_beyond_an_unknown_margin(rendered):
     scene, bgr = rendered
     assert scene.arena.margin_m > 0.05 * scene.arena.side_m
@@ -56,7 +56,7 @@ def test_the_background_beyond_an_unknown_margin(rendered):
     assert abs(shades.background_rgb[0] - scene.background_rgb[0]) <= 1
 
 
-@pytest.mark.slow
+@pytest.mark.integration
 def test_a_box_that_a_printed_line_touches_is_still_a_box(rendered):
     scene, bgr = rendered
     plain = _read(scene, bgr)
