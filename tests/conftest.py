@@ -7,7 +7,7 @@ from __future__ import annotations
 import tempfile
 
 import pytest
-from shared_data import SharedSets, file_lock, shared_root
+from shared_data import SharedSets, shared_root
 
 from arenabench.eval.runs.context import RunContext
 
@@ -66,8 +66,7 @@ def competition_cache(tmp_path_factory):
     from arenabench.eval.runs.competition_env import competition_python
 
     cache = shared_root(tmp_path_factory.getbasetemp()) / "competition-cache"
-    with file_lock(cache.with_name(cache.name + ".lock")):
-        cache.mkdir(exist_ok=True)
+    cache.mkdir(exist_ok=True)
     made = competition_python(cache=cache, progress=False, prog="tests")
     if made.source != "competition":
         pytest.fail(f"the competition environment could not be made: {made.problem}")

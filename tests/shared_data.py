@@ -6,7 +6,7 @@ it, under a file lock, into a temporary folder renamed into place when complete;
 test, in that worker or another, reads the same folder. A set is read-only by contract: at the
 end of the session every file of every set this worker handed out is checked against its hash
 when it was handed out, and a test that changed one fails the run (``SharedSets.verify``). A
-test that writes into its dataset copies it first (``SharedSets.copy``).
+test that writes into its dataset works on a copy of its own (``shutil.copytree``).
 
 The cache lives beside the workers' temporary roots (``tmp_path_factory``'s base folder's
 parent under xdist, the base folder itself otherwise), so it goes with the run's temporary
@@ -24,6 +24,7 @@ from collections.abc import Iterator, Mapping
 from contextlib import contextmanager
 from pathlib import Path
 
+from arenabench.fileio import sha256_file
 from arenabench.generator.make import GENERATOR_VERSION
 
 
@@ -46,7 +47,7 @@ def file_lock(path: Path) -> Iterator[None]:
 
 def fingerprint(folder: Path) -> dict[str, str]:
     """Every file below ``folder``: {relative path: sha256 of its bytes}."""
-    return {path.relative_to(folder).as_posix(): hashlib.sha256(path.read_bytes()).hexdigest()
+    return {path.relative_to(folder).as_posix(): sha256_file(path)
             for path in sorted(folder.rglob("*")) if path.is_file()}
 
 
@@ -96,14 +97,9 @@ class SharedSets:
             self._handed[folder] = fingerprint(folder)
         return folder
 
-    def copy(self, folder: Path, dest: Path) -> Path:
-        """A private, writable copy of a shared set at ``dest``."""
-        shutil.copytree(folder, dest)
-        return dest
-
     def verify(self) -> list[str]:
-        """The files of the sets handed out that no longer match their manifest: a test wrote
-        into a shared set (empty when none did)."""
+        """The files of the sets handed out that were added, removed or changed since: a test
+        wrote into a shared set (empty when none did)."""
         changed = []
         for folder, before in self._handed.items():
             after = fingerprint(folder)

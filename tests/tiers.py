@@ -3,7 +3,7 @@ the pytest plugin that applies them (loaded by tests/conftest.py: ``pytest_plugi
 
 Every test belongs to exactly one tier. A test carries the marker of its tier
 (``@pytest.mark.integration``, ``@pytest.mark.acceptance``, or a module's ``pytestmark``);
-one with neither is a ``unit`` test (``tests/conftest.py`` marks it, so ``-m unit`` selects it).
+one with neither is a ``unit`` test (this plugin marks it, so ``-m unit`` selects it too).
 ``make test-fast`` runs ``unit``, ``make test`` runs ``unit`` and ``integration`` in parallel,
 ``make acceptance`` runs ``acceptance``; ``.ci/run`` runs ``make test`` then ``make acceptance``.
 
