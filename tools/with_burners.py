@@ -20,7 +20,8 @@ import time
 
 #: A burner: spin, and look up now and then whether the parent has gone.
 BURNER = """\
-import os, sys
+import os, signal, sys
+signal.signal(signal.SIGINT, signal.SIG_IGN)  # a Ctrl-C to the group is the command's
 parent = int(sys.argv[1])
 while True:
     for _ in range(200_000):
