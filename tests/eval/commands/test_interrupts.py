@@ -287,10 +287,12 @@ def test_sweep_stop_ends_hanging_commands(tmp_path, workers):
     cmd = f"{{python}} -c \"import time; time.sleep(300)\" {tag} {{image}}"
     proc = _arenabench(*_sweep_args(out, workers, "--cmd", cmd))
     # a child forked but not yet exec'd shows the sweep's own command line (which holds the
-    # tag too: a subprocess the sweep starts before its tasks): only the command counts
+    # tag too: a subprocess the sweep starts before its tasks): only the command counts. And
+    # the trial build of the command, before the sweep takes its stop handler and its --out
+    # lock, starts processes with the tag too: the lock says the sweep itself is running
     own = _cmdline(proc.pid)
-    _wait_until(proc, lambda: any(tag in c and c != own
-                                  for c in _descendants(proc.pid).values()))
+    _wait_until(proc, lambda: (out / ".arenabench.lock").exists() and any(
+        tag in c and c != own for c in _descendants(proc.pid).values()))
     rc, err, seconds, kids = _stop(proc, signal.SIGTERM)
     assert rc == 143, err
     assert seconds < STOP_S
