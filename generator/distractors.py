@@ -9,6 +9,7 @@ fraction of its square that patches hide.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import shapely
@@ -94,9 +95,14 @@ def occluder_patch(arena: ArenaSpec, markers: MarkerSpec, *, marker: int,
 
 
 def occluded_fractions(arena: ArenaSpec, markers: MarkerSpec,
-                       patches: tuple[FloorPatch, ...]) -> list[float]:
-    """Fraction of each marker's square (NW, NE, SE, SW) hidden by occluder patches."""
+                       patches: tuple[FloorPatch, ...], *,
+                       hidden: Sequence[Polygon] = ()) -> list[float]:
+    """Fraction of each marker's square (NW, NE, SE, SW) hidden from the camera: by occluder
+    patches and by ``hidden``, the floor regions each box hides (its vertices projected onto
+    the floor from the camera: :func:`arenabench.generator.groundtruth.visible_silhouette_world`).
+    """
     occluders = [Polygon(patch_corners(p)) for p in patches if p.kind == "occluder"]
+    occluders += [h for h in hidden if not h.is_empty]
     cover = shapely.union_all(occluders) if occluders else Polygon()
     out = []
     for corner in CORNER_ORDER:

@@ -180,11 +180,13 @@ def _ground_truth(scene: Scene, frame: FrameSpec) -> dict[str, Any]:
             and np.all(px[:, 1] >= -0.5 + margin) and np.all(px[:, 1] <= h - 0.5 - margin)
         )
 
-    obstacles, footprints, visibles = [], [], []
+    obstacles, footprints, visibles, hidden = [], [], [], []
     count = 0
     for i, ob in enumerate(scene.obstacles):
         fp = Polygon(_apply(w2f, box_footprint(ob)))
-        vis = MultiPoint(_apply(w2f, visible_silhouette_world(scene, i))).convex_hull
+        silhouette = visible_silhouette_world(scene, i)
+        hidden.append(MultiPoint(silhouette).convex_hull)
+        vis = MultiPoint(_apply(w2f, silhouette)).convex_hull
         fp_in, vis_in = fp.intersection(frame_box), vis.intersection(frame_box)
         if fp_in.area > 0:
             count += 1
@@ -215,7 +217,9 @@ def _ground_truth(scene: Scene, frame: FrameSpec) -> dict[str, Any]:
     fp_union = shapely.union_all(footprints) if footprints else Polygon()
 
     markers = []
-    occluded = occluded_fractions(scene.arena, scene.markers, scene.patches)
+    # a marker is hidden by floor patches and by boxes (what a box hides of the floor: a box
+    # centred on a marker leaves none of it to detect)
+    occluded = occluded_fractions(scene.arena, scene.markers, scene.patches, hidden=hidden)
     for corner, marker_id, occ in zip(CORNER_ORDER, scene.markers.ids, occluded, strict=True):
         xy = marker_corners_world(scene.arena, scene.markers, corner)
         pts = np.column_stack([xy, np.full(4, MARKER_Z)])

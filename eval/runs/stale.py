@@ -2,8 +2,11 @@
 
 A run's private directory is ``$TMPDIR/arenabench-run-<harness pid>-XXXX`` and its pids cgroup
 ``<parent>/arenabench-run-<launcher pid>``; a warm server's folder is
-``$TMPDIR/arenabench-warm-<harness pid>-XXXX`` and its cgroup
-``<parent>/arenabench-warm-<harness pid>-<n>`` (its runs' cgroups inside it); the preflight's,
+``$TMPDIR/arenabench-warm-XXXX``, a random name with the harness's pid in its file ``owner``
+(a warm run's mount table shows the folder's path: nothing in it counts servers or names a
+process, :func:`make_warm_dir`) and its cgroup
+``<parent>/arenabench-warm-<harness pid>-<random hex>`` (its runs' cgroups inside it; a warm
+run's cgroup namespace hides it); the preflight's,
 the phase check's and a sweep worker's folders are ``$TMPDIR/<prefix><owner pid>-XXXX``
 (:data:`OWNED_PREFIXES`); all are removed when the run, the server or the step ends. When the whole
 process group is killed with SIGKILL (harness and launchers together) nothing is left to
@@ -20,6 +23,7 @@ import re
 import shutil
 import tempfile
 import threading
+import time
 from pathlib import Path
 
 #: Name prefix of run directories and run cgroups.
@@ -30,9 +34,16 @@ WARM_PREFIX = "arenabench-warm-"
 #: (the preflight's submissions, the phase check's images, a sweep worker's runs).
 OWNED_PREFIXES = ("arenabench-preflight-", "arenabench-phase-", "arenabench-sweep-")
 
-_RUN_DIR = re.compile("^(?:" + "|".join(map(re.escape, (RUN_PREFIX, WARM_PREFIX,
-                                                          *OWNED_PREFIXES))) + r")(\d+)-")
-_RUN_CGROUP = re.compile(rf"^(?:{RUN_PREFIX}(\d+)|{WARM_PREFIX}(\d+)-\d+)$")
+#: The file of a warm server's folder that holds its owner's pid.
+OWNER_FILE = "owner"
+#: Seconds a warm server's folder may lack its ``owner`` file (its harness was killed between
+#: making it and writing the file) before a sweep takes it for a stale one.
+OWNERLESS_GRACE_S = 60.0
+
+_RUN_DIR = re.compile("^(?:" + "|".join(map(re.escape, (RUN_PREFIX, *OWNED_PREFIXES)))
+                      + r")(\d+)-")
+_WARM_DIR = re.compile(rf"^{WARM_PREFIX}[A-Za-z0-9_]+$")
+_RUN_CGROUP = re.compile(rf"^(?:{RUN_PREFIX}(\d+)|{WARM_PREFIX}(\d+)-[0-9a-f]+)$")
 _SWEPT = threading.Event()
 _LOCK = threading.Lock()
 
@@ -42,9 +53,44 @@ def run_dir_prefix() -> str:
     return f"{RUN_PREFIX}{os.getpid()}-"
 
 
-def warm_dir_prefix() -> str:
-    """``mkdtemp`` prefix of this process's warm servers' folders (names the owner pid)."""
-    return f"{WARM_PREFIX}{os.getpid()}-"
+def make_warm_dir() -> str:
+    """Make a folder for one of this process's warm servers and return its path:
+    ``$TMPDIR/arenabench-warm-XXXX``, a random name (every run of the server finds the path in
+    its mount table, so it says nothing of which server, process or step made it), this
+    process's pid in its file :data:`OWNER_FILE` (for :func:`sweep_stale_runs`)."""
+    home = tempfile.mkdtemp(prefix=WARM_PREFIX)
+    try:
+        Path(home, OWNER_FILE).write_text(str(os.getpid()), encoding="ascii")
+    except BaseException:
+        shutil.rmtree(home, ignore_errors=True)
+        raise
+    return home
+
+
+def _warm_owner(folder: Path) -> int | None:
+    """The pid in a warm server folder's owner file; ``None`` when it has none (yet)."""
+    try:
+        return int(Path(folder, OWNER_FILE).read_text(encoding="ascii").strip())
+    except (OSError, ValueError):
+        return None
+
+
+def _owner(entry: Path) -> int | None:
+    """The owner pid of a folder this module sweeps; ``None`` when ``entry`` is none of them,
+    ``0`` for an ownerless warm folder old enough to be stale."""
+    m = _RUN_DIR.match(entry.name)
+    if m:
+        return int(m.group(1))
+    if not _WARM_DIR.match(entry.name):
+        return None
+    pid = _warm_owner(entry)
+    if pid is not None:
+        return pid
+    try:
+        young = time.time() - entry.stat().st_mtime < OWNERLESS_GRACE_S
+    except OSError:
+        return None
+    return None if young else 0
 
 
 def owned_dir_prefix(prefix: str) -> str:
@@ -94,8 +140,8 @@ def sweep_stale_runs(*, tmpdir: str | None = None, cgroup_parent: str | None = N
     except OSError:
         entries = []
     for entry in entries:
-        m = _RUN_DIR.match(entry.name)
-        if not m or int(m.group(1)) == os.getpid() or _alive(int(m.group(1))):
+        pid = _owner(entry)
+        if pid is None or pid == os.getpid() or (pid and _alive(pid)):
             continue
         try:
             if entry.is_dir() and not entry.is_symlink() and entry.stat().st_uid == os.getuid():

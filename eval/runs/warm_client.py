@@ -25,7 +25,6 @@ namespaces, makes that command run cold, with one warning line.
 
 from __future__ import annotations
 
-import itertools
 import marshal
 import os
 import re
@@ -35,7 +34,6 @@ import signal
 import socket
 import subprocess
 import sys
-import tempfile
 import threading
 from collections import OrderedDict
 from dataclasses import dataclass
@@ -47,7 +45,7 @@ from arenabench.eval.scoring.results import HarnessError, Prediction
 from .proctools import BOX_DIRS, RUN_GRACE_S, WarmLaunch
 from .sandbox import SANDBOX_DIR, is_within, warn_once
 from .slots import Held, hold
-from .stale import WARM_PREFIX, warm_dir_prefix
+from .stale import WARM_PREFIX, make_warm_dir
 from .warm_server import recv_message, send_message
 
 if TYPE_CHECKING:
@@ -121,9 +119,6 @@ class _Waiter:
         self.done.set()
 
 
-_counter = itertools.count()
-
-
 class WarmServer:
     """One server process (in its sandbox) and the runs it has under way.
 
@@ -143,7 +138,7 @@ class WarmServer:
         self.target = command.warm
         self.context = context
         self.isolate = command.sandboxed
-        self.home = tempfile.mkdtemp(prefix=warm_dir_prefix())  # names its owner: stale
+        self.home = make_warm_dir()  # a random name; its owner in a file (stale)
         self.cgroup: str | None = None
         self.keep: list[str] = []
         self._lock = threading.Lock()
@@ -169,8 +164,10 @@ class WarmServer:
         server = [python, "-c", SERVER_SOURCE.read_text(), str(theirs.fileno()), self.home]
         if self.isolate:
             if command.cgroup_parent:
+                # a random name, not a count of servers: nothing in it tells one server
+                # (a first run's, a phase check's) from another
                 cg = os.path.join(command.cgroup_parent,
-                                  f"{WARM_PREFIX}{os.getpid()}-{next(_counter)}")
+                                  f"{WARM_PREFIX}{os.getpid()}-{secrets.token_hex(6)}")
                 os.mkdir(cg)
                 self.cgroup = cg
             argv = command.bwrap_argv(self.home, image_path)

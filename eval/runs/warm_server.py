@@ -313,6 +313,9 @@ def _enter_private_namespaces(cfg):
         with open(f"/proc/self/{name}", "w") as fh:
             fh.write(text)
     _mount(None, "/", None, t.MS_REC | t.MS_PRIVATE, None, "mount --make-rprivate")
+    # a cgroup namespace rooted at the run's own cgroup (bubblewrap's --unshare-cgroup-try for
+    # a cold run): /proc/self/cgroup and the mount table name no cgroup of the server's
+    t.LIBC.unshare(t.CLONE_NEWCGROUP)
     try:
         box = t.mount_box(rundir, cfg.box_bytes)
     except OSError as exc:  # the harness's failure, not the run's: said in its folder

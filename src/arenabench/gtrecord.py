@@ -196,7 +196,8 @@ class MarkerRecord(_Record):
     in_view, visible : bool, optional
         Inside the image; inside and not occluded (what a pipeline should report).
     in_view_fraction, occluded_fraction : float, optional
-        Fraction of its area inside the image / hidden by floor patches.
+        Fraction of its area inside the image / hidden from the camera (by floor patches
+        and boxes).
     """
 
     id: int

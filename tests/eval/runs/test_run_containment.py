@@ -23,7 +23,9 @@ import shutil
 import signal
 import subprocess
 import sys
+import tempfile
 import textwrap
+import time
 import uuid
 from pathlib import Path
 
@@ -36,7 +38,12 @@ from paths import TESTS
 from arenabench.eval.runs import CommandPipeline, proctools
 from arenabench.eval.runs.limits import RunLimits, RunSettings
 from arenabench.eval.runs.sandbox import bwrap_problem, pids_cgroup_parent
-from arenabench.eval.runs.stale import sweep_stale_runs
+from arenabench.eval.runs.stale import (
+    OWNER_FILE,
+    OWNERLESS_GRACE_S,
+    make_warm_dir,
+    sweep_stale_runs,
+)
 
 PIPES = TESTS / "pipelines"
 PY = sys.executable
@@ -429,7 +436,8 @@ def test_a_sigkilled_warm_command_leaves_nothing_the_next_sweep_misses(toy, tmp_
     finally:
         os.killpg(proc.pid, signal.SIGKILL)
         proc.wait()
-    warm_dirs = [p for p in tmpdir.iterdir() if p.name.startswith(f"arenabench-warm-{proc.pid}-")]
+    warm_dirs = [p for p in tmpdir.iterdir() if p.name.startswith("arenabench-warm-")
+                 and (p / OWNER_FILE).read_text() == str(proc.pid)]  # a random name
     assert warm_dirs and _warm_cgroups_of(proc.pid), list(tmpdir.iterdir())
     removed = sweep_stale_runs(tmpdir=str(tmpdir), cgroup_parent=CGROUP, force=True)
     assert not any(p.exists() for p in warm_dirs), removed
@@ -447,6 +455,34 @@ def test_the_preflight_folder_of_a_killed_command_is_swept(tmp_path):
     removed = sweep_stale_runs(tmpdir=str(tmp_path), force=True)
     assert not left.exists() and str(left) in removed
     assert mine.exists()  # a live owner's folder is never touched
+
+
+def test_a_warm_folder_is_swept_by_the_pid_in_its_owner_file(tmp_path):
+    dead = subprocess.run([PY, "-c", "import os; print(os.getpid())"], capture_output=True,
+                          text=True, check=True)
+    left = tmp_path / "arenabench-warm-abcd1234"
+    left.mkdir()
+    (left / OWNER_FILE).write_text(dead.stdout.strip())
+    mine = Path(make_warm_dir_in(tmp_path))
+    assert str(os.getpid()) not in mine.name  # a random name: it says nothing of its owner
+    unowned = tmp_path / "arenabench-warm-efgh5678"  # its harness died before the file
+    unowned.mkdir()
+    removed = sweep_stale_runs(tmpdir=str(tmp_path), force=True)
+    assert not left.exists() and str(left) in removed
+    assert mine.exists() and unowned.exists()  # alive; too young to be taken for stale
+    old = time.time() - OWNERLESS_GRACE_S - 5
+    os.utime(unowned, (old, old))
+    assert str(unowned) in sweep_stale_runs(tmpdir=str(tmp_path), force=True)
+    assert mine.exists()
+
+
+def make_warm_dir_in(folder: Path) -> str:
+    saved = tempfile.tempdir
+    tempfile.tempdir = str(folder)
+    try:
+        return make_warm_dir()
+    finally:
+        tempfile.tempdir = saved
 
 
 DETACHES = textwrap.dedent(f"""\
