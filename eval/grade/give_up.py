@@ -76,7 +76,8 @@ class GiveUp:
 
 
 def _timed_out(pred: Prediction | None) -> bool:
-    return pred is not None and pred.status == "timeout"
+    """A team's own timeout (a starved run is the machine's: never one of them)."""
+    return pred is not None and pred.status == "timeout" and not pred.starved
 
 
 def timeout_run(preds: Sequence[Prediction | None], index: int) -> tuple[int, int] | None:

@@ -33,7 +33,9 @@ goes with the launcher's namespace.
 fork), ``error`` (the command could not be started), ``harness_error`` (the launcher could not
 prepare the run: not the command's failure), ``cpu_ms`` and ``wait_ms`` (of a timed-out run:
 the CPU time its processes used and the time they waited for a CPU, from
-``/proc/PID/schedstat``: :func:`.proctools.schedstat`), ``box`` (``"tmpfs"``, ``"folder"``
+``/proc/PID/schedstat``: :func:`.proctools.schedstat`), ``lowered_priority`` (of a timed-out
+run: whether it gave itself a higher nice value or an idle policy:
+:func:`.proctools.lowered_priority`), ``box`` (``"tmpfs"``, ``"folder"``
 where no namespace could be made, or ``""`` without one).
 """
 
@@ -368,7 +370,9 @@ def run(cfg: LaunchConfig, *, become=None, own_cgroup: str | None = None) -> int
         if not exited:
             alive = tools.descendants(os.getpid())
             alive += tools.cgroup_pids(cgroup) if cgroup else []
+            alive = sorted(set(alive))  # a process of both counts once
             result["cpu_ms"], result["wait_ms"] = tools.schedstat(alive)
+            result["lowered_priority"] = tools.lowered_priority(alive)
             tools.kill_descendants(cgroup, scan=scan)
         result["rc"] = _exit_status(os.waitpid(pid, 0)[1])
         result["latency_ms"] = (time.perf_counter() - start) * 1000.0

@@ -33,7 +33,7 @@ import threading
 import weakref
 from pathlib import Path
 
-from arenabench.eval.scoring.results import Prediction
+from arenabench.eval.scoring.results import HarnessError, Prediction
 
 from .cold import ColdRunner
 from .command import Command, Runner
@@ -158,19 +158,27 @@ class CommandPipeline:
         """Run the command on one image in a fresh private directory (never raises for the
         command's own failures). A run that timed out starved (it waited for a CPU most of
         the time: :data:`.predictions.STARVED_SHARE`) is run again, up to
-        :data:`.predictions.STARVED_RETRIES` times.
+        :data:`.predictions.STARVED_RETRIES` times; when every run starved, the machine
+        failed the image, not the command: :class:`HarnessError`.
 
         Raises
         ------
         HarnessError
             When the harness cannot run the image (no space for the run's folder, the image
-            cannot be copied, the launcher fails): the harness's failure, never scored.
+            cannot be copied, the launcher fails, every run of it starved of CPU): the
+            harness's failure, never scored.
         """
         pred = self._run_once(Path(image_path))
         for _ in range(STARVED_RETRIES):
             if not pred.starved or self._stopped:
                 break
             pred = self._run_once(Path(image_path))
+        if pred.starved and not self._stopped:
+            raise HarnessError(
+                f"{self.name} starved of CPU on {Path(image_path).name} in each of "
+                f"{1 + STARVED_RETRIES} runs (the last {pred.message}): the machine is too "
+                f"busy to time it fairly, and a starved run is never the command's timeout; "
+                f"run it on a quieter machine or with fewer --workers")
         return pred
 
     def _run_once(self, image_path: Path) -> Prediction:

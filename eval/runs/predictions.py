@@ -37,10 +37,16 @@ from .outputs import read_small
 from .run_images import collect_run_images
 
 #: A timed-out run that waited for a CPU (runnable, not running) for at least this share of
-#: its timeout was *starved*: the machine, not the pipeline, made it late. Measured from the
-#: scheduler's own account of the run's threads (``/proc/PID/task/TID/schedstat``).
+#: its timeout, while its own processes together used less than one CPU for the rest of it,
+#: and that did not lower its own priority, was *starved*: the machine, not the pipeline, made
+#: it late. Measured from the scheduler's own account of the run's threads
+#: (``/proc/PID/task/TID/schedstat``). A run whose own processes compete for the CPUs (many
+#: busy threads) uses them and is not starved; nor is one that chose a nice value or policy
+#: that puts it behind everything else.
 STARVED_SHARE = 0.25
-#: Times a starved run is run again before its timeout is kept (marked ``starved``).
+#: Times a starved run is run again; when it starves each time, the harness has failed
+#: (:class:`~arenabench.eval.scoring.results.HarnessError`: nothing of the image is scored, and
+#: the command says so): a busy machine never makes a team's timeout.
 STARVED_RETRIES = 2
 
 #: How a command answers: ``obstacles.txt`` in its working directory, or a JSON line on stdout.
@@ -117,7 +123,10 @@ def prediction_from_run(result: dict, stdout: str, stderr: str, workdir: str, *,
     if result["timed_out"]:
         msg = f"timed out after {limits.timeout_s:g} s (all its processes killed)"
         wait_s = float(result.get("wait_ms") or 0.0) / 1e3
-        if wait_s >= STARVED_SHARE * limits.timeout_s:
+        cpu_s = float(result.get("cpu_ms") or 0.0) / 1e3
+        if (wait_s >= STARVED_SHARE * limits.timeout_s
+                and cpu_s < (1.0 - STARVED_SHARE) * limits.timeout_s
+                and not result.get("lowered_priority")):
             return Prediction(status="timeout", starved=True, message=(
                 f"{msg}; starved: it waited {wait_s:.1f} s for a CPU (the machine was busy)"),
                 **keep)

@@ -253,6 +253,32 @@ def schedstat(pids: list[int]) -> tuple[float, float]:
     return cpu / 1e6, wait / 1e6
 
 
+#: Scheduling policies a run may choose for itself that make it wait behind everything else.
+SCHED_BATCH, SCHED_IDLE = 3, 5
+
+
+def lowered_priority(pids: list[int]) -> bool:
+    """Whether a thread of ``pids`` gave itself less of the CPU than this process has: a higher
+    nice value, or the batch or idle scheduling policy (``/proc/PID/task/TID/stat``). Waiting
+    for a CPU then is the run's own doing, never the machine's."""
+    own = os.getpriority(os.PRIO_PROCESS, 0)
+    for pid in pids:
+        try:
+            tids = os.listdir(f"/proc/{pid}/task")
+        except OSError:
+            continue
+        for tid in tids:
+            try:
+                with open(f"/proc/{pid}/task/{tid}/stat", "rb") as fh:
+                    fields = fh.read().rsplit(b")", 1)[1].split()
+                nice, policy = int(fields[16]), int(fields[38])
+            except (OSError, ValueError, IndexError):
+                continue
+            if nice > own or policy in (SCHED_BATCH, SCHED_IDLE):
+                return True
+    return False
+
+
 def check(result: int, what: str) -> None:
     if result != 0:
         err = ctypes.get_errno()

@@ -44,6 +44,7 @@ from arenabench.eval.runs.stale import (
     make_warm_dir,
     sweep_stale_runs,
 )
+from arenabench.eval.scoring.results import HarnessError
 
 PIPES = TESTS / "pipelines"
 PY = sys.executable
@@ -340,22 +341,50 @@ def _burners(n: int) -> list[subprocess.Popen]:
 
 @pytest.mark.integration
 @pytest.mark.parametrize("warm", [True, False])
-def test_a_timeout_while_starved_of_cpu_is_run_again_and_said_so(warm, toy, tmp_path, run_tmp):
+def test_a_run_starved_of_cpu_is_the_harness_failure_never_a_timeout(warm, toy, tmp_path,
+                                                                     run_tmp):
     busy, hang = tmp_path / "busy.py", tmp_path / "hang.py"
     busy.write_text(PINNED_BUSY)
     hang.write_text(HANG)
     image = sorted((toy / "images").iterdir())[0]
-    burners = _burners(6)  # the run gets about a seventh of the one CPU it may use
+    burners = _burners(6)  # the run gets at most half of the one CPU it may use (its session
+    # is an autogroup of its own where the kernel has them; else a seventh)
+    pipe = _pipe(busy, "none", warm=warm, timeout_s=2.0)
     try:
-        pred = _pipe(busy, "none", warm=warm, timeout_s=2.0).run(image)
+        with pytest.raises(HarnessError, match=r"starved of CPU .* in each of 3 runs") as err:
+            pipe.run(image)
+    finally:
+        pipe.close()
+        for b in burners:
+            b.kill()
+            b.wait()
+    assert "fewer --workers" in str(err.value)
+    idle = _pipe(hang, "none", warm=warm, timeout_s=2.0).run(image)
+    assert idle.status == "timeout" and not idle.starved, idle.message
+
+
+#: Busy in 16 processes pinned to one CPU: they wait for each other more than for others.
+SELF_BUSY = PINNED_BUSY.replace("while True:", "for _ in range(15):\n    if os.fork() == 0:\n"
+                                "        break\nwhile True:")
+NICE_BUSY = PINNED_BUSY.replace("while True:", "os.nice(19)\nwhile True:")
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("script", [SELF_BUSY, NICE_BUSY], ids=["own-threads", "own-nice"])
+def test_a_run_that_makes_itself_wait_is_its_own_timeout(script, toy, tmp_path, run_tmp):
+    # a team cannot pass its own hang off as the machine's (a harness error stops a grade):
+    # waiting for its own processes, or behind everything after lowering its own priority
+    path = tmp_path / "self.py"
+    path.write_text(script)
+    image = sorted((toy / "images").iterdir())[0]
+    burners = _burners(2) if script is NICE_BUSY else []
+    try:
+        pred = _pipe(path, "none", warm=False, timeout_s=2.0, max_procs=64).run(image)
     finally:
         for b in burners:
             b.kill()
             b.wait()
-    assert pred.status == "timeout" and pred.starved, pred.message
-    assert "starved" in pred.message
-    idle = _pipe(hang, "none", warm=warm, timeout_s=2.0).run(image)
-    assert idle.status == "timeout" and not idle.starved, idle.message
+    assert pred.status == "timeout" and not pred.starved, pred.message
 
 
 SHADOW_NUMPY = "FAKE = True\n"
