@@ -151,6 +151,47 @@ def test_a_stopped_build_leaves_nothing_half_made(tmp_path, when):
     assert [p.name for p in folder.parent.iterdir()] == [folder.name + ".lock"]
 
 
+#: Points of the build ``check`` is stopped at: its first line (the venv starts), pip's first
+#: step line (venv and ensurepip done) and pip installing into the temporary folder.
+BUILD_POINTS = {"starting": "arenabench check: making the competition's",
+                "collecting": "  pip: Collecting", "installing": "  pip: Installing collected"}
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("point", list(BUILD_POINTS))
+def test_ctrl_c_to_check_while_it_makes_the_environment_stops_it(tmp_path, point):
+    """A Ctrl-C (SIGINT to the process group) while ``check`` makes the environment: exit 130
+    with its one line, no process of the build left, the cache holding only the lock file."""
+    cache = tmp_path / "cache"
+    script = tmp_path / "map.py"
+    script.write_text("import sys\nsys.exit(3)\n")
+    argv = [sys.executable, "-m", "arenabench", "check", str(script), "--count", "1",
+            "--out", str(tmp_path / "report")]
+    proc = subprocess.Popen(argv, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+                            env={**os.environ, "ARENABENCH_CACHE_DIR": str(cache),
+                                 "PYTHONUNBUFFERED": "1"}, start_new_session=True)
+    said = []
+    try:
+        for line in proc.stderr:  # the event: the build reached the point
+            said.append(line)
+            if line.startswith(BUILD_POINTS[point]):
+                break
+        else:
+            pytest.fail(f"the build never reached {point!r}: {''.join(said)}")
+        os.killpg(proc.pid, signal.SIGINT)
+        rest = proc.stderr.read()
+        proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+    assert proc.returncode == 130, "".join(said) + rest
+    assert "interrupted" in rest.strip().splitlines()[-1], rest
+    assert not _processes_naming(str(cache))
+    folder = env_folder(cache)
+    assert [p.name for p in folder.parent.iterdir()] == [folder.name + ".lock"]
+
+
 @pytest.mark.integration
 def test_eval_and_sweep_run_competition_python_commands(competition_cache, tmp_path):
     env = {"ARENABENCH_CACHE_DIR": str(competition_cache)}
