@@ -31,6 +31,7 @@ import os
 import shlex
 import sys
 import threading
+import time
 from collections.abc import Callable, Generator, Iterable, Iterator, Sequence
 from concurrent.futures import Future, ThreadPoolExecutor, as_completed
 from concurrent.futures.process import BrokenProcessPool
@@ -532,6 +533,10 @@ def grade(
             digests[t.name] = submission_hash(t.path)
         except SubmissionsError as exc:
             refused[t.name] = str(exc)
+    say = log or (lambda line: None)
+    say(f"preflight: the grading command's sandbox and interpreter, and a known-good "
+        f"submission, on {Path(data.samples[0].image_path).name} ({mode} sandbox)")
+    started = time.monotonic()
     record = preflight(
         opts.command, image=data.samples[0].image_path, mode=mode,
         limits=opts.settings.to_dict(), output=opts.output, reference=reference,
@@ -539,6 +544,7 @@ def grade(
             cmd, settings=replace(opts.settings, warm=opts.settings.warm and warm),
             output=opts.output, team="preflight", base_dir=base))
     record = replace(record, process_limit=procs)
+    say(f"preflight: done in {time.monotonic() - started:.1f} s")
     if record.arenabench_importable:
         print("arenabench grade: WARNING: arenabench is importable inside the sandbox (the "
               "grading interpreter has it): a submission can run the generator; the set's "
@@ -596,6 +602,7 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
            report_workers: int | None, progress: bool,
            emit: Callable[[str], None], digests: dict[str, str],
            sandbox: dict[str, Any], refused: dict[str, str]) -> GradeResult:
+    from arenabench.progress import drop
     from arenabench.progress import progress as progress_bar
 
     (root / TEAMS_DIR).mkdir(parents=True, exist_ok=True)
@@ -754,7 +761,7 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
             if opts.give_up_after and run and run[1] - run[0] + 1 >= opts.give_up_after:
                 later = give_up(tr, run)
                 execution.drop(position[(k, x)] for x in later)
-                bar.update(len(later))
+                drop(bar, len(later))  # they will not run: out of the work and its estimate
             bar.set_postfix_str(_progress_text(runs, n_images), refresh=False)
             if tr.done == n_images:
                 finish(tr)
@@ -778,8 +785,13 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
                                     images_done=done, images_total=n_total, sandbox=sandbox,
                                     unfinished=unfinished)
             for u in unfinished:
-                say(f"{u['team']}: not finished: {u['images_done']} of {n_images} images done "
-                    "(kept: the same command resumes from there)")
+                if u["images_done"] == n_images:  # run, but not scored and reported yet
+                    say(f"{u['team']}: not finished: all {n_images} images run (kept), its "
+                        "scoring, phase check and reports not done: the same command does "
+                        "them")
+                else:
+                    say(f"{u['team']}: not finished: {u['images_done']} of {n_images} images "
+                        "done (kept: the same command resumes from there)")
         except Exception:  # never hide the interrupt behind a report error
             pass
         raise
