@@ -11,6 +11,7 @@ from pathlib import Path
 from typing import Any
 
 from arenabench.generator.params import DEFAULTS, PARAMETERS, Param, Range, Value
+from arenabench.limits import shown, text_problem
 from arenabench.plain_numbers import plain_number
 from arenabench.suggest import did_you_mean
 
@@ -43,7 +44,7 @@ def _check_choice(key: str, number: float | int, spec: Param, raw: Any) -> float
 
 def _shown(raw: Any) -> str:
     """``raw`` as error messages show it (a range as ``(lo, hi)``, like the input tuple)."""
-    return repr((raw.lo, raw.hi)) if isinstance(raw, Range) else repr(raw)
+    return repr((raw.lo, raw.hi)) if isinstance(raw, Range) else shown(raw)
 
 
 #: Short names accepted wherever a parameter is named (``--set``, ``--vary``); results and GT
@@ -132,6 +133,8 @@ def validate_value(key: str, value: Value) -> Value:
                              f"the corners apart by them), got {value!r}")
         return nums
     text = str(value)
+    if (problem := text_problem(text)) is not None:
+        raise ValueError(f"--set {key}: {problem}")
     if spec.choices and text not in spec.choices:
         raise ValueError(f"--set {key}: invalid value {text!r} (choices: "
                          f"{', '.join(spec.choices)})")

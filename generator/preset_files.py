@@ -65,7 +65,7 @@ from arenabench.generator.param_values import (
     validate_value,
 )
 from arenabench.generator.params import PARAMETERS, PARAMS, Range, Value
-from arenabench.limits import MAX_PRESET_FILE_BYTES
+from arenabench.limits import MAX_PRESET_FILE_BYTES, cut
 from arenabench.suggest import did_you_mean
 
 if sys.version_info >= (3, 11):
@@ -766,9 +766,10 @@ def _literal(value: Any) -> str:
 def _shown(value: Any) -> str:
     """``value`` as messages show it (a TOML literal; ``?`` for what TOML cannot write)."""
     try:
-        return _literal(value)
+        text = _literal(value)
     except (TypeError, ValueError):
-        return repr(value)
+        text = repr(value)
+    return cut(text)
 
 
 def _key(key: str) -> str:

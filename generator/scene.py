@@ -22,6 +22,8 @@ from arenabench.limits import (
     MAX_SCENE_NUMBER,
     MAX_SCENE_OBJECTS,
     check_at_most,
+    shown,
+    text_problem,
 )
 
 Rgb = tuple[int, int, int]
@@ -156,6 +158,10 @@ class ArenaSpec:
             raise ValueError(f"arena.border_width_m must be >= 0, got {self.border_width_m!r}")
         if self.grid_step_m < 0:
             raise ValueError(f"arena.grid_step_m must be >= 0, got {self.grid_step_m!r}")
+        if not isinstance(self.logo_text, str):
+            raise ValueError(f"arena.logo_text must be text, got {shown(self.logo_text)}")
+        if (problem := text_problem(self.logo_text)) is not None:
+            raise ValueError(f"arena.logo_text {shown(self.logo_text)}: {problem}")
         for name in ("floor_rgb", "border_rgb", "grid_rgb", "logo_rgb"):
             object.__setattr__(self, name, _rgb(getattr(self, name), f"arena.{name}"))
 

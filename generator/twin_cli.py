@@ -99,7 +99,7 @@ def main(argv: list[str] | None = None) -> int:
         return usage_error(PROG, problem)
     from arenabench.fileio import FolderLockedError
     from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
-    from arenabench.generator.twin.build import TwinOptions, build_twin
+    from arenabench.generator.twin.build import TwinOptions, build_twin, records_text
     from arenabench.generator.twin.markers import detector_offset_text
     from arenabench.generator.twin.writer import write_twin
     from arenabench.interrupts import Interrupted, stop_on_signals
@@ -138,10 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     f = twin.figures
     print(f"twin {name}: marker squares {f.mad['markers']:.2f} grey levels from the image, "
           f"whole image {f.whole:.2f}, the default detector's corners "
-          f"{detector_offset_text(f.detector_px)}; "
-          f"{sum(r.status == 'pinned' for r in twin.records)} "
-          f"parameters pinned, {sum(r.status == 'open' for r in twin.records)} open "
-          f"({', '.join(sorted(twin.open_params)) or 'none that matter'})")
+          f"{detector_offset_text(f.detector_px)}; parameters: {records_text(twin.records)}")
     print(f"wrote {', '.join(str(p) for p in written)}")
     print(f"generate from it: arenabench generate --preset {args.out / 'preset.toml'} "
           f"--count 200 --out SET")

@@ -141,6 +141,17 @@ class Twin:
         return out
 
 
+def records_text(records) -> str:
+    """``"30 pinned, 41 open (9 in the preset's [open] table: a, b, ...)"``: of the open ones,
+    those the phase check varies are named (the others have no say in the image)."""
+    named = sorted(r.name for r in records if r.open_param() is not None)
+    n_open = sum(r.status == "open" for r in records)
+    listed = (f" ({len(named)} in the preset's [open] table: {', '.join(named)}; the others "
+              f"in twin.json)" if named else " (none in the preset's [open] table)")
+    return (f"{sum(r.status == 'pinned' for r in records)} pinned, {n_open} open"
+            + (listed if n_open else ""))
+
+
 def _grey(rgb) -> int:
     return round(float(np.mean(rgb)))
 
@@ -245,8 +256,14 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
                         fit_marker_side=geometry.marker_side_m is None, snap=options.snap,
                         progress=steps.say)
     markers = replace(markers, side_m=fit.marker_side_m)
-    steps.done("camera", f"fov {fit.camera.fov_deg:.3f} deg, {fit.camera.altitude_m:.4f} "
-                         f"m up, snapped {sorted(fit.snapped)}")
+
+    def up(camera) -> str:  # the preset's metres, or the arena's side until the size is known
+        if geometry.scale_source == "default":
+            return f"{camera.altitude_m / geometry.side_m:.4f} arena sides up"
+        return f"{camera.altitude_m:.4f} m up"
+
+    steps.done("camera", f"fov {fit.camera.fov_deg:.3f} deg, {up(fit.camera)}, snapped "
+                         f"{sorted(fit.snapped)}")
     if geometry.texture:
         arena = _texture_arena(geometry, (248, 248, 248))
         squares = np.zeros(gray.shape, bool)
@@ -257,7 +274,7 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
         fit = cf.refine_with_renderer(fit, probe, gray, squares, renderer, snap=options.snap,
                                       progress=steps.say)
         steps.done("camera on the render", f"fov {fit.camera.fov_deg:.3f} deg, "
-                   f"{fit.camera.altitude_m:.4f} m up, snapped {sorted(fit.snapped)}")
+                   f"{up(fit.camera)}, snapped {sorted(fit.snapped)}")
     else:
         arena = provisional
     checkpoint()
@@ -310,15 +327,16 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
             # the printed markers' texel grid placed the floor's edge: that edge is the size
             scale = options.arena_size_m[0] / (2.0 * floor_extent(scene.arena))
         steps.done("texture", f"rectified from the image, {texture_rgb.shape[1]} texels a "
-                              f"side; camera {fit.camera.altitude_m:.4f} m up, marker side "
-                              f"{scene.markers.side_m:.4f} m")
+                              f"side; camera {scale * fit.camera.altitude_m:.4f} m up, marker "
+                              f"side {scale * scene.markers.side_m:.4f} m")
     # 4b. the boxes on the render
     from arenabench.generator.twin.box_refine import refine_boxes
 
     checkpoint()
     scene = refine_boxes(scene, gray, renderer, progress=steps.say)
-    steps.done("boxes", ", ".join(f"{o.length_m:.3f} x {o.width_m:.3f} x {o.height_m:.3f} m"
-                                  for o in scene.obstacles) or "none")
+    steps.done("boxes", ", ".join(f"{scale * o.length_m:.3f} x {scale * o.width_m:.3f} x "
+                                  f"{scale * o.height_m:.3f} m" for o in scene.obstacles)
+               or "none")
     # 6. edges
     checkpoint()
     edges, edge_table = _choose_edges(scene, real, facts_file, renderer)
@@ -371,8 +389,7 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
     }
     records = _records(scene, params, fit, shades, edges, edge_table, facts_file, finding,
                        varied, scale_source, figures, renderer, gray)
-    steps.done("records", f"{sum(r.status == 'pinned' for r in records)} pinned, "
-                          f"{sum(r.status == 'open' for r in records)} open")
+    steps.done("records", records_text(records))
     return Twin(scene=scene, params=params, records=records, figures=figures, real=real,
                 render=render_bgr, texture_rgb=texture_rgb, varied=varied, facts=facts,
                 timings=steps.timings)

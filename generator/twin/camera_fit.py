@@ -429,8 +429,10 @@ def snap_angles(objective: Objective, v: np.ndarray, extra: np.ndarray, rms_free
                 v, extra, rms = tv, te, trms
                 shown = 90.0 - value if name == "tilt_deg" else value
                 snapped[name] = (unit, round(math.radians(shown) if unit == "rad" else shown, 9))
-                if progress:
-                    progress(f"{name} snapped to {snapped[name][1]:g} {unit}")
+                if progress:  # the parameter's own value; the world file's pitch beside
+                    said = (f"{value:g} deg (pitch {snapped[name][1]:g} {unit})"
+                            if name == "tilt_deg" else f"{snapped[name][1]:g} {unit}")
+                    progress(f"{name} snapped to {said}")
                 break
     return v, extra, snapped, rms
 

@@ -38,6 +38,14 @@ MAX_AREA_PX = 2 * MAX_IMAGE_SIDE_PX**2
 #: or ``-``.
 MAX_IMAGE_ID_CHARS = 128
 
+#: Longest text parameter (``arena.logo_text``, a dictionary's name, a palette ...): a logo is
+#: drawn with ``cv2.putText``, whose time and memory grow with the text; text holds printable
+#: characters only (no newline, no NUL): :func:`text_problem`.
+MAX_TEXT_CHARS = 64
+
+#: Shown of a refused value in a one-line error, at most (a 20 MB value is not echoed).
+MAX_SHOWN_CHARS = 80
+
 #: Largest ``dataset.json`` read (the generator's is a few kilobytes).
 MAX_DATASET_META_BYTES = 1024**2
 
@@ -133,3 +141,27 @@ MAX_REFINE_ROUNDS = 100
 #: Longest time one step of making the competition's Python environment may take (``python -m
 #: venv``, ``pip install`` of its numpy and OpenCV: about 80 MB from the package index), seconds.
 COMPETITION_ENV_BUILD_TIMEOUT_S = 1200.0
+
+
+def text_problem(text: str) -> str | None:
+    """Why ``text`` cannot be a text parameter (too long, or a character that is not
+    printable), or ``None``."""
+    if len(text) > MAX_TEXT_CHARS:
+        return f"{len(text)} characters: text holds at most {MAX_TEXT_CHARS}"
+    if not text.isprintable():
+        bad = next(c for c in text if not c.isprintable())
+        return f"holds {bad!r}: text holds printable characters only"
+    return None
+
+
+def cut(text: str) -> str:
+    """``text`` cut to :data:`MAX_SHOWN_CHARS` (an error line names a value, never megabytes
+    of it)."""
+    if len(text) <= MAX_SHOWN_CHARS:
+        return text
+    return f"{text[:MAX_SHOWN_CHARS - 20]}... ({len(text)} characters)"
+
+
+def shown(value: object) -> str:
+    """``repr(value)`` as an error line shows it (:func:`cut`)."""
+    return cut(repr(value))

@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -50,9 +51,10 @@ def own(tmp_path_factory) -> Path:
     into a texture rectified from the image)."""
     out = tmp_path_factory.mktemp("twin") / "own"
     proc = subprocess.run([sys.executable, "-m", "arenabench", "twin", str(IMAGE), "--out",
-                           str(out), "--arena-size", "3.7,3.7", "--no-progress"],
+                           str(out), "--arena-size", "3.7,3.7"],
                           capture_output=True, text=True)
     assert proc.returncode == 0, proc.stderr
+    (out.parent / "own.log").write_text(proc.stderr)  # its log, read by a test below
     return out
 
 
@@ -173,3 +175,25 @@ def test_without_a_texture_the_fitted_scene_matches_the_examples_marker_squares(
     figures = json.loads((own / "twin.json").read_text())["figures"]
     assert figures["mad"]["markers"] <= MARKER_SQUARES, figures
     assert figures["detector_corners_px"] == {"80": 0.0, "85": 0.0, "90": 0.0, "95": 0.0}
+
+
+def test_the_log_says_lengths_in_the_presets_metres_and_tilt_in_degrees(own):
+    """Without a texture the size is known only once the floor's edge is placed: the log says
+    the camera's height in arena sides until then, and metres of the preset after."""
+    log = (own.parent / "own.log").read_text()
+    p = load_preset_file(own / "preset.toml").params
+    texture = re.search(r"twin: texture: .* camera ([0-9.]+) m up, marker side ([0-9.]+) m",
+                        log)
+    assert texture, log
+    assert float(texture.group(1)) == pytest.approx(p["camera.altitude_m"], rel=0.02)
+    assert float(texture.group(2)) == pytest.approx(p["markers.side_m"], rel=0.02)
+    camera = re.search(r"twin: camera: .*, ([0-9.]+) arena sides up", log)
+    assert camera, log
+    for line in re.findall(r"tilt_deg snapped to .*", log):
+        assert re.fullmatch(r"tilt_deg snapped to [-0-9.]+ deg \(pitch [-0-9.e]+ (rad|deg)\)",
+                            line), line
+    records = re.search(r"(\d+) open \((\d+) in the preset's \[open\] table: ([^;]+);", log)
+    assert records, log
+    named = records.group(3).split(", ")
+    assert len(named) == int(records.group(2)) <= int(records.group(1))
+    assert set(named) == set(load_preset_file(own / "preset.toml").open)
