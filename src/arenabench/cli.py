@@ -62,7 +62,8 @@ def _usage() -> str:
 
 def _unknown(name: str) -> int:
     hint = did_you_mean(name, COMMANDS)
-    print(f"arenabench: error: unknown command {name!r}{hint}\n\n{_usage()}", file=sys.stderr)
+    print(f"arenabench: error: unknown command {name!r}{hint} (commands: "
+          f"{', '.join(COMMANDS)}; 'arenabench --help' says what each does)", file=sys.stderr)
     return ExitCode.USAGE
 
 

@@ -241,6 +241,7 @@ class CommandParser(argparse.ArgumentParser):
         self._checks.append(check)
 
     def parse_known_args(self, args=None, namespace=None):  # type: ignore[override]
+        self._refuse_mistyped(sys.argv[1:] if args is None else list(args))
         namespace, extras = super().parse_known_args(args, namespace)
         for check in self._checks:
             problem = check(namespace)
@@ -264,6 +265,19 @@ class CommandParser(argparse.ArgumentParser):
     def fail(self, message: str) -> int:
         """Print ``<prog>: error: <message>`` (one line) on stderr; return 2."""
         return usage_error(self.prog, message)
+
+    def _refuse_mistyped(self, words: list[str]) -> None:
+        """A mistyped option (``--imge``) is the error, with its hint, even when argparse
+        would first complain of a required option it then lacks (``--image``)."""
+        known = self._options()
+        for word in words:
+            if word == "--":
+                return
+            name = word.split("=", 1)[0]
+            if (name.startswith("--") and len(name) > 2
+                    and not any(k.startswith(name) for k in known)
+                    and did_you_mean(name, known)):
+                self.error(f"unrecognized arguments: {word}")
 
     def _options(self) -> list[str]:
         return [s for a in self._actions for s in a.option_strings if s.startswith("--")]

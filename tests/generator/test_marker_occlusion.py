@@ -1,4 +1,4 @@
-"""Ground truth sees a marker that a box covers (issue #45): the floor a box hides from the
+"""Ground truth sees a marker that a box covers: the floor a box hides from the
 camera (its vertices projected onto the floor) counts in each marker's ``occluded_fraction``,
 as floor patches do; a real render and a real ArUco detector agree."""
 

@@ -1,4 +1,4 @@
-"""Text parameters have bounds (issue #45): at most ``MAX_TEXT_CHARS`` printable characters,
+"""Text parameters have bounds: at most ``MAX_TEXT_CHARS`` printable characters,
 in a preset file, ``--set`` and a scene file alike; a value past them is refused with one line
 naming the file, the key and (cut short) the value, before anything is made."""
 

@@ -2,7 +2,7 @@
 stderr, zlib + base64) and answers a wrong count (so that the phase check re-runs it).
 
 Used by tests/eval/runs/test_run_view.py: a phase check's re-run must see what a first run
-sees, so that a script cannot tell them apart (issue #45).
+sees, so that a script cannot tell them apart.
 """
 
 import base64

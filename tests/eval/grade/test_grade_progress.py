@@ -1,4 +1,4 @@
-"""What grade says while it works (issue #45): the preflight and a line every few seconds
+"""What grade says while it works: the preflight and a line every few seconds
 even while nothing finishes (a hanging team), an estimate only once it means something and
 without the work of a team given up on, and after an interrupt what each unfinished team has
 left to do."""

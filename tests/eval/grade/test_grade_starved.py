@@ -1,4 +1,4 @@
-"""A busy grading machine never sinks an honest team (issue #45): a run starved of CPU is the
+"""A busy grading machine never sinks an honest team: a run starved of CPU is the
 harness's failure, never one of the team's timeouts nor a step towards giving up on it.
 
 A team that needs about a second of CPU per image (it pins itself to one CPU, as a solution

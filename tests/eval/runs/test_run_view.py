@@ -1,4 +1,4 @@
-"""A phase check's re-run sees what a first run sees (issue #45): a script cannot tell them
+"""A phase check's re-run sees what a first run sees: a script cannot tell them
 apart, so it cannot choose its own phase labels.
 
 A probe (tests/pipelines/view_probe.py) writes everything a run can read of where and how it
