@@ -74,8 +74,9 @@ that ran the script are printed and recorded in the reports.
 The twin set is generated once per (preset, seed, count, generator version) into the cache
 (ARENABENCH_CACHE_DIR, else $XDG_CACHE_HOME/arenabench, else ~/.cache/arenabench: sets/) and
 reused; a smaller --count takes the first scenes of a larger cached set (the same scenes).
-Reports go to reports/SCRIPT-PRESET-sSEED-nCOUNT-HASH/ in the cache (HASH: the script's path,
-the interpreter and the run options), or --out.
+Reports go to reports/SCRIPT-PRESET-sSEED-nCOUNT-HASH/ in the cache (HASH: the script's path
+and content, the interpreter and the run options: each version of a script keeps its own
+report, so a check before and after a fix can be compared), or --out.
 
 The script's conventions, as the competition ran it: 'PYTHON SCRIPT --image IMAGE' with its
 own folder visible read-only and, as its working directory, a private copy of that folder
@@ -188,12 +189,13 @@ def larger_twin_set(*, preset: str, seed: int, count: int,
 def report_dir(script: Path, *, preset: str, seed: int, count: int, interpreter: str,
                settings: dict[str, object], phases: int) -> Path:
     """The default report folder: ``reports/<script>-<preset>-s<seed>-n<count>-<hash>`` in the
-    cache, the hash over everything else that changes the result (the script's path, the
-    interpreter, the run settings, the phase check)."""
-    from arenabench.fileio import dumps_json
+    cache, the hash over everything else that changes the result (the script's path and
+    content, the interpreter, the run settings, the phase check): a check of the script after
+    an edit writes a folder of its own, and the report of the version before stays."""
+    from arenabench.fileio import dumps_json, sha256_file
 
-    key = dumps_json({"script": str(script), "interpreter": interpreter,
-                      "settings": settings, "phases": phases})
+    key = dumps_json({"script": str(script), "content": sha256_file(script),
+                      "interpreter": interpreter, "settings": settings, "phases": phases})
     digest = hashlib.sha256(key.encode()).hexdigest()[:10]
     return cache_dir() / "reports" / f"{script.stem}-{preset}-s{seed}-n{count}-{digest}"
 

@@ -282,6 +282,14 @@ def test_report_folders_are_keyed_by_what_changes_the_result_and_sets_are_reused
     assert report_dir(again) == b  # the same options: the same folder
     other = _check(script, "--count", "2", "--preset", "eyrc-upright", *common, cache=cache)
     assert report_dir(other) not in (a, b)
+    # an edit of the script (the same path): a report of its own, the one before kept
+    mine = tmp_path / "map.py"
+    mine.write_text(Path(script).read_text())
+    before = report_dir(_check(str(mine), "--count", "2", *common, cache=cache))
+    mine.write_text(Path(script).read_text() + "\n# fixed\n")
+    after = report_dir(_check(str(mine), "--count", "2", *common, cache=cache))
+    assert after != before and (before / "report.json").is_file()
+    assert (after / "report.json").is_file()
 
 
 def test_help_keeps_the_scripts_conventions_apart_from_the_exit_statuses():
