@@ -36,6 +36,7 @@ from arenabench.cliopts import (
     write_failure,
 )
 from arenabench.cmdtemplate import IMAGE, RUN_PLACEHOLDERS, escape, template_problem
+from arenabench.eval.commands.check_probe import PROBE_PRESET, PROBE_SCENES, run_probe
 from arenabench.eval.phase_check import add_phase_check_argument
 from arenabench.eval.runs import COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER
 from arenabench.eval.scoring.metric_registry import METRIC
@@ -127,6 +128,10 @@ def build_parser() -> CommandParser:
                    "(default: %(default)s)")
     add_out(p, help="folder for the report files (default: the cache's reports/ folder)")
     add_workers(p, help="scripts run at once")
+    p.add_argument("--no-probe", dest="probe", action="store_false",
+                   help=f"after a PASS on {DEFAULT_PRESET}, do not run the script on "
+                        f"{PROBE_SCENES} {PROBE_PRESET} scenes (camera, light and greys jittered) "
+                        f"for a line of robustness advice")
     add_no_progress(p)
     add_phase_check_argument(p)
     add_run_options(p)
@@ -441,7 +446,28 @@ def _main(argv: list[str] | None) -> int:
         print(line)
     if written:
         print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
-    return ExitCode.OK if report.summary.pass_rate >= args.min_pass_rate else ExitCode.FAILED
+    passed = report.summary.pass_rate >= args.min_pass_rate
+    if passed and args.probe and preset.name == DEFAULT_PRESET:
+        _probe_robustness(pipeline, args, script, twin_rate=report.summary.pass_rate)
+    return ExitCode.OK if passed else ExitCode.FAILED
+
+
+def _probe_robustness(pipeline, args: argparse.Namespace, script: Path, *,
+                      twin_rate: float) -> None:
+    """A PASS on the twin: the probe's line of advice, when it has one (never the exit
+    status); a set that cannot be made says so in a line and the check stays a PASS."""
+    from arenabench.generator.dataset_writer import GenerateError
+
+    folder = twin_set_dir(preset=PROBE_PRESET, seed=args.seed, count=PROBE_SCENES)
+    try:
+        probe = run_probe(pipeline, seed=args.seed, workers=args.workers or _cores(),
+                          folder=folder)
+    except (GenerateError, ValueError, OSError) as exc:
+        print(f"{PROG}: robustness probe skipped: {exc}", file=sys.stderr)
+        return
+    advice = probe.advice(twin_rate=twin_rate, script=str(script))
+    if advice:
+        print(advice)
 
 
 def _template(python: str, script: Path) -> str:

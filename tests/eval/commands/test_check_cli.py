@@ -305,3 +305,26 @@ def test_help_keeps_the_scripts_conventions_apart_from_the_exit_statuses():
     assert len(script) == 1 and script[0].lower().startswith("the script")
     assert "obstacles.txt" in script[0] and "cache" not in script[0]
     assert "{competition_python}" in proc.stdout
+
+
+@pytest.mark.integration
+def test_a_pass_that_leans_on_the_detection_order_gets_one_line_of_advice(tmp_path):
+    """A script that warps by detection index passes every twin scene (the camera is fixed);
+    the probe on a few jittered scenes finds it fails where the markers are listed in another
+    order, and says so in one line; the verdict and exit status stay a PASS. The reference
+    gets no advice, and --no-probe runs no probe."""
+    cache = tmp_path / "cache"
+    common = ("--count", "6", "--python", "{python}", "--phase-check", "off")
+    index = _check(str(PIPELINES / "style_detection_index.py"), *common, cache=cache)
+    assert index.returncode == 0, index.stdout + index.stderr
+    advice = [x for x in index.stdout.splitlines() if x.startswith("robustness:")]
+    assert len(advice) == 1 and "another order than on the twin" in advice[0], index.stdout
+    assert "by marker id, not by detection index" in advice[0]
+    reference = tmp_path / "map.py"
+    reference.write_text("import sys\nfrom arenabench.detect import main\n"
+                         "sys.exit(main(sys.argv[1:]))\n")
+    good = _check(str(reference), *common, cache=cache)
+    assert good.returncode == 0 and "robustness:" not in good.stdout, good.stdout
+    quiet = _check(str(PIPELINES / "style_detection_index.py"), *common, "--no-probe",
+                   cache=cache)
+    assert quiet.returncode == 0 and "robustness:" not in quiet.stdout, quiet.stdout
