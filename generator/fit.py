@@ -477,8 +477,13 @@ def fit_boxes(
         top = blob & (np.abs(gray - mode) <= 6)
         top = cv2.morphologyEx(top.astype(np.uint8), cv2.MORPH_OPEN, np.ones((3, 3), np.uint8))
         ys, xs = np.nonzero(top)
+        if len(xs) < 3:  # no top face of one grey (a palette image's dithering): the blob
+            ys, xs = np.nonzero(blob)
         pts = np.column_stack([xs, ys]).astype(np.float64)
-        hull = cv2.convexHull(pts.astype(np.float32)).reshape(-1, 2).astype(np.float64)
+        hull = cv2.convexHull(pts.astype(np.float32))
+        if hull is None or len(hull) < 3:
+            continue  # a line of pixels, not a box
+        hull = hull.reshape(-1, 2).astype(np.float64)
         crop, k_crop = _crop(blob, K)
         best = None
         for h in np.arange(0.05, 2.0, 0.01):

@@ -447,7 +447,7 @@ def _main(argv: list[str] | None) -> int:
     if written:
         print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
     passed = report.summary.pass_rate >= args.min_pass_rate
-    if passed and args.probe and preset.name == DEFAULT_PRESET:
+    if passed and args.probe and preset_key(preset) == DEFAULT_PRESET:  # the built-in twin
         _probe_robustness(pipeline, args, script, twin_rate=report.summary.pass_rate)
     return ExitCode.OK if passed else ExitCode.FAILED
 

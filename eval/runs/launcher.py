@@ -35,7 +35,9 @@ prepare the run: not the command's failure), ``cpu_ms`` and ``wait_ms`` (of a ti
 the CPU time its processes used and the time they waited for a CPU, from
 ``/proc/PID/schedstat``: :func:`.proctools.schedstat`), ``lowered_priority`` (of a timed-out
 run: whether it gave itself a higher nice value or an idle policy:
-:func:`.proctools.lowered_priority`), ``box`` (``"tmpfs"``, ``"folder"``
+:func:`.proctools.lowered_priority`), ``runnable`` and ``cpus`` (of a timed-out run: its threads
+that wanted a CPU at the timeout, and the CPUs they may use: :func:`.proctools.runnable_threads`),
+``box`` (``"tmpfs"``, ``"folder"``
 where no namespace could be made, or ``""`` without one).
 """
 
@@ -373,6 +375,7 @@ def run(cfg: LaunchConfig, *, become=None, own_cgroup: str | None = None) -> int
             alive = sorted(set(alive))  # a process of both counts once
             result["cpu_ms"], result["wait_ms"] = tools.schedstat(alive)
             result["lowered_priority"] = tools.lowered_priority(alive)
+            result["runnable"], result["cpus"] = tools.runnable_threads(alive)
             tools.kill_descendants(cgroup, scan=scan)
         result["rc"] = _exit_status(os.waitpid(pid, 0)[1])
         result["latency_ms"] = (time.perf_counter() - start) * 1000.0

@@ -37,12 +37,11 @@ from .outputs import read_small
 from .run_images import collect_run_images
 
 #: A timed-out run that waited for a CPU (runnable, not running) for at least this share of
-#: its timeout, while its own processes together used less than one CPU for the rest of it,
-#: and that did not lower its own priority, was *starved*: the machine, not the pipeline, made
-#: it late. Measured from the scheduler's own account of the run's threads
-#: (``/proc/PID/task/TID/schedstat``). A run whose own processes compete for the CPUs (many
-#: busy threads) uses them and is not starved; nor is one that chose a nice value or policy
-#: that puts it behind everything else.
+#: its timeout was *starved*: the machine, not the pipeline, made it late. Measured from the
+#: scheduler's own account of the run's threads (``/proc/PID/task/TID/schedstat``). Not
+#: starved: a run whose own threads wanting a CPU outnumber the CPUs it may use (they wait
+#: for each other), and one that chose a nice value or policy that puts it behind everything
+#: else.
 STARVED_SHARE = 0.25
 #: Times a starved run is run again; when it starves each time, the harness has failed
 #: (:class:`~arenabench.eval.scoring.results.HarnessError`: nothing of the image is scored, and
@@ -123,9 +122,8 @@ def prediction_from_run(result: dict, stdout: str, stderr: str, workdir: str, *,
     if result["timed_out"]:
         msg = f"timed out after {limits.timeout_s:g} s (all its processes killed)"
         wait_s = float(result.get("wait_ms") or 0.0) / 1e3
-        cpu_s = float(result.get("cpu_ms") or 0.0) / 1e3
-        if (wait_s >= STARVED_SHARE * limits.timeout_s
-                and cpu_s < (1.0 - STARVED_SHARE) * limits.timeout_s
+        own_crowd = int(result.get("runnable") or 0) > int(result.get("cpus") or 1)
+        if (wait_s >= STARVED_SHARE * limits.timeout_s and not own_crowd
                 and not result.get("lowered_priority")):
             return Prediction(status="timeout", starved=True, message=(
                 f"{msg}; starved: it waited {wait_s:.1f} s for a CPU (the machine was busy)"),

@@ -257,6 +257,27 @@ def schedstat(pids: list[int]) -> tuple[float, float]:
 SCHED_BATCH, SCHED_IDLE = 3, 5
 
 
+def runnable_threads(pids: list[int]) -> tuple[int, int]:
+    """The threads of ``pids`` that want a CPU now (state ``R``), and the CPUs they may use
+    (the fewest any of them may: its affinity). More of the first than the second: they wait
+    for each other."""
+    runnable, cpus = 0, os.cpu_count() or 1
+    for pid in pids:
+        try:
+            tids = os.listdir(f"/proc/{pid}/task")
+            cpus = min(cpus, len(os.sched_getaffinity(pid)))
+        except OSError:
+            continue
+        for tid in tids:
+            try:
+                with open(f"/proc/{pid}/task/{tid}/stat", "rb") as fh:
+                    state = fh.read().rsplit(b")", 1)[1].split()[0]
+            except (OSError, IndexError):
+                continue
+            runnable += state == b"R"
+    return runnable, cpus
+
+
 def lowered_priority(pids: list[int]) -> bool:
     """Whether a thread of ``pids`` gave itself less of the CPU than this process has: a higher
     nice value, or the batch or idle scheduling policy (``/proc/PID/task/TID/stat``). Waiting

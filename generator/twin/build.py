@@ -141,6 +141,13 @@ class Twin:
         return out
 
 
+def _sides_up(side_m: float):
+    """The log's height of a camera in arena sides (the arena's size not known yet)."""
+    def up(camera) -> str:
+        return f"{camera.altitude_m / side_m:.4f} arena sides up"
+    return up
+
+
 def records_text(records) -> str:
     """``"30 pinned, 41 open (9 in the preset's [open] table: a, b, ...)"``: of the open ones,
     those the phase check varies are named (the others have no say in the image)."""
@@ -252,15 +259,12 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
                          rotation_deg=finding.rotation_deg, quiet_zone_m=0.0,
                          printed=geometry.texture == "file")
     checkpoint()
+    # the log says heights in the preset's metres, or in arena sides until the size is known
+    up = _sides_up(geometry.side_m) if geometry.scale_source == "default" else cf.metres_up
     fit = cf.fit_camera(gray, finding, arena=provisional, markers=markers,
                         fit_marker_side=geometry.marker_side_m is None, snap=options.snap,
-                        progress=steps.say)
+                        progress=steps.say, up=up)
     markers = replace(markers, side_m=fit.marker_side_m)
-
-    def up(camera) -> str:  # the preset's metres, or the arena's side until the size is known
-        if geometry.scale_source == "default":
-            return f"{camera.altitude_m / geometry.side_m:.4f} arena sides up"
-        return f"{camera.altitude_m:.4f} m up"
 
     steps.done("camera", f"fov {fit.camera.fov_deg:.3f} deg, {up(fit.camera)}, snapped "
                          f"{sorted(fit.snapped)}")
@@ -272,7 +276,7 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
         probe = Scene(arena=arena, markers=markers, obstacles=(), camera=fit.camera,
                       lighting=LightingSpec(ambient=1.0, directional=()))
         fit = cf.refine_with_renderer(fit, probe, gray, squares, renderer, snap=options.snap,
-                                      progress=steps.say)
+                                      progress=steps.say, up=up)
         steps.done("camera on the render", f"fov {fit.camera.fov_deg:.3f} deg, "
                    f"{up(fit.camera)}, snapped {sorted(fit.snapped)}")
     else:
@@ -443,7 +447,8 @@ def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
                          rect.texture)
     drawn, _ = quiet_zone(drawn)
     fit_d = cf.refine_with_renderer(fit, drawn, gray, squares, renderer, snap=options.snap,
-                                    fit_side=True, progress=steps.say)
+                                    fit_side=True, progress=steps.say,
+                                    up=_sides_up(scene.arena.side_m))
     drawn = replace(drawn, camera=fit_d.camera,
                     markers=replace(drawn.markers, side_m=fit_d.marker_side_m))
     drawn, best_q = quiet_zone(drawn)
@@ -478,7 +483,8 @@ def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
         if texels is not None:
             shown = with_texture(painted, rect.painted(painted)[0])
             fit_p = cf.refine_with_renderer(fit_p, shown, gray, squares, renderer,
-                                            snap=options.snap, progress=steps.say)
+                                            snap=options.snap, progress=steps.say,
+                                            up=_sides_up(scene.arena.side_m))
             painted = replace(painted, camera=fit_p.camera)
             rect = Rectification(real, painted, shades.box_mask, texels=texels,
                                  fill_hidden=False)

@@ -429,9 +429,10 @@ def snap_angles(objective: Objective, v: np.ndarray, extra: np.ndarray, rms_free
                 v, extra, rms = tv, te, trms
                 shown = 90.0 - value if name == "tilt_deg" else value
                 snapped[name] = (unit, round(math.radians(shown) if unit == "rad" else shown, 9))
-                if progress:  # the parameter's own value; the world file's pitch beside
-                    said = (f"{value:g} deg (pitch {snapped[name][1]:g} {unit})"
-                            if name == "tilt_deg" else f"{snapped[name][1]:g} {unit}")
+                if progress:  # the parameter's own degrees; the world file's value beside
+                    world = f"{'pitch ' if name == 'tilt_deg' else ''}{snapped[name][1]:g} {unit}"
+                    said = (f"{value:g} deg" if unit == "deg" and name != "tilt_deg"
+                            else f"{value:g} deg ({world})")
                     progress(f"{name} snapped to {said}")
                 break
     return v, extra, snapped, rms
@@ -458,9 +459,15 @@ def rounded_camera(v: np.ndarray, width: int, height: int) -> CameraSpec:
     return orbit_camera(np.round(v, 6), width, height)
 
 
+def metres_up(camera: CameraSpec) -> str:
+    """How the log says a camera's height by default: ``"3.1630 m up"``."""
+    return f"{camera.altitude_m:.4f} m up"
+
+
 def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
                markers: MarkerSpec, fit_marker_side: bool, snap: bool = True,
-               progress: Callable[[str], None] | None = None) -> CameraFit:
+               progress: Callable[[str], None] | None = None,
+               up: Callable[[CameraSpec], str] = metres_up) -> CameraFit:
     """Steps 1, 2 and 4: fit the camera (and the marker side when ``fit_marker_side``) to the
     four markers' pixels.
 
@@ -479,6 +486,9 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
         Try round values of the angles.
     progress : callable, keyword-only
         Called with a line on each step.
+    up : callable, keyword-only
+        How those lines say the camera's height (default :func:`metres_up`; the twin says it
+        in arena sides until the arena's size is known).
 
     Returns
     -------
@@ -496,7 +506,7 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
     free_camera = rounded_camera(v, width, height)
     if progress:
         progress(f"camera fitted freely to the marker pixels: fov {free_camera.fov_deg:.3f} "
-                 f"deg, {free_camera.altitude_m:.4f} m up, tilt {free_camera.tilt_deg:.3f} "
+                 f"deg, {up(free_camera)}, tilt {free_camera.tilt_deg:.3f} "
                  f"deg (RMS {rms_free:.2f})")
     fovs, fov_ends = fov_range(objective, v, extra, rms_free)
     if progress:
@@ -520,7 +530,8 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
 
 def refine_with_renderer(fit: CameraFit, scene: Scene, gray: np.ndarray, mask: np.ndarray,
                          renderer, *, snap: bool = True, fit_side: bool = False,
-                         progress: Callable[[str], None] | None = None) -> CameraFit:
+                         progress: Callable[[str], None] | None = None,
+                         up: Callable[[CameraSpec], str] = metres_up) -> CameraFit:
     """Step 3 (and 4 again): refine ``fit``'s camera on the generator's render of ``scene``
     (a known arena texture, or drawn markers) in ``mask``, every angle free again, then snap;
     with ``fit_side`` (drawn markers) the marker side too."""
@@ -538,7 +549,7 @@ def refine_with_renderer(fit: CameraFit, scene: Scene, gray: np.ndarray, mask: n
     free_camera = rounded_camera(v, width, height)
     if progress:
         progress(f"camera refined on the render: fov {free_camera.fov_deg:.3f} deg, "
-                 f"{free_camera.altitude_m:.4f} m up (RMS {rms_free:.2f} grey levels)")
+                 f"{up(free_camera)} (RMS {rms_free:.2f} grey levels)")
     snapped: dict[str, tuple[str, float]] = {}
     rms = rms_free
     if snap:
