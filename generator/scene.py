@@ -19,6 +19,7 @@ from arenabench.generator.params import PARAMETERS
 from arenabench.generator.texture_store import IMAGE_TEXTURE, is_ref
 from arenabench.limits import (
     MAX_IMAGE_SIDE_PX,
+    MAX_SCENE_FILE_BYTES,
     MAX_SCENE_NUMBER,
     MAX_SCENE_OBJECTS,
     check_at_most,
@@ -53,9 +54,49 @@ def _within_bounds(value: float, name: str) -> None:
         raise ValueError(f"{name} must be in [{bounds.lo:g}, {bounds.hi:g}], got {value!r}")
 
 
+#: A field's declared type -> what its value must be: "number", "int", "bool", "str", or a
+#: tuple of those (that many items); a leading "?" lets it be ``None``; ("number", ...) any
+#: number of items. Types not here (colours, nested specs) are checked by their own code.
+_FIELD_SHAPES: dict[str, Any] = {
+    "float": "number", "int": "int", "bool": "bool", "str": "str",
+    "tuple[float, float]": ("number",) * 2, "tuple[float, float, float]": ("number",) * 3,
+    "tuple[float, float, float, float, float]": ("number",) * 5,
+    "tuple[int, int, int, int]": ("int",) * 4,
+    "tuple[float, float, float] | None": ("?", ("number",) * 3),
+    "tuple[tuple[float, float, float], ...] | None": ("?", (("number",) * 3, ...)),
+}
+
+
+def _shape_problem(value: Any, shape: Any) -> str | None:
+    """Why ``value`` is not of ``shape`` (:data:`_FIELD_SHAPES`), or ``None``."""
+    if isinstance(shape, tuple) and shape and shape[0] == "?":
+        return None if value is None else _shape_problem(value, shape[1])
+    if shape == "number":
+        ok = isinstance(value, (int, float)) and not isinstance(value, bool)
+        return None if ok else "a number"
+    if shape == "int":
+        ok = (isinstance(value, int) and not isinstance(value, bool)) or (
+            isinstance(value, float) and value.is_integer())
+        return None if ok else "an integer"
+    if shape == "bool":
+        return None if isinstance(value, bool) else "true or false"
+    if shape == "str":
+        return None if isinstance(value, str) else "text"
+    if not isinstance(value, (list, tuple)):
+        return "a list"
+    if len(shape) == 2 and shape[1] is ...:
+        return next((p for v in value if (p := _shape_problem(v, shape[0]))), None)
+    if len(value) != len(shape):
+        return f"{len(shape)} items"
+    return next((p for v, s in zip(value, shape, strict=True)
+                 if (p := _shape_problem(v, s))), None)
+
+
 def _finite_fields(spec: Any, section: str) -> None:
-    """Refuse a non-finite number (``inf``, ``nan``; JSON's ``1e309`` reads as ``inf``) or one
-    beyond :data:`~arenabench.limits.MAX_SCENE_NUMBER` in any field of ``spec``, nested tuples
+    """Refuse a value of the wrong kind (text where a number belongs, ``true`` for a length, a
+    list of one for a point: :data:`_FIELD_SHAPES`), a non-finite number (``inf``, ``nan``;
+    JSON's ``1e309`` reads as ``inf``) or one beyond
+    :data:`~arenabench.limits.MAX_SCENE_NUMBER` in any field of ``spec``, nested tuples
     included, naming it ``section.field``."""
     def check(value: Any, name: str) -> None:
         if (isinstance(value, (int, float)) and not isinstance(value, bool)
@@ -68,7 +109,11 @@ def _finite_fields(spec: Any, section: str) -> None:
                 check(item, name)
 
     for f in fields(spec):
-        check(getattr(spec, f.name), f"{section}.{f.name}")
+        value = getattr(spec, f.name)
+        shape = _FIELD_SHAPES.get(str(f.type))
+        if shape is not None and (problem := _shape_problem(value, shape)):
+            raise ValueError(f"{section}.{f.name} must be {problem}, got {shown(value)}")
+        check(value, f"{section}.{f.name}")
 
 
 def _positive(value: float, name: str) -> float:
@@ -641,6 +686,10 @@ def load_scene(path: str | Path) -> Scene:
     if p.exists() and not p.is_file():
         raise ValueError(f"scene file {str(p)!r} is not a regular file")
     try:
+        size = p.stat().st_size
+        if size > MAX_SCENE_FILE_BYTES:
+            raise ValueError(f"scene file {str(p)!r} is {size} bytes: a scene file holds at "
+                             f"most {MAX_SCENE_FILE_BYTES} (limits.MAX_SCENE_FILE_BYTES)")
         data = json.loads(p.read_text(encoding="utf-8"))
     except OSError as exc:
         raise ValueError(f"cannot read scene file {str(p)!r}: {exc.strerror or exc}") from None

@@ -46,6 +46,10 @@ MAX_TEXT_CHARS = 64
 #: Shown of a refused value in a one-line error, at most (a 20 MB value is not echoed).
 MAX_SHOWN_CHARS = 80
 
+#: Largest scene file read (``render``, ``fit``'s output; one of :data:`MAX_SCENE_OBJECTS` boxes
+#: and as many patches is about half a megabyte).
+MAX_SCENE_FILE_BYTES = 8 * 1024**2
+
 #: Largest ``dataset.json`` read (the generator's is a few kilobytes).
 MAX_DATASET_META_BYTES = 1024**2
 

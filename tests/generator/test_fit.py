@@ -206,3 +206,21 @@ def test_fit_cli_fits_the_camera_on_request(tmp_path, real, real_detection):
     from arenabench.generator.competition_world import competition_camera
 
     assert load_scene(out).camera != competition_camera()
+
+
+def test_a_box_without_a_top_face_of_one_grey_is_fitted_from_its_blob():
+    """A palette image dithers a box's top into two greys that alternate pixel by pixel: no
+    top face survives the opening, and the box is fitted from its blob (it crashed with
+    'NoneType' has no attribute 'reshape')."""
+    import numpy as np
+
+    from arenabench.generator.fit import fit_boxes
+    from arenabench.generator.sampler import sample_scene
+
+    scene = sample_scene("eyrc", seed=1, index=0).scene
+    h, w = scene.camera.height, scene.camera.width
+    gray = np.full((h, w), 230.0)
+    yy, xx = np.mgrid[h // 2 - 40:h // 2 + 40, w // 2 - 40:w // 2 + 40]
+    gray[yy, xx] = np.where((yy + xx) % 2 == 0, 60.0, 110.0)  # dithered, no grey repeated
+    boxes = fit_boxes(gray, scene.camera, scene.arena, scene.markers, floor_gray=230.0)
+    assert len(boxes) == 1

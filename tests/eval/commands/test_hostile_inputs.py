@@ -853,8 +853,10 @@ def _scene_text(edit: str) -> str:
         return json.dumps(scene).replace("12345.678", "1e309")
     elif edit == "center-1e300":
         scene["obstacles"][0]["center_m"] = [1e300, 0.0]
-    elif edit == "100000-obstacles":
-        scene["obstacles"] = scene["obstacles"][:1] * 100_000
+    elif edit == "5000-obstacles":
+        scene["obstacles"] = scene["obstacles"][:1] * 5000
+    elif edit == "50MB-file":
+        scene["notes"] = "x" * (50 << 20)
     elif edit == "deeply-nested":
         return '{"arena": ' + "[" * 100_000 + "]" * 100_000 + "}"
     elif edit == "arena-a-list":
@@ -870,7 +872,8 @@ def _scene_text(edit: str) -> str:
         ("height-inf", "obstacle.height_m must be a finite number"),
         ("length-1e309", "obstacle.length_m must be a finite number"),
         ("center-1e300", "obstacle.center_m must be a finite number in [-1000000, 1000000]"),
-        ("100000-obstacles", "number of obstacles = 100000 exceeds the limit of 1000"),
+        ("5000-obstacles", "number of obstacles = 5000 exceeds the limit of 1000"),
+        ("50MB-file", "a scene file holds at most 8388608"),
         ("deeply-nested", "nested too deeply"),
         ("arena-a-list", "invalid scene description"),
         ("dictionary-a-number", "markers.dictionary must be a name"),
