@@ -43,7 +43,7 @@ import cv2
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT / "tests" / "pipelines"))
+sys.path[:0] = [str(ROOT / "tests" / "pipelines"), str(ROOT / "tests")]
 PY = sys.executable
 EXAMPLE = ROOT.parent / "shared" / "data" / "task1c_image.jpg"
 OTHER = ROOT.parent / "shared" / "data" / "other-arenas" / "gg_arena_digital.png"
@@ -586,7 +586,64 @@ def _resume_cases(base: Path, data: Path) -> list[Case]:
     return cases
 
 
-SURFACES = {"render": render_cases, "twin": twin_cases, "grade": grade_cases}
+def _labels(out: Path) -> dict:
+    """Each team's verdicts and phase labels, without wall-clock fields."""
+    labels = {}
+    for team in sorted((out / "teams").iterdir()):
+        report = json.loads((team / "report.json").read_text())
+        labels[team.name] = [(im["id"], im["passed"], im.get("category"),
+                              (im.get("phase") or {}).get("class"))
+                             for im in report["images"]]
+    return labels
+
+
+def load_cases(root: Path) -> list[Case]:
+    """A 3-team grade with the phase check on, idle and beside two CPU burners: the same
+    verdicts and labels."""
+    base = root / "load"
+    base.mkdir(parents=True, exist_ok=True)
+    data = base / "set"
+    if not data.exists():
+        subprocess.run([PY, "-m", "arenabench", "generate", "--preset", "eyrc", "--count", "6",
+                        "--seed", "31", "--out", str(data), "--no-progress"], check=True,
+                       capture_output=True)
+    subs = base / "subs"
+    if not subs.exists():
+        pipes = ROOT / "tests" / "pipelines"
+        for name, script in (("canny", "style_canny.py"), ("grey_band", "style_grey_band.py"),
+                             ("reference", None)):
+            (subs / name).mkdir(parents=True)
+            text = ("import sys\nfrom arenabench.detect import main\n"
+                    "sys.exit(main(sys.argv[1:]))\n") if script is None else (
+                (pipes / script).read_text())
+            (subs / name / "map.py").write_text(text)
+    idle, busy = base / "idle", base / "busy"
+    argv = ["grade", str(data), str(subs), "--cmd",
+            f"{PY} {{submission}}/map.py --image {{image}}", "--phase-check", "4",
+            "--formats", "json", "--allow-guessable-seed", "--no-progress", "--workers", "2",
+            "--sandbox", "none", "--env", f"PYTHONPATH={ROOT / 'tests' / 'pipelines'}"]
+
+    def clear() -> None:
+        for out in (idle, busy):
+            if out.exists():
+                shutil.rmtree(out)
+
+    def same(proc) -> str | None:
+        if proc.returncode != 0:
+            return "not graded"
+        with_burners = subprocess.run(
+            [PY, str(ROOT / "tools" / "with_burners.py"), "--burners", "2", "--", PY, "-m",
+             "arenabench", *argv, "--out", str(busy)], capture_output=True, text=True)
+        if with_burners.returncode != 0:
+            return f"busy grade exit {with_burners.returncode}: {with_burners.stderr[-200:]}"
+        return None if _labels(idle) == _labels(busy) else "labels moved with the load"
+
+    return [Case("load", "3-teams-phase-check-idle-and-busy", [*argv, "--out", str(idle)],
+                 setup=clear, check=same, expect="done", cap_s=900)]
+
+
+SURFACES = {"render": render_cases, "twin": twin_cases, "grade": grade_cases,
+            "load": load_cases}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -601,8 +658,8 @@ def main(argv: list[str] | None = None) -> int:
     outcomes = []
     # grade's cases in order on one worker (the resume cases compare with the reference, the
     # two grades share a marker file); the others side by side
-    serial = [c for c in cases if c.surface == "grade"]
-    parallel = [c for c in cases if c.surface != "grade"]
+    serial = [c for c in cases if c.surface in ("grade", "load")]
+    parallel = [c for c in cases if c.surface not in ("grade", "load")]
     with (ThreadPoolExecutor(args.workers) as pool,
           open(args.out / "cases.jsonl", "w") as log):
         for o in itertools.chain(map(_safe, serial), pool.map(_safe, parallel)):

@@ -528,7 +528,11 @@ def grade(
     opts = replace(opts, settings=replace(opts.settings, sandbox=mode))
     digests: dict[str, str] = {}
     refused: dict[str, str] = {}  # a submission that cannot be fingerprinted is not graded
+    base = Path(submissions).resolve()
     for t in teams:
+        if (problem := t.problem(base)) is not None:  # before anything of it is read
+            refused[t.name] = problem
+            continue
         try:
             digests[t.name] = submission_hash(t.path)
         except SubmissionsError as exc:
@@ -612,7 +616,7 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
     skipped: list[str] = []
     for team in teams:
         if team.name in refused:
-            emit(f"{team.name}: error: {refused[team.name]}")
+            emit(f"{team.shown}: error: {refused[team.name]}")
             continue
         digest = digests[team.name]
         team_dir = root / TEAMS_DIR / team.name

@@ -47,6 +47,25 @@ class Team:
     name: str
     path: Path
 
+    @property
+    def shown(self) -> str:
+        """The name as a log line shows it: as is when printable, else escaped (a name with a
+        newline never forges a line of its own)."""
+        return self.name if self.name.isprintable() else repr(self.name)
+
+    def problem(self, submissions: Path) -> str | None:
+        """Why this folder is not graded (checked before anything of it is read), or
+        ``None``: a name that is not printable text (a newline, an escape sequence), or a
+        link to a system folder (``/``, ``/etc``) or to a folder that holds the submissions."""
+        if not self.name.isprintable():
+            return (f"the folder's name {self.name!r} holds a character that is not printable: "
+                    "rename it")
+        if self.path == Path("/") or self.path.parent == Path("/"):
+            return f"it is a link to the system folder {self.path}, not a submission"
+        if self.path == submissions or self.path in submissions.parents:
+            return f"it is a link to {self.path}, which holds the submissions"
+        return None
+
 
 def find_teams(root: str | os.PathLike[str]) -> tuple[Team, ...]:
     """Every team folder in ``root``, sorted by name.
