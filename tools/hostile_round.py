@@ -135,6 +135,10 @@ def _judge(case: Case, rc: int, err: str, lines: list[str], before: list[str] | 
             return "wrong"
     if rc == 0:
         return "done" if case.expect != "refused" else "wrong"
+    if case.surface == "grade" and rc == 1:  # some teams not graded, the others are: each
+        # refusal one line on stderr, nothing else of the team written
+        refusals = [x for x in err.splitlines() if "could not grade" in x]
+        return "refused" if refusals and all(x.isprintable() for x in refusals) else "lines"
     if len(lines) != 1:
         return "lines"
     if case.out is not None and _listing(case.out) != before and not _empty(case.out):

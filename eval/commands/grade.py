@@ -213,8 +213,9 @@ def main(argv: list[str] | None = None) -> int:
     for name, path in result.files.items():
         print(f"  {name:<16} {path}")
     if result.errors:
-        for team, why in result.errors.items():
-            print(f"{PROG}: could not grade {team}: {why}", file=sys.stderr)
+        for team, why in result.errors.items():  # a name that is not printable, escaped
+            shown = team if team.isprintable() else repr(team)
+            print(f"{PROG}: could not grade {shown}: {why}", file=sys.stderr)
         return ExitCode.FAILED
     if result.systemic:
         print(f"{PROG}: error: {result.systemic}", file=sys.stderr)

@@ -46,6 +46,6 @@ def test_a_team_folder_that_cannot_be_a_submission_is_refused_in_one_line(tmp_pa
     assert len(errors) == 1, r.stdout + r.stderr
     assert ("not printable" in errors[0] if kind in ("newline", "escape")
             else "link to" in errors[0]), errors
-    assert "\x1b" not in r.stdout and not any(x.startswith("plain: graded (all")
+    assert "\x1b" not in r.stdout + r.stderr and not any(x.startswith("plain: graded (all")
                                               for x in r.stdout.splitlines())
     assert any(x.startswith("plain: graded (") for x in r.stdout.splitlines()), r.stdout
