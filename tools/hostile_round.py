@@ -537,17 +537,29 @@ def _resume_cases(base: Path, data: Path) -> list[Case]:
         def setup(out=out, tamper=tamper) -> None:
             clear(out)
             mark.write_text(sha)
-            proc = subprocess.Popen([PY, "-m", "arenabench", *_grade_argv(data, subs, out,
-                                                                          *none)],
-                                    stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+            log = open(base / f"stop-{out.name}.log", "w")
+            proc = subprocess.Popen([PY, "-X", "faulthandler", "-m", "arenabench",
+                                     *_grade_argv(data, subs, out, *none)],
+                                    stdout=log, stderr=log)
             partial = out / "teams" / "b" / "partial-results.jsonl"
             deadline = time.monotonic() + 300
             while time.monotonic() < deadline and proc.poll() is None:
                 if partial.is_file() and len(partial.read_text().splitlines()) >= 3:
                     break
                 time.sleep(0.1)
+            lines = len(partial.read_text().splitlines()) if partial.is_file() else None
+            log.write(f"\n## SIGINT after {time.monotonic() - deadline + 300:.1f} s, partial "
+                      f"{lines} lines, running {proc.poll() is None}\n")
+            log.flush()
             proc.send_signal(signal.SIGINT)
-            proc.wait(timeout=60)
+            try:
+                proc.wait(timeout=60)
+            except subprocess.TimeoutExpired:  # where it is: faulthandler's stacks in the log
+                proc.send_signal(signal.SIGABRT)
+                proc.wait()
+                raise
+            finally:
+                log.close()
             mark.unlink()
             if tamper is None:
                 state = out / "teams" / "a" / "grade-state.json"
@@ -655,9 +667,11 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--out", type=Path, default=ROOT / "build" / "hostile-round")
     p.add_argument("--only", default=",".join(SURFACES))
     p.add_argument("--workers", type=int, default=2)
+    p.add_argument("--cases", default="", help="only the cases whose name holds this text")
     args = p.parse_args(argv)
     args.out.mkdir(parents=True, exist_ok=True)
-    cases = [c for s in args.only.split(",") for c in SURFACES[s](args.out / "inputs")]
+    cases = [c for s in args.only.split(",") for c in SURFACES[s](args.out / "inputs")
+             if args.cases in c.name]
     print(f"{len(cases)} cases", flush=True)
     outcomes = []
     # grade's cases in order on one worker (the resume cases compare with the reference, the
