@@ -11,11 +11,9 @@ from __future__ import annotations
 import os
 from collections.abc import Callable, Iterable, Sequence
 from concurrent.futures import (
-    FIRST_COMPLETED,
     Executor,
     Future,
     ThreadPoolExecutor,
-    wait,
 )
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -27,7 +25,7 @@ from arenabench.eval.scoring.breakdown import breakdown, rank_causes, systematic
 from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE, score_sample, summarize
 from arenabench.eval.scoring.results import HarnessError, ImageResult, Prediction, Report
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
-from arenabench.interrupts import checkpoint, deferred_stops
+from arenabench.interrupts import checkpoint, deferred_stops, first_done
 from arenabench.local_pool import local_executor
 from arenabench.workers import process_state, usable_cores
 
@@ -429,7 +427,7 @@ def _run_all(samples: Iterable[DatasetItem], submit: Callable[[DatasetItem], Fut
         refill()
         while pending:
             checkpoint()  # a stop signal a library swallowed
-            done, _ = wait(pending, return_when=FIRST_COMPLETED)
+            done = first_done(pending)
             for fut in done:
                 take(fut)
             refill()

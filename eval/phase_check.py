@@ -37,7 +37,7 @@ from typing import Any
 import numpy as np
 
 from arenabench.gtrecord import GroundTruth
-from arenabench.interrupts import checkpoint
+from arenabench.interrupts import checkpoint, result_of
 
 from .scoring.metrics import score_sample
 from .scoring.results import (
@@ -619,7 +619,7 @@ class _Job:
             error = f"{type(exc).__name__}: {exc}"
             _warn(f"phase check of {result.id}: cannot re-render it: {error}")
         for image, fut in pending:
-            prediction, harness = fut.result()
+            prediction, harness = result_of(fut)
             if prediction is None:
                 tally.add(None, False, harness)
                 continue

@@ -484,13 +484,13 @@ def _leaderboard(out: Path) -> list:
 
 #: How a kept resume state is tampered with between a stop and the resume.
 TAMPER = {
-    "flip-answer": lambda p: p.write_text(p.read_text().replace('"count": 1', '"count": 7')),
+    "flip-answer": lambda p: p.write_text(p.read_text().replace('"count":1', '"count":7')),
     "flip-status": lambda p: p.write_text(p.read_text().replace('"ok"', '"timeout"')),
     "garbage-line": lambda p: p.write_text(p.read_text() + "{not json\n"),
     "header-changed": lambda p: p.write_text(
         p.read_text().replace('"team": "b"', '"team": "a"', 1)),
     "truncated": lambda p: p.write_text(p.read_text()[: len(p.read_text()) // 2]),
-    "link-to-passwd": lambda p: (p.unlink(), p.symlink_to("/etc/passwd")),
+    "link-to-passwd": lambda p: (p.unlink(missing_ok=True), p.symlink_to("/etc/passwd")),
     "huge": lambda p: os.truncate(p, 200 << 20),
     "folder": lambda p: (p.unlink(), p.mkdir()),
     "fifo": lambda p: (p.unlink(), os.mkfifo(p)),

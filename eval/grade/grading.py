@@ -33,7 +33,7 @@ import sys
 import threading
 import time
 from collections.abc import Callable, Generator, Iterable, Iterator, Sequence
-from concurrent.futures import Future, ThreadPoolExecutor, as_completed
+from concurrent.futures import Future, ThreadPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field, replace
 from pathlib import Path
@@ -59,7 +59,13 @@ from arenabench.fileio import (
     sha256_file,
 )
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
-from arenabench.interrupts import checkpoint, deferred_stops, worker_task
+from arenabench.interrupts import (
+    as_done,
+    checkpoint,
+    deferred_stops,
+    result_of,
+    worker_task,
+)
 from arenabench.limits import DEFAULT_GIVE_UP_AFTER
 from arenabench.local_pool import end_executor, local_executor
 from arenabench.workers import init_worker, process_state, usable_cores
@@ -72,6 +78,7 @@ from .give_up import GiveUp, first_timeout_run, settle, timeout_run
 from .leaderboard import LeaderboardRow, leaderboard_dict, rank_rows
 from .leaderboard_report import LEADERBOARD_FILES, write_leaderboard
 from .partial import PARTIAL_FILE, PartialLog, read_partial
+from .seal import SEAL, intact, sealed
 from .submissions import SubmissionsError, Team, find_teams, submission_hash
 from .teams import DEFAULT_COMMAND, TEAM_ENV, team_command
 
@@ -248,7 +255,9 @@ def _read_state(team_dir: Path) -> dict[str, Any] | None:
         return None
     if not isinstance(state, dict) or state.get("schema") != STATE_SCHEMA:
         return None
-    return state
+    if not intact(state):  # edited by hand (or from another machine): graded again
+        return None
+    return {k: v for k, v in state.items() if k != SEAL}
 
 
 def _state_valid(state: dict[str, Any] | None, expect: dict[str, str], team_dir: Path,
@@ -351,7 +360,7 @@ class _Threads:
 
     def _results(self) -> Generator[tuple[int, Prediction], None, None]:
         try:
-            for fut in as_completed(self._futures):
+            for fut in as_done(self._futures):
                 checkpoint()
                 self._handed.add(fut)
                 yield self._futures[fut], fut.result()
@@ -711,7 +720,7 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
             name = job.team.name
             try:
                 try:
-                    states[name] = fut.result()
+                    states[name] = result_of(fut)
                 except BrokenProcessPool:  # lost with a dead report process: once more here
                     states[name] = _finish_team(job, data)
             except Exception as exc:  # the grader's own failure on this team only
@@ -928,7 +937,7 @@ def _finish_team(job: _FinishJob, data: Dataset) -> dict[str, Any]:
         "first_error": first_error(job.preds, str(team.path)),
         "given_up": job.given_up,
     }
-    atomic_write_json(team_dir / STATE_FILE, state)  # last: marks the team as graded
+    atomic_write_json(team_dir / STATE_FILE, sealed(state))  # last: marks the team as graded
     (team_dir / PARTIAL_FILE).unlink(missing_ok=True)  # graded: nothing to resume
     return state
 

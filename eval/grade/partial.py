@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import json
 import os
+import stat
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any, TextIO
@@ -26,7 +27,11 @@ from typing import Any, TextIO
 from arenabench.eval.scoring.results import Prediction
 from arenabench.jsonstream import dumps_exact_line
 
+from .seal import SEAL, intact, sealed
+
 PARTIAL_FILE = "partial-results.jsonl"
+#: Most bytes of a kept partial log read (one line per image: about 300 bytes each).
+MAX_PARTIAL_BYTES = 512 * 1024**2
 PARTIAL_SCHEMA = "arenabench.grade-partial/1"
 
 
@@ -56,12 +61,13 @@ class PartialLog:
             self.path.parent.mkdir(parents=True, exist_ok=True)
             self._fh = open(self.path, "a" if self._append else "w", encoding="utf-8")
             if not self._append:
-                self._fh.write(dumps_exact_line(self._header) + "\n")
+                self._fh.write(dumps_exact_line(sealed(self._header)) + "\n")
             elif self._fh.tell() and not _ends_with_newline(self.path):
                 self._fh.write("\n")  # after a line cut short: it stays unreadable alone
         line = {"index": index, "id": image_id, "prediction": pred.to_json()}
-        # exact values (NaN kept): the next run scores the same prediction again
-        self._fh.write(dumps_exact_line(line) + "\n")
+        # exact values (NaN kept): the next run scores the same prediction again; sealed, so
+        # that a line edited by hand is never trusted (.seal)
+        self._fh.write(dumps_exact_line(sealed(line)) + "\n")
         self._fh.flush()
 
     def close(self) -> None:
@@ -95,24 +101,33 @@ def read_partial(path: Path, header: Mapping[str, Any],
     ids : sequence of str
         The dataset's image ids, by index.
     """
-    try:
-        with open(path, encoding="utf-8", errors="replace") as fh:
-            lines = fh.read().splitlines()
+    try:  # never a blocking open of a FIFO someone put there
+        fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | os.O_NOFOLLOW)
     except FileNotFoundError:
         return None
-    except OSError:
-        lines = []
+    except OSError as exc:
+        raise ValueError(f"{path}: cannot read the kept results ({exc.strerror or exc}): "
+                         "remove it to grade this team from the start") from None
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise ValueError(f"{path}: not a regular file (kept results are one): remove it "
+                         "to grade this team from the start")
+    with os.fdopen(fd, "rb") as fh:
+        lines = fh.read(MAX_PARTIAL_BYTES + 1).decode("utf-8", "replace").splitlines()
     try:
         first = json.loads(lines[0]) if lines else None
     except ValueError:
         first = None
-    if first != {"schema": PARTIAL_SCHEMA, **header}:
-        path.unlink(missing_ok=True)  # stale: never trusted again
+    if not intact(first) or {k: v for k, v in first.items() if k != SEAL} != {
+            "schema": PARTIAL_SCHEMA, **header}:
+        path.unlink(missing_ok=True)  # stale or edited: never trusted again
         return None
     kept: dict[int, Prediction] = {}
     for text in lines[1:]:
         try:
             line = json.loads(text)
+            if not intact(line):
+                continue  # edited by hand, or cut short: that image runs again
             index = line["index"]
             if (isinstance(index, int) and not isinstance(index, bool)
                     and 0 <= index < len(ids) and line["id"] == ids[index]):

@@ -48,8 +48,18 @@ import signal
 import sys
 import threading
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
+from concurrent.futures import FIRST_COMPLETED, Future, wait
+from concurrent.futures import TimeoutError as FutureTimeout
 from contextlib import contextmanager
+from typing import Any
+
+#: Longest a main-thread wait goes without running Python code. The kernel delivers a
+#: process's signal to any of its threads; when that is not the main thread, CPython only
+#: sets a flag, and a main thread blocked on a lock (a future's result, ``wait``) runs the
+#: handler when it next runs Python code: a stop landing there waited for the next result
+#: (a hanging run: its whole timeout). The waits below wake this often to let it in.
+STOP_POLL_S = 0.25
 
 #: The signals that stop a command.
 STOP_SIGNALS: tuple[signal.Signals, ...] = (signal.SIGINT, signal.SIGTERM)
@@ -365,3 +375,32 @@ def stop_workers(*, grace_s: float = WORKER_GRACE_S,
         for child in killed:
             child.kill()
     return len(children)
+
+
+def result_of(future: Future) -> Any:
+    """``future.result()``, waiting in steps of :data:`STOP_POLL_S` so that a stop signal is
+    acted on at once wherever the kernel delivered it."""
+    while True:
+        try:
+            return future.result(timeout=STOP_POLL_S)
+        except FutureTimeout:
+            continue
+
+
+def as_done(futures: Iterable[Future]) -> Iterator[Future]:
+    """The futures as they finish (like :func:`concurrent.futures.as_completed`), waiting in
+    steps of :data:`STOP_POLL_S` so that a stop signal is acted on at once."""
+    pending = set(futures)
+    while pending:
+        done, pending = wait(pending, timeout=STOP_POLL_S, return_when=FIRST_COMPLETED)
+        yield from done
+
+
+def first_done(pending: Iterable[Future]) -> set[Future]:
+    """``wait(pending, return_when=FIRST_COMPLETED)``'s done set, waiting in steps of
+    :data:`STOP_POLL_S` so that a stop signal is acted on at once."""
+    pending = set(pending)
+    while True:
+        done, _ = wait(pending, timeout=STOP_POLL_S, return_when=FIRST_COMPLETED)
+        if done or not pending:
+            return done

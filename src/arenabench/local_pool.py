@@ -52,6 +52,7 @@ from contextlib import contextmanager
 from typing import Any
 
 from arenabench.interrupts import (
+    STOP_POLL_S,
     WORKER_GRACE_S,
     checkpoint,
     children_ignore_sigint,
@@ -192,7 +193,14 @@ def local_map(
             yield func(item)
         return
     with local_pool(workers, initializer=initializer) as pool:
-        for result in pool.imap_unordered(func, items, chunksize=1):
+        results = pool.imap_unordered(func, items, chunksize=1)
+        while True:
+            try:  # in steps, so that a stop signal is acted on at once (STOP_POLL_S)
+                result = results.next(timeout=STOP_POLL_S)
+            except multiprocessing.TimeoutError:
+                continue
+            except StopIteration:
+                return
             checkpoint()
             yield result
 

@@ -765,6 +765,7 @@ def test_an_interrupted_team_keeps_its_finished_images_and_resumes_from_there(to
 @pytest.mark.integration
 def test_kept_results_are_reused_only_for_the_same_submission(toy8, tmp_path):
     from arenabench.eval.grade.partial import PARTIAL_FILE, PARTIAL_SCHEMA
+    from arenabench.eval.grade.seal import sealed
 
     subs = _fast_teams(tmp_path / "subs", {"a": 1})
     out = tmp_path / "out"
@@ -778,18 +779,22 @@ def test_kept_results_are_reused_only_for_the_same_submission(toy8, tmp_path):
 
     def interrupted_before() -> None:
         """What an interrupted grade of 'a' leaves: no state, image 0 kept (an answer the
-        script never gives), image 1's line cut short by a kill."""
+        script never gives, sealed as grade seals it), image 1's line cut short by a kill;
+        and image 2's line written by hand, without a seal."""
         (out / "teams" / "a" / STATE_FILE).unlink()
         line = {"index": 0, "id": "000000",
                 "prediction": {"status": "ok", "count": 7, "area": 5.0}}
-        keep.write_text(json.dumps({"schema": PARTIAL_SCHEMA, **header}) + "\n"
-                        + json.dumps(line) + "\n" + '{"index": 1, "id": "0000')
+        forged = {"index": 2, "id": "000002",
+                  "prediction": {"status": "ok", "count": 9, "area": 5.0}}
+        keep.write_text(json.dumps(sealed({"schema": PARTIAL_SCHEMA, **header})) + "\n"
+                        + json.dumps(sealed(line)) + "\n" + json.dumps(forged) + "\n"
+                        + '{"index": 1, "id": "0000')
 
     interrupted_before()
     grade(toy8, subs, out, options=opts, workers=1, allow_guessable_seed=True)
     counts = [i["pred"]["count"] for i in
               json.loads((out / "teams" / "a" / "report.json").read_text())["images"]]
-    assert counts == [7] + [1] * 7  # image 0 kept, the line cut short run again
+    assert counts == [7] + [1] * 7  # image 0 kept; the forged line and the cut one run again
     assert not keep.exists()
     interrupted_before()
     (subs / "a" / "notes.txt").write_text("changed")  # another submission now
