@@ -607,7 +607,7 @@ def _labels(out: Path) -> dict:
     labels = {}
     for team in sorted((out / "teams").iterdir()):
         report = json.loads((team / "report.json").read_text())
-        labels[team.name] = [(im["id"], im["passed"], im.get("category"),
+        labels[team.name] = [(im["id"], im["pass"], im.get("category"),
                               (im.get("phase") or {}).get("class"))
                              for im in report["images"]]
     return labels
@@ -669,6 +669,10 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--workers", type=int, default=2)
     p.add_argument("--cases", default="", help="only the cases whose name holds this text")
     args = p.parse_args(argv)
+    # a background job of a non-interactive shell ignores SIGINT, and so would every command
+    # it starts (arenabench keeps an inherited SIG_IGN): the stops below must reach them
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    args.out = args.out.resolve()  # the cases run commands from elsewhere too
     args.out.mkdir(parents=True, exist_ok=True)
     cases = [c for s in args.only.split(",") for c in SURFACES[s](args.out / "inputs")
              if args.cases in c.name]

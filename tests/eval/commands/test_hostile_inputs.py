@@ -876,7 +876,7 @@ def _scene_text(edit: str) -> str:
         ("50MB-file", "a scene file holds at most 8388608"),
         ("deeply-nested", "nested too deeply"),
         ("arena-a-list", "invalid scene description"),
-        ("dictionary-a-number", "markers.dictionary must be a name"),
+        ("dictionary-a-number", "markers.dictionary must be text, got 5"),
     ], first=2),
 )
 def test_render_of_a_hostile_scene_file_is_one_line_and_writes_nothing(tmp_path, edit, needle):
