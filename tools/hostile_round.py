@@ -421,16 +421,12 @@ def grade_cases(root: Path) -> list[Case]:
         subs = base / f"names-{key}"
 
         def make(subs=subs, name=name) -> None:
-            if subs.exists():
-                shutil.rmtree(subs)
-            subs.mkdir(parents=True)
-            try:
+            _submissions(subs)
+            try:  # some names cannot be made ("..", 300 characters): then only "plain" is
                 (subs / name).mkdir()
                 (subs / name / "map.py").write_text(FAST_TEAM)
             except OSError:
                 pass
-            (subs / "plain").mkdir()
-            (subs / "plain" / "map.py").write_text(FAST_TEAM)
 
         out = base / f"out-names-{key}"
         cases.append(Case("grade", f"team-name-{key}", _grade_argv(data, subs, out), out=out,
@@ -457,11 +453,7 @@ def grade_cases(root: Path) -> list[Case]:
         subs = base / f"special-{key}"
 
         def make(subs=subs, make_team=make_team) -> None:
-            if subs.exists():
-                shutil.rmtree(subs)
-            subs.mkdir(parents=True)
-            (subs / "plain").mkdir()
-            (subs / "plain" / "map.py").write_text(FAST_TEAM)
+            _submissions(subs)
             make_team(subs / "team")
 
         out = base / f"out-special-{key}"
@@ -469,6 +461,14 @@ def grade_cases(root: Path) -> list[Case]:
                           setup=make, cap_s=180))
     cases += _resume_cases(base, data)
     return cases
+
+
+def _submissions(subs: Path) -> None:
+    """A fresh submissions folder holding one plain team that answers at once."""
+    if subs.exists():
+        shutil.rmtree(subs)
+    (subs / "plain").mkdir(parents=True)
+    (subs / "plain" / "map.py").write_text(FAST_TEAM)
 
 
 def _touch(path: Path) -> Path:

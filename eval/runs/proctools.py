@@ -233,10 +233,9 @@ def kill_cgroup_tree(cgroup: str, *, remove: bool = True, tries: int = 200) -> b
     return False
 
 
-def schedstat(pids: list[int]) -> tuple[float, float]:
-    """CPU time and time spent waiting for a CPU (run queue), in ms, of the threads of
-    ``pids`` summed (``/proc/PID/task/TID/schedstat``; a process gone counts nothing)."""
-    cpu = wait = 0
+def _task_files(pids: list[int], name: str) -> Iterator[bytes]:
+    """The file ``name`` of every thread of ``pids`` (``/proc/PID/task/TID/NAME``); a process
+    or thread gone gives nothing."""
     for pid in pids:
         try:
             tids = os.listdir(f"/proc/{pid}/task")
@@ -244,12 +243,27 @@ def schedstat(pids: list[int]) -> tuple[float, float]:
             continue
         for tid in tids:
             try:
-                with open(f"/proc/{pid}/task/{tid}/schedstat", "rb") as fh:
-                    fields = fh.read().split()
-                cpu += int(fields[0])
-                wait += int(fields[1])
-            except (OSError, ValueError, IndexError):
+                with open(f"/proc/{pid}/task/{tid}/{name}", "rb") as fh:
+                    yield fh.read()
+            except OSError:
                 continue
+
+
+def _stat_fields(text: bytes) -> list[bytes]:
+    """A ``stat`` file's fields after the command name (state first)."""
+    return text.rsplit(b")", 1)[-1].split()
+
+
+def schedstat(pids: list[int]) -> tuple[float, float]:
+    """CPU time and time spent waiting for a CPU (run queue), in ms, of the threads of
+    ``pids`` summed (``/proc/PID/task/TID/schedstat``; a process gone counts nothing)."""
+    cpu = wait = 0
+    for text in _task_files(pids, "schedstat"):
+        try:
+            fields = text.split()
+            cpu, wait = cpu + int(fields[0]), wait + int(fields[1])
+        except (ValueError, IndexError):
+            continue
     return cpu / 1e6, wait / 1e6
 
 
@@ -261,20 +275,13 @@ def runnable_threads(pids: list[int]) -> tuple[int, int]:
     """The threads of ``pids`` that want a CPU now (state ``R``), and the CPUs they may use
     (the fewest any of them may: its affinity). More of the first than the second: they wait
     for each other."""
-    runnable, cpus = 0, os.cpu_count() or 1
+    cpus = os.cpu_count() or 1
     for pid in pids:
         try:
-            tids = os.listdir(f"/proc/{pid}/task")
             cpus = min(cpus, len(os.sched_getaffinity(pid)))
         except OSError:
             continue
-        for tid in tids:
-            try:
-                with open(f"/proc/{pid}/task/{tid}/stat", "rb") as fh:
-                    state = fh.read().rsplit(b")", 1)[1].split()[0]
-            except (OSError, IndexError):
-                continue
-            runnable += state == b"R"
+    runnable = sum(_stat_fields(text)[:1] == [b"R"] for text in _task_files(pids, "stat"))
     return runnable, cpus
 
 
@@ -283,20 +290,14 @@ def lowered_priority(pids: list[int]) -> bool:
     nice value, or the batch or idle scheduling policy (``/proc/PID/task/TID/stat``). Waiting
     for a CPU then is the run's own doing, never the machine's."""
     own = os.getpriority(os.PRIO_PROCESS, 0)
-    for pid in pids:
+    for text in _task_files(pids, "stat"):
         try:
-            tids = os.listdir(f"/proc/{pid}/task")
-        except OSError:
+            fields = _stat_fields(text)
+            nice, policy = int(fields[16]), int(fields[38])
+        except (ValueError, IndexError):
             continue
-        for tid in tids:
-            try:
-                with open(f"/proc/{pid}/task/{tid}/stat", "rb") as fh:
-                    fields = fh.read().rsplit(b")", 1)[1].split()
-                nice, policy = int(fields[16]), int(fields[38])
-            except (OSError, ValueError, IndexError):
-                continue
-            if nice > own or policy in (SCHED_BATCH, SCHED_IDLE):
-                return True
+        if nice > own or policy in (SCHED_BATCH, SCHED_IDLE):
+            return True
     return False
 
 
