@@ -40,8 +40,10 @@ OWNER_FILE = "owner"
 #: making it and writing the file) before a sweep takes it for a stale one.
 OWNERLESS_GRACE_S = 60.0
 
-_RUN_DIR = re.compile("^(?:" + "|".join(map(re.escape, (RUN_PREFIX, *OWNED_PREFIXES)))
-                      + r")(\d+)-")
+# (a warm folder of an earlier version named its owner: arenabench-warm-<pid>-XXXX; today's
+# random names hold no "-" after the prefix)
+_RUN_DIR = re.compile("^(?:" + "|".join(map(re.escape, (RUN_PREFIX, WARM_PREFIX,
+                                                          *OWNED_PREFIXES))) + r")(\d+)-")
 _WARM_DIR = re.compile(rf"^{WARM_PREFIX}[A-Za-z0-9_]+$")
 _RUN_CGROUP = re.compile(rf"^(?:{RUN_PREFIX}(\d+)|{WARM_PREFIX}(\d+)-[0-9a-f]+)$")
 _SWEPT = threading.Event()

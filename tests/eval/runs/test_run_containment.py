@@ -496,8 +496,11 @@ def test_a_warm_folder_is_swept_by_the_pid_in_its_owner_file(tmp_path):
     assert str(os.getpid()) not in mine.name  # a random name: it says nothing of its owner
     unowned = tmp_path / "arenabench-warm-efgh5678"  # its harness died before the file
     unowned.mkdir()
+    earlier = tmp_path / f"arenabench-warm-{dead.stdout.strip()}-ijkl"  # an earlier version's
+    earlier.mkdir()
     removed = sweep_stale_runs(tmpdir=str(tmp_path), force=True)
     assert not left.exists() and str(left) in removed
+    assert not earlier.exists() and str(earlier) in removed
     assert mine.exists() and unowned.exists()  # alive; too young to be taken for stale
     old = time.time() - OWNERLESS_GRACE_S - 5
     os.utime(unowned, (old, old))
