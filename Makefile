@@ -77,7 +77,7 @@ test-busy: $(STAMP) system-deps
 	  --durations=25 --junitxml=$(RESULTS)/test-busy.xml $(PYTEST_ARGS)
 
 # Rewrite tests/data/golden_gt.json after a deliberate change of the generator's output
-# (bump GENERATOR_VERSION in generator/make.py first; see docs/architecture.md).
+# (bump GENERATOR_VERSION in generator/dataset/make.py first; see docs/architecture.md).
 golden: $(STAMP)
 	$(PY) -m tests.golden --update
 

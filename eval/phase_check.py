@@ -4,7 +4,8 @@ what the evidence behind the preset leaves open?
 For each failing image, the same scene is rendered again ``N`` times with every obstacle moved
 by a sub-pixel amount (phases spread over one image pixel in x and y, each box at its own
 phase), through the generator's one image recipe
-(:func:`arenabench.generator.make.scene_image`: the set's degradations, encoding and GT), and
+(:func:`arenabench.generator.dataset.make.scene_image`: the set's degradations, encoding and GT),
+and
 the pipeline run again on each (docs/phase-check.md). When no phase passes, the same is done
 under each other value the preset's open parameters allow (:func:`open_variants`). A run that
 does not complete (:data:`NOT_COMPLETED`, a harness error) is not a failed run; over the
@@ -110,14 +111,15 @@ def add_phase_check_argument(parser: argparse.ArgumentParser) -> None:
 
 def declares_open(preset: Any) -> bool:
     """Whether ``preset`` is a twin: a preset that declares parameters its evidence leaves
-    open (``preset``: a :class:`~arenabench.generator.preset_files.ResolvedPreset`, or the
+    open (``preset``: a :class:`~arenabench.generator.parameters.preset_files.ResolvedPreset`, or
+    the
     name a GT file records, which counts only when it names a built-in preset).
 
     A twin's scenes are the hidden tests' look-alikes: a failure there is worth telling apart
     as robust, phase-dependent or depending on what is open, so ``--phase-check auto`` is on
     for them (``eyrc`` declares its unseen east and west fills open).
     """
-    from arenabench.generator.presets import builtin_preset, preset_names
+    from arenabench.generator.parameters.presets import builtin_preset, preset_names
 
     if isinstance(preset, str):
         if preset not in preset_names():
@@ -185,12 +187,12 @@ def shifted_scene(scene: Any, offsets: Sequence[tuple[float, float]]) -> Any:
 
     Parameters
     ----------
-    scene : arenabench.generator.scene.Scene
+    scene : arenabench.generator.model.scene.Scene
         The scene.
     offsets : sequence of (float, float)
         Image px, one pair per obstacle.
     """
-    from arenabench.generator import camera as cam
+    from arenabench.generator.model import camera as cam
 
     if len(offsets) != len(scene.obstacles):
         raise ValueError(f"need one offset per obstacle ({len(scene.obstacles)}), got "
@@ -240,16 +242,17 @@ class SceneSource:
         return dict(getattr(self.preset, "open", None) or {})
 
     def output(self) -> Any:
-        """How the set's images are encoded (:class:`arenabench.generator.make.ImageFormat`)."""
-        from arenabench.generator.make import ImageFormat
+        """How the set's images are encoded
+        (:class:`arenabench.generator.dataset.make.ImageFormat`)."""
+        from arenabench.generator.dataset.make import ImageFormat
 
         return ImageFormat.of_preset(self.preset, self.overrides)
 
     def sample(self, gt: GroundTruth, change: dict[str, Any] | None = None) -> Any:
         """Scene ``gt.index`` of the run drawn again (``change``: open parameters set to
         other values; every other draw is the same, each parameter having its own random
-        stream): a :class:`~arenabench.generator.sampler.SampledScene`."""
-        from arenabench.generator.sampler import sample_scene
+        stream): a :class:`~arenabench.generator.model.sampler.SampledScene`."""
+        from arenabench.generator.model.sampler import sample_scene
 
         return sample_scene(self.preset, seed=gt.seed, index=gt.index,
                             overrides={**self.overrides, **(change or {})})
@@ -271,8 +274,8 @@ def dataset_scene_source(root: str | Path, doc: Any, *, warn: bool = True
     """The :class:`SceneSource` of a set from its ``dataset.json`` content ``doc``
     (``preset_definition`` and ``args.overrides``); ``None`` when it records none, or one
     that cannot be read again (said on stderr when ``warn``)."""
-    from arenabench.generator.param_values import parse_override
-    from arenabench.generator.preset_files import preset_from_document
+    from arenabench.generator.parameters.param_values import parse_override
+    from arenabench.generator.parameters.preset_files import preset_from_document
 
     if not isinstance(doc, dict) or not isinstance(doc.get("preset_definition"), dict):
         return None
@@ -327,8 +330,8 @@ def open_variants(source: SceneSource) -> list[Variant]:
     trade, not either one) is not varied on its own: the other's variants set it too, to its
     value at the same end.
     """
-    from arenabench.generator.params import PARAMETERS, Range
-    from arenabench.generator.presets import resolve
+    from arenabench.generator.parameters.params import PARAMETERS, Range
+    from arenabench.generator.parameters.presets import resolve
 
     if not source.open:
         return []
@@ -362,7 +365,8 @@ def render_phases(gt: GroundTruth, *, phases: int, folder: Path, output: Any = N
     (:func:`phase_offsets`, each box rotated by :func:`box_offsets`).
 
     Each image is made by the generator's one image recipe
-    (:func:`arenabench.generator.make.scene_image`: render, the scene's own degradations with
+    (:func:`arenabench.generator.dataset.make.scene_image`: render, the scene's own degradations
+    with
     its noise stream, encoding, GT), as the set's own image was; each phase's GT is computed
     from its moved scene.
 
@@ -377,7 +381,7 @@ def render_phases(gt: GroundTruth, *, phases: int, folder: Path, output: Any = N
     output : ImageFormat, keyword-only
         How the set's images are encoded (:meth:`SceneSource.output`); default PNG.
     renderer : SceneRenderer, keyword-only
-        Default: this thread's :func:`arenabench.generator.make.worker_renderer`.
+        Default: this thread's :func:`arenabench.generator.dataset.make.worker_renderer`.
     scene, params : keyword-only
         Another scene of the image (an open parameter's variant) and its drawn parameters;
         default: ``gt``'s own.
@@ -385,8 +389,8 @@ def render_phases(gt: GroundTruth, *, phases: int, folder: Path, output: Any = N
         The offsets instead of :func:`phase_offsets` (``[(0, 0)]``: the scene unmoved).
     """
     from arenabench.fileio import rounded
-    from arenabench.generator.make import ImageFormat, scene_image, worker_renderer
-    from arenabench.generator.scene import Scene
+    from arenabench.generator.dataset.make import ImageFormat, scene_image, worker_renderer
+    from arenabench.generator.model.scene import Scene
 
     if gt.scene is None:
         raise ValueError(f"GT {gt.id!r} holds no scene: cannot re-render it")
@@ -424,7 +428,7 @@ def original_output(image: str | Path) -> Any:
     chroma subsampling from its tables): what the check uses when the set records no preset.
     """
     from arenabench.fileio import open_regular
-    from arenabench.generator.make import ImageFormat
+    from arenabench.generator.dataset.make import ImageFormat
     from arenabench.imageio import JPEG_SUBSAMPLINGS, ImageLoadError, jpeg_settings
 
     if Path(image).suffix.lower() not in (".jpg", ".jpeg"):

@@ -46,15 +46,15 @@ def pytest_addoption(parser: pytest.Parser) -> None:
 def dataset_key(preset: str, count: int, seed: int) -> str:
     """Cache folder name of a generated dataset: ``<preset>-n<count>-s<seed>-v<generator
     version>`` (imports the generator); a preset file is named by its preset's name and a
-    hash of its parameters (:func:`~arenabench.generator.presets.preset_key`).
+    hash of its parameters (:func:`~arenabench.generator.parameters.presets.preset_key`).
 
     Raises
     ------
     pytest.UsageError
         For an unknown preset or a bad preset file (one line).
     """
-    from arenabench.generator.make import GENERATOR_VERSION
-    from arenabench.generator.presets import preset_key, resolve_preset
+    from arenabench.generator.dataset.make import GENERATOR_VERSION
+    from arenabench.generator.parameters.presets import preset_key, resolve_preset
 
     try:
         key = preset_key(resolve_preset(preset))
@@ -64,7 +64,7 @@ def dataset_key(preset: str, count: int, seed: int) -> str:
 
 
 def _generate(out: Path, *, preset: str, count: int, seed: int) -> None:
-    from arenabench.generator.generate_cli import main as generate_main
+    from arenabench.generator.commands.generate import main as generate_main
 
     argv = ["--preset", preset, "--count", str(count), "--seed", str(seed), "--out", str(out)]
     rc = generate_main(argv)
@@ -84,7 +84,7 @@ def arenabench_dataset(request: pytest.FixtureRequest) -> Path:
         return path
     preset = config.getoption("--arenabench-preset")
     if preset is None:
-        from arenabench.generator.presets import DEFAULT_PRESET
+        from arenabench.generator.parameters.presets import DEFAULT_PRESET
 
         preset = DEFAULT_PRESET
     count = config.getoption("--arenabench-count")

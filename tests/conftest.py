@@ -32,7 +32,7 @@ def shared_sets(tmp_path_factory):
 @pytest.fixture(scope="session")
 def renderer():
     """One off-screen renderer for every test of this worker that renders in process."""
-    from arenabench.generator.render import Renderer
+    from arenabench.generator.rendering.render import Renderer
 
     with Renderer() as r:
         yield r

@@ -95,8 +95,8 @@ def gt_parts(gt: dict[str, Any]) -> dict[str, str]:
 def scene_gt(preset: str, index: int) -> dict[str, Any]:
     """The GT record of scene ``index`` of ``preset`` (seed :data:`SEED`), without rendering."""
     from arenabench.fileio import rounded
-    from arenabench.generator.make import gt_record, scene_id
-    from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.dataset.make import gt_record, scene_id
+    from arenabench.generator.model.sampler import sample_scene
 
     sampled = sample_scene(preset, seed=SEED, index=index)
     return gt_record(sampled.scene, sid=scene_id(index), preset=preset, seed=SEED, index=index,
@@ -105,7 +105,7 @@ def scene_gt(preset: str, index: int) -> dict[str, Any]:
 
 def current() -> dict[str, dict[str, str]]:
     """Part hashes of every golden scene, keyed ``"preset/index"``."""
-    from arenabench.generator.presets import preset_names
+    from arenabench.generator.parameters.presets import preset_names
 
     return {
         f"{name}/{index}": gt_parts(scene_gt(name, index))
@@ -116,7 +116,7 @@ def current() -> dict[str, dict[str, str]]:
 
 def generator_version() -> str:
     """The generator version the hashes belong to."""
-    from arenabench.generator.make import GENERATOR_VERSION
+    from arenabench.generator.dataset.make import GENERATOR_VERSION
 
     return GENERATOR_VERSION
 
@@ -153,8 +153,8 @@ def update(*, force: bool = False) -> int:
         diff = differences(old, have)
         print(f"golden: ground truth changed but GENERATOR_VERSION is still {version!r}:\n  "
               + "\n  ".join(diff)
-              + "\nbump GENERATOR_VERSION in generator/make.py (and say what changed in its "
-              "comment), then run this again; --force only if the recorded hashes were wrong.",
+              + "\nbump GENERATOR_VERSION in generator/dataset/make.py (and say what changed in "
+              "its comment), then run this again; --force only if the recorded hashes were wrong.",
               file=sys.stderr)
         return 1
     text = json.dumps({version: have}, indent=2, sort_keys=True) + "\n"

@@ -25,7 +25,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from arenabench.fileio import sha256_file
-from arenabench.generator.make import GENERATOR_VERSION
+from arenabench.generator.dataset.make import GENERATOR_VERSION
 
 
 def shared_root(base: Path) -> Path:
@@ -79,7 +79,7 @@ class SharedSets:
                   overrides: Mapping[str, object] | None = None, workers: int = 1) -> Path:
         """The dataset folder of ``count`` scenes of ``preset`` at ``seed`` (rendered once per
         run, by whichever worker asks first). Read it; never write into it."""
-        from arenabench.generator.dataset_writer import generate_dataset
+        from arenabench.generator.dataset.dataset_writer import generate_dataset
 
         key = self.key(preset, count, seed, overrides)
         folder = self.root / key

@@ -1,5 +1,5 @@
 """The default preset and the default area reference are declared once
-(:data:`arenabench.generator.presets.DEFAULT_PRESET`,
+(:data:`arenabench.generator.parameters.presets.DEFAULT_PRESET`,
 :data:`arenabench.gtrecord.DEFAULT_AREA_REFERENCE`): no module of the three packages spells
 either as a default of its own."""
 
@@ -11,7 +11,7 @@ from pathlib import Path
 
 import pytest
 
-from arenabench.generator.presets import DEFAULT_PRESET
+from arenabench.generator.parameters.presets import DEFAULT_PRESET
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 
 ROOT = Path(__file__).resolve().parents[1]

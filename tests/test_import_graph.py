@@ -310,15 +310,15 @@ def test_the_door_exports_what_it_says():
 @pytest.mark.parametrize(
     "source, current, is_pkg, expected",
     [
-        ("from ..eval import metrics", "arenabench.generator.make", False,
+        ("from ...eval import metrics", "arenabench.generator.dataset.make", False,
          {"arenabench.eval", "arenabench.eval.metrics"}),
         ("from . import eval", "arenabench", True, {"arenabench", "arenabench.eval"}),
         ("from .records import X", "arenabench.eval.sweep.task", False,
          {"arenabench.eval.sweep.records", "arenabench.eval.sweep.records.X"}),
         ("def f():\n    import arenabench.eval.scoring.metrics", "arenabench.detect", False,
          {"arenabench.eval.scoring.metrics"}),
-        ("import importlib\nimportlib.import_module('arenabench.generator.generate_cli')",
-         "arenabench.x", False, {"importlib", "arenabench.generator.generate_cli"}),
+        ("import importlib\nimportlib.import_module('arenabench.generator.commands.generate')",
+         "arenabench.x", False, {"importlib", "arenabench.generator.commands.generate"}),
         ("from arenabench import generator", "arenabench.x", False,
          {"arenabench", "arenabench.generator"}),
     ],
@@ -344,11 +344,17 @@ def test_importing_the_pipeline_and_the_cli_loads_neither_generator_nor_renderer
     assert out.stdout.strip() == ""
 
 
-#: The harness's rooms, lowest first: a module imports only from its own room and the rooms
-#: below it (docs/architecture.md, "Import rules"). A top-level module of ``eval/`` is a room
-#: of its own; the core and the generator are below every room of the harness.
+#: The rooms of the generator and of the harness, lowest first: a module imports only from its
+#: own room and the rooms below it (docs/architecture.md, "Import rules"). A top-level module of
+#: ``eval/`` is a room of its own; the core is below everything, the generator below every room
+#: of the harness; the generator's package (its lazy exports) sits with its commands, on top.
 LAYERS = (
-    ("arenabench",), ("arenabench.generator",),
+    ("arenabench",),
+    ("arenabench.generator.assets",), ("arenabench.generator.parameters",),
+    ("arenabench.generator.model",), ("arenabench.generator.truth",),
+    ("arenabench.generator.rendering",), ("arenabench.generator.dataset",),
+    ("arenabench.generator.fitting",),
+    ("arenabench.generator.commands", "arenabench.generator"),
     ("arenabench.eval.scoring",), ("arenabench.eval.datasets",), ("arenabench.eval.pipelines",),
     ("arenabench.eval.runs",), ("arenabench.eval.evaluation", "arenabench.eval.phase_check"),
     ("arenabench.eval.reports",), ("arenabench.eval.sweep",), ("arenabench.eval.grade",),

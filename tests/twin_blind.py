@@ -8,7 +8,7 @@ with what was hidden.
 case, with the tolerances of :data:`TOLERANCES`; :func:`round_trip` does all three, running
 ``arenabench twin`` as a user would, on the image file alone; :func:`reference_pass_rate`
 scores the reference pipeline on scenes of the twin's preset. ``tools/twin_round_trips.py`` runs the
-full set and prints the figures; ``tests/generator/twin/test_twin_blind.py`` a few cases.
+full set and prints the figures; ``tests/generator/fitting/test_twin_blind.py`` a few cases.
 
 A picture floor's markers are, in about half the cases (:data:`PRINTED_SHARE`), printed on
 the picture as an arena's author prints them (:func:`_print_markers`: sRGB means, not the
@@ -29,10 +29,10 @@ from typing import Any
 import cv2
 import numpy as np
 
-from arenabench.generator import camera as cam
-from arenabench.generator.layout import floor_extent
-from arenabench.generator.preset_files import load_preset_file
-from arenabench.generator.scene import (
+from arenabench.generator.assets.texture_store import import_texture
+from arenabench.generator.model import camera as cam
+from arenabench.generator.model.layout import floor_extent
+from arenabench.generator.model.scene import (
     IMAGE_TEXTURE,
     ArenaSpec,
     CameraSpec,
@@ -43,8 +43,8 @@ from arenabench.generator.scene import (
     RenderSpec,
     Scene,
 )
-from arenabench.generator.shading import floor_factor, shade_factors
-from arenabench.generator.texture_store import import_texture
+from arenabench.generator.model.shading import floor_factor, shade_factors
+from arenabench.generator.parameters.preset_files import load_preset_file
 
 #: Dictionaries drawn from (families of every size, AprilTag and the original ArUco).
 DICTIONARIES = ("DICT_4X4_50", "DICT_4X4_250", "DICT_5X5_100", "DICT_5X5_1000", "DICT_6X6_250",
@@ -139,7 +139,7 @@ def _floor_image(rng: np.random.Generator, texels: int = 1024) -> np.ndarray:
 #: (drawn apart from the other draws, so the other cases stay as they were).
 PRINTED_SHARE = 0.5
 #: The sides of a texture markers are printed on (texels; the twin's search covers
-#: 2,048-4,096, :data:`arenabench.generator.twin.rectify.GRID_SIDES`).
+#: 2,048-4,096, :data:`arenabench.generator.fitting.rectify.GRID_SIDES`).
 PRINTED_SIDES = (2100, 4000)
 #: Samples a texel (a side) of the printer; its blends are sRGB means, as an image editor or an
 #: SVG rasteriser makes them (the competition's texture: 230 where a marker's edge covers a
@@ -150,11 +150,11 @@ PRINTER_SAMPLES = 8
 def _print_markers(texture: np.ndarray, arena: ArenaSpec, markers: MarkerSpec) -> np.ndarray:
     """``texture`` (RGB, covering ``arena``'s floor square) with the four markers printed on it
     by an arena's author: each marker's module image (``cv2.aruco.generateImageMarker``, one
-    pixel a module) placed at its corners (:func:`~arenabench.generator.layout.
+    pixel a module) placed at its corners (:func:`~arenabench.generator.model.layout.
     marker_corners_world`, the generator's convention), every texel the sRGB mean of
     :data:`PRINTER_SAMPLES` squared samples."""
     from arenabench.frame import CORNER_ORDER
-    from arenabench.generator.layout import marker_corners_world
+    from arenabench.generator.model.layout import marker_corners_world
 
     out = texture.copy()
     n = out.shape[0]
@@ -209,7 +209,7 @@ def _boxes(rng: np.random.Generator, arena: ArenaSpec, markers: MarkerSpec,
            grey: int) -> tuple[Obstacle, ...]:
     from shapely.geometry import Polygon
 
-    from arenabench.generator.layout import box_footprint
+    from arenabench.generator.model.layout import box_footprint
 
     side = arena.side_m
     inner = side / 2 - markers.side_m - 0.06 * side
@@ -236,7 +236,7 @@ def _boxes(rng: np.random.Generator, arena: ArenaSpec, markers: MarkerSpec,
 def hidden_case(seed: int, *, image_px: int | None = None) -> HiddenCase:
     """Draw a hidden case from ``seed`` (see the module docstring); ``image_px``: a square
     image of that side instead of the drawn size (a quicker case)."""
-    from arenabench.generator.sampler import markers_in_view
+    from arenabench.generator.model.sampler import markers_in_view
 
     rng = np.random.default_rng(np.random.SeedSequence([seed, 0x7717]))
     dictionary = str(rng.choice(DICTIONARIES))
@@ -369,7 +369,7 @@ def _light_off(twin: Scene, faces: list[dict[str, Any]], own: dict[str, Any],
                other: dict[str, Any]) -> float:
     """The largest change (grey levels) of the floor's factor (times 255), a box top's and a
     seen face's shade when the light of ``own`` becomes that of ``other``."""
-    from arenabench.generator.twin.shades import COMPASS
+    from arenabench.generator.fitting.shades import COMPASS
 
     a, b = _preset_light(own), _preset_light(other)
     off = 255.0 * abs(floor_factor(a) - floor_factor(b))
@@ -391,7 +391,7 @@ def _hidden_face(hidden: Scene, twin: Scene, box: int, direction: str) -> float:
     """The hidden shade of the face the twin's box ``box`` shows towards ``direction``: the
     hidden box nearest to it (centres scaled to the hidden arena), its side face whose normal
     is nearest to that compass direction (a turned box's faces are turned with it)."""
-    from arenabench.generator.twin.shades import COMPASS
+    from arenabench.generator.fitting.shades import COMPASS
 
     k = hidden.arena.side_m / twin.arena.side_m
     c = np.asarray(twin.obstacles[box].center_m) * k
@@ -406,8 +406,8 @@ def _hidden_face(hidden: Scene, twin: Scene, box: int, direction: str) -> float:
 
 def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
     """What the twin in ``twin_dir`` recovered of ``case``, each check with its outcome."""
-    from arenabench.generator.scene import load_scene
-    from arenabench.generator.twin.markers import _family
+    from arenabench.generator.fitting.markers import _family
+    from arenabench.generator.model.scene import load_scene
 
     doc = json.loads((Path(twin_dir) / "twin.json").read_text())
     twin = load_scene(Path(twin_dir) / "scene.json")
@@ -566,7 +566,7 @@ def reference_on_image(case: HiddenCase, image: Path) -> tuple[bool, str]:
     from arenabench.eval.datasets.reader import DatasetItem
     from arenabench.eval.pipelines import make_pipeline
     from arenabench.eval.scoring.metrics import score_image
-    from arenabench.generator.make import ground_truth_record
+    from arenabench.generator.dataset.make import ground_truth_record
     from arenabench.imageio import load_image
 
     gt = ground_truth_record(case.scene, sid="hidden", preset="hidden")

@@ -11,10 +11,10 @@ from pathlib import Path
 
 import cv2
 
-from arenabench.generator.contact_sheet import render_sheet, tile_images
-from arenabench.generator.make import make_sample
-from arenabench.generator.presets import PRESETS
-from arenabench.generator.render import Renderer
+from arenabench.generator.commands.contact_sheet import render_sheet, tile_images
+from arenabench.generator.dataset.make import make_sample
+from arenabench.generator.parameters.presets import PRESETS
+from arenabench.generator.rendering.render import Renderer
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "images"
 

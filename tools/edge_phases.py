@@ -17,8 +17,8 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from arenabench.generator.render import Renderer
-from arenabench.generator.scene import load_scene
+from arenabench.generator.model.scene import load_scene
+from arenabench.generator.rendering.render import Renderer
 
 ROOT = Path(__file__).resolve().parent.parent
 IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"

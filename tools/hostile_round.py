@@ -163,7 +163,7 @@ def _empty(folder: Path | None) -> bool:
 # ------------------------------------------------------------------------------ render
 
 def _scene() -> dict:
-    from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.model.sampler import sample_scene
 
     return sample_scene("eyrc", seed=1, index=0).scene.to_dict()
 
@@ -240,8 +240,8 @@ def render_cases(root: Path) -> list[Case]:
         d = json.loads(json.dumps(base))
         d["obstacles"][0][field_name] = -0.5
         cases.append(scene_case(f"negative-{field_name}", d, expect="refused"))
-    from arenabench.generator.layout import marker_square
-    from arenabench.generator.scene import Scene
+    from arenabench.generator.model.layout import marker_square
+    from arenabench.generator.model.scene import Scene
 
     scene = Scene.from_dict(base)
     over = []

@@ -30,10 +30,10 @@ STYLE = "style_otsu_every_contour:detect"
 
 
 def corners_px(scene) -> np.ndarray:
-    """Image px of the 16 marker corners (:func:`~arenabench.generator.twin.camera_fit.
+    """Image px of the 16 marker corners (:func:`~arenabench.generator.fitting.camera_fit.
     world_corners`' order), (16, 2)."""
-    from arenabench.generator import camera as cam
-    from arenabench.generator.twin.camera_fit import world_corners
+    from arenabench.generator.fitting.camera_fit import world_corners
+    from arenabench.generator.model import camera as cam
 
     return cam.project(world_corners(scene.arena, scene.markers),
                        cam.intrinsics(scene.camera), cam.world_from_camera(scene.camera))
@@ -58,8 +58,8 @@ def main(argv: list[str] | None = None) -> int:
     except ImportError:
         print("needs tests/pipelines on PYTHONPATH (see --help)", file=sys.stderr)
         return 2
-    from arenabench.generator.sampler import sample_scene
-    from arenabench.generator.scene import load_scene
+    from arenabench.generator.model.sampler import sample_scene
+    from arenabench.generator.model.scene import load_scene
 
     eyrc = sample_scene("eyrc", seed=0, index=0).scene
     base = corners_px(eyrc)

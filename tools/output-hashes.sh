@@ -8,7 +8,7 @@ cd "$(dirname "$0")/.."
 count=${COUNT:-50}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
-presets=$(.venv/bin/python -c "from arenabench.generator.presets import PRESETS; print(' '.join(PRESETS))")
+presets=$(.venv/bin/python -c "from arenabench.generator.parameters.presets import PRESETS; print(' '.join(PRESETS))")
 for p in $presets; do
   .venv/bin/arenabench generate --preset "$p" --count "$count" --seed 0 --workers 2 \
     --out "$tmp/$p" --no-progress >/dev/null

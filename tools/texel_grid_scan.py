@@ -38,8 +38,8 @@ def _start(scene_path: str, image_path: str) -> None:
     """Per worker: the image, the scene, a renderer, and the boxes' pixels."""
     import cv2
 
-    from arenabench.generator.render import Renderer
-    from arenabench.generator.scene import load_scene
+    from arenabench.generator.model.scene import load_scene
+    from arenabench.generator.rendering.render import Renderer
 
     real = cv2.imread(image_path)
     scene = load_scene(Path(scene_path))
@@ -52,9 +52,9 @@ def _start(scene_path: str, image_path: str) -> None:
 
 def _cost(job: tuple[int, float]) -> dict:
     from arenabench.frame import CORNER_ORDER
-    from arenabench.generator import camera as cam
-    from arenabench.generator.layout import floor_extent, marker_corners_world
-    from arenabench.generator.twin import rectify
+    from arenabench.generator.fitting import rectify
+    from arenabench.generator.model import camera as cam
+    from arenabench.generator.model.layout import floor_extent, marker_corners_world
 
     n, texel_rel = job
     base = _STATE["scene"]

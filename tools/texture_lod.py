@@ -31,11 +31,11 @@ sys.path.insert(0, str(ROOT / "tools"))
 
 from twin_pixels import IMAGE, SCENE, figures  # noqa: E402
 
-from arenabench.generator import competition_arena as comp  # noqa: E402
-from arenabench.generator import pyrender_compat as pc  # noqa: E402  (before OpenGL)
-from arenabench.generator.edges import srgb_to_linear  # noqa: E402
-from arenabench.generator.render import Renderer  # noqa: E402
-from arenabench.generator.scene import load_scene  # noqa: E402
+from arenabench.generator.assets import competition_arena as comp  # noqa: E402
+from arenabench.generator.model.scene import load_scene  # noqa: E402
+from arenabench.generator.rendering import pyrender_compat as pc  # noqa: E402  (before OpenGL)
+from arenabench.generator.rendering.edges import srgb_to_linear  # noqa: E402
+from arenabench.generator.rendering.render import Renderer  # noqa: E402
 from arenabench.imageio import decode_image, encode_jpeg  # noqa: E402
 
 #: Pixels where lambda is reported: near the top-left warp corner, bottom left, centre.

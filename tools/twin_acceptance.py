@@ -43,7 +43,7 @@ KEYS = ("obstacles.count", "obstacles.length_m", "obstacles.width_m", "obstacles
 
 
 def _camera_lines(twin_scene, eyrc_scene) -> list[str]:
-    from arenabench.generator import camera as cam
+    from arenabench.generator.model import camera as cam
 
     a, b = cam.world_from_camera(twin_scene.camera), cam.world_from_camera(eyrc_scene.camera)
     dist = float(np.linalg.norm(a[:3, 3] - b[:3, 3]))
@@ -74,11 +74,11 @@ def main(argv: list[str] | None = None) -> int:
         except ImportError:
             print("--count needs tests/pipelines on PYTHONPATH (see --help)", file=sys.stderr)
             return 2
-    from arenabench.generator.param_values import format_value
-    from arenabench.generator.preset_files import load_preset_file
-    from arenabench.generator.presets import resolve
-    from arenabench.generator.scene import load_scene
-    from arenabench.generator.shading import floor_factor
+    from arenabench.generator.model.scene import load_scene
+    from arenabench.generator.model.shading import floor_factor
+    from arenabench.generator.parameters.param_values import format_value
+    from arenabench.generator.parameters.preset_files import load_preset_file
+    from arenabench.generator.parameters.presets import resolve
 
     eyrc = resolve("eyrc")
     eyrc_scene = load_scene(ROOT / "generator" / "scenes" / "task1c_example.json")
@@ -121,7 +121,7 @@ def main(argv: list[str] | None = None) -> int:
               f"floor {fig['mad']['floor']:.3f}, whole {fig['whole']:.3f}, SSIM "
               f"{fig['ssim']:.4f}")
         if "detector_corners_px" in fig:
-            from arenabench.generator.twin.markers import detector_offset_text
+            from arenabench.generator.fitting.markers import detector_offset_text
 
             print("  the default detector's corners on the render: " + detector_offset_text(
                 {int(k): v for k, v in fig["detector_corners_px"].items()}))

@@ -20,11 +20,11 @@ from pathlib import Path
 import cv2
 import numpy as np
 
-from arenabench.generator.render import Renderer
-from arenabench.generator.scene import load_scene
-from arenabench.generator.twin.image_file import as_written, read_file_facts
-from arenabench.generator.twin.markers import find_markers
-from arenabench.generator.twin.regions import difference_image, marker_squares
+from arenabench.generator.fitting.image_file import as_written, read_file_facts
+from arenabench.generator.fitting.markers import find_markers
+from arenabench.generator.fitting.regions import difference_image, marker_squares
+from arenabench.generator.model.scene import load_scene
+from arenabench.generator.rendering.render import Renderer
 from arenabench.imageio import decode_image
 
 OUT = Path(__file__).resolve().parent.parent / "docs" / "images"

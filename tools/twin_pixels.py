@@ -42,10 +42,10 @@ from test_twin_fidelity import (  # noqa: E402  (the helpers the tests check the
     _warp_corner_greys,
 )
 
-from arenabench.generator import camera as cam  # noqa: E402
-from arenabench.generator.render import Renderer  # noqa: E402
-from arenabench.generator.scene import Scene, load_scene  # noqa: E402
-from arenabench.generator.similarity import mean_abs_diff, ssim  # noqa: E402
+from arenabench.generator.fitting.similarity import mean_abs_diff, ssim  # noqa: E402
+from arenabench.generator.model import camera as cam  # noqa: E402
+from arenabench.generator.model.scene import Scene, load_scene  # noqa: E402
+from arenabench.generator.rendering.render import Renderer  # noqa: E402
 from arenabench.imageio import decode_image, encode_jpeg  # noqa: E402
 
 #: Search steps of the alignment: image px for the shift, relative for the scale.

@@ -55,7 +55,7 @@ def main(argv: list[str] | None = None) -> int:
         print("needs tests (and tests/pipelines for --scenes) on PYTHONPATH (see --help)",
               file=sys.stderr)
         return 2
-    from arenabench.generator.render import Renderer
+    from arenabench.generator.rendering.render import Renderer
 
     folder = args.keep or Path(tempfile.mkdtemp(prefix="twin-blind-"))
     failed, opened, not_applicable = [], Counter(), []

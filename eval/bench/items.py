@@ -3,7 +3,8 @@
 Eight measurements (see :func:`run_bench`), each on the same ``eyrc`` scenes at the camera's
 size (1000 x 1000):
 
-1. ``generate_disk_ips``: :func:`arenabench.generator.dataset_writer.generate_dataset` end to end
+1. ``generate_disk_ips``: :func:`arenabench.generator.dataset.dataset_writer.generate_dataset` end
+to end
    (spawned workers, PNG + GT JSON, manifest and COCO file), as ``arenabench generate`` runs;
 2. ``generate_memory_ips``: render + GT in memory (:func:`make_sample`), no files;
    ``disk_vs_memory_cpu``: CPU per image of (1)'s rendering tasks (render, GT, encode, write;
@@ -70,7 +71,7 @@ from typing import Any
 
 import numpy as np
 
-from arenabench.generator.presets import DEFAULT_PRESET
+from arenabench.generator.parameters.presets import DEFAULT_PRESET
 from arenabench.interrupts import deferred_stops
 from arenabench.local_pool import local_pool
 from arenabench.workers import init_worker, llvmpipe_threads, usable_cores
@@ -257,14 +258,14 @@ class RssTask:
 
 
 def _renderer():
-    from arenabench.generator.make import worker_renderer
+    from arenabench.generator.dataset.make import worker_renderer
 
     return worker_renderer()
 
 
 def _warm(task: SceneTask) -> int:
     """Create this worker's renderer and render one scene (not timed)."""
-    from arenabench.generator.make import make_sample
+    from arenabench.generator.dataset.make import make_sample
 
     make_sample(task.preset, seed=task.seed, index=task.index, renderer=_renderer())
     return os.getpid()
@@ -272,7 +273,7 @@ def _warm(task: SceneTask) -> int:
 
 def _memory_one(task: SceneTask) -> float:
     """Render one scene and compute its GT; returns the CPU seconds it took (all threads)."""
-    from arenabench.generator.make import make_sample
+    from arenabench.generator.dataset.make import make_sample
 
     c0 = time.process_time()
     make_sample(task.preset, seed=task.seed, index=task.index, renderer=_renderer())
@@ -304,7 +305,7 @@ def _floor_chunk(task: FloorTask) -> tuple[int, float, float]:
     import cv2
 
     from arenabench.fileio import atomic_write_bytes
-    from arenabench.generator.make import make_sample
+    from arenabench.generator.dataset.make import make_sample
     from arenabench.imageio import encode_png
 
     preset, seed, indices, out = task.preset, task.seed, task.indices, task.out
@@ -322,9 +323,9 @@ def _naive_one(task: NaiveTask) -> int:
     import cv2
 
     from arenabench.fileio import atomic_write_text, dumps_json
-    from arenabench.generator.groundtruth import compute_ground_truth
-    from arenabench.generator.render import NaiveRenderer
-    from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.model.sampler import sample_scene
+    from arenabench.generator.rendering.render import NaiveRenderer
+    from arenabench.generator.truth.groundtruth import compute_ground_truth
 
     preset, seed, index, out = task.preset, task.seed, task.index, task.out
     scene = sample_scene(preset, seed=seed, index=index).scene
@@ -337,7 +338,7 @@ def _naive_one(task: NaiveTask) -> int:
 
 
 def _import_pyrender(_: int) -> int:
-    from arenabench.generator import pyrender_compat, render  # noqa: F401
+    from arenabench.generator.rendering import pyrender_compat, render  # noqa: F401
 
     return os.getpid()
 
@@ -361,7 +362,7 @@ def _vm_status() -> dict[str, float]:
 
 def _rss_run(task: RssTask) -> dict[str, float]:
     """Render ``n`` consecutive scenes in this worker; RSS after warm-up, after, and peak."""
-    from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.model.sampler import sample_scene
 
     preset, seed, n = task.preset, task.seed, task.renders
     renderer = _renderer()
@@ -459,7 +460,7 @@ def run_bench(
     try:
         with deferred_stops():  # a stop lands before the folder is made or after it is named
             scratch = Path(tempfile.mkdtemp(prefix="arenabench-bench-", dir=workdir))
-        from arenabench.generator.dataset_writer import DatasetArgs, generate_dataset
+        from arenabench.generator.dataset.dataset_writer import DatasetArgs, generate_dataset
 
         ext = DatasetArgs(preset=cfg.preset, count=cfg.count, seed=cfg.seed).image_ext
 

@@ -155,7 +155,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         print(f"arenabench bench: error: {exc}", file=sys.stderr)
         return ExitCode.USAGE
-    from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
+    from arenabench.generator.dataset.gl_check import OffscreenGLError, require_offscreen_gl
 
     try:
         require_offscreen_gl()  # every figure renders

@@ -41,7 +41,7 @@ from arenabench.eval.phase_check import add_phase_check_argument
 from arenabench.eval.runs import COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER
 from arenabench.eval.scoring.metric_registry import METRIC
 from arenabench.exitcodes import ExitCode
-from arenabench.generator.presets import (
+from arenabench.generator.parameters.presets import (
     DEFAULT_PRESET,
     preset_key,
     preset_names,
@@ -140,7 +140,7 @@ def build_parser() -> CommandParser:
 
 def twin_set_dir(*, preset: str, seed: int, count: int) -> Path:
     """Cache folder of the twin set ``<preset>-<seed>-<count>-<generator version>``."""
-    from arenabench.generator.make import GENERATOR_VERSION
+    from arenabench.generator.dataset.make import GENERATOR_VERSION
 
     return cache_dir() / "sets" / f"{preset}-{seed}-{count}-v{GENERATOR_VERSION}"
 
@@ -150,17 +150,17 @@ def larger_twin_set(*, preset: str, seed: int, count: int,
     """The smallest complete cached twin set of ``preset`` and ``seed`` (this generator
     version, no ``--set``) with more than ``count`` scenes, and its size; ``None`` when there
     is none. ``preset`` is the preset's key (its folders' names,
-    :func:`arenabench.generator.presets.preset_key`), ``name`` the name its
+    :func:`arenabench.generator.parameters.presets.preset_key`), ``name`` the name its
     ``dataset.json`` records (default: ``preset``).
 
     Its first ``count`` scenes are the scenes of a ``count``-scene set: scene ``i`` draws
-    only from the streams of ``(seed, i)`` (:func:`arenabench.generator.sampler.stream_rng`),
+    only from the streams of ``(seed, i)`` (:func:`arenabench.generator.model.sampler.stream_rng`),
     whatever the set's size.
     """
     import json
     import re
 
-    from arenabench.generator.make import GENERATOR_VERSION
+    from arenabench.generator.dataset.make import GENERATOR_VERSION
 
     pattern = re.compile(rf"{re.escape(preset)}-{seed}-(\d+)-v{re.escape(str(GENERATOR_VERSION))}")
     found: list[tuple[int, Path]] = []
@@ -373,7 +373,7 @@ def _main(argv: list[str] | None) -> int:
     from arenabench.eval.datasets.reader import DatasetError, load_dataset
     from arenabench.eval.evaluation import EvaluationInterrupted, evaluate
     from arenabench.eval.reports import write_reports
-    from arenabench.generator.dataset_writer import GenerateError, generate_dataset
+    from arenabench.generator.dataset.dataset_writer import GenerateError, generate_dataset
 
     larger = None if twin.exists() else larger_twin_set(preset=preset_key(preset), seed=args.seed,
                                                          count=args.count, name=preset.name)
@@ -392,7 +392,9 @@ def _main(argv: list[str] | None) -> int:
         return _error(f"twin set {twin}: {exc}")
     if made is not None and made.interrupted is not None:
         print(f"{PROG}: {made.summary()}", file=sys.stderr)
-        return 128 + made.interrupted
+        from arenabench.interrupts import exit_code
+
+        return exit_code(made.interrupted)
     from arenabench.cliopts import lock_out
     from arenabench.eval.evaluation import EvaluationFailed, empty_report
     from arenabench.fileio import FolderLockedError
@@ -456,7 +458,7 @@ def _probe_robustness(pipeline, args: argparse.Namespace, script: Path, *,
                       twin_rate: float) -> None:
     """A PASS on the twin: the probe's line of advice, when it has one (never the exit
     status); a set that cannot be made says so in a line and the check stays a PASS."""
-    from arenabench.generator.dataset_writer import GenerateError
+    from arenabench.generator.dataset.dataset_writer import GenerateError
 
     folder = twin_set_dir(preset=PROBE_PRESET, seed=args.seed, count=PROBE_SCENES)
     try:

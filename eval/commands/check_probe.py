@@ -98,8 +98,8 @@ def run_probe(pipeline: Any, *, seed: int, workers: int, folder: Path) -> ProbeR
     """
     from arenabench.eval.datasets.reader import load_dataset
     from arenabench.eval.evaluation import evaluate
-    from arenabench.generator.dataset_writer import generate_dataset
-    from arenabench.generator.presets import resolve_preset
+    from arenabench.generator.dataset.dataset_writer import generate_dataset
+    from arenabench.generator.parameters.presets import resolve_preset
 
     generate_dataset(folder, preset=resolve_preset(PROBE_PRESET), count=PROBE_SCENES,
                      seed=seed, workers=min(workers, 4), progress=False)

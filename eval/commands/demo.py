@@ -24,7 +24,7 @@ from arenabench.cliopts import (
     usage_error,
 )
 from arenabench.exitcodes import ExitCode
-from arenabench.generator.presets import DEFAULT_PRESET
+from arenabench.generator.parameters.presets import DEFAULT_PRESET
 
 
 def build_parser() -> CommandParser:
@@ -108,9 +108,9 @@ def _run(args: argparse.Namespace) -> int:
     if (dataset_dir / "manifest.jsonl").is_file():
         print(f"{step}. reusing dataset {dataset_dir} ({args.count} {DEFAULT_PRESET} images)")
     else:
-        from arenabench.generator.dataset_writer import GenerateError, generate_dataset
-        from arenabench.generator.gl_check import OffscreenGLError
-        from arenabench.generator.sampler import SamplingError
+        from arenabench.generator.dataset.dataset_writer import GenerateError, generate_dataset
+        from arenabench.generator.dataset.gl_check import OffscreenGLError
+        from arenabench.generator.model.sampler import SamplingError
 
         try:
             result = generate_dataset(

@@ -84,7 +84,7 @@ class _PipelineAction(argparse.Action):
 
 def build_parser() -> CommandParser:
     """The argument parser of ``arenabench sweep``."""
-    from arenabench.generator.presets import DEFAULT_PRESET, preset_names, resolve_preset
+    from arenabench.generator.parameters.presets import DEFAULT_PRESET, preset_names, resolve_preset
 
     p = CommandParser(
         prog="arenabench sweep",
@@ -146,8 +146,8 @@ def main(argv: list[str] | None = None) -> int:
     from arenabench.eval.sweep.grid import parse_varies
     from arenabench.eval.sweep.outputs import FILES, KeptImageWriter, write_sweep
     from arenabench.eval.sweep.records import PipelineSpec, SweepSpec
-    from arenabench.generator.param_values import parse_overrides
-    from arenabench.generator.sampler import SamplingError
+    from arenabench.generator.model.sampler import SamplingError
+    from arenabench.generator.parameters.param_values import parse_overrides
 
     if problem := output_problem(args.out, own=FILES.values(), what="'arenabench sweep' output"):
         return _error(problem)
@@ -189,7 +189,7 @@ def main(argv: list[str] | None = None) -> int:
     except ValueError as exc:
         return _error(str(exc))
     if args.scheduler is None:  # renders here: OpenGL must work before anything is written
-        from arenabench.generator.gl_check import OffscreenGLError, require_offscreen_gl
+        from arenabench.generator.dataset.gl_check import OffscreenGLError, require_offscreen_gl
 
         try:
             require_offscreen_gl()

@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from arenabench.fileio import dumps_json, sha256_bytes
-from arenabench.generator.presets import DEFAULT_PRESET
+from arenabench.generator.parameters.presets import DEFAULT_PRESET
 
 #: What :func:`fixed_answer` reports for every image.
 FIXED_COUNT = 2
@@ -71,8 +71,8 @@ def template_records(n: int, *, preset: str = DEFAULT_PRESET,
                      seed: int = 0) -> list[dict[str, Any]]:
     """GT records (JSON form) of scenes ``0 .. n-1`` of ``preset``, computed without rendering."""
     from arenabench.fileio import rounded
-    from arenabench.generator.make import ground_truth_record, scene_id
-    from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.dataset.make import ground_truth_record, scene_id
+    from arenabench.generator.model.sampler import sample_scene
 
     out = []
     for i in range(n):
@@ -106,8 +106,8 @@ def write_big_set(out: str | os.PathLike[str], count: int, *, templates: int = 1
     -------
     BigSet
     """
-    from arenabench.generator.dataset_writer import image_file, manifest_line
-    from arenabench.generator.make import scene_id
+    from arenabench.generator.dataset.dataset_writer import image_file, manifest_line
+    from arenabench.generator.dataset.make import scene_id
 
     if count < 1:
         raise ValueError(f"count must be >= 1, got {count!r}")

@@ -348,11 +348,11 @@ def load_dataset(
 def _import_textures(base: Path) -> None:
     """Put the set's texture images (``textures/``, arena textures given as image files) into
     this machine's texture cache, so that its GT scenes can be re-rendered (the phase check)
-    wherever the set was made (:mod:`arenabench.generator.texture_store`)."""
+    wherever the set was made (:mod:`arenabench.generator.assets.texture_store`)."""
     folder = base / "textures"
     if not folder.is_dir():
         return
-    from arenabench.generator.texture_store import import_folder
+    from arenabench.generator.assets.texture_store import import_folder
 
     try:
         import_folder(folder)

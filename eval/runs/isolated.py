@@ -26,6 +26,7 @@ from arenabench.eval.scoring.answers import not_a_mapping, short_repr
 from arenabench.eval.scoring.results import Prediction
 from arenabench.frame import COMPETITION_DICTIONARY, COMPETITION_MARKER_IDS, CORNER_ORDER
 from arenabench.interrupts import children_ignore_sigint
+from arenabench.limits import DEFAULT_TIMEOUT_S
 from arenabench.local_pool import spawn_context
 from arenabench.workers import init_worker
 
@@ -166,7 +167,7 @@ class IsolatedCallablePipeline:
     """
 
     spec: str
-    timeout_s: float = 60.0
+    timeout_s: float = DEFAULT_TIMEOUT_S
     #: Runs in child processes of its own (never in a process pool's workers).
     in_process: bool = field(default=False, init=False)
 

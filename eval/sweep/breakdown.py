@@ -186,7 +186,7 @@ def breakdown_texts(result: Any) -> dict[str, dict[str, str]]:
     """``{pipeline: {parameter: text}}`` of a :class:`~arenabench.eval.sweep.records.SweepResult`:
     each breakdown point as its ``--set`` spelling, or :func:`breakdown_reason` where there is
     none."""
-    from arenabench.generator.param_values import format_value
+    from arenabench.generator.parameters.param_values import format_value
 
     spec = result.spec
     out: dict[str, dict[str, str]] = {}

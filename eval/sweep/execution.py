@@ -29,8 +29,8 @@ import numpy as np
 from arenabench.eval.phase_check import phase_summary
 from arenabench.eval.scoring.metrics import summarize
 from arenabench.eval.scoring.results import ImageResult
-from arenabench.generator.params import PARAMETERS
-from arenabench.generator.presets import resolve
+from arenabench.generator.parameters.params import PARAMETERS
+from arenabench.generator.parameters.presets import resolve
 from arenabench.interrupts import Interrupted, signal_name
 from arenabench.local_pool import local_map
 from arenabench.workers import check_workers, usable_cores
@@ -77,7 +77,8 @@ BATCHES_PER_WORKER = 8
 
 def post_render_only(spec: SweepSpec) -> bool:
     """Whether every axis of ``spec`` is a post-render parameter
-    (:attr:`arenabench.generator.params.Param.post_render`: noise, blur, JPEG, ...): then scene
+    (:attr:`arenabench.generator.parameters.params.Param.post_render`: noise, blur, JPEG, ...):
+    then scene
     ``i`` renders to the same pixels and ground truth at every point."""
     return all(PARAMETERS[axis.key].post_render for axis in spec.axes)
 
@@ -90,7 +91,7 @@ def sweep_batches(tasks: list[SweepTask], workers: int, *,
     one), so the last batches still spread over the workers. With ``by_scene``
     (:func:`post_render_only`), a batch holds points of one scene index, in point order: its
     worker renders the base scene and computes its ground truth once
-    (:meth:`arenabench.generator.render.Renderer.render` keeps its last output; with
+    (:meth:`arenabench.generator.rendering.render.Renderer.render` keeps its last output; with
     ``independent_scenes`` every task is its own scene). Otherwise batches follow the points,
     and consecutive scenes of a point keep sharing what the renderer reuses (the ``eyrc``
     twin's static layer).

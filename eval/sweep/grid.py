@@ -1,7 +1,8 @@
 """Sweep axes: ``--vary KEY=SPEC`` parsing, grid points and random points.
 
 A ``--vary`` is an override of the preset parameter ``KEY`` (any name of
-:data:`arenabench.generator.presets.PARAMETERS`), so every parameter the generator knows can be
+:data:`arenabench.generator.parameters.presets.PARAMETERS`), so every parameter the generator knows
+can be
 swept. ``SPEC`` is one of
 
 - ``a:b:step``: ``a, a+step, ...`` up to ``b`` inclusive (``step`` may be negative, e.g.
@@ -23,8 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from arenabench.generator.param_values import canonical_key, format_value, validate_value
-from arenabench.generator.params import PARAMETERS, Range
+from arenabench.generator.parameters.param_values import canonical_key, format_value, validate_value
+from arenabench.generator.parameters.params import PARAMETERS, Range
 from arenabench.plain_numbers import plain_number
 
 #: Values a two-part ``a:b`` range gives in a grid sweep.

@@ -6,7 +6,7 @@ from __future__ import annotations
 import base64
 import html
 
-from arenabench.generator.presets import preset_name
+from arenabench.generator.parameters.presets import preset_name
 
 from ..reports.html_report import CSS
 from ..reports.incomplete import banner_html

@@ -27,7 +27,7 @@ from arenabench.fileio import (
     dumps_json,
     dumps_json_line,
 )
-from arenabench.generator.param_values import format_value
+from arenabench.generator.parameters.param_values import format_value
 
 from .html import sweep_page
 from .plots import sweep_figures
@@ -142,9 +142,9 @@ def write_sweep(
 def _export_textures(result: SweepResult, out: Path) -> None:
     """Copy the preset's texture images (``arena.texture_file``) into ``out/textures``: the
     sweep's ``preset_definition`` names them there, as a set's does."""
-    from arenabench.generator import texture_store
-    from arenabench.generator.preset_files import texture_refs
-    from arenabench.generator.presets import resolve
+    from arenabench.generator.assets import texture_store
+    from arenabench.generator.parameters.preset_files import texture_refs
+    from arenabench.generator.parameters.presets import resolve
 
     spec = result.spec
     if isinstance(spec.preset, str):
@@ -163,7 +163,7 @@ def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
         When ``sweep.json`` is not of schema ``arenabench.sweep/1``.
     """
     from arenabench.eval.runs import RunSettings
-    from arenabench.generator.param_values import parse_overrides
+    from arenabench.generator.parameters.param_values import parse_overrides
 
     from .grid import parse_vary
     from .records import SWEEP_SCHEMA, PipelineSpec, PointSummary, SweepSpec
@@ -175,7 +175,7 @@ def load_sweep(out_dir: str | os.PathLike[str]) -> SweepResult:
                          f"got {doc.get('schema')!r}")
     preset: Any = doc["preset"]
     if isinstance(doc.get("preset_definition"), dict):  # the preset, as it was
-        from arenabench.generator.preset_files import preset_from_document
+        from arenabench.generator.parameters.preset_files import preset_from_document
 
         preset = preset_from_document(doc["preset_definition"], base=out,
                                       where=f"{out / FILES['json']} preset_definition")

@@ -12,9 +12,9 @@ from arenabench.eval.datasets.reader import AREA_REFERENCES
 from arenabench.eval.runs import OUTPUT_MODES, CommandPipeline, RunSettings
 from arenabench.eval.scoring.metrics import DEFAULT_TOLERANCE
 from arenabench.eval.scoring.results import Summary
-from arenabench.generator.param_values import format_value
-from arenabench.generator.params import Value
-from arenabench.generator.presets import preset_name
+from arenabench.generator.parameters.param_values import format_value
+from arenabench.generator.parameters.params import Value
+from arenabench.generator.parameters.presets import preset_name
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
 from arenabench.seeds import check_seed
@@ -95,7 +95,7 @@ class SweepSpec:
     ----------
     preset : str or ResolvedPreset
         Scene preset: a built-in name or a preset file's
-        :class:`~arenabench.generator.preset_files.ResolvedPreset`.
+        :class:`~arenabench.generator.parameters.preset_files.ResolvedPreset`.
     axes : tuple of Axis
         Varied parameters (``--vary``).
     pipelines : tuple of PipelineSpec

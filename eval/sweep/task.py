@@ -30,7 +30,7 @@ from .records import PipelineSpec, SweepTask
 def init_sweep_worker(lp_threads: int | None = None, parent_pid: int | None = None) -> None:
     """Process-pool initializer: :func:`arenabench.workers.init_worker`, then create the
     renderer (so the first task does not pay for it)."""
-    from arenabench.generator.make import worker_renderer
+    from arenabench.generator.dataset.make import worker_renderer
 
     workers.init_worker(lp_threads, parent_pid)
     worker_renderer()
@@ -63,7 +63,7 @@ def _predict(spec: PipelineSpec, bgr: Any, image: list[bytes], tmp: list[str],
 def _check_phases(task: SweepTask, gt: Any, results: list[Any], *, renderer: Any) -> None:
     """The phase check of each failing pipeline result, in place (the worker's renderer)."""
     from arenabench.eval.phase_check import SceneSource, check_phases
-    from arenabench.generator.presets import resolve_preset
+    from arenabench.generator.parameters.presets import resolve_preset
 
     source = SceneSource(resolve_preset(task.preset), dict(task.overrides))
     for k, (spec, result) in enumerate(zip(task.pipelines, results, strict=True)):
@@ -107,8 +107,8 @@ def run_batch(batch: tuple[SweepTask, ...]) -> list[dict[str, Any]]:
 
 
 def _run_task(task: SweepTask) -> dict[str, Any]:
-    from arenabench.generator.make import make_sample, worker_renderer
-    from arenabench.generator.sampler import SamplingError
+    from arenabench.generator.dataset.make import make_sample, worker_renderer
+    from arenabench.generator.model.sampler import SamplingError
 
     out: dict[str, Any] = {
         "point": task.point, "scene": task.scene, "index": task.index, "error": None,

@@ -532,7 +532,7 @@ def add_preset(parser: Any, *, resolve: Callable[[str], Any], default: str | Non
                help: str = "scene preset") -> argparse.Action:
     """``--preset NAME|FILE``: a built-in preset's name or a preset file (TOML or JSON,
     docs/formats.md "Preset files"), turned into the preset by ``resolve`` when parsed (the
-    generator's :func:`arenabench.generator.presets.resolve_preset`: a value naming an
+    generator's :func:`arenabench.generator.parameters.presets.resolve_preset`: a value naming an
     existing file is a preset file, anything else a name). Its refusal (an unknown name with
     "did you mean", a missing file, a file's bad key or value) is the usage error's one line.
 
@@ -567,7 +567,7 @@ def add_set(parser: argparse.ArgumentParser, *,
             help: str = "override a preset parameter") -> argparse.Action:
     """``--set KEY=VALUE`` (repeatable) into ``overrides``: the raw texts, parsed and checked
     by the generator against each parameter's declaration
-    (:func:`arenabench.generator.param_values.parse_overrides`)."""
+    (:func:`arenabench.generator.parameters.param_values.parse_overrides`)."""
     return _tag(parser.add_argument(
         "--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
         help=f"{help} (repeatable; 'arenabench presets --params' lists them)"), "add_set")

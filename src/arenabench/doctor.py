@@ -42,7 +42,7 @@ import json, sys
 from arenabench import glplatform
 platform = glplatform.configure()
 import numpy as np
-from arenabench.generator.pyrender_compat import pyrender  # the generator's import and checks
+from arenabench.generator.rendering.pyrender_compat import pyrender  # its import, checks
 import trimesh
 from OpenGL import GL
 mesh = pyrender.Mesh.from_trimesh(trimesh.creation.box(extents=(1, 1, 1)), smooth=False)

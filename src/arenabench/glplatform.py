@@ -34,7 +34,8 @@ OSMESA_PYOPENGL = PYOPENGL_REQUIREMENT
 #: The first Python on which pyrender's PyOpenGL 3.1.0 cannot render.
 PYOPENGL_310_BROKEN_FROM = (3, 12)
 #: The one pyrender release the renderer supports (pinned exactly in pyproject.toml): the
-#: generator uses its private API (arenabench.generator.pyrender_compat checks it on import).
+#: generator uses its private API (arenabench.generator.rendering.pyrender_compat checks it on
+# import).
 PYRENDER_VERSION = "0.1.45"
 
 

@@ -280,7 +280,7 @@ class GroundTruth(_Record):
     image_size : (int, int), optional
         Width and height, px.
     scene : mapping, optional
-        The scene description (:meth:`arenabench.generator.scene.Scene.to_dict`).
+        The scene description (:meth:`arenabench.generator.model.scene.Scene.to_dict`).
     components : int, optional
         Connected pieces of the union of visible silhouettes.
     frame : FrameRecord, optional

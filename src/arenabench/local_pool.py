@@ -1,7 +1,7 @@
 """The local process pools: every worker process a command starts on this machine comes from
 here.
 
-- :func:`local_map`: ``generate`` (:mod:`arenabench.generator.dataset_writer`) and ``sweep``
+- :func:`local_map`: ``generate`` (:mod:`arenabench.generator.dataset.dataset_writer`) and ``sweep``
   (:mod:`arenabench.eval.sweep.execution`) map their tasks with it; a Dask cluster
   (``--scheduler``) goes through :func:`arenabench.cluster.cluster_map` instead;
 - :func:`local_pool`: the same pool for a caller that maps several times on the same workers

@@ -24,7 +24,7 @@ from arenabench.cliopts import (
     parse_size,
 )
 from arenabench.competition import DEFAULT_TOLERANCE
-from arenabench.generator.presets import DEFAULT_PRESET
+from arenabench.generator.parameters.presets import DEFAULT_PRESET
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 from arenabench.limits import (
     DEFAULT_MAX_DISK,

@@ -12,8 +12,8 @@ from arenabench.schemas import GT_SCHEMA, gt_problem, gt_schema
 
 @pytest.fixture(scope="module")
 def written():
-    from arenabench.generator.make import gt_record
-    from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.dataset.make import gt_record
+    from arenabench.generator.model.sampler import sample_scene
 
     return [gt_record(sample_scene(preset, seed=5, index=i).scene, sid=f"{i:06d}",
                       preset=preset, seed=5, index=i)

@@ -11,8 +11,8 @@ from clirun import run_cli
 from marks import integration_but
 
 from arenabench.aruco import aruco_dictionary
-from arenabench.generator.make import make_sample
-from arenabench.generator.scene import MarkerSpec
+from arenabench.generator.dataset.make import make_sample
+from arenabench.generator.model.scene import MarkerSpec
 from arenabench.pipeline import detect
 from arenabench.pipeline.config import ALL_DICTIONARIES
 

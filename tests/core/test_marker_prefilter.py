@@ -138,8 +138,8 @@ def test_a_marker_pasted_on_noise(side, monkeypatch):
 
 @pytest.mark.acceptance  # every preset's scenes rendered and detected twice: minutes
 def test_every_preset_gives_the_same_results(tmp_path, monkeypatch):
-    from arenabench.generator.generate_cli import main as generate_main
-    from arenabench.generator.presets import preset_names
+    from arenabench.generator.commands.generate import main as generate_main
+    from arenabench.generator.parameters.presets import preset_names
 
     for k, preset in enumerate(preset_names()):
         data = tmp_path / preset

@@ -75,7 +75,7 @@ def test_markers_covered_by_a_box_still_searched(monkeypatch):
 
 @pytest.mark.integration
 def test_twin_scenes_give_the_same_result(tmp_path, monkeypatch):
-    from arenabench.generator.generate_cli import main as generate_main
+    from arenabench.generator.commands.generate import main as generate_main
 
     data = tmp_path / "eyrc"
     assert generate_main(["--preset", "eyrc", "--count", "24", "--seed", "5", "--out",

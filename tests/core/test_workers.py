@@ -69,7 +69,7 @@ def test_task_records_pickle():
     import pickle
 
     from arenabench.eval.evaluation import PipelineRun
-    from arenabench.generator.dataset_writer import RenderTask
+    from arenabench.generator.dataset.dataset_writer import RenderTask
 
     for task in (RenderTask(args={"preset": "eyrc", "overrides": {}}, seed=0, index=3, out="x"),
                  PipelineRun(spec="reference", image_path="a.png")):

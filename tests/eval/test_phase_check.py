@@ -24,11 +24,11 @@ from arenabench.eval.phase_check import (
     shifted_scene,
 )
 from arenabench.eval.scoring.results import Report, VariantResult
-from arenabench.generator.camera import intrinsics, project, world_from_camera
-from arenabench.generator.dataset_writer import generate_dataset
-from arenabench.generator.preset_files import write_preset_file
-from arenabench.generator.presets import builtin_preset, resolve_preset
-from arenabench.generator.sampler import sample_scene
+from arenabench.generator.dataset.dataset_writer import generate_dataset
+from arenabench.generator.model.camera import intrinsics, project, world_from_camera
+from arenabench.generator.model.sampler import sample_scene
+from arenabench.generator.parameters.preset_files import write_preset_file
+from arenabench.generator.parameters.presets import builtin_preset, resolve_preset
 
 PHASES = 8
 # Scenes 0 and 3 of seed 0: edge_phase:detect fails (edge pixel fully covered); 1 and 2 pass.
@@ -117,8 +117,8 @@ def test_parameters_drawn_per_scene_are_not_varied(tmp_path):
     scene, not something the example hid about this one, so only the fixed open parameter
     (the east fill) gets variants."""
     from arenabench.eval.phase_check import SceneSource, open_variants
-    from arenabench.generator.params import Range
-    from arenabench.generator.preset_files import OpenParam
+    from arenabench.generator.parameters.params import Range
+    from arenabench.generator.parameters.preset_files import OpenParam
 
     eyrc = builtin_preset("eyrc")
     assert isinstance(eyrc.params["obstacles.count"], Range)  # drawn per scene
@@ -139,9 +139,9 @@ def test_a_trade_the_image_pins_is_varied_as_one(tmp_path):
     off the example's pixels)."""
     from arenabench.eval.phase_check import SceneSource, open_variants
     from arenabench.eval.scoring.results import PhaseResult, VariantResult
-    from arenabench.generator.make import ground_truth_record
-    from arenabench.generator.params import Range
-    from arenabench.generator.preset_files import OpenParam
+    from arenabench.generator.dataset.make import ground_truth_record
+    from arenabench.generator.parameters.params import Range
+    from arenabench.generator.parameters.preset_files import OpenParam
 
     eyrc = builtin_preset("eyrc")
     fov, alt = eyrc.params["camera.fov_deg"], eyrc.params["camera.altitude_m"]

@@ -21,9 +21,9 @@ from arenabench.eval.phase_check import (
     render_phases,
 )
 from arenabench.eval.runs import CommandPipeline, RunSettings
-from arenabench.generator.dataset_writer import generate_dataset
-from arenabench.generator.preset_files import write_preset_file
-from arenabench.generator.presets import builtin_preset
+from arenabench.generator.dataset.dataset_writer import generate_dataset
+from arenabench.generator.parameters.preset_files import write_preset_file
+from arenabench.generator.parameters.presets import builtin_preset
 from arenabench.imageio import jpeg_settings, load_image
 
 PIPELINES = TESTS / "pipelines"
@@ -124,7 +124,7 @@ def east_open(tmp_path_factory):
     write_preset_file(preset, eyrc.params, name="eyrc-east", description="eyrc, east open",
                       open={EAST: eyrc.open[EAST]})
     out = root / "set"
-    from arenabench.generator.presets import resolve_preset
+    from arenabench.generator.parameters.presets import resolve_preset
 
     generate_dataset(out, preset=resolve_preset(str(preset)), count=3, seed=0, workers=1,
                      progress=False)

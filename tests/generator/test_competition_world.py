@@ -1,4 +1,5 @@
-"""The competition's Gazebo world (generator/competition_world.py): the camera that rendered the
+"""The competition's Gazebo world (generator/fitting/competition_world.py): the camera that
+rendered the
 example, read from its mount, and boxes on the world files' grid."""
 
 from __future__ import annotations
@@ -11,10 +12,10 @@ import numpy as np
 import pytest
 from paths import ROOT
 
-from arenabench.generator import camera as cam
-from arenabench.generator import competition_world as world
-from arenabench.generator.fit import FitOptions, fit_scene
-from arenabench.generator.scene import Obstacle, load_scene
+from arenabench.generator.fitting import competition_world as world
+from arenabench.generator.fitting.scene_fit import FitOptions, fit_scene
+from arenabench.generator.model import camera as cam
+from arenabench.generator.model.scene import Obstacle, load_scene
 
 SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
 IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
@@ -50,7 +51,7 @@ def test_example_scene_uses_the_competition_camera():
 def test_camera_puts_the_markers_on_the_examples_corners():
     """The texture's marker corners, projected, fall within 1.1 px RMS of cv2.aruco's sub-pixel
     corners on the example (the corners of a rendered marker come out the same way)."""
-    from arenabench.generator.fit import _world_points, detect_marker_corners
+    from arenabench.generator.fitting.scene_fit import _world_points, detect_marker_corners
 
     scene = load_scene(SCENE)
     corners = detect_marker_corners(cv2.imread(str(IMAGE)), scene.markers)

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 from clirun import run_cli
 
-from arenabench.generator.contact_sheet import tile_images
-from arenabench.generator.params import Range
-from arenabench.generator.presets import PRESETS, resolve
+from arenabench.generator.commands.contact_sheet import tile_images
+from arenabench.generator.parameters.params import Range
+from arenabench.generator.parameters.presets import PRESETS, resolve
 
 
 def test_tiles_keep_aspect_and_layout():

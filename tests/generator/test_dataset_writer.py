@@ -204,7 +204,7 @@ def test_coco_from_the_workers_equals_coco_from_the_gt_files(one_worker):
     """``coco.json`` is assembled from the COCO shares the workers send back; it is the same
     bytes as the COCO file computed from the GT files on disk."""
     from arenabench.fileio import dumps_json
-    from arenabench.generator.dataset_writer import coco_from_gts
+    from arenabench.generator.dataset.dataset_writer import coco_from_gts
     from arenabench.gtrecord import GroundTruth
 
     out, _ = one_worker

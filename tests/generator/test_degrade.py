@@ -1,5 +1,5 @@
-"""Photometric degradations (arenabench.generator.degrade) and the lens model
-(arenabench.generator.lens), on real renders.
+"""Photometric degradations (arenabench.generator.rendering.degrade) and the lens model
+(arenabench.generator.model.lens), on real renders.
 
 Each degradation at its neutral value leaves the image byte-identical; a strong value changes
 it the intended way. The lens helpers are checked against OpenCV's own model.
@@ -13,17 +13,17 @@ import cv2
 import numpy as np
 import pytest
 
-from arenabench.generator.degrade import (
+from arenabench.generator.dataset.make import degrade_rng, make_sample
+from arenabench.generator.model.lens import densify, distort_points, lens_canvas, undistort_points
+from arenabench.generator.parameters.param_values import parse_overrides
+from arenabench.generator.parameters.params import NEUTRAL, PARAMETERS
+from arenabench.generator.parameters.presets import resolve
+from arenabench.generator.rendering.degrade import (
     PARAM_NAMES,
     Degradations,
     apply_degradations,
     standard_normal,
 )
-from arenabench.generator.lens import densify, distort_points, lens_canvas, undistort_points
-from arenabench.generator.make import degrade_rng, make_sample
-from arenabench.generator.param_values import parse_overrides
-from arenabench.generator.params import NEUTRAL, PARAMETERS
-from arenabench.generator.presets import resolve
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,5 @@
-"""The edge models (generator/edges.py) and how the renderer draws them: the offset samples,
+"""The edge models (generator/rendering/edges.py) and how the renderer draws them: the offset
+samples,
 their resolve, the obstacles' region and the reusable static layer."""
 
 from __future__ import annotations
@@ -9,7 +10,10 @@ import pytest
 from marks import integration_but
 from test_twin_fidelity import SCENE
 
-from arenabench.generator.edges import (
+from arenabench.generator.model.sampler import sample_scene
+from arenabench.generator.model.scene import RenderSpec, load_scene
+from arenabench.generator.parameters.params import PARAMETERS
+from arenabench.generator.rendering.edges import (
     EDGE_PATTERNS,
     EDGE_RESOLVES,
     EDGE_SAMPLES,
@@ -20,10 +24,7 @@ from arenabench.generator.edges import (
     resolve_samples,
     srgb_to_linear,
 )
-from arenabench.generator.params import PARAMETERS
-from arenabench.generator.render import Renderer
-from arenabench.generator.sampler import sample_scene
-from arenabench.generator.scene import RenderSpec, load_scene
+from arenabench.generator.rendering.render import Renderer
 
 
 def test_srgb_round_trip_and_known_values():

@@ -9,9 +9,9 @@ import pytest
 from paths import ROOT, TESTS
 
 from arenabench.generator import Renderer, make_sample
-from arenabench.generator import competition_arena as comp
-from arenabench.generator.params import Range
-from arenabench.generator.presets import PRESETS
+from arenabench.generator.assets import competition_arena as comp
+from arenabench.generator.parameters.params import Range
+from arenabench.generator.parameters.presets import PRESETS
 
 SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
 IMAGE = TESTS / "data" / "task1c_image.jpg"
@@ -92,8 +92,8 @@ def test_twin_box_images_stay_inside_the_marker_frame():
     """Like the example's (closest 22.3 px), every twin box's image, leaning top included,
     lies inside the frame: no box is cut by the warp's border (Canny-style loops stay closed).
     """
-    from arenabench.generator.groundtruth import compute_ground_truth
-    from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.model.sampler import sample_scene
+    from arenabench.generator.truth.groundtruth import compute_ground_truth
 
     example_gt = compute_ground_truth(_example_scene())
     assert _frame_clearance(example_gt) == pytest.approx(22.3, abs=0.1)
@@ -103,7 +103,7 @@ def test_twin_box_images_stay_inside_the_marker_frame():
 
 
 def _example_scene():
-    from arenabench.generator.scene import load_scene
+    from arenabench.generator.model.scene import load_scene
 
     return load_scene(SCENE)
 

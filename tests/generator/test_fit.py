@@ -10,8 +10,8 @@ import pytest
 from clirun import CliResult, run_cli
 from paths import ROOT
 
-from arenabench.generator.scene import load_scene
-from arenabench.generator.similarity import mean_abs_diff, ssim
+from arenabench.generator.fitting.similarity import mean_abs_diff, ssim
+from arenabench.generator.model.scene import load_scene
 from arenabench.pipeline import detect
 
 IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
@@ -87,8 +87,8 @@ def test_fit_cli_end_to_end(tmp_path, real, real_detection):
     assert report["ssim"] >= MIN_SSIM and report["mad"] <= MAX_MAD
     scene = load_scene(out)
     assert len(scene.obstacles) == 2
-    from arenabench.generator.fit import render_bgr
-    from arenabench.generator.render import Renderer
+    from arenabench.generator.fitting.scene_fit import render_bgr
+    from arenabench.generator.rendering.render import Renderer
 
     with Renderer() as renderer:
         render = render_bgr(scene, renderer)
@@ -136,9 +136,9 @@ def test_fit_recovers_a_known_scene():
     """Round trip on a render with a different camera and boxes: the fit finds them again."""
     from dataclasses import replace
 
-    from arenabench.generator.fit import FitOptions, fit_scene, render_bgr
-    from arenabench.generator.render import Renderer
-    from arenabench.generator.scene import ArenaSpec, MarkerSpec, Obstacle
+    from arenabench.generator.fitting.scene_fit import FitOptions, fit_scene, render_bgr
+    from arenabench.generator.model.scene import ArenaSpec, MarkerSpec, Obstacle
+    from arenabench.generator.rendering.render import Renderer
 
     # a procedural 8 m arena (markers with a quiet zone): on the competition texture the
     # markers touch the border line and cv2.aruco's corners are biased by up to ~2 px
@@ -165,7 +165,7 @@ def test_fit_recovers_a_known_scene():
     assert result.reprojection_px < 0.5
     assert result.ssim >= 0.98
     assert result.fov_deg == pytest.approx(60.0, abs=1.0)
-    from arenabench.generator import camera as cam
+    from arenabench.generator.model import camera as cam
 
     pose, want_pose = (cam.world_from_camera(c) for c in (result.scene.camera, truth.camera))
     assert np.allclose(pose[:3, :3], want_pose[:3, :3], atol=2e-3)  # roll 3 deg recovered
@@ -203,7 +203,7 @@ def test_fit_cli_fits_the_camera_on_request(tmp_path, real, real_detection):
     assert report["fov_deg"] == pytest.approx(68.7549, abs=1e-3)
     assert report["reprojection_px"] < 1.5
     assert report["ssim"] >= MIN_SSIM and report["mad"] <= MAX_MAD
-    from arenabench.generator.competition_world import competition_camera
+    from arenabench.generator.fitting.competition_world import competition_camera
 
     assert load_scene(out).camera != competition_camera()
 
@@ -214,8 +214,8 @@ def test_a_box_without_a_top_face_of_one_grey_is_fitted_from_its_blob():
     'NoneType' has no attribute 'reshape')."""
     import numpy as np
 
-    from arenabench.generator.fit import fit_boxes
-    from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.fitting.scene_fit import fit_boxes
+    from arenabench.generator.model.sampler import sample_scene
 
     scene = sample_scene("eyrc", seed=1, index=0).scene
     h, w = scene.camera.height, scene.camera.width

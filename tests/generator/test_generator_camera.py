@@ -6,11 +6,11 @@ import cv2
 import numpy as np
 import pytest
 
-from arenabench.generator import camera as cam
-from arenabench.generator.groundtruth import image_to_frame_homography
-from arenabench.generator.layout import reference_corners_world
-from arenabench.generator.sampler import sample_scene
-from arenabench.generator.scene import CameraSpec
+from arenabench.generator.model import camera as cam
+from arenabench.generator.model.layout import reference_corners_world
+from arenabench.generator.model.sampler import sample_scene
+from arenabench.generator.model.scene import CameraSpec
+from arenabench.generator.truth.groundtruth import image_to_frame_homography
 
 POSES = [
     CameraSpec(),

@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import pytest
 
-from arenabench.generator.make import make_sample
-from arenabench.generator.render import Renderer
+from arenabench.generator.dataset.make import make_sample
+from arenabench.generator.rendering.render import Renderer
 from arenabench.pipeline import DetectConfig, detect
 
 N_SCENES = 200

@@ -8,12 +8,16 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from arenabench.generator.layout import box_footprint, reference_corners_world
-from arenabench.generator.param_values import format_value, parse_override, parse_overrides
-from arenabench.generator.params import PARAMETERS, Range
-from arenabench.generator.presets import PRESETS, resolve
-from arenabench.generator.sampler import SamplingError, sample_scene
-from arenabench.generator.scene import CameraSpec, Obstacle, Scene
+from arenabench.generator.model.layout import box_footprint, reference_corners_world
+from arenabench.generator.model.sampler import SamplingError, sample_scene
+from arenabench.generator.model.scene import CameraSpec, Obstacle, Scene
+from arenabench.generator.parameters.param_values import (
+    format_value,
+    parse_override,
+    parse_overrides,
+)
+from arenabench.generator.parameters.params import PARAMETERS, Range
+from arenabench.generator.parameters.presets import PRESETS, resolve
 
 
 def test_every_preset_declares_every_parameter():
@@ -137,7 +141,7 @@ def test_scene_parts_validate_their_values(factory, needle):
 
 
 def test_presets_cli_lists_and_shows_parseable_parameters(capsys):
-    from arenabench.generator import presets_cli
+    from arenabench.generator.commands import presets as presets_cli
 
     assert presets_cli.main([]) == 0
     listing = capsys.readouterr().out

@@ -18,14 +18,14 @@ def test_ground_truth_matches_the_golden_hashes_of_this_generator_version():
     assert not diff, (
         "ground truth changed while GENERATOR_VERSION is still "
         f"{version!r}:\n  " + "\n  ".join(diff) + "\n"
-        "If the change is intended: bump GENERATOR_VERSION in generator/make.py (say what "
+        "If the change is intended: bump GENERATOR_VERSION in generator/dataset/make.py (say what "
         f"changed in its comment) and regenerate the golden file with `{golden.UPDATE_COMMAND}`"
         " (or `make golden`)."
     )
 
 
 def test_every_preset_has_golden_scenes():
-    from arenabench.generator.presets import preset_names
+    from arenabench.generator.parameters.presets import preset_names
 
     keys = golden.current()
     assert {k.split("/")[0] for k in keys} == set(preset_names())

@@ -17,8 +17,8 @@ import pytest
 import shapely
 from shapely.geometry import Polygon
 
-from arenabench.generator.groundtruth import compute_ground_truth, contour_area
-from arenabench.generator.sampler import SamplingError, sample_scene
+from arenabench.generator.model.sampler import SamplingError, sample_scene
+from arenabench.generator.truth.groundtruth import compute_ground_truth, contour_area
 
 SCENES_PER_PRESET = 40
 PRESETS = ("eyrc", "eyrc-oblique", "eyrc-hard")

@@ -13,9 +13,9 @@ import numpy as np
 import pytest
 from shapely.geometry import Polygon
 
-from arenabench.generator.make import make_sample
-from arenabench.generator.param_values import parse_overrides
-from arenabench.generator.render import Renderer
+from arenabench.generator.dataset.make import make_sample
+from arenabench.generator.parameters.param_values import parse_overrides
+from arenabench.generator.rendering.render import Renderer
 
 #: 50 renders with instance masks (about 8 s): `make test`, not `make test-fast`
 pytestmark = pytest.mark.integration

@@ -7,9 +7,9 @@ import cv2
 import numpy as np
 import pytest
 
-from arenabench.generator.scene import IMAGE_TEXTURE, ArenaSpec
-from arenabench.generator.texture_store import import_texture
-from arenabench.generator.textures import floor_texture
+from arenabench.generator.assets.texture_store import import_texture
+from arenabench.generator.model.scene import IMAGE_TEXTURE, ArenaSpec
+from arenabench.generator.rendering.textures import floor_texture
 
 
 @pytest.fixture
@@ -46,7 +46,7 @@ def test_lines_or_text_over_an_image_floor_are_refused(picture, field, value):
 def test_a_held_texture_is_read_back_exactly_and_never_cached(tmp_path, monkeypatch):
     """A texture made in memory (the twin's trial textures) is found by its reference, pixel
     for pixel, without a file in the cache; released, it is gone."""
-    from arenabench.generator import texture_store
+    from arenabench.generator.assets import texture_store
 
     monkeypatch.setenv("ARENABENCH_CACHE_DIR", str(tmp_path / "cache"))
     rgb = np.random.default_rng(0).integers(0, 256, (64, 96, 3), dtype=np.uint8)

@@ -12,10 +12,10 @@ import numpy as np
 import pytest
 from clirun import run_cli
 
-from arenabench.generator.groundtruth import compute_ground_truth
-from arenabench.generator.layout import marker_square
-from arenabench.generator.sampler import sample_scene
-from arenabench.generator.scene import Obstacle
+from arenabench.generator.model.layout import marker_square
+from arenabench.generator.model.sampler import sample_scene
+from arenabench.generator.model.scene import Obstacle
+from arenabench.generator.truth.groundtruth import compute_ground_truth
 
 CORNERS = ("nw", "ne", "se", "sw")
 

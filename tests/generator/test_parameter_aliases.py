@@ -3,8 +3,8 @@
 import pytest
 
 from arenabench.eval.sweep.grid import parse_vary
-from arenabench.generator.param_values import ALIASES, parse_override
-from arenabench.generator.params import PARAMETERS, Range
+from arenabench.generator.parameters.param_values import ALIASES, parse_override
+from arenabench.generator.parameters.params import PARAMETERS, Range
 
 
 def test_every_alias_points_at_a_real_parameter():

@@ -6,13 +6,24 @@ import dataclasses
 
 import pytest
 
-from arenabench.generator.degrade import PARAM_NAMES, Degradations
-from arenabench.generator.lens import LENS_PARAMS
-from arenabench.generator.param_values import format_value, parse_override, validate_value
-from arenabench.generator.params import NEUTRAL, PARAMETERS, PARAMS, Param, Range, assemble
-from arenabench.generator.presets import resolve
-from arenabench.generator.sampler import sample_scene
-from arenabench.generator.scene import IMAGE_TEXTURE_FIELDS
+from arenabench.generator.model.lens import LENS_PARAMS
+from arenabench.generator.model.sampler import sample_scene
+from arenabench.generator.model.scene import IMAGE_TEXTURE_FIELDS
+from arenabench.generator.parameters.param_values import (
+    format_value,
+    parse_override,
+    validate_value,
+)
+from arenabench.generator.parameters.params import (
+    NEUTRAL,
+    PARAMETERS,
+    PARAMS,
+    Param,
+    Range,
+    assemble,
+)
+from arenabench.generator.parameters.presets import resolve
+from arenabench.generator.rendering.degrade import PARAM_NAMES, Degradations
 
 
 @pytest.mark.parametrize(("lo", "hi", "needle"), [
@@ -89,7 +100,7 @@ def test_every_value_lands_where_it_is_declared():
 
 
 def test_draws_are_keyed_by_name():
-    from arenabench.generator.sampler import stream_rng
+    from arenabench.generator.model.sampler import stream_rng
 
     seed, index = 3, 4
     s = sample_scene("eyrc-jitter", seed=seed, index=index)
@@ -111,7 +122,7 @@ def test_draws_are_keyed_by_name():
 
 @pytest.mark.parametrize("ids", ["80,80,80,80", "80,85,80,95", (1, 2, 3, 1)])
 def test_marker_ids_of_the_four_corners_must_differ(ids):
-    from arenabench.generator.scene import MarkerSpec
+    from arenabench.generator.model.scene import MarkerSpec
 
     with pytest.raises(ValueError, match="the four corners' ids must differ"):
         validate_value("markers.ids", ids)

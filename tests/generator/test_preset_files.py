@@ -12,8 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from arenabench.generator.params import PARAMETERS, Range
-from arenabench.generator.preset_files import (
+from arenabench.generator.parameters.params import PARAMETERS, Range
+from arenabench.generator.parameters.preset_files import (
     PRESET_SCHEMA,
     OpenParam,
     PresetFileError,
@@ -23,7 +23,7 @@ from arenabench.generator.preset_files import (
     preset_to_toml,
     write_preset_file,
 )
-from arenabench.generator.presets import (
+from arenabench.generator.parameters.presets import (
     EXAMPLE_SCENE,
     PRESET_FILES,
     PRESETS,

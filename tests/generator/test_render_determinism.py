@@ -14,8 +14,8 @@ import sys
 import numpy as np
 import pytest
 
-from arenabench.generator.render import Renderer
-from arenabench.generator.sampler import sample_scene
+from arenabench.generator.model.sampler import sample_scene
+from arenabench.generator.rendering.render import Renderer
 
 PRESETS = ("eyrc-oblique", "eyrc-hard")
 COUNT = 200
@@ -26,8 +26,8 @@ SEED = 4
 #: Renders the same scenes in a fresh process and prints their hashes as JSON.
 _CHILD = """
 import hashlib, json, sys
-from arenabench.generator.render import Renderer
-from arenabench.generator.sampler import sample_scene
+from arenabench.generator.rendering.render import Renderer
+from arenabench.generator.model.sampler import sample_scene
 presets, count, seed = json.loads(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 with Renderer() as r:
     print(json.dumps({f"{p}/{i}": hashlib.sha256(
@@ -72,7 +72,7 @@ def test_a_few_tilted_scenes_render_byte_identical_in_one_process_and_across_pro
 
 
 def test_draw_order_is_by_name_with_transparent_meshes_last():
-    from arenabench.generator.pyrender_compat import draw_order, pyrender
+    from arenabench.generator.rendering.pyrender_compat import draw_order, pyrender
 
     def node(name, transparent=False):
         rgba = np.tile([0.0, 0.0, 0.0, 0.5 if transparent else 1.0], (3, 1)).astype(np.float32)

@@ -14,19 +14,19 @@ import pytest
 from clirun import run_cli
 from paths import ROOT
 
-from arenabench.generator.edges import obstacle_region
-from arenabench.generator.lights import fill_lights, shadow_mesh_arrays
-from arenabench.generator.param_values import parse_overrides
-from arenabench.generator.render import Renderer
-from arenabench.generator.sampler import sample_scene
-from arenabench.generator.scene import (
+from arenabench.generator.model.lights import fill_lights, shadow_mesh_arrays
+from arenabench.generator.model.sampler import sample_scene
+from arenabench.generator.model.scene import (
     DirectionalLight,
     Obstacle,
     RenderSpec,
     Scene,
     load_scene,
 )
-from arenabench.generator.shading import shade_factors
+from arenabench.generator.model.shading import shade_factors
+from arenabench.generator.parameters.param_values import parse_overrides
+from arenabench.generator.rendering.edges import obstacle_region
+from arenabench.generator.rendering.render import Renderer
 from arenabench.imageio import decode_image, encode_jpeg, jpeg_settings
 
 SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"

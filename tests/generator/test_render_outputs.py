@@ -8,13 +8,13 @@ import cv2
 import numpy as np
 import pytest
 
-from arenabench.generator import camera as cam
-from arenabench.generator.groundtruth import compute_ground_truth
-from arenabench.generator.make import make_sample
-from arenabench.generator.param_values import parse_overrides
-from arenabench.generator.render import Renderer
-from arenabench.generator.sampler import sample_scene
-from arenabench.generator.scene import Scene
+from arenabench.generator.dataset.make import make_sample
+from arenabench.generator.model import camera as cam
+from arenabench.generator.model.sampler import sample_scene
+from arenabench.generator.model.scene import Scene
+from arenabench.generator.parameters.param_values import parse_overrides
+from arenabench.generator.rendering.render import Renderer
+from arenabench.generator.truth.groundtruth import compute_ground_truth
 
 
 def _detect(bgr, dictionary="DICT_4X4_100"):

@@ -20,10 +20,10 @@ from arenabench.eval.sweep.execution import (
 )
 from arenabench.eval.sweep.grid import parse_varies
 from arenabench.eval.sweep.records import PipelineSpec, SweepSpec
-from arenabench.generator.groundtruth import compute_ground_truth
-from arenabench.generator.make import make_sample
-from arenabench.generator.render import Renderer
-from arenabench.generator.sampler import sample_scene
+from arenabench.generator.dataset.make import make_sample
+from arenabench.generator.model.sampler import sample_scene
+from arenabench.generator.rendering.render import Renderer
+from arenabench.generator.truth.groundtruth import compute_ground_truth
 from arenabench.imageio import encode_png
 
 

@@ -15,9 +15,9 @@ import pytest
 from paths import ROOT
 
 from arenabench import doctor
-from arenabench.generator.render import NaiveRenderer, Renderer
-from arenabench.generator.renderer_api import RenderOutput, SceneRenderer
-from arenabench.generator.sampler import sample_scene
+from arenabench.generator.model.sampler import sample_scene
+from arenabench.generator.rendering.render import NaiveRenderer, Renderer
+from arenabench.generator.rendering.renderer_api import RenderOutput, SceneRenderer
 from arenabench.glplatform import PYRENDER_VERSION
 
 
@@ -59,8 +59,8 @@ def test_the_pyrender_adapter_renders_through_the_interface():
 # NaiveRenderer's pyrender clean-up terminates the process's EGL display: a process of its own.
 _NAIVE = """
 import json
-from arenabench.generator.render import NaiveRenderer
-from arenabench.generator.sampler import sample_scene
+from arenabench.generator.rendering.render import NaiveRenderer
+from arenabench.generator.model.sampler import sample_scene
 scene = sample_scene("eyrc", seed=0, index=0).scene
 with NaiveRenderer() as r:
     rgb = r.render(scene).rgb
@@ -87,7 +87,7 @@ def test_the_naive_baseline_renders_through_the_interface():
 
 
 def test_version_check_names_both_versions():
-    from arenabench.generator import pyrender_compat
+    from arenabench.generator.rendering import pyrender_compat
 
     pyrender_compat.check_version(PYRENDER_VERSION)
     with pytest.raises(ImportError) as err:
@@ -104,7 +104,7 @@ glplatform.configure()
 import pyrender
 pyrender.__version__ = "0.2.0"
 try:
-    import arenabench.generator.pyrender_compat
+    import arenabench.generator.rendering.pyrender_compat
 except ImportError as e:
     print(e)
     raise SystemExit(3)
@@ -142,7 +142,7 @@ def test_pyrender_private_api_is_used_only_in_the_compat_module():
     for folder in ("generator", "eval", "src/arenabench"):
         for path in sorted((ROOT / folder).rglob("*.py")):
             rel = path.relative_to(ROOT).as_posix()
-            if rel == "generator/pyrender_compat.py":
+            if rel == "generator/rendering/pyrender_compat.py":
                 continue
             offenders += [f"{rel}:{n}" for n, line in enumerate(path.read_text().splitlines(), 1)
                           if _PRIVATE.search(line)]
@@ -151,8 +151,8 @@ def test_pyrender_private_api_is_used_only_in_the_compat_module():
 
 _WITHOUT_SCIPY = """
 import sys
-from arenabench.generator.render import Renderer
-from arenabench.generator.sampler import sample_scene
+from arenabench.generator.rendering.render import Renderer
+from arenabench.generator.model.sampler import sample_scene
 assert "scipy" not in sys.modules, "pyrender's import loaded SciPy"
 with Renderer() as r:
     rgb = r.render(sample_scene("eyrc", seed=0, index=0).scene).rgb

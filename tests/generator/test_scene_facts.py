@@ -1,12 +1,12 @@
-"""Derived facts of a scene (generator/scene_facts.py) against hand-built scenes."""
+"""Derived facts of a scene (generator/truth/scene_facts.py) against hand-built scenes."""
 
 from __future__ import annotations
 
 import pytest
 
-from arenabench.generator.make import ground_truth_record
-from arenabench.generator.scene import ArenaSpec, CameraSpec, MarkerSpec, Obstacle, Scene
-from arenabench.generator.scene_facts import FACTS, derived_facts
+from arenabench.generator.dataset.make import ground_truth_record
+from arenabench.generator.model.scene import ArenaSpec, CameraSpec, MarkerSpec, Obstacle, Scene
+from arenabench.generator.truth.scene_facts import FACTS, derived_facts
 
 # 8 m arena, 0.48 m markers: the inner-corner frame spans x, y in [-3.52, 3.52] m.
 HALF = 3.52

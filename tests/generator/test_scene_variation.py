@@ -14,13 +14,13 @@ import pytest
 from marks import integration_but
 from shapely.geometry import Polygon
 
-from arenabench.generator.distractors import patch_corners
-from arenabench.generator.layout import marker_square
-from arenabench.generator.lens import undistort_points
-from arenabench.generator.lights import shadow_alpha
-from arenabench.generator.make import make_sample
-from arenabench.generator.param_values import parse_overrides
-from arenabench.generator.scene import Scene
+from arenabench.generator.dataset.make import make_sample
+from arenabench.generator.model.distractors import patch_corners
+from arenabench.generator.model.layout import marker_square
+from arenabench.generator.model.lens import undistort_points
+from arenabench.generator.model.lights import shadow_alpha
+from arenabench.generator.model.scene import Scene
+from arenabench.generator.parameters.param_values import parse_overrides
 
 SEED = 5
 

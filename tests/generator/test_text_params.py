@@ -9,7 +9,7 @@ import json
 import pytest
 from clirun import run_cli
 
-from arenabench.generator.sampler import sample_scene
+from arenabench.generator.model.sampler import sample_scene
 from arenabench.limits import MAX_SHOWN_CHARS, MAX_TEXT_CHARS
 
 BAD = {"long": "y" * 100_000, "nul": "a\0b", "newline": "a\nb", "just_too_long":

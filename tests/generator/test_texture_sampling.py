@@ -6,8 +6,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from arenabench.generator.edges import linear_to_srgb
-from arenabench.generator.textures import halve_in_linear_light
+from arenabench.generator.rendering.edges import linear_to_srgb
+from arenabench.generator.rendering.textures import halve_in_linear_light
 
 #: A 1-texel black / white checker seen from far enough that only its mip levels >= 1 are
 #: sampled: each of those is the checker's mean, 0.5 in linear light.
@@ -18,9 +18,9 @@ LINEAR_HALF = int(linear_to_srgb(0.5))  # 188; averaging the sRGB numbers would 
 
 def _render_quad(image: np.ndarray, factor: float = 1.0) -> np.ndarray:
     """A quad filling a VIEW_PX square view, textured with ``image``, drawn by the generator's
-    flat pass (:class:`~arenabench.generator.pyrender_compat.LeanOffscreen`)."""
-    from arenabench.generator import pyrender_compat as compat
-    from arenabench.generator.render import _texture, _textured_quad
+    flat pass (:class:`~arenabench.generator.rendering.pyrender_compat.LeanOffscreen`)."""
+    from arenabench.generator.rendering import pyrender_compat as compat
+    from arenabench.generator.rendering.render import _texture, _textured_quad
 
     pr = compat.pyrender
     scene = pr.Scene(bg_color=[0.0, 0.0, 0.0, 1.0], ambient_light=[1, 1, 1])

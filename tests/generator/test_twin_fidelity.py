@@ -7,12 +7,12 @@ import numpy as np
 import pytest
 from paths import ROOT
 
-from arenabench.generator import camera as cam
-from arenabench.generator.edges import linear_to_srgb, srgb_to_linear
-from arenabench.generator.groundtruth import compute_ground_truth
-from arenabench.generator.layout import box_vertices
-from arenabench.generator.render import Renderer
-from arenabench.generator.scene import load_scene
+from arenabench.generator.model import camera as cam
+from arenabench.generator.model.layout import box_vertices
+from arenabench.generator.model.scene import load_scene
+from arenabench.generator.rendering.edges import linear_to_srgb, srgb_to_linear
+from arenabench.generator.rendering.render import Renderer
+from arenabench.generator.truth.groundtruth import compute_ground_truth
 
 IMAGE = ROOT / "tests" / "data" / "task1c_image.jpg"
 SCENE = ROOT / "generator" / "scenes" / "task1c_example.json"
@@ -70,7 +70,7 @@ def renders(scene):
 
 def test_render_gives_the_real_marker_order_and_outlines(real, renders):
     """Same detection order; outline lengths equal to 0.01 px (the camera that rendered the
-    example, generator/competition_world.py, puts every marker corner on the real pixel)."""
+    example, generator/fitting/competition_world.py, puts every marker corner on the real pixel)."""
     want, got = _outlines(real), _outlines(renders[True])
     assert [i for i, _ in want] == [i for i, _ in got] == [90, 95, 85, 80]
     for (marker_id, a), (_, b) in zip(want, got, strict=True):
@@ -202,7 +202,7 @@ def test_antialiased_render_does_not_depend_on_earlier_scenes():
     """Edge samples on depth ties (a box's bottom edge on the floor) follow the draw order, and
     a renderer may reuse its static layer: neither may depend on what it drew before."""
     from arenabench.generator import make_sample
-    from arenabench.generator.param_values import parse_overrides
+    from arenabench.generator.parameters.param_values import parse_overrides
 
     overrides = parse_overrides(["camera.tilt_deg=20"])
     with Renderer() as r:

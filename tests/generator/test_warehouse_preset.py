@@ -2,9 +2,9 @@
 
 import numpy as np
 
-from arenabench.generator.sampler import sample_scene
-from arenabench.generator.scene import ArenaSpec
-from arenabench.generator.textures import floor_texture
+from arenabench.generator.model.sampler import sample_scene
+from arenabench.generator.model.scene import ArenaSpec
+from arenabench.generator.rendering.textures import floor_texture
 
 
 def test_concrete_texture_is_seeded_and_textured():

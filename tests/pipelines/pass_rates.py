@@ -93,8 +93,8 @@ def score_preset(
     from arenabench.eval.pipelines import make_pipeline
     from arenabench.eval.scoring.metrics import score_image
     from arenabench.generator import Renderer, make_sample
-    from arenabench.generator.presets import resolve
-    from arenabench.generator.sampler import SamplingError
+    from arenabench.generator.model.sampler import SamplingError
+    from arenabench.generator.parameters.presets import resolve
     from arenabench.imageio import decode_image, encode_image
 
     pipes = {spec: make_pipeline(spec) for spec in pipelines}
@@ -161,9 +161,9 @@ def score_phases(
     from arenabench.eval.pipelines import make_pipeline
     from arenabench.eval.scoring.metrics import score_image
     from arenabench.generator import Renderer, make_sample
-    from arenabench.generator.make import ImageFormat
-    from arenabench.generator.presets import resolve
-    from arenabench.generator.sampler import SamplingError
+    from arenabench.generator.dataset.make import ImageFormat
+    from arenabench.generator.model.sampler import SamplingError
+    from arenabench.generator.parameters.presets import resolve
     from arenabench.imageio import decode_image
 
     if count < 1 or phases < 1:
@@ -210,7 +210,7 @@ def pass_rate_table(results: dict[str, dict[str, Tally]],
 
 def main(argv: list[str] | None = None) -> int:
     """Command line: print the table (and write JSON with ``--json``)."""
-    from arenabench.generator.presets import preset_names
+    from arenabench.generator.parameters.presets import preset_names
 
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--preset", action="append", default=None,

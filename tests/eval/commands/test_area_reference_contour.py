@@ -16,7 +16,7 @@ import pytest
 from arenabench.cli import main as arenabench_main
 from arenabench.eval.commands.sweep import main as sweep_main
 from arenabench.eval.datasets.reader import DatasetError, DatasetItem, load_dataset
-from arenabench.generator.generate_cli import main as generate_main
+from arenabench.generator.commands.generate import main as generate_main
 
 
 @pytest.fixture(scope="module")

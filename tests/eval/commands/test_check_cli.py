@@ -11,7 +11,7 @@ import pytest
 from clirun import CliResult, run_cli
 from paths import TESTS
 
-from arenabench.generator.make import GENERATOR_VERSION
+from arenabench.generator.dataset.make import GENERATOR_VERSION
 
 PIPELINES = TESTS / "pipelines"
 # Scenes 1, 6 and 7 of seed 0 (generator versions 7 and 8) are ones the Canny style loses at their

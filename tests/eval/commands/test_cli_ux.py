@@ -254,7 +254,7 @@ def test_pipeline_module_in_the_current_folder(tmp_path, monkeypatch, toy):
 
 
 def test_fit_error_names_the_file(tmp_path, capsys):
-    from arenabench.generator.fit_cli import main as fit_main
+    from arenabench.generator.commands.fit import main as fit_main
 
     blank = tmp_path / "blank.png"
     cv2.imwrite(str(blank), np.full((300, 300, 3), 255, np.uint8))
@@ -462,7 +462,7 @@ def test_html_frame_outlines_follow_a_pipeline_warping_to_the_outer_corners():
 
     from arenabench.eval.reports.html_report import gt_frame_polygons
     from arenabench.frame import FrameSpec
-    from arenabench.generator.make import make_sample
+    from arenabench.generator.dataset.make import make_sample
     from arenabench.pipeline import DetectConfig, detect
 
     sample = make_sample("eyrc-upright", seed=0, index=0)

@@ -18,7 +18,7 @@ from pass_rates import STYLES, score_preset  # tests/pipelines (pytest's pythonp
 from paths import ROOT, TESTS
 
 from arenabench.eval.commands.eval import main as eval_main
-from arenabench.generator.generate_cli import main as generate_main
+from arenabench.generator.commands.generate import main as generate_main
 
 PIPES = TESTS / "pipelines"
 REAL = TESTS / "data" / "task1c_image.jpg"
@@ -97,8 +97,8 @@ def test_style_as_a_graded_command_matches_in_process(tiny_set, tmp_path):
 @pytest.fixture(scope="module")
 def fitted_render():
     """The fitted example's render, written as the twin writes it (JPEG, quality 95)."""
-    from arenabench.generator.render import Renderer
-    from arenabench.generator.scene import load_scene
+    from arenabench.generator.model.scene import load_scene
+    from arenabench.generator.rendering.render import Renderer
     from arenabench.imageio import decode_image, encode_jpeg
 
     scene = load_scene(ROOT / "generator" / "scenes"

@@ -9,14 +9,14 @@ from pathlib import Path
 import pytest
 from paths import TESTS
 
-pytest.importorskip("arenabench.generator.generate_cli", reason="generator not available yet")
+pytest.importorskip("arenabench.generator.commands.generate", reason="generator not available yet")
 pytest.importorskip("arenabench.pipeline", reason="pipeline not available yet")
 pytest.importorskip("arenabench.detect", reason="arenabench.detect command not available yet")
 
 from arenabench.eval.commands.demo import main as demo_main
 from arenabench.eval.commands.eval import main as eval_main
 from arenabench.eval.reports.json_report import read_json
-from arenabench.generator.generate_cli import main as generate_main
+from arenabench.generator.commands.generate import main as generate_main
 
 PIPES = TESTS / "pipelines"
 

@@ -288,11 +288,11 @@ def test_gt_count_1e400_is_refused(toy, tmp_path):
 
 
 def test_every_gt_the_generator_writes_validates():
-    from arenabench.generator.make import gt_record
-    from arenabench.generator.presets import preset_names
-    from arenabench.generator.render_cli import scene_gt_record
-    from arenabench.generator.sampler import sample_scene
-    from arenabench.generator.scene import load_scene
+    from arenabench.generator.commands.render import scene_gt_record
+    from arenabench.generator.dataset.make import gt_record
+    from arenabench.generator.model.sampler import sample_scene
+    from arenabench.generator.model.scene import load_scene
+    from arenabench.generator.parameters.presets import preset_names
     from arenabench.schemas import GT_SCHEMA, gt_problem, gt_schema
 
     assert gt_schema()["properties"]["schema"]["const"] == GT_SCHEMA

@@ -467,7 +467,7 @@ def tracer(frame, event, arg):
 with stop_on_signals():
     sys.settrace(tracer)
     try:
-        from arenabench.generator.make import worker_gl_info
+        from arenabench.generator.dataset.make import worker_gl_info
         worker_gl_info()  # imports pyrender, hence trimesh
         print("not interrupted")
     except Interrupted:
@@ -476,7 +476,7 @@ with stop_on_signals():
 if not sent:
     sys.exit("trimesh.path was not imported with pyrender: retarget this test")
 import trimesh
-from arenabench.generator.make import worker_gl_info
+from arenabench.generator.dataset.make import worker_gl_info
 print(type(trimesh.path).__name__, "gl_renderer" in worker_gl_info())
 """
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,

@@ -15,9 +15,13 @@ import pytest
 from clirun import run_cli
 from paths import TESTS
 
-from arenabench.generator.params import PARAMETERS, Range
-from arenabench.generator.preset_files import load_preset_file, preset_to_toml, write_preset_file
-from arenabench.generator.presets import PRESETS, builtin_preset, preset_key
+from arenabench.generator.parameters.params import PARAMETERS, Range
+from arenabench.generator.parameters.preset_files import (
+    load_preset_file,
+    preset_to_toml,
+    write_preset_file,
+)
+from arenabench.generator.parameters.presets import PRESETS, builtin_preset, preset_key
 from arenabench.usercache import CACHE_ENV
 
 PIPELINES = TESTS / "pipelines"
@@ -238,8 +242,8 @@ def test_a_set_needs_no_texture_file_afterwards(tmp_path, monkeypatch):
     monkeypatch.setenv(CACHE_ENV, str(tmp_path / "other-machine"))
     from arenabench.eval.datasets.reader import load_dataset
     from arenabench.eval.phase_check import render_phases
-    from arenabench.generator.make import worker_renderer
-    from arenabench.generator.scene import Scene
+    from arenabench.generator.dataset.make import worker_renderer
+    from arenabench.generator.model.scene import Scene
     from arenabench.imageio import encode_png
 
     dataset = load_dataset(part)  # puts the set's textures/ into this cache
@@ -286,7 +290,7 @@ def test_cluster_workers_get_the_texture_with_their_tasks(tmp_path, monkeypatch)
 
 
 def test_a_scene_file_names_its_texture_relative_to_itself(tmp_path):
-    from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.model.sampler import sample_scene
 
     folder = tmp_path / "p"
     _texture(folder / "floor/lab.png")
@@ -323,7 +327,7 @@ def test_phase_images_keep_the_jpeg_quality_of_a_preset_file(tmp_path):
     from arenabench.eval.evaluation import evaluate
     from arenabench.eval.phase_check import check_phases
     from arenabench.eval.scoring.results import Prediction
-    from arenabench.generator.dataset_writer import generate_dataset
+    from arenabench.generator.dataset.dataset_writer import generate_dataset
     from arenabench.imageio import jpeg_quality
 
     p = builtin_preset("eyrc")
@@ -396,7 +400,7 @@ def test_sweep_takes_a_preset_file(tmp_path, monkeypatch):
 
 def test_pytest_plugin_keys_a_preset_file_by_name_and_parameters(tmp_path):
     from arenabench.eval.pytest_plugin import dataset_key
-    from arenabench.generator.make import GENERATOR_VERSION
+    from arenabench.generator.dataset.make import GENERATOR_VERSION
 
     path = tmp_path / "mine.toml"
     p = builtin_preset("eyrc")

@@ -80,7 +80,7 @@ def _distinct_seed() -> int:
     """The first seed whose scenes give every team a different number of passes: with n1
     scenes of 1 obstacle and n_odd of an odd number, 'partly_right' passes COUNT - n1 and
     'crashing' COUNT - n_odd, so the order needs no latency (drawn without rendering)."""
-    from arenabench.generator.sampler import sample_scene
+    from arenabench.generator.model.sampler import sample_scene
 
     for seed in range(1000):
         counts = [sample_scene("eyrc", seed=seed, index=i).params["obstacles.count"]

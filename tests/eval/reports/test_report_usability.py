@@ -171,7 +171,7 @@ def test_compare_warns_when_a_report_has_no_manifest_hash(two_runs, tmp_path, ca
 
 def test_pytest_plugin_keys_its_set_by_the_generator_version():
     from arenabench.eval.pytest_plugin import dataset_key
-    from arenabench.generator.make import GENERATOR_VERSION
+    from arenabench.generator.dataset.make import GENERATOR_VERSION
 
     assert dataset_key("eyrc", 12, 0) == f"eyrc-n12-s0-v{GENERATOR_VERSION}"
 
@@ -180,7 +180,7 @@ def test_pytest_plugin_keys_its_set_by_the_generator_version():
 def test_pytest_plugin_caches_under_the_generator_version(tmp_path, tmp_path_factory):
     import subprocess
 
-    from arenabench.generator.make import GENERATOR_VERSION
+    from arenabench.generator.dataset.make import GENERATOR_VERSION
 
     (tmp_path / "test_team.py").write_text(
         "def test_dataset(arenabench_dataset):\n"

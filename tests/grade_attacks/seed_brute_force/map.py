@@ -12,7 +12,7 @@ ap = argparse.ArgumentParser()
 ap.add_argument("--image", required=True)
 image = Path(ap.parse_args().image).read_bytes()
 
-from arenabench.generator.dataset_writer import generate_dataset  # noqa: E402
+from arenabench.generator.dataset.dataset_writer import generate_dataset  # noqa: E402
 
 for seed in range(4):
     out = Path(tempfile.mkdtemp()) / "guess"
