@@ -14,7 +14,8 @@ from paths import ROOT, TESTS
 MIRRORS = {
     "core": "src/arenabench",
     "generator": "generator",
-    "generator/twin": "generator/twin",
+    **{f"generator/{room}": f"generator/{room}" for room in (
+        "parameters", "model", "truth", "rendering", "dataset", "fitting", "commands")},
     "eval": "eval",
     **{f"eval/{room}": f"eval/{room}" for room in (
         "scoring", "runs", "datasets", "commands", "reports", "sweep", "grade", "bench")},

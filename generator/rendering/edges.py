@@ -36,7 +36,7 @@ __all__ = ["EDGE_PATTERNS", "EDGE_RESOLVES", "EDGE_SAMPLES", "REGION_PAD_PX",
 #: centre (corner-origin (0.25, 0.25) and (0.75, 0.75)); 4 on the rotated grid, corner-origin
 #: (0.375, 0.125), (0.875, 0.375), (0.125, 0.625), (0.625, 0.875), i.e. (-2, -6), (6, -2),
 #: (-6, 2), (2, 6) sixteenths of a pixel from the centre.
-#: ``tests/generator/test_edges.py`` checks that
+#: ``tests/generator/rendering/test_edges.py`` checks that
 #: the keys are the choices of ``render.edge_samples``.
 EDGE_PATTERNS: dict[int, tuple[tuple[float, float], ...]] = {
     1: ((0.0, 0.0),),

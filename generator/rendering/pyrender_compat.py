@@ -51,7 +51,7 @@ def check_version(version: str) -> None:
 #: which pyrender imports, loads SciPy (``scipy.spatial``, ``scipy.optimize``) at import time
 #: for features that neither pyrender's drawing nor arenabench use, and treats it as optional.
 #: That is 0.37 of the 0.81 s the import takes in every rendering worker. SciPy imported later
-#: in the process works as usual (``tests/generator/test_renderer_api.py`` checks it); only
+#: in the process works as usual (``tests/generator/rendering/test_renderer_api.py`` checks it); only
 #: trimesh's
 #: own SciPy-based functions (convex hulls, KD-trees) raise in that process. Held only while
 #: no other Python thread runs, since an import of SciPy in another thread would fail then.
@@ -112,7 +112,7 @@ class SrgbTexture(pyrender.Texture):
 
     GL decodes its texels to linear light before filtering them, and ``glGenerateMipmap``
     averages them in linear light (on Mesa and the common drivers;
-    ``tests/generator/test_twin_fidelity.py``
+    ``tests/generator/fitting/test_twin_fidelity.py``
     checks the levels llvmpipe makes). Drawn by :data:`SRGB_TEXTURE_FRAG`, which encodes the
     filtered colour back to sRGB. ``srgb_space_mips=True``: the mip levels are averaged in sRGB
     values instead (drawn marker sheets, as up to generator version 5).

@@ -159,7 +159,7 @@ def test_fit_recovers_a_known_scene():
                          fov_deg=None, match_detector_rounds=0)
     # hard edges: anti-aliased ones move the thresholded box outlines by up to half a pixel,
     # about the 0.01 m tolerance here (the fit of the real, anti-aliased example is checked
-    # against the image in tests/generator/test_twin_fidelity.py)
+    # against the image in tests/generator/fitting/test_twin_fidelity.py)
     with Renderer(antialias=False) as renderer:
         result = fit_scene(render_bgr(truth, renderer), renderer=renderer, options=options)
     assert result.reprojection_px < 0.5
