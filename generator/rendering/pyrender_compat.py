@@ -51,10 +51,9 @@ def check_version(version: str) -> None:
 #: which pyrender imports, loads SciPy (``scipy.spatial``, ``scipy.optimize``) at import time
 #: for features that neither pyrender's drawing nor arenabench use, and treats it as optional.
 #: That is 0.37 of the 0.81 s the import takes in every rendering worker. SciPy imported later
-#: in the process works as usual (``tests/generator/rendering/test_renderer_api.py`` checks it); only
-#: trimesh's
-#: own SciPy-based functions (convex hulls, KD-trees) raise in that process. Held only while
-#: no other Python thread runs, since an import of SciPy in another thread would fail then.
+#: in the process works as usual (``tests/generator/rendering/test_renderer_api.py`` checks
+#: it); only trimesh's own SciPy-based functions (convex hulls, KD-trees) raise in that
+#: process. Held only while no other Python thread runs, since an import of SciPy in another thread would fail then.
 IMPORT_WITHOUT = ("scipy",)
 
 

@@ -330,8 +330,9 @@ class Renderer(SceneRenderer):
         A render is a pure function of the scene (and ``depth``, ``masks``,
         :attr:`antialias`), so the renderer keeps its last output and gives a copy of it
         when the same scene comes again: a sweep over post-render parameters (noise, blur,
-        JPEG, ...) renders each base scene once (``tests/generator/rendering/test_render_reuse.py`` checks the
-        bytes against a fresh renderer).
+        JPEG, ...) renders each base scene once
+        (``tests/generator/rendering/test_render_reuse.py`` checks the bytes against a fresh
+        renderer).
         """
         key = (scene, bool(depth), bool(masks), self.antialias)
         if self._last is not None and self._last[0] == key:
@@ -418,8 +419,8 @@ class Renderer(SceneRenderer):
         cx, cy = camera.cx, camera.cy
         # moving the principal point by (-dx, -dy) moves the image content by (-dx, -dy)
         # (pyrender's cx, cy run along the image's columns and rows, as OpenCV's): each pixel
-        # centre then sees the point at (x + dx, y + dy); tests/generator/rendering/test_edges.py checks
-        # the signs
+        # centre then sees the point at (x + dx, y + dy);
+        # tests/generator/rendering/test_edges.py checks the signs
         camera.cx, camera.cy = cx - offset[0], cy - offset[1]
         try:
             color, _ = self._offscreen.render(self._scene, flags, region=region)

@@ -110,7 +110,8 @@ def contour_area(geom) -> float:
     one; the boundary pixels along an edge (dx, dy) number ``max(|dx|, |dy|)`` (one per column
     or row, whichever is more), and a closed outline has about four fewer. So, per connected
     piece: the area inside its outer ring, less half the ring's length in the max norm, plus 1.
-    Checked against rasterised ground truth in ``tests/generator/truth/test_groundtruth_contour.py``.
+    Checked against rasterised ground truth in
+    ``tests/generator/truth/test_groundtruth_contour.py``.
 
     Parameters
     ----------
