@@ -53,7 +53,8 @@ def check_version(version: str) -> None:
 #: That is 0.37 of the 0.81 s the import takes in every rendering worker. SciPy imported later
 #: in the process works as usual (``tests/generator/rendering/test_renderer_api.py`` checks
 #: it); only trimesh's own SciPy-based functions (convex hulls, KD-trees) raise in that
-#: process. Held only while no other Python thread runs, since an import of SciPy in another thread would fail then.
+#: process. Held only while no other Python thread runs, since an import of SciPy in another
+#: thread would fail then.
 IMPORT_WITHOUT = ("scipy",)
 
 
