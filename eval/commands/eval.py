@@ -226,177 +226,244 @@ def _main(argv: list[str] | None, held: ExitStack) -> int:
         return args
     if args.compare:
         return _run_compare(*args.compare, args.fail_on_regression)
-    if args.fail_on_regression:
-        return _usage_error(parser, "--fail-on-regression goes with --compare OLD NEW")
-    if not args.dataset:
-        return _usage_error(parser, "a DATASET folder is required (or --compare OLD NEW)")
-    if args.name is not None and not args.cmd:
-        return _usage_error(parser, "--name names a --cmd pipeline (give --cmd TEMPLATE)")
-    if args.name is not None and not args.name.strip():
-        return _usage_error(parser, "--name must not be empty")
-    if not args.pipeline and not args.cmd:
-        return _usage_error(parser, "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE")
-    from arenabench.eval.reports import FORMATS, write_reports
-
-    if args.out is not None and (problem := output_problem(
-            args.out, own=FORMATS.values(), what="'arenabench eval' report",
-            inputs=[("DATASET", args.dataset)])):
+    if problem := _option_problem(args):
         return _usage_error(parser, problem)
-
-    import os
-
-    from arenabench.fileio import FolderLockedError
     from arenabench.interrupts import Interrupted, deferred_stops
 
     early: Interrupted | None = None  # a stop while the modules load: raised once they have
     try:
         with deferred_stops():
-            from arenabench.eval.datasets.reader import DatasetError, load_dataset
-            from arenabench.eval.evaluation import (
-                EvaluationFailed,
-                EvaluationInterrupted,
-                empty_report,
-                evaluate,
-            )
-            from arenabench.eval.phase_check import resolve_phases, set_presets
-            from arenabench.eval.pipelines import make_pipeline
-            from arenabench.eval.reports.summary_rows import first_failure_line, headline
-            from arenabench.eval.runs import (
-                OWN_PYTHON_PLACEHOLDER,
-                CommandPipeline,
-                missing_script_problem,
-                resolve_competition_python,
-                substitute_competition_python,
-                uses_competition_python,
-            )
-            from arenabench.eval.scoring.thresholds import check_thresholds, parse_thresholds
+            _load_modules()
     except Interrupted as exc:
         early = exc
+    return _EvalRun(args, parser, held).main(early)
 
-    formats = args.formats
-    # the work starts here: a stop from now on writes the partial (perhaps empty) reports
-    dataset = None
-    locked = False
-    interpreter = None
-    interrupted: EvaluationInterrupted | None = None
-    failed: EvaluationFailed | None = None
-    try:
-        if early is not None:
-            raise early
+
+def _option_problem(args) -> str | None:
+    """What is wrong with the options of a run (not ``--compare``), or None."""
+    from arenabench.eval.reports import FORMATS
+
+    if args.fail_on_regression:
+        return "--fail-on-regression goes with --compare OLD NEW"
+    if not args.dataset:
+        return "a DATASET folder is required (or --compare OLD NEW)"
+    if args.name is not None and not args.cmd:
+        return "--name names a --cmd pipeline (give --cmd TEMPLATE)"
+    if args.name is not None and not args.name.strip():
+        return "--name must not be empty"
+    if not args.pipeline and not args.cmd:
+        return "give --pipeline NAME|pkg.module:function or --cmd TEMPLATE"
+    if args.out is not None:
+        return output_problem(args.out, own=FORMATS.values(), what="'arenabench eval' report",
+                              inputs=[("DATASET", args.dataset)])
+    return None
+
+
+def _load_modules() -> None:
+    """Import what a run needs (under deferred stops: a stop never cuts an import short)."""
+    import arenabench.eval.datasets.reader
+    import arenabench.eval.evaluation
+    import arenabench.eval.phase_check
+    import arenabench.eval.pipelines
+    import arenabench.eval.reports
+    import arenabench.eval.reports.summary_rows
+    import arenabench.eval.scoring.thresholds  # noqa: F401
+
+
+class _EvalRun:
+    """One ``arenabench eval`` run in steps: build the pipeline and load the dataset, take the
+    ``--out`` lock, evaluate, then report (the whole run, or what finished before a stop)."""
+
+    def __init__(self, args, parser: CommandParser, held: ExitStack) -> None:
+        self.args, self.parser, self.held = args, parser, held
+        self.dataset: Dataset | None = None
+        self.locked = False
+        self.interpreter = None
+        self.thresholds: list = []
+
+    def main(self, early) -> int:
+        """The run; ``early``: a stop that came while the modules loaded (raised first)."""
+        from arenabench.eval.evaluation import EvaluationFailed, EvaluationInterrupted
+        from arenabench.interrupts import Interrupted
+
+        args = self.args
+        # the work starts here: a stop from now on writes the partial (perhaps empty) reports
         try:
-            thresholds = parse_thresholds(args.fail_under)
-            if args.cmd and (problem := missing_script_problem(args.cmd,
-                                                               base_dir=os.getcwd())):
-                raise ValueError(f"--cmd {args.cmd!r}: {problem}")
-            if args.cmd and uses_competition_python(args.cmd):  # the rest of the command first
-                CommandPipeline(substitute_competition_python(args.cmd, OWN_PYTHON_PLACEHOLDER),
-                                settings=run_settings_from_args(args), output=args.output)
-            else:
-                pipeline = (
-                    CommandPipeline(args.cmd, settings=run_settings_from_args(args),
-                                    output=args.output, name=args.name or "")
-                    if args.cmd
-                    else make_pipeline(args.pipeline)
-                )
-            dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
-                                   skip_damaged=args.skip_damaged)
-            if args.cmd and uses_competition_python(args.cmd):  # made once, then reused
-                (command,), interpreter = resolve_competition_python(
-                    [args.cmd], progress=not args.no_progress, prog="arenabench eval")
-                pipeline = CommandPipeline(command, settings=run_settings_from_args(args),
-                                           output=args.output, name=args.name or args.cmd)
+            if early is not None:
+                raise early
+            pipeline = self._prepare()
+            if isinstance(pipeline, int):
+                return pipeline
+            report = self._evaluate(pipeline)
+        except ValueError as exc:
+            return _usage_error(self.parser, str(exc))
+        except (EvaluationInterrupted, EvaluationFailed) as exc:
+            return self._stopped(exc)
+        except Interrupted as exc:  # before evaluate() had a report: an empty one
+            from arenabench.eval.evaluation import empty_report
+
+            dataset = self.dataset
+            return self._stopped(EvaluationInterrupted(empty_report(
+                pipeline=args.name or args.cmd or args.pipeline,
+                dataset=str(dataset.root if dataset is not None else args.dataset),
+                area_reference=args.area_reference, tolerance=args.tolerance,
+                n_total=None if dataset is None else len(dataset.samples)), exc.signum))
+        return self._finished(report)
+
+    def _prepare(self):
+        """The pipeline (or the built-in's name) with the dataset loaded and ``--out`` locked;
+        an exit status when the options or the dataset are refused."""
+        from arenabench.eval.datasets.reader import DatasetError
+        from arenabench.fileio import FolderLockedError
+
+        try:
+            pipeline = self._pipeline_and_dataset()
         except (DatasetError, ValueError) as exc:
-            return _usage_error(parser, str(exc))
+            return _usage_error(self.parser, str(exc))
         try:  # the same lock as generate's: one run at a time writes into --out
-            held.enter_context(lock_out(args.out))
-            locked = True
+            self.held.enter_context(lock_out(self.args.out))
+            self.locked = True
         except FolderLockedError as exc:
-            return _usage_error(parser, str(exc))
+            return _usage_error(self.parser, str(exc))
+        return pipeline
+
+    def _pipeline_and_dataset(self):
+        """Check the pipeline's options, load the dataset, then make the pipeline (the
+        competition's interpreter is made only once the rest of the command holds)."""
+        import os
+
+        from arenabench.eval.datasets.reader import load_dataset
+        from arenabench.eval.runs import (
+            OWN_PYTHON_PLACEHOLDER,
+            CommandPipeline,
+            missing_script_problem,
+            resolve_competition_python,
+            substitute_competition_python,
+            uses_competition_python,
+        )
+        from arenabench.eval.scoring.thresholds import parse_thresholds
+
+        args = self.args
+        self.thresholds = parse_thresholds(args.fail_under)
+        if not args.cmd:
+            from arenabench.eval.pipelines import make_pipeline
+
+            make_pipeline(args.pipeline)  # an unknown name: refused before the dataset is read
+            pipeline = args.pipeline  # evaluate() makes it (a callable: isolated)
+        else:
+            if problem := missing_script_problem(args.cmd, base_dir=os.getcwd()):
+                raise ValueError(f"--cmd {args.cmd!r}: {problem}")
+            settings = run_settings_from_args(args)
+            competition = uses_competition_python(args.cmd)
+            # the rest of the command is checked before the competition's interpreter is made
+            pipeline = CommandPipeline(
+                substitute_competition_python(args.cmd, OWN_PYTHON_PLACEHOLDER)
+                if competition else args.cmd,
+                settings=settings, output=args.output, name=args.name or "")
+        self.dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
+                                    skip_damaged=args.skip_damaged)
+        if args.cmd and competition:  # made once, then reused
+            (command,), self.interpreter = resolve_competition_python(
+                [args.cmd], progress=not args.no_progress, prog="arenabench eval")
+            pipeline = CommandPipeline(command, settings=settings, output=args.output,
+                                       name=args.name or args.cmd)
+        return pipeline
+
+    def _evaluate(self, pipeline):
+        from arenabench.eval.evaluation import evaluate
+        from arenabench.eval.phase_check import resolve_phases, set_presets
+
+        args, dataset = self.args, self.dataset
         _warn_if_incomplete(dataset)
         if dataset.skipped:
             first, why = dataset.skipped[0]
             print(f"arenabench eval: warning: {len(dataset.skipped)} damaged image(s) left out "
                   f"(--skip-damaged; {first}: {why})", file=sys.stderr)
-        report = evaluate(
-            args.pipeline if args.pipeline else pipeline,
-            dataset,
-            workers=args.workers,
-            tolerance=args.tolerance,
-            area_reference=args.area_reference,
-            executor=args.executor,
+        return evaluate(
+            pipeline, dataset, workers=args.workers, tolerance=args.tolerance,
+            area_reference=args.area_reference, executor=args.executor,
             progress=not args.no_progress,
             phases=resolve_phases(args.phase_check, set_presets(dataset)),
-            isolate=True,
-            timeout_s=args.timeout,
+            isolate=True, timeout_s=args.timeout,
         )
-    except ValueError as exc:
-        return _usage_error(parser, str(exc))
-    except EvaluationInterrupted as exc:
-        interrupted = exc
-    except EvaluationFailed as exc:
-        failed = exc
-    except Interrupted as exc:  # before evaluate() had a report: an empty one
-        interrupted = EvaluationInterrupted(empty_report(
-            pipeline=args.name or args.cmd or args.pipeline,
-            dataset=str(dataset.root if dataset is not None else args.dataset),
-            area_reference=args.area_reference, tolerance=args.tolerance,
-            n_total=None if dataset is None else len(dataset.samples)), exc.signum)
-    stopped = interrupted or failed
-    if stopped is not None:
-        report = stopped.report
-        if interpreter is not None:
-            report = replace(report, interpreter=interpreter.to_dict())
+
+    def _with_interpreter(self, report):
+        """``report`` with what ran the command (the competition's interpreter), if made."""
+        if self.interpreter is None:
+            return report
+        return replace(report, interpreter=self.interpreter.to_dict())
+
+    def _stopped(self, stopped) -> int:
+        """A run stopped by a signal or a harness failure: say what finished, write the partial
+        reports, return the exit status."""
+        from arenabench.eval.evaluation import EvaluationInterrupted
+        from arenabench.eval.reports import write_reports
+        from arenabench.fileio import FolderLockedError
+        from arenabench.interrupts import deferred_stops
+
+        args = self.args
+        report = self._with_interpreter(stopped.report)
         total = f" of {report.n_total}" if report.n_total is not None else ""
-        if interrupted is not None:
-            print(f"arenabench eval: interrupted by signal {interrupted.signum} after "
+        if isinstance(stopped, EvaluationInterrupted):
+            print(f"arenabench eval: interrupted by signal {stopped.signum} after "
                   f"{report.images_done}{total} images; running commands killed",
                   file=sys.stderr)
-            code = interrupted.exit_code
+            code = stopped.exit_code
         else:
-            print(f"arenabench eval: error: {failed}; running commands killed, nothing of it "
+            print(f"arenabench eval: error: {stopped}; running commands killed, nothing of it "
                   f"scored ({report.images_done}{total} images finished before)",
                   file=sys.stderr)
             code = ExitCode.HARNESS
-        if args.out is not None:  # even with no image finished: never nothing
-            try:
-                with deferred_stops():  # a second stop does not cut the writing short
-                    if not locked:
-                        held.enter_context(lock_out(args.out))
-                    write_reports(report, args.out, formats=formats, dataset=dataset)
-            except FolderLockedError as exc:
-                parser.fail(str(exc))
-                return code
-            except OSError as exc:
-                parser.fail(write_failure(exc, args.out))
-                return code
-            print(f"  partial reports (\"complete\": false) in {args.out}", file=sys.stderr)
+        if args.out is None:
+            return code
+        try:  # even with no image finished: never nothing
+            with deferred_stops():  # a second stop does not cut the writing short
+                if not self.locked:
+                    self.held.enter_context(lock_out(args.out))
+                write_reports(report, args.out, formats=args.formats, dataset=self.dataset)
+        except FolderLockedError as exc:
+            self.parser.fail(str(exc))
+            return code
+        except OSError as exc:
+            self.parser.fail(write_failure(exc, args.out))
+            return code
+        print(f"  partial reports (\"complete\": false) in {args.out}", file=sys.stderr)
         return code
-    if interpreter is not None:  # what ran the command, with the reports
-        report = replace(report, interpreter=interpreter.to_dict())
-    written: dict = {}
-    try:
-        # every image ran: a stop now cuts no report off; it is raised once they are written
-        # and the exit status says it came (arenabench.cli.run)
-        with deferred_stops():
-            print(headline(report))
-            if (first := first_failure_line(report)) is not None:
-                print(f"  {first}")
-            if args.out is not None:
-                written = write_reports(report, args.out, formats=formats, dataset=dataset)
-    except Interrupted:
-        pass
-    except OSError as exc:  # ENOSPC: one line, no traceback
-        parser.fail(write_failure(exc, args.out))
-        return ExitCode.FAILED
-    for fmt, path in written.items():
-        print(f"  {fmt:<5} {path}")
-    for threshold in thresholds:  # every gate applied, passing or not: the CI log shows them
-        print(threshold.gate_line(report.summary))
-    reasons = check_thresholds(report.summary, thresholds)
-    if reasons:
-        print(f"arenabench eval: FAILED: {'; '.join(reasons)}", file=sys.stderr)
-        return ExitCode.FAILED
-    return ExitCode.OK
+
+    def _finished(self, report) -> int:
+        """Every image ran: the headline, the reports, the gates and the exit status."""
+        from arenabench.eval.reports import write_reports
+        from arenabench.eval.reports.summary_rows import first_failure_line, headline
+        from arenabench.eval.scoring.thresholds import check_thresholds
+        from arenabench.interrupts import Interrupted, deferred_stops
+
+        args = self.args
+        report = self._with_interpreter(report)
+        written: dict = {}
+        try:
+            # a stop now cuts no report off; it is raised once they are written and the exit
+            # status says it came (arenabench.cli.run)
+            with deferred_stops():
+                print(headline(report))
+                if (first := first_failure_line(report)) is not None:
+                    print(f"  {first}")
+                if args.out is not None:
+                    written = write_reports(report, args.out, formats=args.formats,
+                                            dataset=self.dataset)
+        except Interrupted:
+            pass
+        except OSError as exc:  # ENOSPC: one line, no traceback
+            self.parser.fail(write_failure(exc, args.out))
+            return ExitCode.FAILED
+        for fmt, path in written.items():
+            print(f"  {fmt:<5} {path}")
+        for threshold in self.thresholds:  # every gate applied, passing or not: the CI log
+            print(threshold.gate_line(report.summary))
+        reasons = check_thresholds(report.summary, self.thresholds)
+        if reasons:
+            print(f"arenabench eval: FAILED: {'; '.join(reasons)}", file=sys.stderr)
+            return ExitCode.FAILED
+        return ExitCode.OK
 
 
 if __name__ == "__main__":  # pragma: no cover
