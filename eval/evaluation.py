@@ -218,16 +218,8 @@ def evaluate(
     """
     from arenabench.interrupts import Interrupted
 
-    if workers is not None and workers < 1:
-        raise ValueError(f"workers must be >= 1, got {workers!r}")
-    if area_reference not in AREA_REFERENCES:
-        raise ValueError(
-            f"area_reference must be one of {sorted(AREA_REFERENCES)}, got {area_reference!r}"
-        )
-    if executor not in EXECUTORS:
-        raise ValueError(f"executor must be one of {EXECUTORS}, got {executor!r}")
-    if not tolerance >= 0:
-        raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
+    _check_options(workers=workers, area_reference=area_reference, executor=executor,
+                   tolerance=tolerance)
     data = dataset if isinstance(dataset, Dataset) else load_dataset(dataset, limit=limit)
     samples = data.samples[:limit] if limit else data.samples
     # a missing reference area is a data error, found before any work
@@ -238,32 +230,9 @@ def evaluate(
     failed: HarnessError | None = None
     pipe: Pipeline | None = None
     try:
-        isolated = isolate and isinstance(pipeline, str) and ":" in pipeline  # a team's function
-        if isolated:
-            from arenabench.eval.runs import IsolatedCallablePipeline
-            from arenabench.limits import DEFAULT_TIMEOUT_S
-
-            isolated_pipe = IsolatedCallablePipeline(
-                pipeline, timeout_s=DEFAULT_TIMEOUT_S if timeout_s is None else timeout_s)
-            pipe = isolated_pipe
-            problem = isolated_pipe.trial()  # no pipeline at all (os:system): refused before
-            if problem:
-                raise ValueError(problem)
-        else:
-            pipe = make_pipeline(pipeline)
+        pipe = _made_pipeline(pipeline, isolate=isolate, timeout_s=timeout_s)
         n_workers = min(workers or usable_cores(), max(1, len(samples)))
-        use_process = executor == "process" and pipe.in_process and isinstance(pipeline, str)
-        pool: Executor
-        if use_process:
-            pool = local_executor(n_workers, initializer=_worker_pipeline,
-                                  initargs=(pipeline,))
-            submit = lambda s: pool.submit(  # noqa: E731
-                run_in_worker, PipelineRun(spec=pipeline, image_path=str(s.image_path)))
-        else:
-            run = pipe.run
-            pool = ThreadPoolExecutor(max_workers=pipe.threads(n_workers),
-                                      thread_name_prefix="arenabench-eval")
-            submit = lambda s: pool.submit(run, s.image_path)  # noqa: E731
+        pool, submit = _pool(pipe, pipeline, executor=executor, n_workers=n_workers)
         from arenabench.progress import progress as progress_bar
 
         def stop_runs() -> None:
@@ -285,19 +254,10 @@ def evaluate(
                 failed = exc
         if (phases and interrupted is None and failed is None
                 and not all(r.passed for r in store.compact())):
-            results = list(store.images())
-            try:
-                results = _check_phases(results, data, pipe, phases=phases,
-                                        tolerance=tolerance, area_reference=area_reference,
-                                        workers=n_workers, progress=progress,
-                                        open_from=open_from)
-            except Interrupted as exc:  # the images are scored; their phase check is not
-                interrupted = exc
-            except HarnessError as exc:
-                failed = exc
-            store = ResultStore(len(results), spill=store.spilled)
-            for i, r in enumerate(results):
-                store.add(i, r)
+            store, interrupted, failed = _phase_checked(
+                store, data, pipe, phases=phases, tolerance=tolerance,
+                area_reference=area_reference, workers=n_workers, progress=progress,
+                open_from=open_from)
     except Interrupted as exc:  # while setting up: nothing ran
         interrupted = exc
     except HarnessError as exc:
@@ -331,6 +291,71 @@ def evaluate(
     if failed is not None:
         raise EvaluationFailed(report, failed)
     return report
+
+
+def _check_options(*, workers: int | None, area_reference: str, executor: str,
+                   tolerance: float) -> None:
+    """Raise ``ValueError`` naming the first of :func:`evaluate`'s options that is wrong."""
+    if workers is not None and workers < 1:
+        raise ValueError(f"workers must be >= 1, got {workers!r}")
+    if area_reference not in AREA_REFERENCES:
+        raise ValueError(
+            f"area_reference must be one of {sorted(AREA_REFERENCES)}, got {area_reference!r}"
+        )
+    if executor not in EXECUTORS:
+        raise ValueError(f"executor must be one of {EXECUTORS}, got {executor!r}")
+    if not tolerance >= 0:
+        raise ValueError(f"tolerance must be >= 0, got {tolerance!r}")
+
+
+def _made_pipeline(pipeline: str | Callable[[Any], Any] | Pipeline, *, isolate: bool,
+                   timeout_s: float | None) -> Pipeline:
+    """The pipeline :func:`evaluate` runs: a team's function (``"pkg.module:function"``)
+    with ``isolate`` in killable child processes, tried once first."""
+    if not (isolate and isinstance(pipeline, str) and ":" in pipeline):
+        return make_pipeline(pipeline)
+    from arenabench.eval.runs import IsolatedCallablePipeline
+    from arenabench.limits import DEFAULT_TIMEOUT_S
+
+    isolated = IsolatedCallablePipeline(
+        pipeline, timeout_s=DEFAULT_TIMEOUT_S if timeout_s is None else timeout_s)
+    problem = isolated.trial()  # no pipeline at all (os:system): refused before
+    if problem:
+        isolated.close()
+        raise ValueError(problem)
+    return isolated
+
+
+def _pool(pipe: Pipeline, pipeline: Any, *, executor: str,
+          n_workers: int) -> tuple[Executor, Callable[[Any], Future]]:
+    """The pool the images run in and how one image is submitted to it."""
+    if executor == "process" and pipe.in_process and isinstance(pipeline, str):
+        pool = local_executor(n_workers, initializer=_worker_pipeline, initargs=(pipeline,))
+        return pool, lambda s: pool.submit(
+            run_in_worker, PipelineRun(spec=pipeline, image_path=str(s.image_path)))
+    run = pipe.run
+    threads = ThreadPoolExecutor(max_workers=pipe.threads(n_workers),
+                                 thread_name_prefix="arenabench-eval")
+    return threads, lambda s: threads.submit(run, s.image_path)
+
+
+def _phase_checked(store: ResultStore, data: Dataset, pipe: Pipeline, **options: Any):
+    """``store`` with the failures phase-checked (:func:`_check_phases`); with the stop or
+    the harness failure that came meanwhile (the images stay scored, their check not)."""
+    from arenabench.interrupts import Interrupted
+
+    interrupted = failed = None
+    results = list(store.images())
+    try:
+        results = _check_phases(results, data, pipe, **options)
+    except Interrupted as exc:  # the images are scored; their phase check is not
+        interrupted = exc
+    except HarnessError as exc:
+        failed = exc
+    checked = ResultStore(len(results), spill=store.spilled)
+    for i, r in enumerate(results):
+        checked.add(i, r)
+    return checked, interrupted, failed
 
 
 def _held(fn: Callable[[], Any] | None) -> Any:

@@ -312,146 +312,218 @@ def _main(argv: list[str] | None) -> int:
     problem = _validate(args)
     if problem:
         return _error(problem)
-    from dataclasses import replace
+    return _Check(args).main()
 
-    from arenabench.eval.phase_check import resolve_phases
-    from arenabench.eval.runs import CommandPipeline, run_settings_from_args
 
-    script = Path(args.script).resolve()
-    from arenabench.eval.reports import FORMATS
+class _Check:
+    """One ``arenabench check`` in steps: the run settings (options checked, nothing run),
+    the interpreter (probed) and the pipeline, the report folder, the twin set (made or
+    reused), the evaluation and its reports, the verdict."""
 
-    preset = args.preset  # a ResolvedPreset: sets and reports are named by its key
-    twin = twin_set_dir(preset=preset_key(preset), seed=args.seed, count=args.count)
+    def __init__(self, args: argparse.Namespace) -> None:
+        self.args = args
+        self.script = Path(args.script).resolve()
+        self.preset = args.preset  # a ResolvedPreset: sets and reports are named by its key
+        self.twin = twin_set_dir(preset=preset_key(self.preset), seed=args.seed,
+                                 count=args.count)
+        self.larger: tuple[Path, int] | None = None
+        self.settings: Any = None
+        self.progress = not args.no_progress
 
-    def out_problem(out: Path) -> str | None:
+    def main(self) -> int:
+        from arenabench.eval.phase_check import resolve_phases
+
+        args = self.args
+        if args.out is not None and (problem := self.out_problem(args.out)):
+            return _error(problem)
+        try:
+            self._configure()
+        except ValueError as exc:
+            return _error(str(exc))
+        self.phases = resolve_phases(args.phase_check, [self.preset])
+        made = self._interpreter_and_pipeline()
+        if made is not None:
+            return made
+        out = args.out if args.out is not None else report_dir(
+            self.script, preset=preset_key(self.preset), seed=args.seed, count=args.count,
+            interpreter=self.interpreter.executable, settings=self.settings.to_dict(),
+            phases=self.phases)
+        if problem := self.out_problem(out):
+            return _error(problem)
+        print(f"interpreter: {self.interpreter.describe()}")
+        what = self._twin_set()
+        if isinstance(what, int):
+            return what
+        return self._evaluate(out, what)
+
+    def out_problem(self, out: Path) -> str | None:
+        from arenabench.eval.reports import FORMATS
+
         return output_problem(out, own=FORMATS.values(), what="'arenabench check' report",
-                              inputs=[("the twin set", twin)])
+                              inputs=[("the twin set", self.twin)])
 
-    if args.out is not None and (problem := out_problem(args.out)):
-        return _error(problem)
-    python = args.python
-    if python not in (COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER) and "/" in python:
-        python = os.path.abspath(python)  # from where the command runs, not the script's folder
+    def make_pipeline(self, template: str, base: str, *, warm: bool = True):
+        """A command pipeline of ``template`` under the check's settings."""
+        from dataclasses import replace
 
-    def make_pipeline(template: str, base: str, *, warm: bool = True) -> CommandPipeline:
+        from arenabench.eval.runs import CommandPipeline
+
+        settings = self.settings
         return CommandPipeline(template, settings=replace(settings, warm=settings.warm and warm),
-                               name=script.name, base_dir=base)
+                               name=self.script.name, base_dir=base)
 
-    try:
+    def _configure(self) -> None:
+        """The run settings, and the options checked by making the pipeline (no run)."""
+        from dataclasses import replace
+
+        from arenabench.eval.runs import run_settings_from_args
+
         # the working directory holds a copy of the script's folder, as when the competition
         # ran the script there: relative reads work, obstacles.txt lands in the copy
-        base = run_settings_from_args(args)
-        settings = replace(base, workdir_from=str(script.parent),  # and no __pycache__ there
-                           env={"PYTHONDONTWRITEBYTECODE": "1", **base.env})
-        # the options, checked (no run)
-        make_pipeline(_template(OWN_PYTHON_PLACEHOLDER, script), str(script.parent)).close()
-    except ValueError as exc:
-        return _error(str(exc))
-    phases = resolve_phases(args.phase_check, [preset])
-    progress = not args.no_progress
+        base = run_settings_from_args(self.args)
+        self.settings = replace(base, workdir_from=str(self.script.parent),  # no __pycache__
+                                env={"PYTHONDONTWRITEBYTECODE": "1", **base.env})
+        self.make_pipeline(_template(OWN_PYTHON_PLACEHOLDER, self.script),
+                           str(self.script.parent)).close()
 
-    interpreter = _interpreter(python, progress=progress)
-    template = _template(
-        interpreter.executable if python == COMPETITION_PLACEHOLDER else python, script)
-    try:
-        pipeline = make_pipeline(template, str(script.parent))
-    except ValueError as exc:
-        return _error(str(exc))
-    try:
-        interpreter = _probe(interpreter, template, script, make_pipeline, settings,
-                             mode=pipeline.sandbox)
-    except ValueError as exc:  # PreflightError: the interpreter lacks numpy, cv2 or aruco
-        pipeline.close()
-        return _error(str(exc))
-    out = args.out if args.out is not None else report_dir(
-        script, preset=preset_key(preset), seed=args.seed, count=args.count,
-        interpreter=interpreter.executable, settings=settings.to_dict(), phases=phases)
-    if problem := out_problem(out):
-        return _error(problem)
-    print(f"interpreter: {interpreter.describe()}")
+    def _interpreter_and_pipeline(self) -> int | None:
+        """The interpreter (made where it is the competition's, then probed) and the
+        pipeline; an exit status when either is refused."""
+        python = self.args.python
+        if python not in (COMPETITION_PLACEHOLDER, OWN_PYTHON_PLACEHOLDER) and "/" in python:
+            python = os.path.abspath(python)  # from where the command runs, not the script's
+        interpreter = _interpreter(python, progress=self.progress)
+        template = _template(
+            interpreter.executable if python == COMPETITION_PLACEHOLDER else python,
+            self.script)
+        try:
+            self.pipeline = self.make_pipeline(template, str(self.script.parent))
+        except ValueError as exc:
+            return _error(str(exc))
+        try:
+            self.interpreter = _probe(interpreter, template, self.script, self.make_pipeline,
+                                      self.settings, mode=self.pipeline.sandbox)
+        except ValueError as exc:  # PreflightError: the interpreter lacks numpy, cv2 or aruco
+            self.pipeline.close()
+            return _error(str(exc))
+        return None
 
-    from arenabench.eval.datasets.reader import DatasetError, load_dataset
-    from arenabench.eval.evaluation import EvaluationInterrupted, evaluate
-    from arenabench.eval.reports import write_reports
-    from arenabench.generator.dataset.dataset_writer import GenerateError, generate_dataset
+    def _twin_set(self) -> str | int:
+        """Make the twin set (or reuse it, or a larger one's first scenes); what was done, or
+        an exit status."""
+        from arenabench.generator.dataset.dataset_writer import GenerateError, generate_dataset
 
-    larger = None if twin.exists() else larger_twin_set(preset=preset_key(preset), seed=args.seed,
-                                                         count=args.count, name=preset.name)
-    try:
-        if larger is not None:  # its first scenes are this set's: nothing to render
-            twin = larger[0]
-            made = None
-            what = f"reused twin set {twin} (its first {args.count} of {larger[1]} scenes"
-        else:
-            made = generate_dataset(twin, preset=preset, count=args.count, seed=args.seed,
-                                    workers=min(args.workers or _cores(), 8),
-                                    progress=progress)
-            what = (("reused" if made.rendered == 0 else f"generated {made.rendered} scenes of")
-                    + f" twin set {twin} ({args.count} scenes")
-    except (GenerateError, ValueError) as exc:
-        return _error(f"twin set {twin}: {exc}")
-    if made is not None and made.interrupted is not None:
-        print(f"{PROG}: {made.summary()}", file=sys.stderr)
-        from arenabench.interrupts import exit_code
+        args, preset = self.args, self.preset
+        if not self.twin.exists():
+            self.larger = larger_twin_set(preset=preset_key(preset), seed=args.seed,
+                                          count=args.count, name=preset.name)
+        try:
+            if self.larger is not None:  # its first scenes are this set's: nothing to render
+                self.twin = self.larger[0]
+                return (f"reused twin set {self.twin} (its first {args.count} of "
+                        f"{self.larger[1]} scenes")
+            made = generate_dataset(self.twin, preset=preset, count=args.count,
+                                    seed=args.seed, workers=min(args.workers or _cores(), 8),
+                                    progress=self.progress)
+        except (GenerateError, ValueError) as exc:
+            return _error(f"twin set {self.twin}: {exc}")
+        if made.interrupted is not None:
+            from arenabench.interrupts import exit_code
 
-        return exit_code(made.interrupted)
-    from arenabench.cliopts import lock_out
-    from arenabench.eval.evaluation import EvaluationFailed, empty_report
-    from arenabench.fileio import FolderLockedError
-    from arenabench.interrupts import Interrupted, deferred_stops
+            print(f"{PROG}: {made.summary()}", file=sys.stderr)
+            return exit_code(made.interrupted)
+        return (("reused" if made.rendered == 0 else f"generated {made.rendered} scenes of")
+                + f" twin set {self.twin} ({args.count} scenes")
 
-    # the set is made: a stop from now on writes the partial (perhaps empty) reports
-    dataset = None
-    try:
-        with lock_out(out):  # one run at a time writes into the report folder
-            try:
+    def _evaluate(self, out: Path, what: str) -> int:
+        """Evaluate the script on the set and write the reports (partial ones after a stop);
+        the verdict's lines and exit status."""
+        from dataclasses import replace
+
+        from arenabench.cliopts import lock_out
+        from arenabench.eval.datasets.reader import DatasetError, load_dataset
+        from arenabench.eval.evaluation import (
+            EvaluationFailed,
+            EvaluationInterrupted,
+            evaluate,
+        )
+        from arenabench.eval.reports import write_reports
+        from arenabench.fileio import FolderLockedError
+        from arenabench.interrupts import Interrupted, deferred_stops
+
+        args = self.args
+        # the set is made: a stop from now on writes the partial (perhaps empty) reports
+        self.dataset = None
+        try:
+            with lock_out(out):  # one run at a time writes into the report folder
                 try:
-                    dataset = load_dataset(twin, limit=args.count if larger else None)
-                except (DatasetError, ValueError) as exc:
-                    return _error(f"twin set {twin}: {exc}")
-                print(f"{PROG}: {what} of {preset.name}, seed {args.seed}); report folder {out}")
-                report = evaluate(pipeline, dataset, workers=args.workers, progress=progress,
-                                  phases=phases, open_from=preset)
-            except (EvaluationInterrupted, EvaluationFailed, Interrupted) as exc:
-                # partial reports, marked INCOMPLETE
-                partial = (exc.report if isinstance(exc, (EvaluationInterrupted,
-                                                          EvaluationFailed))
-                           else empty_report(pipeline=pipeline.name, dataset=str(twin),
-                                             n_total=None if dataset is None
-                                             else len(dataset.samples)))
-                partial = replace(partial, interpreter=interpreter.to_dict())
+                    try:
+                        self.dataset = load_dataset(self.twin,
+                                                    limit=args.count if self.larger else None)
+                    except (DatasetError, ValueError) as exc:
+                        return _error(f"twin set {self.twin}: {exc}")
+                    print(f"{PROG}: {what} of {self.preset.name}, seed {args.seed}); report "
+                          f"folder {out}")
+                    report = evaluate(self.pipeline, self.dataset, workers=args.workers,
+                                      progress=self.progress, phases=self.phases,
+                                      open_from=self.preset)
+                except (EvaluationInterrupted, EvaluationFailed, Interrupted) as exc:
+                    return self._stopped(exc, out)
+                report = replace(report, interpreter=self.interpreter.to_dict())
+                written: dict = {}
                 try:
-                    with deferred_stops():  # a second stop does not cut the writing short
-                        write_reports(partial, out, dataset=dataset)
-                except OSError as err:
-                    print(f"{PROG}: error: {write_failure(err, out)}", file=sys.stderr)
-                if isinstance(exc, EvaluationFailed):
-                    print(f"{PROG}: error: {exc}; nothing of it scored; partial report in "
-                          f"{out}", file=sys.stderr)
-                    return ExitCode.HARNESS
-                print(f"{PROG}: interrupted after {partial.images_done} images; running "
-                      f"scripts killed; partial report in {out}", file=sys.stderr)
-                return exc.exit_code
-            report = replace(report, interpreter=interpreter.to_dict())
-            written: dict = {}
-            try:
-                with deferred_stops():  # every image ran: a stop cuts no report off
-                    written = write_reports(report, out, dataset=dataset)
-            except Interrupted:  # raised once they are written: the exit status says so
-                pass
-    except FolderLockedError as exc:
-        return _error(str(exc))
-    except OSError as exc:  # ENOSPC: one line, no traceback (as eval and grade)
-        print(f"{PROG}: error: {write_failure(exc, out)}", file=sys.stderr)
-        return ExitCode.FAILED
-    for line in verdict_lines(report, min_pass_rate=args.min_pass_rate, phases=phases):
-        print(line)
-    if written:
-        print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
-    passed = report.summary.pass_rate >= args.min_pass_rate
-    if passed and args.probe and preset_key(preset) == DEFAULT_PRESET:  # the built-in twin
-        _probe_robustness(pipeline, args, script, twin_rate=report.summary.pass_rate)
-    return ExitCode.OK if passed else ExitCode.FAILED
+                    with deferred_stops():  # every image ran: a stop cuts no report off
+                        written = write_reports(report, out, dataset=self.dataset)
+                except Interrupted:  # raised once they are written: the exit status says so
+                    pass
+        except FolderLockedError as exc:
+            return _error(str(exc))
+        except OSError as exc:  # ENOSPC: one line, no traceback (as eval and grade)
+            print(f"{PROG}: error: {write_failure(exc, out)}", file=sys.stderr)
+            return ExitCode.FAILED
+        return self._verdict(report, written)
+
+    def _stopped(self, exc, out: Path) -> int:
+        """Partial reports, marked INCOMPLETE, after a stop or a harness failure."""
+        from dataclasses import replace
+
+        from arenabench.eval.evaluation import (
+            EvaluationFailed,
+            EvaluationInterrupted,
+            empty_report,
+        )
+        from arenabench.eval.reports import write_reports
+        from arenabench.interrupts import deferred_stops
+
+        dataset = self.dataset
+        partial = (exc.report if isinstance(exc, (EvaluationInterrupted, EvaluationFailed))
+                   else empty_report(pipeline=self.pipeline.name, dataset=str(self.twin),
+                                     n_total=None if dataset is None else len(dataset.samples)))
+        partial = replace(partial, interpreter=self.interpreter.to_dict())
+        try:
+            with deferred_stops():  # a second stop does not cut the writing short
+                write_reports(partial, out, dataset=dataset)
+        except OSError as err:
+            print(f"{PROG}: error: {write_failure(err, out)}", file=sys.stderr)
+        if isinstance(exc, EvaluationFailed):
+            print(f"{PROG}: error: {exc}; nothing of it scored; partial report in "
+                  f"{out}", file=sys.stderr)
+            return ExitCode.HARNESS
+        print(f"{PROG}: interrupted after {partial.images_done} images; running "
+              f"scripts killed; partial report in {out}", file=sys.stderr)
+        return exc.exit_code
+
+    def _verdict(self, report, written: dict) -> int:
+        args = self.args
+        for line in verdict_lines(report, min_pass_rate=args.min_pass_rate, phases=self.phases):
+            print(line)
+        if written:
+            print(f"  report: {written.get('html', next(iter(written.values()))).resolve()}")
+        passed = report.summary.pass_rate >= args.min_pass_rate
+        if passed and args.probe and preset_key(self.preset) == DEFAULT_PRESET:  # built-in twin
+            _probe_robustness(self.pipeline, args, self.script,
+                              twin_rate=report.summary.pass_rate)
+        return ExitCode.OK if passed else ExitCode.FAILED
 
 
 def _probe_robustness(pipeline, args: argparse.Namespace, script: Path, *,

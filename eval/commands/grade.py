@@ -149,33 +149,53 @@ def main(argv: list[str] | None = None) -> int:
     if args.reference is not None and not Path(args.reference).is_dir():
         return _error(f"--reference {args.reference}: not a folder (a known-good submission)")
 
-    from arenabench.eval.datasets.reader import DatasetError, load_dataset
-    from arenabench.eval.grade.grading import GradeOptions, check_out_dir, grade
-    from arenabench.eval.grade.submissions import SubmissionsError, find_teams
-    from arenabench.eval.phase_check import resolve_phases, set_presets
-    from arenabench.eval.runs import run_settings_from_args
+    from arenabench.eval.datasets.reader import DatasetError
+    from arenabench.eval.grade.submissions import SubmissionsError
 
-    formats = args.formats
     if problem := output_problem(args.out):
         return _error(problem)
     try:
-        dataset = load_dataset(args.dataset)
-        phases = resolve_phases(args.phase_check, set_presets(dataset))
-        options = GradeOptions(command=args.cmd, output=args.output, tolerance=args.tolerance,
-                               area_reference=args.area_reference,
-                               settings=run_settings_from_args(args), formats=formats,
-                               phases=phases, give_up_after=args.give_up_after)
-        find_teams(args.submissions)
-        check_out_dir(args.out, Path(args.submissions), dataset.root)
+        dataset, options = _inputs(args)
     except (DatasetError, SubmissionsError, ValueError) as exc:
         msg = str(exc)
         for param, option in _OPTION_NAMES.items():  # GradeOptions names its parameters
             if msg.startswith(f"{param} "):
                 msg = f"{option}{msg[len(param):]}"
         return _error(msg)
+    result = _run(args, dataset, options)
+    if isinstance(result, int):
+        return result
+    return _said(result)
+
+
+def _inputs(args):
+    """The dataset and the grade's options, every input checked before any run."""
+    from arenabench.eval.datasets.reader import load_dataset
+    from arenabench.eval.grade.grading import GradeOptions, check_out_dir
+    from arenabench.eval.grade.submissions import find_teams
+    from arenabench.eval.phase_check import resolve_phases, set_presets
+    from arenabench.eval.runs import run_settings_from_args
+
+    dataset = load_dataset(args.dataset)
+    phases = resolve_phases(args.phase_check, set_presets(dataset))
+    options = GradeOptions(command=args.cmd, output=args.output, tolerance=args.tolerance,
+                           area_reference=args.area_reference,
+                           settings=run_settings_from_args(args), formats=args.formats,
+                           phases=phases, give_up_after=args.give_up_after)
+    find_teams(args.submissions)
+    check_out_dir(args.out, Path(args.submissions), dataset.root)
+    return dataset, options
+
+
+def _run(args, dataset, options):
+    """Make the competition's interpreter where the command names it, take the lock and
+    grade; the grade's result, or an exit status."""
     from contextlib import ExitStack
     from dataclasses import replace
 
+    from arenabench.eval.datasets.reader import DatasetError
+    from arenabench.eval.grade.grading import grade
+    from arenabench.eval.grade.submissions import SubmissionsError
     from arenabench.eval.runs import resolve_competition_python
     from arenabench.eval.scoring.results import HarnessError
     from arenabench.fileio import FolderLockedError
@@ -207,6 +227,11 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{PROG}: {exc}: finished teams stay graded, and the finished images of "
                   "the others; run the same command again to resume", file=sys.stderr)
             return exc.exit_code
+    return result
+
+
+def _said(result) -> int:
+    """The grade's closing lines and exit status."""
     failed = f", {len(result.errors)} failed" if result.errors else ""
     print(f"{len(result.graded)} graded, {len(result.skipped)} skipped{failed}; "
           f"leaderboard of {len(result.rows)} teams:")

@@ -140,14 +140,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_or_status(argv)
     if isinstance(args, int):  # --help (0) or a usage error (2, one line printed)
         return args
-    from arenabench.eval.runs import missing_script_problem, trial_pipeline
-    from arenabench.eval.scoring.results import HarnessError
-    from arenabench.eval.sweep.execution import run_sweep
-    from arenabench.eval.sweep.grid import parse_varies
-    from arenabench.eval.sweep.outputs import FILES, KeptImageWriter, write_sweep
-    from arenabench.eval.sweep.records import PipelineSpec, SweepSpec
-    from arenabench.generator.model.sampler import SamplingError
-    from arenabench.generator.parameters.param_values import parse_overrides
+    from arenabench.eval.sweep.outputs import FILES
 
     if problem := output_problem(args.out, own=FILES.values(), what="'arenabench sweep' output"):
         return _error(problem)
@@ -156,36 +149,7 @@ def main(argv: list[str] | None = None) -> int:
     if not args.pipes:
         return _error("give --pipeline NAME|pkg.module:function and/or --cmd TEMPLATE")
     try:
-        axes = parse_varies(args.vary)
-        overrides = parse_overrides(args.overrides)
-        clash = sorted(set(overrides) & {a.key for a in axes})
-        if clash:
-            raise ValueError(f"--set {clash[0]}: also given with --vary")
-        settings = run_settings_from_args(args)
-        pipelines = tuple(
-            PipelineSpec(kind, value, settings=settings, output=args.output)
-            for kind, value in args.pipes
-        )
-        for p in pipelines:
-            if p.kind == "cmd" and (problem := missing_script_problem(p.value,
-                                                                      base_dir=p.base_dir)):
-                raise ValueError(f"--cmd {p.value!r}: {problem}")
-            if p.kind == "cmd" or ":" in p.value:
-                # import errors, missing executables now, as one line ({competition_python}
-                # is made after every other check: {python} stands in for it here)
-                trial = substitute_competition_python(p.value, OWN_PYTHON_PLACEHOLDER)
-                replace(p, value=trial).build().close()
-            if p.kind == "pipeline" and ":" in p.value:
-                trial_pipeline(p.value, timeout_s=settings.limits.timeout_s)
-        spec = SweepSpec(
-            preset=args.preset, axes=axes, pipelines=pipelines, per_point=args.per_point,
-            seed=args.seed, random=args.random, overrides=overrides,
-            tolerance=args.tolerance, area_reference=args.area_reference,
-            threshold=args.threshold, breakdown_mode=args.breakdown_mode,
-            keep="all" if args.keep_images else "failures" if args.keep_failures else "none",
-            independent_scenes=args.independent_scenes,
-            phases=resolve_phases(args.phase_check, [args.preset]),
-        )
+        spec = _spec(args)
     except ValueError as exc:
         return _error(str(exc))
     if args.scheduler is None:  # renders here: OpenGL must work before anything is written
@@ -195,28 +159,79 @@ def main(argv: list[str] | None = None) -> int:
             require_offscreen_gl()
         except OffscreenGLError as exc:
             return _error(str(exc))
+    return _run(args, spec)
+
+
+def _spec(args: argparse.Namespace):
+    """The sweep the options describe, every pipeline tried first (one line for what fails:
+    an import error, a missing executable or script)."""
+    from arenabench.eval.sweep.grid import parse_varies
+    from arenabench.eval.sweep.records import PipelineSpec, SweepSpec
+    from arenabench.generator.parameters.param_values import parse_overrides
+
+    axes = parse_varies(args.vary)
+    overrides = parse_overrides(args.overrides)
+    clash = sorted(set(overrides) & {a.key for a in axes})
+    if clash:
+        raise ValueError(f"--set {clash[0]}: also given with --vary")
+    settings = run_settings_from_args(args)
+    pipelines = tuple(PipelineSpec(kind, value, settings=settings, output=args.output)
+                      for kind, value in args.pipes)
+    for p in pipelines:
+        _try_pipeline(p, timeout_s=settings.limits.timeout_s)
+    return SweepSpec(
+        preset=args.preset, axes=axes, pipelines=pipelines, per_point=args.per_point,
+        seed=args.seed, random=args.random, overrides=overrides,
+        tolerance=args.tolerance, area_reference=args.area_reference,
+        threshold=args.threshold, breakdown_mode=args.breakdown_mode,
+        keep="all" if args.keep_images else "failures" if args.keep_failures else "none",
+        independent_scenes=args.independent_scenes,
+        phases=resolve_phases(args.phase_check, [args.preset]),
+    )
+
+
+def _try_pipeline(p, *, timeout_s: float) -> None:
+    """Raise ``ValueError`` with one line when pipeline ``p`` cannot run at all."""
+    from arenabench.eval.runs import missing_script_problem, trial_pipeline
+
+    if p.kind == "cmd" and (problem := missing_script_problem(p.value, base_dir=p.base_dir)):
+        raise ValueError(f"--cmd {p.value!r}: {problem}")
+    if p.kind == "cmd" or ":" in p.value:
+        # import errors, missing executables now, as one line ({competition_python}
+        # is made after every other check: {python} stands in for it here)
+        trial = substitute_competition_python(p.value, OWN_PYTHON_PLACEHOLDER)
+        replace(p, value=trial).build().close()
+    if p.kind == "pipeline" and ":" in p.value:
+        trial_pipeline(p.value, timeout_s=timeout_s)
+
+
+def _run(args: argparse.Namespace, spec) -> int:
+    """Make the competition's interpreter where a command names it, take the lock, run the
+    sweep and write its files; the exit status."""
     from contextlib import ExitStack
 
+    from arenabench.eval.scoring.results import HarnessError
+    from arenabench.eval.sweep.execution import run_sweep
+    from arenabench.eval.sweep.outputs import KeptImageWriter, write_sweep
     from arenabench.fileio import FolderLockedError
+    from arenabench.generator.model.sampler import SamplingError
 
     writer = KeptImageWriter(args.out)
     with stop_on_signals() as stop, ExitStack() as held:
         try:
             templates, _ = resolve_competition_python(
-                [p.value if p.kind == "cmd" else "" for p in pipelines],
+                [p.value if p.kind == "cmd" else "" for p in spec.pipelines],
                 progress=not args.no_progress, prog="arenabench sweep")
             spec = replace(spec, pipelines=tuple(
                 replace(p, value=t) if p.kind == "cmd" else p
-                for p, t in zip(pipelines, templates, strict=True)))
+                for p, t in zip(spec.pipelines, templates, strict=True)))
             held.enter_context(lock_out(args.out))  # generate's lock: one run per --out
             result = run_sweep(spec, workers=args.workers, scheduler=args.scheduler,
                                progress=not args.no_progress, on_output=writer)
-        except (ValueError, SamplingError) as exc:
+        except (ValueError, SamplingError, FolderLockedError) as exc:
             return _error(str(exc))
         except OSError as exc:  # e.g. the scheduler cannot be reached
             return _error(f"{type(exc).__name__}: {exc}")
-        except FolderLockedError as exc:
-            return _error(str(exc))
         except HarnessError as exc:  # the harness's own failure: nothing of it is scored
             print(f"arenabench sweep: error: the harness could not run an image: {exc}; "
                   "nothing written", file=sys.stderr)
@@ -232,16 +247,20 @@ def main(argv: list[str] | None = None) -> int:
         except OSError as exc:  # ENOSPC: one line, no traceback
             print(f"arenabench sweep: error: {write_failure(exc, args.out)}", file=sys.stderr)
             return stop.exit_code or 1
+    return _said(args, spec, result, written, writer, stop)
+
+
+def _said(args: argparse.Namespace, spec, result, written, writer, stop) -> int:
+    """The sweep's closing lines and exit status."""
+    run = result.run
     if not result.complete:
-        run = result.run
         print(f"arenabench sweep: interrupted by {run['interrupted']}: {run['samples_done']} "
               f"of {run['samples']} samples done ({run['points_done']} of "
               f"{len(result.points)} points complete); partial results written to "
               f"{written['json'].parent}/ (\"complete\": false)", file=sys.stderr)
         return stop.exit_code or 130
-    run = result.run
     print(f"sweep: {len(result.points)} points x {spec.per_point} scenes x "
-          f"{len(pipelines)} pipeline(s) in {run['seconds']:.1f} s "
+          f"{len(spec.pipelines)} pipeline(s) in {run['seconds']:.1f} s "
           f"({run['samples_per_s']} samples/s, {run['skipped']} skipped)")
     from arenabench.eval.sweep.breakdown import breakdown_texts
 

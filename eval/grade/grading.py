@@ -615,216 +615,272 @@ def _grade(data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
            report_workers: int | None, progress: bool,
            emit: Callable[[str], None], digests: dict[str, str],
            sandbox: dict[str, Any], refused: dict[str, str]) -> GradeResult:
-    from arenabench.progress import drop
-    from arenabench.progress import progress as progress_bar
-
     (root / TEAMS_DIR).mkdir(parents=True, exist_ok=True)
+    loop = _GradeLoop(data, teams, root, opts, expect_common, emit=emit, sandbox=sandbox,
+                      refused=refused)
+    loop.sort_teams(digests)
+    loop.resume()
+    return loop.run(workers=workers, client=client, report_workers=report_workers,
+                    progress=progress)
 
-    states: dict[str, dict[str, Any]] = {}
-    todo: list[tuple[Team, str]] = []
-    skipped: list[str] = []
-    for team in teams:
-        if team.name in refused:
-            emit(f"{team.shown}: error: {refused[team.name]}")
-            continue
-        digest = digests[team.name]
-        team_dir = root / TEAMS_DIR / team.name
-        state = _read_state(team_dir)
-        expect = {**expect_common, "team": team.name, "submission_sha256": digest}
-        if _state_valid(state, expect, team_dir, opts.formats):
-            assert state is not None
-            states[team.name] = state
-            skipped.append(team.name)
-            (team_dir / PARTIAL_FILE).unlink(missing_ok=True)  # graded: nothing to resume
-            emit(f"{team.name}: skipped: already graded ({_passed(state)})")
+
+class _GradeLoop:
+    """One grade in steps: sort the teams (refused, already graded, to grade), take back what
+    an interrupted grade kept, run every image left of every team, and finish each team (its
+    scoring and reports in the finisher's processes) as its last image comes back."""
+
+    def __init__(self, data: Dataset, teams: Sequence[Team], root: Path, opts: GradeOptions,
+                 expect_common: dict[str, str], *, emit: Callable[[str], None],
+                 sandbox: dict[str, Any], refused: dict[str, str]) -> None:
+        self.data, self.teams, self.root, self.opts = data, teams, root, opts
+        self.expect_common, self.emit, self.sandbox = expect_common, emit, sandbox
+        self.refused = refused
+        self.n_images = len(data.samples)
+        self.ids = (data.samples.ids if isinstance(data.samples, DatasetSamples)  # no GT read
+                    else [s.id for s in data.samples])
+        self.states: dict[str, dict[str, Any]] = {}
+        self.todo: list[tuple[Team, str]] = []
+        self.skipped: list[str] = []
+        self.runs: list[_TeamRun] = []
+        self.graded: list[str] = []
+        self.errors: dict[str, str] = dict(refused)
+        self.bar: Any = None
+        self.finisher: _Finisher | None = None
+        self.finishing: dict[Future, _FinishJob] = {}
+
+    def sort_teams(self, digests: dict[str, str]) -> None:
+        """Refused teams said, teams graded by an earlier run skipped, the others to do."""
+        for team in self.teams:
+            if team.name in self.refused:
+                self.emit(f"{team.shown}: error: {self.refused[team.name]}")
+                continue
+            digest = digests[team.name]
+            team_dir = self.root / TEAMS_DIR / team.name
+            state = _read_state(team_dir)
+            expect = {**self.expect_common, "team": team.name, "submission_sha256": digest}
+            if _state_valid(state, expect, team_dir, self.opts.formats):
+                assert state is not None
+                self.states[team.name] = state
+                self.skipped.append(team.name)
+                (team_dir / PARTIAL_FILE).unlink(missing_ok=True)  # graded: nothing to resume
+                self.emit(f"{team.name}: skipped: already graded ({_passed(state)})")
+            else:
+                (team_dir / STATE_FILE).unlink(missing_ok=True)  # stale: never trusted again
+                self.todo.append((team, digest))
+        if self.todo:
+            self.emit(f"grading {len(self.todo)} of {len(self.teams)} teams on "
+                      f"{self.n_images} images")
+
+    def resume(self) -> None:
+        """Each team's results kept by an interrupted grade on the same dataset, submission,
+        options and sandbox: those images do not run again."""
+        n_images = self.n_images
+        for team, digest in self.todo:
+            path = self.root / TEAMS_DIR / team.name / PARTIAL_FILE
+            header = {**self.expect_common, "team": team.name, "submission_sha256": digest}
+            kept = read_partial(path, header, self.ids)
+            preds: list[Prediction | None] = [None] * n_images
+            for j, pred in (kept or {}).items():
+                preds[j] = pred
+            self.runs.append(_TeamRun(team=team, digest=digest, preds=preds,
+                                      done=len(kept or {}),
+                                      log=PartialLog(path, header, append=kept is not None)))
+            if kept:
+                self.emit(f"{team.name}: resuming: {len(kept)} of {n_images} images kept "
+                          "from the last run")
+        for tr in self.runs:  # the kept results may hold a run of timeouts already
+            if (run := first_timeout_run(tr.preds, self.opts.give_up_after)) is not None:
+                self.give_up(tr, run)
+
+    def say(self, line: str) -> None:
+        """A line of the grade's log (above the progress bar on a terminal)."""
+        if hasattr(self.bar, "write"):  # a tqdm bar on a terminal: print above it
+            self.bar.write(line, file=sys.stdout)
         else:
-            (team_dir / STATE_FILE).unlink(missing_ok=True)  # stale: never trusted again
-            todo.append((team, digest))
+            self.emit(line)
 
-    n_images = len(data.samples)
-    ids = (data.samples.ids if isinstance(data.samples, DatasetSamples)  # no GT file read
-           else [s.id for s in data.samples])
-    if todo:
-        emit(f"grading {len(todo)} of {len(teams)} teams on {n_images} images")
-    # each team's results kept by an interrupted grade on the same dataset, submission,
-    # options and sandbox: those images do not run again
-    runs: list[_TeamRun] = []
-    for team, digest in todo:
-        path = root / TEAMS_DIR / team.name / PARTIAL_FILE
-        header = {**expect_common, "team": team.name, "submission_sha256": digest}
-        kept = read_partial(path, header, ids)
-        preds: list[Prediction | None] = [None] * n_images
-        for j, pred in (kept or {}).items():
-            preds[j] = pred
-        runs.append(_TeamRun(team=team, digest=digest, preds=preds, done=len(kept or {}),
-                             log=PartialLog(path, header, append=kept is not None)))
-        if kept:
-            emit(f"{team.name}: resuming: {len(kept)} of {n_images} images kept from the "
-                 "last run")
-
-    bar: Any = None
-
-    def say(line: str) -> None:
-        if hasattr(bar, "write"):  # a tqdm bar on a terminal: print above it
-            bar.write(line, file=sys.stdout)
-        else:
-            emit(line)
-
-    def give_up(tr: _TeamRun, run: tuple[int, int]) -> list[int]:
+    def give_up(self, tr: _TeamRun, run: tuple[int, int]) -> list[int]:
         """Run none of the team's images after ``run`` whose results are not back (they are
         skipped; :func:`settle` decides the verdicts when the team is done); their indices."""
         first, last = run
-        later = [j for j in range(last + 1, n_images) if tr.preds[j] is None]
-        tr.given_up = GiveUp(after=opts.give_up_after, first=ids[first], last=ids[last],
+        ids, after = self.ids, self.opts.give_up_after
+        later = [j for j in range(last + 1, self.n_images) if tr.preds[j] is None]
+        tr.given_up = GiveUp(after=after, first=ids[first], last=ids[last],
                              timeouts=last - first + 1, skipped=len(later))
         skip = tr.given_up.prediction()
         for j in later:
             tr.preds[j] = skip
         tr.done += len(later)
-        say(f"{tr.team.name}: giving up after {last - first + 1} consecutive timeouts "
-            f"({ids[first]} to {ids[last]}): {len(later)} later images not run "
-            f"(--give-up-after {opts.give_up_after})")
+        self.say(f"{tr.team.name}: giving up after {last - first + 1} consecutive timeouts "
+                 f"({ids[first]} to {ids[last]}): {len(later)} later images not run "
+                 f"(--give-up-after {after})")
         return later
 
-    for tr in runs:  # the kept results may hold a run of timeouts already
-        if (run := first_timeout_run(tr.preds, opts.give_up_after)) is not None:
-            give_up(tr, run)
+    def _units(self) -> tuple[list[GradeUnit], list[tuple[int, int]], dict]:
+        """The runs left: the units, each unit's (team, image index), and the reverse map."""
+        units: list[GradeUnit] = []
+        where: list[tuple[int, int]] = []  # unit position -> (team, image index)
+        position: dict[tuple[int, int], int] = {}
+        opts = self.opts
+        image_paths = self.data.image_paths()
+        for k, tr in enumerate(self.runs):
+            command = team_command(opts.command, tr.team.path)
+            for j, image in enumerate(image_paths):
+                if tr.preds[j] is None:
+                    position[(k, j)] = len(units)
+                    where.append((k, j))
+                    units.append(GradeUnit(team=tr.team.name, submission=str(tr.team.path),
+                                           image=str(image), command=command,
+                                           output=opts.output, settings=opts.settings))
+        return units, where, position
 
-    units: list[GradeUnit] = []
-    where: list[tuple[int, int]] = []  # unit position -> (team, image index)
-    position: dict[tuple[int, int], int] = {}
-    image_paths = data.image_paths()
-    for k, tr in enumerate(runs):
-        command = team_command(opts.command, tr.team.path)
-        for j, image in enumerate(image_paths):
-            if tr.preds[j] is None:
-                position[(k, j)] = len(units)
-                where.append((k, j))
-                units.append(GradeUnit(team=tr.team.name, submission=str(tr.team.path),
-                                       image=str(image), command=command,
-                                       output=opts.output, settings=opts.settings))
-
-    graded: list[str] = []
-    errors: dict[str, str] = dict(refused)
-    bar = progress_bar(len(units), desc="grade", unit="run", enabled=progress)
-
-    if report_workers is None:  # only the HTML report is worth other processes
-        report_workers = usable_cores() if "html" in opts.formats else 1
-    finisher = _Finisher(report_workers, n_teams=len(todo))
-    finishing: dict[Future, _FinishJob] = {}
-
-    def collect(block: bool) -> None:
+    def collect(self, block: bool) -> None:
+        """Take in the finished teams' states (all of them, waiting, with ``block``)."""
+        finishing = self.finishing
         ready = list(finishing) if block else [f for f in finishing if f.done()]
         for fut in ready:
             job = finishing.pop(fut)
             name = job.team.name
             try:
                 try:
-                    states[name] = result_of(fut)
+                    self.states[name] = result_of(fut)
                 except BrokenProcessPool:  # lost with a dead report process: once more here
-                    states[name] = _finish_team(job, data)
+                    self.states[name] = _finish_team(job, self.data)
             except Exception as exc:  # the grader's own failure on this team only
-                errors[name] = f"{type(exc).__name__}: {exc}"
-                say(f"{name}: error: {errors[name]}")
+                self.errors[name] = f"{type(exc).__name__}: {exc}"
+                self.say(f"{name}: error: {self.errors[name]}")
                 continue
-            graded.append(name)
-            gave_up = states[name].get("given_up")
+            self.graded.append(name)
+            gave_up = self.states[name].get("given_up")
             note = f"; {GiveUp(**gave_up).text()}" if gave_up else ""
-            say(f"{name}: graded ({_passed(states[name])}{note})")
+            self.say(f"{name}: graded ({_passed(self.states[name])}{note})")
 
-    def finish(tr: _TeamRun) -> None:
+    def finish(self, tr: _TeamRun) -> None:
+        """Every image of ``tr`` is back: its scoring and reports go to the finisher."""
         tr.log.close()
         # the verdicts do not depend on how many images ran at once nor on the order their
         # results came back: every image after the first run of timeouts is skipped
-        given_up = settle(tr.preds, opts.give_up_after, ids)
+        given_up = settle(tr.preds, self.opts.give_up_after, self.ids)
         job = _FinishJob(team=tr.team, digest=tr.digest,
                          preds=[p for p in tr.preds if p is not None],
-                         dataset_root=str(data.root), root=str(root), opts=opts,
-                         expect_common=expect_common, sandbox=sandbox,
+                         dataset_root=str(self.data.root), root=str(self.root),
+                         opts=self.opts, expect_common=self.expect_common,
+                         sandbox=self.sandbox,
                          given_up=None if given_up is None else given_up.to_dict())
         tr.preds, tr.submitted = [], True  # the job holds them now
-        finishing[finisher.submit(job, data)] = job
+        assert self.finisher is not None
+        self.finishing[self.finisher.submit(job, self.data)] = job
 
-    def keep(i: int, pred: Prediction) -> _TeamRun | None:
-        """Record unit ``i``'s result (kept in the team's partial results); its team, or
-        ``None`` when it is not used (the team was given up meanwhile)."""
-        k, j = where[i]
-        tr = runs[k]
+    def keep(self, where: tuple[int, int], pred: Prediction) -> _TeamRun | None:
+        """Record the result of image ``where`` = (team, image index) (kept in the team's
+        partial results); its team, or ``None`` when it is not used (the team was given up
+        meanwhile)."""
+        k, j = where
+        tr = self.runs[k]
         if tr.submitted or tr.preds[j] is not None:  # dropped: the team was given up
             return None
         tr.preds[j] = pred
         tr.done += 1
-        tr.log.add(j, ids[j], pred)
-        bar.update(1)
+        tr.log.add(j, self.ids[j], pred)
+        self.bar.update(1)
         return tr
 
-    execution = _execute(units, workers=workers, scheduler=client)
-    finished = False
-    n_total = len(teams) * n_images
-    try:
-        for tr in runs:  # every image kept (or not run): nothing left to run
+    def run(self, *, workers: int | None, client: Any, report_workers: int | None,
+            progress: bool) -> GradeResult:
+        """Run what is left, finish each team as it completes; the grade's result."""
+        from arenabench.progress import progress as progress_bar
+
+        units, where, position = self._units()
+        self.bar = progress_bar(len(units), desc="grade", unit="run", enabled=progress)
+        if report_workers is None:  # only the HTML report is worth other processes
+            report_workers = usable_cores() if "html" in self.opts.formats else 1
+        self.finisher = _Finisher(report_workers, n_teams=len(self.todo))
+        execution = _execute(units, workers=workers, scheduler=client)
+        finished = False
+        try:
+            self._loop(execution, where, position)
+            finished = True
+        except BaseException:  # interrupted: a partial leaderboard of the finished teams
+            try:
+                for i, pred in execution.ready():  # runs that ended before the stop: kept
+                    self.keep(where[i], pred)
+                self.collect(block=False)
+                self._write_partial_leaderboard()
+            except Exception:  # never hide the interrupt behind a report error
+                pass
+            raise
+        finally:
+            execution.close()  # stops and cancels what is still running or pending
+            for tr in self.runs:
+                tr.log.close()
+            self.bar.close()
+            self.finisher.close(wait=finished)
+        return self._result()
+
+    def _loop(self, execution: Any, where: list[tuple[int, int]],
+              position: dict[tuple[int, int], int]) -> None:
+        from arenabench.progress import drop
+
+        after, n_images = self.opts.give_up_after, self.n_images
+        for tr in self.runs:  # every image kept (or not run): nothing left to run
             if tr.done == n_images:
-                finish(tr)
+                self.finish(tr)
         for i, pred in execution:
-            tr = keep(i, pred)
+            tr = self.keep(where[i], pred)
             if tr is None:
                 continue
             k, j = where[i]
             run = timeout_run(tr.preds, j) if tr.given_up is None else None
-            if opts.give_up_after and run and run[1] - run[0] + 1 >= opts.give_up_after:
-                later = give_up(tr, run)
+            if after and run and run[1] - run[0] + 1 >= after:
+                later = self.give_up(tr, run)
                 execution.drop(position[(k, x)] for x in later)
-                drop(bar, len(later))  # they will not run: out of the work and its estimate
-            bar.set_postfix_str(_progress_text(runs, n_images), refresh=False)
+                drop(self.bar, len(later))  # they will not run: out of the work and its ETA
+            self.bar.set_postfix_str(_progress_text(self.runs, n_images), refresh=False)
             if tr.done == n_images:
-                finish(tr)
-            collect(block=False)
-        collect(block=True)
-        finished = True
-    except BaseException:  # interrupted: a partial leaderboard of the finished teams
-        try:
-            for i, pred in execution.ready():  # runs that ended before the stop: kept
-                keep(i, pred)
-            collect(block=False)
-            rows = rank_rows(_row(t.name, states[t.name]) for t in teams if t.name in states)
-            unfinished = [{"team": tr.team.name, "images_done": tr.done,
-                           "images_total": n_images}
-                          for tr in runs if tr.team.name not in states
-                          and tr.team.name not in errors]
-            done = len(skipped) * n_images + sum(
-                n_images if tr.team.name in states else tr.done for tr in runs)
-            write_leaderboard_files(root, rows, data=data, opts=opts,
-                                    manifest_sha256=expect_common["dataset_manifest_sha256"],
-                                    images_done=done, images_total=n_total, sandbox=sandbox,
-                                    unfinished=unfinished)
-            for u in unfinished:
-                if u["images_done"] == n_images:  # run, but not scored and reported yet
-                    say(f"{u['team']}: not finished: all {n_images} images run (kept), its "
-                        "scoring, phase check and reports not done: the same command does "
-                        "them")
-                else:
-                    say(f"{u['team']}: not finished: {u['images_done']} of {n_images} images "
-                        "done (kept: the same command resumes from there)")
-        except Exception:  # never hide the interrupt behind a report error
-            pass
-        raise
-    finally:
-        execution.close()  # stops and cancels what is still running or pending
-        for tr in runs:
-            tr.log.close()
-        bar.close()
-        finisher.close(wait=finished)
+                self.finish(tr)
+            self.collect(block=False)
+        self.collect(block=True)
 
-    rows = rank_rows(_row(t.name, states[t.name]) for t in teams if t.name in states)
-    done = sum(states[t.name]["summary"].get("n", 0) for t in teams if t.name in states)
-    with deferred_stops():  # every team is graded: a stop now cuts no leaderboard file off
-        files = write_leaderboard_files(
-            root, rows, data=data, opts=opts,
-            manifest_sha256=expect_common["dataset_manifest_sha256"], images_done=done,
-            images_total=n_total, sandbox=sandbox)
-    systemic = systemic_failure({t.name: states[t.name] for t in teams if t.name in states})
-    return GradeResult(rows=rows, graded=graded, skipped=skipped, errors=errors, files=files,
-                       systemic=systemic)
+    def _rows(self) -> list:
+        return rank_rows(_row(t.name, self.states[t.name]) for t in self.teams
+                         if t.name in self.states)
+
+    def _write_partial_leaderboard(self) -> None:
+        """After a stop: the leaderboard of the finished teams, and what each other did."""
+        n_images, states = self.n_images, self.states
+        unfinished = [{"team": tr.team.name, "images_done": tr.done, "images_total": n_images}
+                      for tr in self.runs if tr.team.name not in states
+                      and tr.team.name not in self.errors]
+        done = len(self.skipped) * n_images + sum(
+            n_images if tr.team.name in states else tr.done for tr in self.runs)
+        write_leaderboard_files(
+            self.root, self._rows(), data=self.data, opts=self.opts,
+            manifest_sha256=self.expect_common["dataset_manifest_sha256"], images_done=done,
+            images_total=len(self.teams) * n_images, sandbox=self.sandbox,
+            unfinished=unfinished)
+        for u in unfinished:
+            if u["images_done"] == n_images:  # run, but not scored and reported yet
+                self.say(f"{u['team']}: not finished: all {n_images} images run (kept), its "
+                         "scoring, phase check and reports not done: the same command does "
+                         "them")
+            else:
+                self.say(f"{u['team']}: not finished: {u['images_done']} of {n_images} "
+                         "images done (kept: the same command resumes from there)")
+
+    def _result(self) -> GradeResult:
+        """Every team graded: the leaderboard files and the grade's result."""
+        teams, states = self.teams, self.states
+        rows = self._rows()
+        done = sum(states[t.name]["summary"].get("n", 0) for t in teams if t.name in states)
+        with deferred_stops():  # every team is graded: a stop now cuts no leaderboard file off
+            files = write_leaderboard_files(
+                self.root, rows, data=self.data, opts=self.opts,
+                manifest_sha256=self.expect_common["dataset_manifest_sha256"],
+                images_done=done, images_total=len(teams) * self.n_images,
+                sandbox=self.sandbox)
+        systemic = systemic_failure({t.name: states[t.name] for t in teams if t.name in states})
+        return GradeResult(rows=rows, graded=self.graded, skipped=self.skipped,
+                           errors=self.errors, files=files, systemic=systemic)
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,7 @@ from typing import TYPE_CHECKING
 
 from arenabench.eval.scoring.results import HarnessError, Prediction
 
-from .proctools import BOX, RUN_GRACE_S
+from .proctools import BOX, RUN_GRACE_S, RunRecord
 from .sandbox import SANDBOX_DIR
 from .slots import hold
 from .stale import run_dir_prefix
@@ -141,7 +141,8 @@ class ColdRunner:
         finally:
             slot.release()
         try:
-            result = marshal.loads(Path(rundir, "result.bin").read_bytes())
+            raw = marshal.loads(Path(rundir, "result.bin").read_bytes())
+            result = RunRecord.from_dict(raw)
         except (OSError, ValueError, EOFError, TypeError):
             if pipe.stopped:
                 return Prediction(status="crash", message="interrupted")

@@ -50,7 +50,7 @@ from arenabench.eval.scoring.results import Prediction
 
 from .limits import RunLimits, RunSettings
 from .predictions import OUTPUT_MODES, prediction_from_run
-from .proctools import BOX_DIRS, LaunchConfig, WarmLaunch
+from .proctools import BOX_DIRS, LaunchConfig, RunRecord, WarmLaunch
 from .sandbox import (
     SANDBOX_DIR,
     bwrap_argv,
@@ -271,7 +271,7 @@ class Command:
             box_bytes=lim.disk_bytes if self.sandboxed else None,
             image_name=self.image_name(image_path), warm=warm)
 
-    def interpret(self, result: dict, stdout: str, stderr: str, workdir: str) -> Prediction:
+    def interpret(self, result: RunRecord, stdout: str, stderr: str, workdir: str) -> Prediction:
         """A finished run's :class:`Prediction` (:func:`.predictions.prediction_from_run`)."""
         return prediction_from_run(result, stdout, stderr, workdir, output=self.output,
                                    limits=self.limits,

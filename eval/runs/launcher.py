@@ -27,18 +27,8 @@ everything a run may write is bounded in total and never lands on the machine's 
 files it left come back into ``RUNDIR/work`` (bounded: :func:`.proctools.copy_back`); the box
 goes with the launcher's namespace.
 
-``result.bin``: ``rc`` (exit status, negative for a signal, ``null`` when not started),
-``timed_out``, ``latency_ms`` (start of the command to the exit of its main process),
-``stdout_bytes``/``stderr_bytes`` (total printed), ``pids_limit_hit`` (the cgroup refused a
-fork), ``error`` (the command could not be started), ``harness_error`` (the launcher could not
-prepare the run: not the command's failure), ``cpu_ms`` and ``wait_ms`` (of a timed-out run:
-the CPU time its processes used and the time they waited for a CPU, from
-``/proc/PID/schedstat``: :func:`.proctools.schedstat`), ``lowered_priority`` (of a timed-out
-run: whether it gave itself a higher nice value or an idle policy:
-:func:`.proctools.lowered_priority`), ``runnable`` and ``cpus`` (of a timed-out run: its threads
-that wanted a CPU at the timeout, and the CPUs they may use: :func:`.proctools.runnable_threads`),
-``box`` (``"tmpfs"``, ``"folder"``
-where no namespace could be made, or ``""`` without one).
+``result.bin``: a :class:`~arenabench.eval.runs.proctools.RunRecord` (its fields say what each
+value means).
 """
 
 from __future__ import annotations
@@ -74,6 +64,7 @@ def load_sibling(name: str):
 
 tools = load_sibling("proctools")
 LaunchConfig = tools.LaunchConfig
+RunRecord = tools.RunRecord
 
 _stop_signal: int | None = None
 
@@ -232,13 +223,13 @@ def _spawn(cfg: LaunchConfig, cgroup: str | None, out_fd: int, err_fd: int, beco
     return pid
 
 
-def _write_result(rundir: str, result: dict, tails: dict[str, _Tail]) -> None:
+def _write_result(rundir: str, result: RunRecord, tails: dict[str, _Tail]) -> None:
     for name, t in tails.items():
         with open(os.path.join(rundir, name), "wb") as fh:
             fh.write(t.value())
     tmp = os.path.join(rundir, "result.bin.tmp")
     with open(tmp, "wb") as fh:
-        marshal.dump(result, fh)
+        marshal.dump(result.to_dict(), fh)
     os.replace(tmp, os.path.join(rundir, "result.bin"))
 
 
@@ -246,14 +237,14 @@ def _exit_status(status: int) -> int:
     return -os.WTERMSIG(status) if os.WIFSIGNALED(status) else os.WEXITSTATUS(status)
 
 
-def _prepare_box(cfg: LaunchConfig, result: dict) -> int:
+def _prepare_box(cfg: LaunchConfig, result: RunRecord) -> int:
     """The cold launcher's box (:func:`.proctools.mount_box`) in a namespace of its own, seen
     by the bubblewrap it starts; returns a descriptor of ``box/work``."""
     try:
         tools.enter_private_mounts()
-        size, result["box"] = cfg.box_bytes, "tmpfs"
+        size, result.box = cfg.box_bytes, "tmpfs"
     except OSError:  # no user namespace here: a plain folder (no bound on what is written)
-        size, result["box"] = None, "folder"
+        size, result.box = None, "folder"
     box = tools.mount_box(cfg.rundir, size)
     return os.open(os.path.join(box, "work"), os.O_RDONLY | os.O_DIRECTORY)
 
@@ -291,6 +282,62 @@ def _copy_back_to(rundir: str, box_fd: int, cfg: LaunchConfig) -> None:
         os.close(box_fd)
 
 
+class _Pipes:
+    """The command's main process (a pidfd) and its output pipes, polled together: each
+    chunk goes to its tail, a pipe at end of file is forgotten."""
+
+    def __init__(self, pid: int, streams: dict[int, _Tail]) -> None:
+        self.pidfd = os.pidfd_open(pid)
+        self.poller = select.poll()
+        self.streams = streams
+        for fd in (self.pidfd, *streams):
+            self.poller.register(fd, select.POLLIN)
+
+    def pump(self, fd: int) -> None:
+        """Keep one chunk of an output pipe; forget the pipe at end of file."""
+        chunk = os.read(fd, 1 << 16)
+        if chunk:
+            self.streams[fd].add(chunk)
+        else:
+            self.poller.unregister(fd)
+            del self.streams[fd]
+
+    def wait(self, deadline: float) -> bool:
+        """Read the pipes until the main process exits (``True``) or ``deadline`` passes."""
+        while True:
+            remaining = deadline - time.perf_counter()
+            if remaining <= 0:
+                return False
+            exited = False
+            for fd, _ in self.poller.poll(remaining * 1000.0):
+                if fd == self.pidfd:
+                    exited = True
+                    continue
+                self.pump(fd)
+            if exited:
+                return True
+
+    def drain(self, within_s: float = 2.0) -> None:
+        """Once every writer is gone: read what is left (for at most ``within_s``)."""
+        self.poller.unregister(self.pidfd)
+        os.close(self.pidfd)
+        until = time.perf_counter() + within_s
+        while self.streams and time.perf_counter() < until:
+            for fd, _ in self.poller.poll(100):
+                self.pump(fd)
+
+
+def _account(result: RunRecord, cgroup: str | None) -> None:
+    """A timed-out run's CPU account, before its processes are killed: CPU time, wait for a
+    CPU, its runnable threads and CPUs, whether it lowered its priority."""
+    alive = tools.descendants(os.getpid())
+    alive += tools.cgroup_pids(cgroup) if cgroup else []
+    alive = sorted(set(alive))  # a process of both counts once
+    result.cpu_ms, result.wait_ms = tools.schedstat(alive)
+    result.lowered_priority = tools.lowered_priority(alive)
+    result.runnable, result.cpus = tools.runnable_threads(alive)
+
+
 def run(cfg: LaunchConfig, *, become=None, own_cgroup: str | None = None) -> int:
     """Run one command as ``cfg`` says; returns the exit status.
 
@@ -300,8 +347,7 @@ def run(cfg: LaunchConfig, *, become=None, own_cgroup: str | None = None) -> int
     moved into it."""
     rundir = cfg.rundir
     tails = {"stdout": _Tail(cfg.max_output), "stderr": _Tail(cfg.max_output)}
-    result: dict = {"rc": None, "timed_out": False, "latency_ms": 0.0, "error": "",
-                    "harness_error": "", "pids_limit_hit": False, "box": ""}
+    result = RunRecord()
     # --max-procs 0: no process limit (the cgroup still holds the run's processes for cleanup)
     pids_max = cfg.pids_max if cfg.max_procs else "max"
     if own_cgroup:
@@ -314,7 +360,7 @@ def run(cfg: LaunchConfig, *, become=None, own_cgroup: str | None = None) -> int
         if cgroup is None and cfg.cgroup_parent and cfg.max_procs:
             # the parent took a probe's pids cgroup: failing now, run nothing rather than run
             # without the process limit (fail closed)
-            result["harness_error"] = (
+            result.harness_error = (
                 f"cannot create the run's pids cgroup under {cfg.cgroup_parent}: "
                 f"--max-procs {cfg.max_procs} cannot be enforced, so the command was not run")
             cleaned = True
@@ -324,7 +370,7 @@ def run(cfg: LaunchConfig, *, become=None, own_cgroup: str | None = None) -> int
             try:
                 box_fd = _prepare_box(cfg, result)
             except OSError as exc:
-                result["harness_error"] = _box_problem(cfg, exc)
+                result.harness_error = _box_problem(cfg, exc)
                 cleaned = True
                 return 0
         r_out, w_out = os.pipe()
@@ -333,64 +379,28 @@ def run(cfg: LaunchConfig, *, become=None, own_cgroup: str | None = None) -> int
         try:
             pid = _spawn(cfg, attach, w_out, w_err, become)
         except OSError as exc:
-            result["error"] = f"cannot start command: {exc}"
+            result.error = f"cannot start command: {exc}"
             cleaned = True
             return 0
         finally:
             os.close(w_out)
             os.close(w_err)
-        deadline = start + cfg.timeout_s
-        pidfd = os.pidfd_open(pid)
-        poller = select.poll()
-        streams = {r_out: tails["stdout"], r_err: tails["stderr"]}
-        for fd in (pidfd, r_out, r_err):
-            poller.register(fd, select.POLLIN)
-
-        def pump(fd: int) -> None:
-            """Keep one chunk of an output pipe; forget the pipe at end of file."""
-            chunk = os.read(fd, 1 << 16)
-            if chunk:
-                streams[fd].add(chunk)
-            else:
-                poller.unregister(fd)
-                del streams[fd]
-
-        exited = False
-        while not exited:
-            remaining = deadline - time.perf_counter()
-            if remaining <= 0:
-                result["timed_out"] = True
-                break
-            for fd, _ in poller.poll(remaining * 1000.0):
-                if fd == pidfd:
-                    exited = True
-                    continue
-                pump(fd)
+        pipes = _Pipes(pid, {r_out: tails["stdout"], r_err: tails["stderr"]})
+        result.timed_out = not pipes.wait(start + cfg.timeout_s)
         # in a sandbox nothing can leave the run's cgroup: reading it finds every process;
         # without one a process could move itself out, so /proc is scanned too
         scan = not cfg.sandboxed
-        if not exited:
-            alive = tools.descendants(os.getpid())
-            alive += tools.cgroup_pids(cgroup) if cgroup else []
-            alive = sorted(set(alive))  # a process of both counts once
-            result["cpu_ms"], result["wait_ms"] = tools.schedstat(alive)
-            result["lowered_priority"] = tools.lowered_priority(alive)
-            result["runnable"], result["cpus"] = tools.runnable_threads(alive)
+        if result.timed_out:
+            _account(result, cgroup)
             tools.kill_descendants(cgroup, scan=scan)
-        result["rc"] = _exit_status(os.waitpid(pid, 0)[1])
-        result["latency_ms"] = (time.perf_counter() - start) * 1000.0
+        result.rc = _exit_status(os.waitpid(pid, 0)[1])
+        result.latency_ms = (time.perf_counter() - start) * 1000.0
         tools.kill_descendants(cgroup, scan=scan)
         cleaned = True
-        # every writer is gone: drain what is left in the pipes
-        poller.unregister(pidfd)
-        os.close(pidfd)
-        drain_until = time.perf_counter() + 2.0
-        while streams and time.perf_counter() < drain_until:
-            for fd, _ in poller.poll(100):
-                pump(fd)
-        result["pids_limit_hit"] = _pids_limit_hit(cgroup)
+        pipes.drain()  # every writer is gone: what is left in the pipes
+        result.pids_limit_hit = _pids_limit_hit(cgroup)
         if become is not None:  # a warm run that could not be prepared says why in its folder
-            result["harness_error"] = _read_note(os.path.join(rundir, "harness_error"))
+            result.harness_error = _read_note(os.path.join(rundir, "harness_error"))
         if box_fd is not None:
             _copy_back_to(rundir, box_fd, cfg)
         return 0

@@ -34,6 +34,7 @@ from arenabench.eval.scoring.results import HarnessError, Prediction, tail
 
 from .limits import RunLimits
 from .outputs import read_small
+from .proctools import RunRecord
 from .run_images import collect_run_images
 
 #: A timed-out run that waited for a CPU (runnable, not running) for at least this share of
@@ -61,14 +62,15 @@ _NPROC_SIGNS = ("Resource temporarily unavailable", "BlockingIOError", "fork: re
 
 
 
-def limit_hit(result: dict, stderr: str, *, limits: RunLimits, pids_cgroup: bool) -> str | None:
+def limit_hit(result: RunRecord, stderr: str, *, limits: RunLimits,
+              pids_cgroup: bool) -> str | None:
     """Which limit a failed run hit, as the message's start (``None``: none).
 
     ``pids_cgroup``: whether the run had a pids cgroup (without one, the process limit is
     ``RLIMIT_NPROC`` and shows only in what the command printed).
     """
-    rc, last = result["rc"], stderr[-4000:]
-    if result.get("pids_limit_hit") or (
+    rc, last = result.rc, stderr[-4000:]
+    if result.pids_limit_hit or (
         not pids_cgroup and limits.max_procs and any(s in last for s in _NPROC_SIGNS)
     ):
         return f"process limit (--max-procs {limits.max_procs}) reached"
@@ -79,15 +81,14 @@ def limit_hit(result: dict, stderr: str, *, limits: RunLimits, pids_cgroup: bool
     return None
 
 
-def prediction_from_run(result: dict, stdout: str, stderr: str, workdir: str, *, output: str,
-                        limits: RunLimits, pids_cgroup: bool) -> Prediction:
+def prediction_from_run(result: RunRecord, stdout: str, stderr: str, workdir: str, *,
+                        output: str, limits: RunLimits, pids_cgroup: bool) -> Prediction:
     """The :class:`Prediction` of one finished external run (see the module docstring).
 
     Parameters
     ----------
-    result : dict
-        The launcher's (or warm server's) result: ``rc``, ``latency_ms``, ``timed_out``,
-        optional ``error``, ``harness_error``, ``pids_limit_hit`` and ``wait_ms``.
+    result : RunRecord
+        What the launcher (or the warm server's run manager) recorded of the run.
     stdout, stderr : str
         What the command printed (the kept tails).
     workdir : str
@@ -106,25 +107,25 @@ def prediction_from_run(result: dict, stdout: str, stderr: str, workdir: str, *,
         When the launcher could not prepare the run (``harness_error``): not the command's
         failure.
     """
-    if result.get("harness_error"):
-        raise HarnessError(result["harness_error"][:500])
-    rc, latency = result["rc"], float(result["latency_ms"])
+    if result.harness_error:
+        raise HarnessError(result.harness_error[:500])
+    rc, latency = result.rc, float(result.latency_ms)
     keep = {"stdout": tail(stdout), "stderr": tail(stderr), "latency_ms": latency,
             "run_images": collect_run_images(workdir)}
-    if result.get("error"):
-        return Prediction(status="crash", message=result["error"][:500], **keep)
-    failed = result["timed_out"] or rc not in (0, EXIT_MARKERS_NOT_FOUND)
+    if result.error:
+        return Prediction(status="crash", message=result.error[:500], **keep)
+    failed = result.timed_out or rc not in (0, EXIT_MARKERS_NOT_FOUND)
     which = limit_hit(result, stderr, limits=limits, pids_cgroup=pids_cgroup)
     last = stderr.strip().splitlines()[-1:] or [""]
-    if which and (failed or result.get("pids_limit_hit")):
+    if which and (failed or result.pids_limit_hit):
         return Prediction(status="limit", message=f"{which}: {last[0][:300]}".rstrip(": "),
                           **keep)
-    if result["timed_out"]:
+    if result.timed_out:
         msg = f"timed out after {limits.timeout_s:g} s (all its processes killed)"
-        wait_s = float(result.get("wait_ms") or 0.0) / 1e3
-        own_crowd = int(result.get("runnable") or 0) > int(result.get("cpus") or 1)
+        wait_s = result.wait_ms / 1e3
+        own_crowd = result.runnable > (result.cpus or 1)
         if (wait_s >= STARVED_SHARE * limits.timeout_s and not own_crowd
-                and not result.get("lowered_priority")):
+                and not result.lowered_priority):
             return Prediction(status="timeout", starved=True, message=(
                 f"{msg}; starved: it waited {wait_s:.1f} s for a CPU (the machine was busy)"),
                 **keep)

@@ -527,6 +527,60 @@ class WarmLaunch(_Record):
     env_changes: dict = {}  # noqa: RUF012
 
 
+class RunRecord(_Record):
+    """What a run's launcher (cold) or the warm server's run manager writes to
+    ``RUNDIR/result.bin`` (as :meth:`to_dict`, a :mod:`marshal` dict), and what
+    :func:`arenabench.eval.runs.predictions.prediction_from_run` reads.
+
+    Attributes
+    ----------
+    rc : int or None
+        Exit status of the command's main process, negative for a signal; ``None`` when it
+        never started.
+    timed_out : bool
+        The command outran its timeout (and was killed).
+    latency_ms : float
+        From the command's start to its main process's exit.
+    error : str
+        The command could not be started (its failure).
+    harness_error : str
+        The launcher could not prepare the run (the harness's failure, never the command's).
+    pids_limit_hit : bool
+        The run's pids cgroup refused a fork.
+    box : str
+        ``"tmpfs"``, ``"folder"`` where no namespace could be made, or ``""`` (no box).
+    cpu_ms, wait_ms : float
+        Of a timed-out run: the CPU time its processes used and the time they waited for a
+        CPU (:func:`schedstat`).
+    lowered_priority : bool
+        Of a timed-out run: it raised its own nice value or took an idle policy
+        (:func:`lowered_priority`).
+    runnable, cpus : int
+        Of a timed-out run: its threads that wanted a CPU at the timeout, and the CPUs they
+        may use (:func:`runnable_threads`).
+    """
+
+    rc: int | None = None
+    timed_out: bool = False
+    latency_ms: float = 0.0
+    error: str = ""
+    harness_error: str = ""
+    pids_limit_hit: bool = False
+    box: str = ""
+    cpu_ms: float = 0.0
+    wait_ms: float = 0.0
+    lowered_priority: bool = False
+    runnable: int = 0
+    cpus: int = 0
+
+    @classmethod
+    def from_dict(cls, d: dict) -> RunRecord:
+        """Inverse of :meth:`to_dict` (``TypeError`` for a field it does not know)."""
+        if not isinstance(d, dict):
+            raise TypeError(f"a run's result is a dict, got {type(d).__name__}")
+        return cls(**d)
+
+
 class LaunchConfig(_Record):
     """How one run is launched: everything the launcher (or a warm run manager) needs.
 

@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING
 
 from arenabench.eval.scoring.results import HarnessError, Prediction
 
-from .proctools import BOX_DIRS, RUN_GRACE_S, WarmLaunch
+from .proctools import BOX_DIRS, RUN_GRACE_S, RunRecord, WarmLaunch
 from .sandbox import SANDBOX_DIR, is_within, warn_once
 from .slots import Held, hold
 from .stale import WARM_PREFIX, make_warm_dir
@@ -334,7 +334,8 @@ class WarmServer:
             if waiter.slot is not None:
                 waiter.slot.release()
         try:
-            result = marshal.loads(Path(rundir, "result.bin").read_bytes())
+            raw = marshal.loads(Path(rundir, "result.bin").read_bytes())
+            result = RunRecord.from_dict(raw)
         except (OSError, ValueError, EOFError, TypeError):
             if pipe.stopped:
                 return Prediction(status="crash", message="interrupted")

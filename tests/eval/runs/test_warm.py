@@ -298,7 +298,7 @@ class _KeepAnswer(Command):
     def interpret(self, result, stdout, stderr, workdir):
         path = Path(workdir, "obstacles.txt")
         self.answers[_sha(next(Path(workdir).glob("image.*")))] = (
-            path.read_bytes() if path.exists() else None, result["rc"], stdout, stderr)
+            path.read_bytes() if path.exists() else None, result.rc, stdout, stderr)
         return super().interpret(result, stdout, stderr, workdir)
 
 
