@@ -92,16 +92,10 @@ def checked_entry(entry: dict[str, Any], where: str, *, base: Path, shown: Path,
         raise DatasetError(f"{where}: {f'{what}: ' if what else ''}{os_problem(exc)}") from None
 
 
-def _checked_files(entry: dict[str, Any], where: str, *, base: Path, shown: Path,
-                   verify: bool, dirs: dict[str, Path]) -> dict[str, Any] | str:
-    """Check one manifest entry's files (closed folder, hashes, damage, GT schema): the
-    parsed GT, or why the image is damaged.
-
-    Raises
-    ------
-    DatasetError
-        For anything else wrong with the entry.
-    """
+def _check_paths(entry: dict[str, Any], where: str, *, base: Path, shown: Path,
+                 verify: bool, dirs: dict[str, Path]) -> None:
+    """The entry's hash fields (with ``verify``), and its two files: inside the dataset's
+    folder, and regular files."""
     if verify:
         for key in ("image_sha256", "gt_sha256"):
             if not _is_sha256(entry.get(key)):
@@ -114,38 +108,62 @@ def _checked_files(entry: dict[str, Any], where: str, *, base: Path, shown: Path
         if not _inside(base, rel, dirs):
             raise DatasetError(f"{where}: {key} path {rel!r} leaves the dataset folder "
                                f"{shown} (a dataset is a closed folder)")
-    image_path, gt_path = base / entry["image"], base / entry["gt"]
-    shown_image, shown_gt = shown / entry["image"], shown / entry["gt"]
-    for what, path, shown_path in (("image", image_path, shown_image),
-                                   ("ground-truth", gt_path, shown_gt)):
+    for what, key in (("image", "image"), ("ground-truth", "gt")):
+        path = base / entry[key]
         if not path.is_file():
             why = "is not a regular file" if path.exists() else "does not exist"
-            raise DatasetError(f"{where}: {what} file {shown_path} {why}")
-    try:
-        gt_bytes = read_regular(gt_path)
-    except OSError as exc:
-        raise path_error(shown_gt, f"cannot read ({exc.strerror or exc})") from None
-    if verify and sha256_bytes(gt_bytes) != entry["gt_sha256"]:
+            raise DatasetError(f"{where}: {what} file {shown / entry[key]} {why}")
+
+
+def _check_hashes(entry: dict[str, Any], gt_bytes: bytes, image_path: Path, *,
+                  shown_image: Path, shown_gt: Path) -> None:
+    """The GT's bytes and the image file against the manifest's SHA-256 values."""
+    if sha256_bytes(gt_bytes) != entry["gt_sha256"]:
         raise path_error(shown_gt, "content does not match gt_sha256 in manifest.jsonl "
-                    "(corrupt or replaced; --no-verify skips the check)")
-    if verify:
-        try:
-            digest = sha256_file(image_path)
-        except OSError as exc:
-            raise path_error(shown_image, f"cannot read ({exc.strerror or exc})") from None
-        if digest != entry["image_sha256"]:
-            raise path_error(shown_image, "content does not match image_sha256 in manifest.jsonl "
-                        "(truncated, corrupt or replaced; --no-verify skips the check)")
-    damage = image_file_problem(image_path)
-    if damage is not None:
-        return damage
+                         "(corrupt or replaced; --no-verify skips the check)")
     try:
-        gt = json.loads(gt_bytes.decode("utf-8"))
+        digest = sha256_file(image_path)
+    except OSError as exc:
+        raise path_error(shown_image, f"cannot read ({exc.strerror or exc})") from None
+    if digest != entry["image_sha256"]:
+        raise path_error(shown_image, "content does not match image_sha256 in manifest.jsonl "
+                         "(truncated, corrupt or replaced; --no-verify skips the check)")
+
+
+def _parsed_gt(gt_bytes: bytes, shown_gt: Path) -> Any:
+    """The GT file's JSON (one line naming the file when it is not JSON)."""
+    try:
+        return json.loads(gt_bytes.decode("utf-8"))
     except UnicodeDecodeError:
         raise path_error(shown_gt, "not UTF-8 text") from None
     except json.JSONDecodeError as exc:
         raise path_error(shown_gt, f"not JSON ({exc.msg} at line {exc.lineno})") from None
     except RecursionError:
         raise path_error(shown_gt, "not JSON (nested too deeply)") from None
+
+
+def _checked_files(entry: dict[str, Any], where: str, *, base: Path, shown: Path,
+                   verify: bool, dirs: dict[str, Path]) -> dict[str, Any] | str:
+    """Check one manifest entry's files (closed folder, hashes, damage, GT schema): the
+    parsed GT, or why the image is damaged.
+
+    Raises
+    ------
+    DatasetError
+        For anything else wrong with the entry.
+    """
+    _check_paths(entry, where, base=base, shown=shown, verify=verify, dirs=dirs)
+    image_path, gt_path = base / entry["image"], base / entry["gt"]
+    shown_image, shown_gt = shown / entry["image"], shown / entry["gt"]
+    try:
+        gt_bytes = read_regular(gt_path)
+    except OSError as exc:
+        raise path_error(shown_gt, f"cannot read ({exc.strerror or exc})") from None
+    if verify:
+        _check_hashes(entry, gt_bytes, image_path, shown_image=shown_image, shown_gt=shown_gt)
+    damage = image_file_problem(image_path)
+    if damage is not None:
+        return damage
+    gt = _parsed_gt(gt_bytes, shown_gt)
     validate_gt(gt, shown_gt)
     return gt

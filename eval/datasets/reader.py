@@ -407,13 +407,7 @@ def _load_dataset(
         raise ValueError(f"limit must be >= 1, got {limit!r}")
     shown = Path(root)  # paths in messages as the user gave them
     base = shown.resolve()
-    manifest = base / "manifest.jsonl"
-    if not base.is_dir():
-        raise DatasetError(f"{base}: dataset folder does not exist")
-    if manifest.exists() and not manifest.is_file():
-        raise DatasetError(f"{manifest}: not a regular file")
-    if not manifest.is_file():
-        raise DatasetError(f"{manifest}: missing (is {base} a dataset written by the generator?)")
+    manifest = _manifest_of(base)
     meta = read_dataset_meta(shown)
     _import_textures(base)
     entries: list[tuple[str, str, str, str | None]] = []
@@ -441,12 +435,7 @@ def _load_dataset(
         entries.append((entry["id"], entry["image"], entry["gt"],
                         entry["gt_sha256"] if verify else None))
 
-    if limit is not None:
-        workers = 1
-    elif workers is None:
-
-        big = limit is None and manifest.stat().st_size > PARALLEL_ABOVE_BYTES
-        workers = min(usable_cores(), MAX_CHECK_WORKERS) if big else 1
+    workers = _check_workers(manifest, limit=limit, workers=workers)
     try:
         stream = open_regular(manifest)
     except OSError as exc:
@@ -475,6 +464,29 @@ def _load_dataset(
                    facts=DatasetFacts(presets=tuple(sorted(presets)), lacking=lacking,
                                       weakest_seed=weakest[0] if weakest else None),
                    meta=meta)
+
+
+def _manifest_of(base: Path) -> Path:
+    """The manifest of dataset folder ``base``, or one line saying why there is none."""
+    manifest = base / "manifest.jsonl"
+    if not base.is_dir():
+        raise DatasetError(f"{base}: dataset folder does not exist")
+    if manifest.exists() and not manifest.is_file():
+        raise DatasetError(f"{manifest}: not a regular file")
+    if not manifest.is_file():
+        raise DatasetError(f"{manifest}: missing (is {base} a dataset written by the generator?)")
+    return manifest
+
+
+def _check_workers(manifest: Path, *, limit: int | None, workers: int | None) -> int:
+    """Processes that check the files: one with ``limit``; by default one, or for a big
+    manifest the usable cores (at most :data:`MAX_CHECK_WORKERS`)."""
+    if limit is not None:
+        return 1
+    if workers is not None:
+        return workers
+    big = manifest.stat().st_size > PARALLEL_ABOVE_BYTES
+    return min(usable_cores(), MAX_CHECK_WORKERS) if big else 1
 
 
 def _seed_strength(seed: Any) -> tuple[int, int]:

@@ -6,7 +6,7 @@ inclusive for integer ones; anything undeclared is refused with an error naming 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -81,57 +81,70 @@ def validate_value(key: str, value: Value) -> Value:
                          "arenabench presets --params)")
     spec = PARAMETERS[key]
     if spec.numeric:
-        if isinstance(value, (Range, tuple, list)):
-            ends = (value.lo, value.hi) if isinstance(value, Range) else tuple(value)
-            if len(ends) != 2:
-                raise ValueError(f"--set {key}: a range needs two ends, got {value!r}")
-            lo, hi = (_number(key, str(v), spec.kind) for v in ends)
-            if lo > hi:
-                raise ValueError(f"--set {key}: empty range {_shown(value)} (lo > hi)")
-            _check_bounds(key, lo, spec, value)
-            _check_bounds(key, hi, spec, value)
-            if lo == hi:
-                return _check_choice(key, lo, spec, value)
-            if spec.choices and not spec.values_in(lo, hi):
-                raise ValueError(f"--set {key}: range {_shown(value)} holds none of the "
-                                 f"choices {', '.join(spec.choices)}")
-            return Range(lo, hi)
-        if isinstance(value, bool):
-            raise ValueError(f"--set {key}: invalid {spec.kind} value {value!r}")
-        number = _number(key, str(value), spec.kind)
-        _check_bounds(key, number, spec, value)
-        return _check_choice(key, number, spec, value)
-    if spec.kind == "bool":
-        if isinstance(value, bool):
-            return value
-        text = str(value).strip().lower()
-        if text in ("1", "true", "yes", "on"):
-            return True
-        if text in ("0", "false", "no", "off"):
-            return False
-        raise ValueError(f"--set {key}: invalid bool value {value!r} (true/false)")
-    if spec.kind == "size":
-        return _size(key, value, spec)
-    if spec.kind == "file":
-        return _file(key, value)
-    if spec.kind in ("rgb", "ids"):
-        parts = value.split(",") if isinstance(value, str) else list(value)
-        want = 3 if spec.kind == "rgb" else 4
-        try:
-            nums = tuple(int(plain_number(str(p).strip(" "), "int")) for p in parts)
-        except ValueError:
-            raise ValueError(f"--set {key}: invalid value {value!r}") from None
-        if len(nums) != want:
-            raise ValueError(f"--set {key}: expected {want} comma-separated integers, "
-                             f"got {value!r}")
-        if spec.kind == "rgb" and not all(0 <= n <= 255 for n in nums):
-            raise ValueError(f"--set {key}: colour values must be 0..255, got {value!r}")
-        if spec.kind == "ids" and not all(n >= 0 for n in nums):
-            raise ValueError(f"--set {key}: ids must be >= 0, got {value!r}")
-        if spec.kind == "ids" and len(set(nums)) != len(nums):
-            raise ValueError(f"--set {key}: the four corners' ids must differ (a pipeline tells "
-                             f"the corners apart by them), got {value!r}")
-        return nums
+        return _numeric(key, value, spec)
+    return _BY_KIND.get(spec.kind, _text)(key, value, spec)
+
+
+def _numeric(key: str, value: Value, spec: Param) -> Value:
+    """A number, or a range of them (a :class:`Range`, or two ends in a list or tuple)."""
+    if isinstance(value, (Range, tuple, list)):
+        ends = (value.lo, value.hi) if isinstance(value, Range) else tuple(value)
+        if len(ends) != 2:
+            raise ValueError(f"--set {key}: a range needs two ends, got {value!r}")
+        lo, hi = (_number(key, str(v), spec.kind) for v in ends)
+        if lo > hi:
+            raise ValueError(f"--set {key}: empty range {_shown(value)} (lo > hi)")
+        _check_bounds(key, lo, spec, value)
+        _check_bounds(key, hi, spec, value)
+        if lo == hi:
+            return _check_choice(key, lo, spec, value)
+        if spec.choices and not spec.values_in(lo, hi):
+            raise ValueError(f"--set {key}: range {_shown(value)} holds none of the "
+                             f"choices {', '.join(spec.choices)}")
+        return Range(lo, hi)
+    if isinstance(value, bool):
+        raise ValueError(f"--set {key}: invalid {spec.kind} value {value!r}")
+    number = _number(key, str(value), spec.kind)
+    _check_bounds(key, number, spec, value)
+    return _check_choice(key, number, spec, value)
+
+
+def _bool(key: str, value: Value, spec: Param) -> bool:
+    """``true``/``false`` (and 1/0, yes/no, on/off)."""
+    if isinstance(value, bool):
+        return value
+    text = str(value).strip().lower()
+    if text in ("1", "true", "yes", "on"):
+        return True
+    if text in ("0", "false", "no", "off"):
+        return False
+    raise ValueError(f"--set {key}: invalid bool value {value!r} (true/false)")
+
+
+def _integers(key: str, value: Value, spec: Param) -> tuple[int, ...]:
+    """An RGB colour (three 0..255) or four distinct marker ids (>= 0): ``"a,b,c"`` or a
+    list."""
+    parts = value.split(",") if isinstance(value, str) else list(value)
+    want = 3 if spec.kind == "rgb" else 4
+    try:
+        nums = tuple(int(plain_number(str(p).strip(" "), "int")) for p in parts)
+    except ValueError:
+        raise ValueError(f"--set {key}: invalid value {value!r}") from None
+    if len(nums) != want:
+        raise ValueError(f"--set {key}: expected {want} comma-separated integers, "
+                         f"got {value!r}")
+    if spec.kind == "rgb" and not all(0 <= n <= 255 for n in nums):
+        raise ValueError(f"--set {key}: colour values must be 0..255, got {value!r}")
+    if spec.kind == "ids" and not all(n >= 0 for n in nums):
+        raise ValueError(f"--set {key}: ids must be >= 0, got {value!r}")
+    if spec.kind == "ids" and len(set(nums)) != len(nums):
+        raise ValueError(f"--set {key}: the four corners' ids must differ (a pipeline tells "
+                         f"the corners apart by them), got {value!r}")
+    return nums
+
+
+def _text(key: str, value: Value, spec: Param) -> str:
+    """Printable text of bounded length, one of the choices where the parameter has them."""
     text = str(value)
     if (problem := text_problem(text)) is not None:
         raise ValueError(f"--set {key}: {problem}")
@@ -154,7 +167,7 @@ def _size(key: str, value: Value, spec: Param) -> tuple[float, float]:
     return sides  # type: ignore[return-value]
 
 
-def _file(key: str, value: Value) -> str:
+def _file(key: str, value: Value, spec: Param | None = None) -> str:
     """An image file's reference (``textures/<sha256>.png``): a reference the texture cache
     holds, or a path (relative to the working folder), read into the cache; ``""``: none."""
     from arenabench.generator.assets import texture_store
@@ -171,6 +184,11 @@ def _file(key: str, value: Value) -> str:
         return texture_store.import_texture(value)
     except ValueError as exc:
         raise ValueError(f"--set {key}: {exc}") from None
+
+
+#: How a value of each non-numeric kind is checked (any other kind: text).
+_BY_KIND: dict[str, Callable[[str, Value, Param], Value]] = {
+    "bool": _bool, "size": _size, "file": _file, "rgb": _integers, "ids": _integers}
 
 
 def parse_override(text: str) -> tuple[str, Value]:
