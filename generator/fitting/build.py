@@ -796,27 +796,66 @@ def _preset_params(scene: Scene, varied: list[Varied], facts: FileFacts) -> dict
     return resolve(params)
 
 
+@dataclass(frozen=True)
+class _Found:
+    """What the twin found, for the records: the scene and its parameters, the camera fit,
+    the shades, the edges, the file's facts, the markers, the varied parameters, where the
+    scale came from and the figures of the fitted render."""
+
+    scene: Scene
+    params: dict[str, Value]
+    fit: Any
+    shades: Shades
+    edges: EdgeEvidence
+    edge_table: dict
+    file: FileFacts
+    finding: MarkerFinding
+    varied: list[Varied]
+    scale_source: str
+    figures: RegionFigures
+
+    @property
+    def own_texture(self) -> bool:
+        """The arena's texture is rectified from the image (not given, not built in)."""
+        return self.scene.arena.texture == IMAGE_TEXTURE and self.scale_source != "texture"
+
+
 def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table,
              facts_file: FileFacts, finding: MarkerFinding, varied: list[Varied],
              scale_source: str, figures: RegionFigures, renderer, gray) -> list[rec.Record]:
     """Every parameter pinned (with its residual) or open (with its range and why)."""
     from arenabench.generator.fitting.residuals import pinned_residuals
 
-    r: dict[str, rec.Record] = {}
+    found = _Found(scene, params, fit, shades, edges, edge_table, facts_file, finding, varied,
+                   scale_source, figures)
     res = pinned_residuals(scene, gray, renderer, finding)
-    sens_unit = ("grey levels RMS over the marker squares per 1 mm / 0.01 deg"
-                 if fit.stage == "render" else
-                 "linear grey levels RMS over the marker modules per 1 mm / 0.01 deg")
-    cam_names = {"target_x": "camera.target_x_m", "target_y": "camera.target_y_m",
+    r: dict[str, rec.Record] = {}
+    for group in (_camera_records, _marker_records, _arena_records, _light_records,
+                  _edge_records, _output_records, _varied_records):
+        r.update(group(found, res))
+    return rec.complete(r, params)
+
+
+#: the camera's fitted values -> their parameters
+_CAMERA_NAMES = {"target_x": "camera.target_x_m", "target_y": "camera.target_y_m",
                  "altitude_m": "camera.altitude_m", "tilt_deg": "camera.tilt_deg",
                  "yaw_deg": "camera.yaw_deg", "roll_deg": "camera.roll_deg",
                  "fov_deg": "camera.fov_deg"}
-    for key, name in cam_names.items():
+
+
+def _camera_records(f: _Found, res: dict) -> dict[str, rec.Record]:
+    """The camera: fitted to the markers (snapped to round values that fit), open up to scale
+    without a size, the field of view and the altitude open together where they trade."""
+    fit, params, r = f.fit, f.params, {}
+    sens_unit = ("grey levels RMS over the marker squares per 1 mm / 0.01 deg"
+                 if fit.stage == "render" else
+                 "linear grey levels RMS over the marker modules per 1 mm / 0.01 deg")
+    for key, name in _CAMERA_NAMES.items():
         snapped = fit.snapped.get(key)
         how = (f"fitted freely to the markers, then held at the round {snapped[1]:g} {snapped[0]}"
                + (" of pitch" if key == "tilt_deg" else "") if snapped
                else "fitted to the markers' pixels")
-        if scale_source == "default" and key in ("target_x", "target_y", "altitude_m"):
+        if f.scale_source == "default" and key in ("target_x", "target_y", "altitude_m"):
             r[name] = rec.open_range(name, params[name], _scale_range(name, params[name]),
                                      "the image fixes the camera only up to scale (no "
                                      "--arena-size): every length scales with its distance",
@@ -830,7 +869,7 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                                      "them apart" + ("; the camera moves with it" if key ==
                                                      "fov_deg" else "; moves with the field of"
                                                      " view"), evidence=how,
-                                     moves_with=(_fov_companions(fit, params, cam_names)
+                                     moves_with=(_fov_companions(fit, params, _CAMERA_NAMES)
                                                  if key == "fov_deg" else ()))
         else:
             if key in ("tilt_deg", "yaw_deg", "roll_deg") and _fov_open(fit):
@@ -839,6 +878,12 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
             r[name] = rec.pinned(name, params[name], how, fit.sensitivity.get(key), sens_unit)
     for name in ("camera.width", "camera.height"):
         r[name] = rec.pinned(name, params[name], "the image's size")
+    return r
+
+
+def _marker_records(f: _Found, res: dict) -> dict[str, rec.Record]:
+    """The markers: dictionary and ids decoded, rotations, side, drawn or printed."""
+    scene, params, finding, r = f.scene, f.params, f.finding, {}
     r["markers.dictionary"] = rec.pinned(
         "markers.dictionary", params["markers.dictionary"],
         f"every one of {len(finding.tried)} dictionaries tried; the family "
@@ -850,10 +895,10 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                                            "where each marker's corner 0 lies")
     r["markers.side_m"] = (rec.pinned("markers.side_m", params["markers.side_m"],
                                       "located in the texture") if scene.arena.texture
-                           in (comp.TEXTURE_NAME,) or fit.stage == "render"
+                           in (comp.TEXTURE_NAME,) or f.fit.stage == "render"
                            else rec.pinned("markers.side_m", params["markers.side_m"],
                                            "fitted to the markers' pixels with the camera"))
-    if scene.arena.texture == IMAGE_TEXTURE and scale_source != "texture":
+    if f.own_texture:
         how = ("painted into the rectified texture, on the texel grid that puts their outer "
                "corners on texel boundaries and matches them best (their pixels fit better so "
                "than drawn as marker sheets)" if scene.markers.printed else
@@ -867,6 +912,13 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
     elif scene.arena.texture == IMAGE_TEXTURE:
         r["markers.printed"] = rec.pinned("markers.printed", True,
                                           "the given texture's markers are the image's")
+    return r
+
+
+def _arena_records(f: _Found, res: dict) -> dict[str, rec.Record]:
+    """The arena: its texture, its size (open up to scale without one), the floor and the
+    background greys."""
+    scene, params, scale_source, r = f.scene, f.params, f.scale_source, {}
     if scene.arena.texture in (comp.TEXTURE_NAME, IMAGE_TEXTURE):
         source = ("the given texture" if scale_source == "texture"
                   else "rectified from the image")
@@ -894,10 +946,10 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                                       if scene.arena.texture != IMAGE_TEXTURE or scale_source
                                       == "texture" else "the rectified texture's tint: the "
                                       f"floor's lightest grey ({TINT_PERCENTILE:g}th percentile;"
-                                      f" its commonest as seen is {list(shades.floor_rgb)})",
+                                      f" its commonest as seen is {list(f.shades.floor_rgb)})",
                                       res.get("arena.floor_rgb"),
                                       "grey levels MAD over the floor per grey level")
-    if shades.background_rgb is None:
+    if f.shades.background_rgb is None:
         r["background.gray"] = rec.open_range("background.gray", params["background.gray"],
                                               Range(0, 255), "the image shows no background")
     else:
@@ -905,17 +957,24 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
                                           "the commonest grey around the floor",
                                           res.get("background.gray"),
                                           "grey levels MAD over the background per grey level")
+    return r
+
+
+def _light_records(f: _Found, res: dict) -> dict[str, rec.Record]:
+    """The light: pinned by two or more faces seen, open otherwise; fills of unseen sides
+    open; the boxes' palette."""
+    shades, params, r = f.shades, f.params, {}
     light_evidence = (f"faces seen: top and {', '.join(shades.directions_seen) or 'no side'}; "
                       f"their shades within {shades.face_residual:.2f} grey levels RMS")
     unseen = [d for d in ("east", "west", "north", "south") if d not in shades.directions_seen]
-    for name in ("lighting.ambient", "lighting.intensity", "lighting.elevation_deg",
-                 "lighting.azimuth_deg"):
-        if len(shades.directions_seen) >= 2:
+    if len(shades.directions_seen) >= 2:
+        for name in ("lighting.ambient", "lighting.intensity", "lighting.elevation_deg",
+                     "lighting.azimuth_deg"):
             r[name] = rec.pinned(name, params[name], light_evidence + "; the weakest light that "
                                  "gives them (an unseen face keeps about the ambient shade)",
                                  res.get("lighting"), "grey levels MAD over the faces seen "
                                  "per 1 % of light")
-    if len(shades.directions_seen) < 2:
+    else:
         r.update(_open_light(params, shades, unseen, light_evidence))
     for side in ("east", "west"):
         name = f"lighting.{side}_fill"
@@ -926,31 +985,53 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
         else:
             r[name] = rec.pinned(name, 0.0, f"{side} faces seen and given by the main light")
     r["obstacles.palette"] = rec.pinned("obstacles.palette", "gray", "grey boxes")
-    if edges.samples is not None:
-        best = f"{edges.samples}/{edges.resolve or 'linear'}"
-        others = {k: v["band_mad"] for k, v in edge_table.items() if k != best}
-        near = min(others.values()) if others else None
-        base = edge_table.get(best, {}).get("band_mad")
-        r["render.edge_samples"] = rec.pinned(
-            "render.edge_samples", params["render.edge_samples"],
-            f"{edges.blended} of {edges.edge_pixels} edge pixels blended; the renders of every "
-            "edge model compared", None if near is None or base is None else near - base,
-            "grey levels MAD in the 2 px band around the boxes, next model minus this one")
-        if edges.resolve is None:
-            r["render.edge_resolve"] = rec.open_values("render.edge_resolve",
-                                                       params["render.edge_resolve"],
-                                                       ("linear", "srgb"), edges.reason)
-        else:
-            r["render.edge_resolve"] = rec.pinned("render.edge_resolve",
-                                                  params["render.edge_resolve"],
-                                                  "the blends' shares in each space")
-    else:
+    return r
+
+
+def _edge_records(f: _Found, res: dict) -> dict[str, rec.Record]:
+    """The edge model: the one whose renders match the image's box outlines best, or open
+    where the image cannot tell."""
+    edges, edge_table, params, r = f.edges, f.edge_table, f.params, {}
+    if edges.samples is None:
         r["render.edge_samples"] = rec.open_values("render.edge_samples",
                                                    params["render.edge_samples"], (1, 2, 4),
                                                    edges.reason)
         r["render.edge_resolve"] = rec.open_values("render.edge_resolve",
                                                    params["render.edge_resolve"],
                                                    ("linear", "srgb"), edges.reason)
+        return r
+    best = f"{edges.samples}/{edges.resolve or 'linear'}"
+    others = {k: v["band_mad"] for k, v in edge_table.items() if k != best}
+    near = min(others.values()) if others else None
+    base = edge_table.get(best, {}).get("band_mad")
+    r["render.edge_samples"] = rec.pinned(
+        "render.edge_samples", params["render.edge_samples"],
+        f"{edges.blended} of {edges.edge_pixels} edge pixels blended; the renders of every "
+        "edge model compared", None if near is None or base is None else near - base,
+        "grey levels MAD in the 2 px band around the boxes, next model minus this one")
+    if edges.resolve is None:
+        r["render.edge_resolve"] = rec.open_values("render.edge_resolve",
+                                                   params["render.edge_resolve"],
+                                                   ("linear", "srgb"), edges.reason)
+    else:
+        r["render.edge_resolve"] = rec.pinned("render.edge_resolve",
+                                              params["render.edge_resolve"],
+                                              "the blends' shares in each space")
+    return r
+
+
+#: Degradations and features the twin does not add: pinned at none when the render without
+#: them matches the image (parameter, what it adds).
+_NOT_ADDED = (("degrade.noise_sigma", "noise"), ("degrade.motion_blur_px", "blur"),
+              ("degrade.defocus_px", "defocus"), ("degrade.vignetting", "vignetting"),
+              ("degrade.exposure_ev", "exposure"), ("lighting.shadow_strength", "shadows"),
+              ("distractors.tapes", "tape"), ("distractors.papers", "papers"),
+              ("camera.k1", "lens distortion"))
+
+
+def _output_records(f: _Found, res: dict) -> dict[str, rec.Record]:
+    """The file's format and JPEG settings, and the degradations the render does without."""
+    params, facts_file, r = f.params, f.file, {}
     r["output.format"] = rec.pinned("output.format", params["output.format"],
                                     "the file's signature")
     if facts_file.format == "jpeg":
@@ -961,20 +1042,21 @@ def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table
         r["output.jpeg_subsampling"] = rec.pinned("output.jpeg_subsampling",
                                                   params["output.jpeg_subsampling"],
                                                   "the file's frame header")
-    for name, what in (("degrade.noise_sigma", "noise"), ("degrade.motion_blur_px", "blur"),
-                       ("degrade.defocus_px", "defocus"), ("degrade.vignetting", "vignetting"),
-                       ("degrade.exposure_ev", "exposure"), ("lighting.shadow_strength",
-                                                             "shadows"),
-                       ("distractors.tapes", "tape"), ("distractors.papers", "papers"),
-                       ("camera.k1", "lens distortion")):
+    for name, what in _NOT_ADDED:
         r[name] = rec.pinned(name, params[name], f"the render without {what} matches the image "
-                             f"(whole image within {figures.whole:.2f} grey levels)")
-    for v in varied:
-        value = params[v.name]
+                             f"(whole image within {f.figures.whole:.2f} grey levels)")
+    return r
+
+
+def _varied_records(f: _Found, res: dict) -> dict[str, rec.Record]:
+    """What one image shows one draw of (the boxes): open, with the rule of their variation."""
+    r = {}
+    for v in f.varied:
+        value = f.params[v.name]
         if isinstance(value, Range):
             r[v.name] = rec.open_range(v.name, value, value, f"one image shows one draw: "
                                        f"{v.rule}", evidence=v.seen, varies=True)
         else:
             r[v.name] = rec.open_values(v.name, value, (value,), f"one image shows one draw: "
                                         f"{v.rule}", evidence=v.seen, varies=True)
-    return rec.complete(r, params)
+    return r

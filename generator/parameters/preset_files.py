@@ -460,40 +460,62 @@ def _param_value(ctx: _Context, key: str, raw: Any, *, spelled_as: str,
 
     if isinstance(raw, dict):
         return _raise(bad(f"a table where a value belongs (write {forms})"))
-    value: Any = raw
     if spec.numeric:
-        if isinstance(raw, str) and ":" in raw and not fixed_only:
-            value = tuple(raw.split(":", 1))
-        elif isinstance(raw, list) and not fixed_only:
-            if len(raw) != 2 or not all(_number(v) for v in raw):
-                return _raise(bad("a range is two numbers [lo, hi]"))
-            value = tuple(raw)
-        elif not _number(raw):
-            what = "a string" if isinstance(raw, str) else f"a {_toml_type(raw)}"
-            return _raise(bad(f"{what} where a number belongs (write {forms})"))
-    elif spec.kind == "bool" and not isinstance(raw, bool):
-        return _raise(bad(f"a {_toml_type(raw)} where true or false belongs"))
-    elif spec.kind == "str" and not isinstance(raw, str):
-        return _raise(bad(f"a {_toml_type(raw)} where a string belongs"))
-    elif spec.kind in ("rgb", "ids", "size"):
-        kinds = (int,) if spec.kind != "size" else (int, float)
-        if isinstance(raw, list):
-            if not all(isinstance(v, kinds) and not isinstance(v, bool) for v in raw):
-                return _raise(bad(f"expected {forms}"))
-        elif not isinstance(raw, str):
-            return _raise(bad(f"a {_toml_type(raw)} where {forms} belongs"))
-    elif spec.kind == "file":
-        if not isinstance(raw, str):
-            return _raise(bad(f"a {_toml_type(raw)} where {forms} belongs"))
-        try:
-            value = _texture_ref(ctx, raw)
-        except ValueError as exc:
-            raise bad(str(exc)) from None
+        value = _numeric_form(raw, forms, fixed_only=fixed_only)
+    else:
+        value = _form_of_kind(ctx, spec.kind, raw, forms)
+    if isinstance(value, _Misfit):
+        raise bad(value.why)
     try:
         return validate_value(key, value)
     except ValueError as exc:
         why = str(exc).removeprefix(f"--set {key}: ").removeprefix("--set: ")
         raise bad(why) from None
+
+
+class _Misfit:
+    """A value in the wrong form for its parameter, and what is wrong with it."""
+
+    def __init__(self, why: str) -> None:
+        self.why = why
+
+
+def _numeric_form(raw: Any, forms: str, *, fixed_only: bool) -> Any:
+    """A number, a range (``"lo:hi"`` or ``[lo, hi]``, unless ``fixed_only``), or a misfit."""
+    if isinstance(raw, str) and ":" in raw and not fixed_only:
+        return tuple(raw.split(":", 1))
+    if isinstance(raw, list) and not fixed_only:
+        if len(raw) != 2 or not all(_number(v) for v in raw):
+            return _Misfit("a range is two numbers [lo, hi]")
+        return tuple(raw)
+    if not _number(raw):
+        what = "a string" if isinstance(raw, str) else f"a {_toml_type(raw)}"
+        return _Misfit(f"{what} where a number belongs (write {forms})")
+    return raw
+
+
+def _form_of_kind(ctx: _Context, kind: str, raw: Any, forms: str) -> Any:
+    """``raw`` in the TOML form a non-numeric kind takes (a file: its texture reference),
+    or a misfit."""
+    if kind == "bool" and not isinstance(raw, bool):
+        return _Misfit(f"a {_toml_type(raw)} where true or false belongs")
+    if kind == "str" and not isinstance(raw, str):
+        return _Misfit(f"a {_toml_type(raw)} where a string belongs")
+    if kind in ("rgb", "ids", "size"):
+        kinds = (int,) if kind != "size" else (int, float)
+        if isinstance(raw, list):
+            if not all(isinstance(v, kinds) and not isinstance(v, bool) for v in raw):
+                return _Misfit(f"expected {forms}")
+        elif not isinstance(raw, str):
+            return _Misfit(f"a {_toml_type(raw)} where {forms} belongs")
+    if kind == "file":
+        if not isinstance(raw, str):
+            return _Misfit(f"a {_toml_type(raw)} where {forms} belongs")
+        try:
+            return _texture_ref(ctx, raw)
+        except ValueError as exc:
+            return _Misfit(str(exc))
+    return raw
 
 
 def _texture_ref(ctx: _Context, raw: str) -> str:
@@ -541,57 +563,79 @@ def _open_table(ctx: _Context, table: Any, params: dict[str, Value]) -> dict[str
             entries.extend((f"{top}.{sub}", v) for sub, v in value.items())
     out: dict[str, OpenParam] = {}
     for spelled, entry in entries:
-        where = f"open.{spelled}"
         key = canonical_key(spelled)
-        if key not in PARAMETERS:
-            raise ctx.fail(where, entry, "unknown parameter"
-                           f"{did_you_mean(spelled, [*PARAMETERS, *ALIASES])} (list them: "
-                           "arenabench presets --params)")
         if key in out:
-            raise ctx.fail(where, entry, "given twice")
-        if not isinstance(entry, dict):
-            raise ctx.fail(where, entry, "an [open] entry is a table: range = [lo, hi] (or "
-                           "values = [...]) and reason = \"...\"")
-        for k in entry:
-            if k not in OPEN_KEYS:
-                raise ctx.fail(f"{where}.{k}", entry[k], "unknown key of an [open] entry"
-                               f"{did_you_mean(k, OPEN_KEYS)} (keys: {', '.join(OPEN_KEYS)})")
-        reason = entry.get("reason")
-        if not isinstance(reason, str) or not reason.strip():
-            raise ctx.fail(where, entry, "needs a reason = \"...\" (why the evidence does not "
-                           "pin it)")
-        if ("range" in entry) == ("values" in entry):
-            raise ctx.fail(where, entry, "needs range = [lo, hi] or values = [...], one of "
-                           "them")
-        spec = PARAMETERS[key]
-        if "range" in entry:
-            raw = entry["range"]
-            if not spec.numeric:
-                raise ctx.fail(f"{where}.range", raw, f"{key} is not a number: give "
-                               "values = [...]")
-            if not (isinstance(raw, list) or (isinstance(raw, str) and ":" in raw)):
-                raise ctx.fail(f"{where}.range", raw, 'a range is [lo, hi] or "lo:hi"')
-            value = _param_value(ctx, key, raw, spelled_as=f"{where}.range")
-            if not isinstance(value, Range):
-                raise ctx.fail(f"{where}.range", raw, "a range of one value: an open "
-                               "parameter allows more than one")
-            moves = _moves_with(ctx, where, key, entry.get("moves_with", {}), params, 2)
-            item = OpenParam(key, reason.strip(), range=value, moves_with=moves)
-        else:
-            raw = entry["values"]
-            if not isinstance(raw, list) or len(raw) < 2:
-                raise ctx.fail(f"{where}.values", raw, "a list of at least two values")
-            values = tuple(_param_value(ctx, key, v, spelled_as=f"{where}.values",
-                                        fixed_only=True) for v in raw)
-            if len(set(values)) != len(values):
-                raise ctx.fail(f"{where}.values", raw, "a value is listed twice")
-            moves = _moves_with(ctx, where, key, entry.get("moves_with", {}), params,
-                                len(values))
-            item = OpenParam(key, reason.strip(), values=values, moves_with=moves)
-        if not item.allows(params[key]):
-            raise ctx.fail(where, entry, f"the preset's own {key} = "
-                           f"{_shown(_file_value(params[key]))} is not among what it allows")
-        out[key] = item
+            raise ctx.fail(f"open.{spelled}", entry, "given twice")
+        out[key] = _open_entry(ctx, spelled, entry, params)
+    _check_leaders(ctx, out)
+    return out
+
+
+def _open_entry(ctx: _Context, spelled: str, entry: Any,
+                params: dict[str, Value]) -> OpenParam:
+    """One ``[open]`` entry, validated."""
+    where = f"open.{spelled}"
+    key = canonical_key(spelled)
+    if key not in PARAMETERS:
+        raise ctx.fail(where, entry, "unknown parameter"
+                       f"{did_you_mean(spelled, [*PARAMETERS, *ALIASES])} (list them: "
+                       "arenabench presets --params)")
+    if not isinstance(entry, dict):
+        raise ctx.fail(where, entry, "an [open] entry is a table: range = [lo, hi] (or "
+                       "values = [...]) and reason = \"...\"")
+    for k in entry:
+        if k not in OPEN_KEYS:
+            raise ctx.fail(f"{where}.{k}", entry[k], "unknown key of an [open] entry"
+                           f"{did_you_mean(k, OPEN_KEYS)} (keys: {', '.join(OPEN_KEYS)})")
+    reason = entry.get("reason")
+    if not isinstance(reason, str) or not reason.strip():
+        raise ctx.fail(where, entry, "needs a reason = \"...\" (why the evidence does not "
+                       "pin it)")
+    if ("range" in entry) == ("values" in entry):
+        raise ctx.fail(where, entry, "needs range = [lo, hi] or values = [...], one of "
+                       "them")
+    if "range" in entry:
+        item = _open_range(ctx, where, key, entry, params, reason.strip())
+    else:
+        item = _open_values(ctx, where, key, entry, params, reason.strip())
+    if not item.allows(params[key]):
+        raise ctx.fail(where, entry, f"the preset's own {key} = "
+                       f"{_shown(_file_value(params[key]))} is not among what it allows")
+    return item
+
+
+def _open_range(ctx: _Context, where: str, key: str, entry: dict, params: dict[str, Value],
+                reason: str) -> OpenParam:
+    """An ``[open]`` entry with ``range = [lo, hi]`` (a numeric parameter)."""
+    raw = entry["range"]
+    if not PARAMETERS[key].numeric:
+        raise ctx.fail(f"{where}.range", raw, f"{key} is not a number: give values = [...]")
+    if not (isinstance(raw, list) or (isinstance(raw, str) and ":" in raw)):
+        raise ctx.fail(f"{where}.range", raw, 'a range is [lo, hi] or "lo:hi"')
+    value = _param_value(ctx, key, raw, spelled_as=f"{where}.range")
+    if not isinstance(value, Range):
+        raise ctx.fail(f"{where}.range", raw, "a range of one value: an open "
+                       "parameter allows more than one")
+    moves = _moves_with(ctx, where, key, entry.get("moves_with", {}), params, 2)
+    return OpenParam(key, reason, range=value, moves_with=moves)
+
+
+def _open_values(ctx: _Context, where: str, key: str, entry: dict, params: dict[str, Value],
+                 reason: str) -> OpenParam:
+    """An ``[open]`` entry with ``values = [...]`` (two or more, each once)."""
+    raw = entry["values"]
+    if not isinstance(raw, list) or len(raw) < 2:
+        raise ctx.fail(f"{where}.values", raw, "a list of at least two values")
+    values = tuple(_param_value(ctx, key, v, spelled_as=f"{where}.values", fixed_only=True)
+                   for v in raw)
+    if len(set(values)) != len(values):
+        raise ctx.fail(f"{where}.values", raw, "a value is listed twice")
+    moves = _moves_with(ctx, where, key, entry.get("moves_with", {}), params, len(values))
+    return OpenParam(key, reason, values=values, moves_with=moves)
+
+
+def _check_leaders(ctx: _Context, out: dict[str, OpenParam]) -> None:
+    """A parameter moves with one other at most, and a follower leads none."""
     leaders: dict[str, str] = {}
     for key, item in out.items():
         for name, _ in item.moves_with:
@@ -602,7 +646,6 @@ def _open_table(ctx: _Context, table: Any, params: dict[str, Value]) -> dict[str
                 raise ctx.fail(f"open.{key}.moves_with", name, "has a moves_with of its own: "
                                "name every parameter of the trade in one entry")
             leaders[name] = key
-    return out
 
 
 def _moves_with(ctx: _Context, where: str, key: str, table: Any, params: dict[str, Value],
