@@ -404,6 +404,25 @@ def _hidden_face(hidden: Scene, twin: Scene, box: int, direction: str) -> float:
     return float(min(ob.color_rgb[0] * factor, 255.0))
 
 
+def _printed_checks(case: HiddenCase, twin, params: dict, twin_dir: Path, check) -> None:
+    """Markers drawn as sheets or printed, as hidden; printed ones on the texel grid found."""
+    hidden = case.scene
+    printed = params.get("markers.printed")
+    if printed is not None and printed["status"] == "pinned":  # drawn sheets or printed
+        check("markers.printed", hidden.markers.printed, printed["value"],
+              hidden.markers.printed == printed["value"])
+        if hidden.markers.printed and printed["value"]:  # on the texel grid found
+            texels = cv2.imread(str(twin_dir / params["arena.texture_file"]["value"]),
+                                cv2.IMREAD_UNCHANGED).shape[1]
+            hidden_texel = 2.0 * floor_extent(hidden.arena) / case.texture.shape[1]
+            want = hidden_texel / hidden.arena.side_m
+            got = twin.arena.texture_size_m[0] / texels / twin.arena.side_m
+            drift = abs(got / want - 1.0) * hidden.markers.side_m / hidden_texel
+            check(f"printed markers' texel grid (texels of drift across a marker; texture "
+                  f"sides {case.texture.shape[1]}, {texels})", 0.0, round(drift, 3),
+                  drift <= TOLERANCES["texel"][0])
+
+
 def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
     """What the twin in ``twin_dir`` recovered of ``case``, each check with its outcome."""
     from arenabench.generator.fitting.markers import _family
@@ -491,20 +510,7 @@ def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
                       for az in entry.values or ())
             check(f"shades seen, {len(entry.values or ()) - 1} other lights (grey levels)", 0.0,
                   round(off, 2), off <= tol)
-    printed = params.get("markers.printed")
-    if printed is not None and printed["status"] == "pinned":  # drawn sheets or printed
-        check("markers.printed", hidden.markers.printed, printed["value"],
-              hidden.markers.printed == printed["value"])
-        if hidden.markers.printed and printed["value"]:  # on the texel grid found
-            texels = cv2.imread(str(Path(twin_dir) / params["arena.texture_file"]["value"]),
-                                cv2.IMREAD_UNCHANGED).shape[1]
-            hidden_texel = 2.0 * floor_extent(hidden.arena) / case.texture.shape[1]
-            want = hidden_texel / hidden.arena.side_m
-            got = twin.arena.texture_size_m[0] / texels / twin.arena.side_m
-            drift = abs(got / want - 1.0) * hidden.markers.side_m / hidden_texel
-            check(f"printed markers' texel grid (texels of drift across a marker; texture "
-                  f"sides {case.texture.shape[1]}, {texels})", 0.0, round(drift, 3),
-                  drift <= TOLERANCES["texel"][0])
+    _printed_checks(case, twin, params, Path(twin_dir), check)
     check("obstacles seen", len(hidden.obstacles), len(twin.obstacles),
           len(hidden.obstacles) == len(twin.obstacles))
     for name, want in (("render.edge_samples", hidden.render.edge_samples),

@@ -506,6 +506,47 @@ HANGING_TEAM = (FAST_TEAM + "import hashlib, sys, time\n"
                 " == mark.read_text():\n    time.sleep(600)\n")
 
 
+def _stop_grade_midway(base: Path, data: Path, subs: Path, out: Path) -> None:
+    """Start a grade, SIGINT it once team b has three partial lines (or it ended), and wait
+    for it (SIGABRT for faulthandler's stacks in the log when it does not stop)."""
+    log = open(base / f"stop-{out.name}.log", "w")
+    proc = subprocess.Popen([PY, "-X", "faulthandler", "-m", "arenabench",
+                             *_grade_argv(data, subs, out, "--sandbox", "none")],
+                            stdout=log, stderr=log)
+    partial = out / "teams" / "b" / "partial-results.jsonl"
+    deadline = time.monotonic() + 300
+    while time.monotonic() < deadline and proc.poll() is None:
+        if partial.is_file() and len(partial.read_text().splitlines()) >= 3:
+            break
+        time.sleep(0.1)
+    lines = len(partial.read_text().splitlines()) if partial.is_file() else None
+    log.write(f"\n## SIGINT after {time.monotonic() - deadline + 300:.1f} s, partial "
+              f"{lines} lines, running {proc.poll() is None}\n")
+    log.flush()
+    proc.send_signal(signal.SIGINT)
+    try:
+        proc.wait(timeout=60)
+    except subprocess.TimeoutExpired:  # where it is: faulthandler's stacks in the log
+        proc.send_signal(signal.SIGABRT)
+        proc.wait()
+        raise
+    finally:
+        log.close()
+
+
+def _tampered(out: Path, tamper) -> None:
+    """Edit the stopped grade's resume state: team a's verdicts (``tamper`` None), or team
+    b's partial results with ``tamper``."""
+    if tamper is None:
+        state = out / "teams" / "a" / "grade-state.json"
+        doc = json.loads(state.read_text())
+        doc["summary"]["n_passed"] = doc["summary"].get("n", 3)
+        doc["summary"]["pass_rate"] = 1.0
+        state.write_text(json.dumps(doc))
+    else:
+        tamper(out / "teams" / "b" / "partial-results.jsonl")
+
+
 def _resume_cases(base: Path, data: Path) -> list[Case]:
     """A grade stopped (its resume state kept: team a graded, b two images in, hanging on
     the third) and resumed after tampering with the state: the resumed leaderboard must equal
@@ -537,38 +578,9 @@ def _resume_cases(base: Path, data: Path) -> list[Case]:
         def setup(out=out, tamper=tamper) -> None:
             clear(out)
             mark.write_text(sha)
-            log = open(base / f"stop-{out.name}.log", "w")
-            proc = subprocess.Popen([PY, "-X", "faulthandler", "-m", "arenabench",
-                                     *_grade_argv(data, subs, out, *none)],
-                                    stdout=log, stderr=log)
-            partial = out / "teams" / "b" / "partial-results.jsonl"
-            deadline = time.monotonic() + 300
-            while time.monotonic() < deadline and proc.poll() is None:
-                if partial.is_file() and len(partial.read_text().splitlines()) >= 3:
-                    break
-                time.sleep(0.1)
-            lines = len(partial.read_text().splitlines()) if partial.is_file() else None
-            log.write(f"\n## SIGINT after {time.monotonic() - deadline + 300:.1f} s, partial "
-                      f"{lines} lines, running {proc.poll() is None}\n")
-            log.flush()
-            proc.send_signal(signal.SIGINT)
-            try:
-                proc.wait(timeout=60)
-            except subprocess.TimeoutExpired:  # where it is: faulthandler's stacks in the log
-                proc.send_signal(signal.SIGABRT)
-                proc.wait()
-                raise
-            finally:
-                log.close()
+            _stop_grade_midway(base, data, subs, out)
             mark.unlink()
-            if tamper is None:
-                state = out / "teams" / "a" / "grade-state.json"
-                doc = json.loads(state.read_text())
-                doc["summary"]["n_passed"] = doc["summary"].get("n", 3)
-                doc["summary"]["pass_rate"] = 1.0
-                state.write_text(json.dumps(doc))
-            else:
-                tamper(partial)
+            _tampered(out, tamper)
 
         def same(proc, out=out) -> str | None:
             if proc.returncode != 0:

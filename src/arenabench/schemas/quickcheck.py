@@ -154,6 +154,11 @@ def _compile(node: Any) -> Check:
     unknown = set(node) - KEYWORDS - ANNOTATIONS
     if unknown:
         raise _Unsupported(sorted(unknown))
+    return _all_of(_value_tests(node) + _member_tests(node))
+
+
+def _value_tests(node: dict) -> list[Check]:
+    """The tests of the value itself: type, const, enum, bounds, lengths, required keys."""
     tests: list[Check] = []
     if "type" in node:
         names = node["type"] if isinstance(node["type"], list) else [node["type"]]
@@ -174,6 +179,13 @@ def _compile(node: Any) -> Check:
     if "required" in node:
         tests.append(lambda x, r=tuple(node["required"]):
                      not isinstance(x, dict) or all(k in x for k in r))
+    return tests
+
+
+def _member_tests(node: dict) -> list[Check]:
+    """The tests of what the value holds (an object's members, an array's items) and that a
+    number is finite, for the types the node allows."""
+    tests: list[Check] = []
     names = node.get("type")
     kinds = set(names if isinstance(names, list) else [names]) if names else None
     if kinds is None or "object" in kinds:
@@ -196,6 +208,11 @@ def _compile(node: Any) -> Check:
         tests.append(lambda x: type(x) is not list or all(map(item, x)))
     if kinds is None or kinds & {"number", "integer"}:
         tests.append(lambda x: type(x) is not float or math.isfinite(x))
+    return tests
+
+
+def _all_of(tests: list[Check]) -> Check:
+    """One check that passes when every test does (the first failing one ends it)."""
     if len(tests) == 1:
         return tests[0]
     if len(tests) == 2:
