@@ -119,7 +119,7 @@ def build_report(
     phase keys. ``images``: the full per-image results when ``results`` are compact ones
     (:func:`arenabench.eval.datasets.result_store.compact_result`, same order). ``manifest_sha256``:
     the dataset's (:meth:`~arenabench.eval.datasets.reader.Dataset.manifest_sha256`)."""
-    from arenabench.eval.phase_check import phase_summary
+    from arenabench.eval.scoring.phase_summary import phase_summary
 
     summary = summarize([r.score for r in results], [r.prediction for r in results])
     return Report(

@@ -147,8 +147,9 @@ def _modules() -> dict[str, tuple[Path, bool]]:
 
 
 def _runtime_targets(source: str, current: str, is_pkg: bool,
-                     known: set[str]) -> set[str]:
-    """The project's modules that importing ``current`` runs (see :func:`import_graph`)."""
+                     known: set[str], *, typed: bool = False) -> set[str]:
+    """The project's modules that importing ``current`` runs (see :func:`import_graph`); with
+    ``typed``, also those it imports for annotations only (under ``if TYPE_CHECKING:``)."""
     own = {".".join(current.split(".")[:k]) for k in range(1, current.count(".") + 1 + is_pkg)}
     targets: set[str] = set()
 
@@ -157,7 +158,7 @@ def _runtime_targets(source: str, current: str, is_pkg: bool,
         targets.update(".".join(parts[:k]) for k in range(1, len(parts))
                        if ".".join(parts[:k]) not in own)
 
-    for node in _nodes(_tree(source), runtime=True):
+    for node in _nodes(_tree(source), runtime=not typed):
         names: list[str] = []
         if isinstance(node, ast.Import):
             names = [alias.name for alias in node.names]
@@ -183,14 +184,15 @@ def _runtime_targets(source: str, current: str, is_pkg: bool,
     return {t for t in targets if t in known and t != current}
 
 
-def import_graph(modules: dict[str, tuple[str, bool]]) -> dict[str, set[str]]:
+def import_graph(modules: dict[str, tuple[str, bool]], *,
+                 typed: bool = False) -> dict[str, set[str]]:
     """module -> the project's modules it imports at run time, from ``{name: (source,
     is_pkg)}``. Importing ``a.b.c`` runs ``a/__init__`` and ``a/b/__init__`` first: those
     packages are edges too, except a module's own enclosing packages, which Python is already
     importing when it gets there; a name imported from one of them (``from . import NAME``,
     not a submodule) is an edge, since it needs that package's ``__init__`` run first."""
     known = set(modules)
-    return {name: _runtime_targets(source, name, is_pkg, known)
+    return {name: _runtime_targets(source, name, is_pkg, known, typed=typed)
             for name, (source, is_pkg) in modules.items()}
 
 
@@ -253,6 +255,24 @@ def test_no_module_imports_itself_round_a_cycle():
     graph = _project_graph()
     described = ["; ".join(f"{m} -> {sorted(graph[m] & set(c))}" for m in c) for c in found]
     assert not found, "import cycles:\n" + "\n".join(described)
+
+
+def test_no_cycle_even_through_imports_for_annotations():
+    """A module that needs another's type names what it uses (a protocol of its own), so the
+    graph with ``if TYPE_CHECKING:`` imports counted has no cycle either."""
+    graph = import_graph(_sources(), typed=True)
+    found = cycles(graph)
+    described = ["; ".join(f"{m} -> {sorted(graph[m] & set(c))}" for m in c) for c in found]
+    assert not found, "import cycles through type-only imports:\n" + "\n".join(described)
+
+
+def test_the_typed_graph_counts_imports_for_annotations():
+    source = "from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .limits import X\n"
+    known = {"arenabench.eval.runs.limits", "arenabench.eval.runs.cold"}
+    name = "arenabench.eval.runs.cold"
+    assert _runtime_targets(source, name, False, known) == set()
+    assert _runtime_targets(source, name, False, known, typed=True) == {
+        "arenabench.eval.runs.limits"}
 
 
 @pytest.mark.parametrize("lazy", [False, True], ids=["top-level", "in-a-function"])

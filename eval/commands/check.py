@@ -250,14 +250,14 @@ def verdict_lines(report, *, min_pass_rate: float, phases: int) -> list[str]:
     """The verdict: pass rate, robust and phase-dependent failures, the strongest cause
     (:func:`arenabench.eval.scoring.breakdown.strongest_cause_text`), a systematic error of the
     answers (:func:`arenabench.eval.scoring.breakdown.systematic_text`)."""
-    from arenabench.eval.phase_check import (
-        PHASE_DEPENDENT_MEANING,
-        rate_text,
-        unchecked_text,
-        verdict_words,
-    )
+    from arenabench.eval.phase_check import unchecked_text
     from arenabench.eval.reports.summary_rows import first_failure_line
     from arenabench.eval.scoring.breakdown import strongest_cause_text, systematic_text
+    from arenabench.eval.scoring.phase_summary import (
+        PHASE_DEPENDENT_MEANING,
+        rate_text,
+        verdict_words,
+    )
 
     s = report.summary
     ok = s.pass_rate >= min_pass_rate

@@ -19,8 +19,8 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import quote
 
-from arenabench.eval.phase_check import PHASE_DEPENDENT_MEANING
 from arenabench.eval.scoring.metric_registry import METRIC
+from arenabench.eval.scoring.phase_summary import PHASE_DEPENDENT_MEANING
 from arenabench.fileio import atomic_write_json, atomic_write_text
 
 from ..reports.incomplete import banner_html, partial

@@ -4,6 +4,8 @@
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
 
 from arenabench.cliopts import formats_problem
@@ -16,13 +18,28 @@ from .json_report import write_json
 from .junit_report import write_junit
 from .markdown_report import write_markdown
 
-FORMATS: dict[str, str] = {
-    "json": "report.json",
-    "csv": "results.csv",
-    "md": "report.md",
-    "html": "report.html",
-    "junit": "junit.xml",
+
+@dataclass(frozen=True)
+class ReportFile:
+    """One report format: the file it writes and its writer (every writer is called with the
+    report, the file's path and the dataset, which only the HTML report uses)."""
+
+    name: str
+    write: Callable[[Report, Path, Dataset | None], None]
+
+
+#: Every report format, by its ``--formats`` name: the one table of them.
+REPORT_FILES: dict[str, ReportFile] = {
+    "json": ReportFile("report.json", lambda report, path, dataset: write_json(report, path)),
+    "csv": ReportFile("results.csv", lambda report, path, dataset: write_csv(report, path)),
+    "md": ReportFile("report.md", lambda report, path, dataset: write_markdown(report, path)),
+    "html": ReportFile("report.html",
+                       lambda report, path, dataset: write_html(report, path, dataset=dataset)),
+    "junit": ReportFile("junit.xml", lambda report, path, dataset: write_junit(report, path)),
 }
+
+#: Format -> the file it writes (derived from :data:`REPORT_FILES`).
+FORMATS: dict[str, str] = {fmt: f.name for fmt, f in REPORT_FILES.items()}
 
 
 def write_reports(
@@ -54,25 +71,18 @@ def write_reports(
     if problem:
         raise ValueError(f"formats: {problem}")
     out = Path(out_dir)
-    writers = {
-        "json": write_json,
-        "csv": write_csv,
-        "md": write_markdown,
-        "junit": write_junit,
-    }
     written: dict[str, Path] = {}
     for fmt in formats:
-        path = out / FORMATS[fmt]
-        if fmt == "html":
-            write_html(report, path, dataset=dataset)
-        else:
-            writers[fmt](report, path)
-        written[fmt] = path
+        file = REPORT_FILES[fmt]
+        file.write(report, out / file.name, dataset)
+        written[fmt] = out / file.name
     return written
 
 
 __all__ = [
     "FORMATS",
+    "REPORT_FILES",
+    "ReportFile",
     "write_csv",
     "write_html",
     "write_json",

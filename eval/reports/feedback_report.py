@@ -16,9 +16,9 @@ import html
 import os
 from pathlib import Path
 
-from arenabench.eval.phase_check import PHASE_DEPENDENT_MEANING, verdict_words
 from arenabench.eval.scoring.breakdown import systematic_text
 from arenabench.eval.scoring.metric_registry import summary_row_groups
+from arenabench.eval.scoring.phase_summary import PHASE_DEPENDENT_MEANING, verdict_words
 from arenabench.eval.scoring.results import HARNESS_STATUSES, Report
 from arenabench.fileio import atomic_write_text
 

@@ -4,13 +4,13 @@ from __future__ import annotations
 
 from typing import Any
 
-from arenabench.eval.phase_check import PHASE_DEPENDENT_MEANING, verdict_words
 from arenabench.eval.scoring.metric_registry import (
     METRIC,
     ROW_SEPARATORS,
     fmt,
     summary_row_groups,
 )
+from arenabench.eval.scoring.phase_summary import PHASE_DEPENDENT_MEANING, verdict_words
 from arenabench.eval.scoring.results import Report, Summary
 
 #: Columns of a breakdown table (a row per bin of a scene parameter; report.json's

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from arenabench.cmdtemplate import TemplateError, fill, placeholders
 
-from .warm_client import PYTHON_NAME
+from .warm_target import PYTHON_NAME
 
 #: Most entries of the script's folder looked at for a "did you mean".
 _MAX_LISTED = 1000

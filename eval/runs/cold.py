@@ -34,8 +34,7 @@ from .slots import hold
 from .stale import run_dir_prefix
 
 if TYPE_CHECKING:
-    from .context import RunContext
-    from .pipeline import CommandPipeline
+    from .command import RunJob, RunPlace
 
 #: The launcher script (standard library only; run with ``python -I -S``).
 LAUNCHER = str(Path(__file__).with_name("launcher.py"))
@@ -65,12 +64,12 @@ class ColdRunner:
     always answers). One per pipeline; the run slots and the folder remover are its
     context's."""
 
-    def __init__(self, context: RunContext) -> None:
+    def __init__(self, context: RunPlace) -> None:
         self.context = context
         self._lock = threading.Lock()
         self._live: set[subprocess.Popen] = set()
 
-    def run(self, pipe: CommandPipeline, image_path: Path) -> Prediction:
+    def run(self, pipe: RunJob, image_path: Path) -> Prediction:
         """Run ``pipe``'s command on one image (never raises for the command's own failures).
 
         Raises
@@ -88,7 +87,7 @@ class ColdRunner:
         finally:
             self.context.remover.remove_later(rundir)  # the worker goes on meanwhile
 
-    def _run_in(self, pipe: CommandPipeline, image_path: Path, rundir: str) -> Prediction:
+    def _run_in(self, pipe: RunJob, image_path: Path, rundir: str) -> Prediction:
         command = pipe.command
         work, tmp = os.path.join(rundir, "work"), os.path.join(rundir, "tmp")
         try:
@@ -180,7 +179,7 @@ class ColdRunner:
             with self._lock:
                 self._live.discard(proc)
 
-    def stop(self, pipe: CommandPipeline) -> None:
+    def stop(self, pipe: RunJob) -> None:
         """SIGTERM every running launcher (each kills its run's processes and removes its
         folder)."""
         with self._lock:

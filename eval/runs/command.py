@@ -59,10 +59,11 @@ from .sandbox import (
     visible_paths,
     warn_if_procs_unlimited,
 )
-from .warm_client import WarmTarget, warm_target
+from .warm_target import WarmTarget, warm_target
 
 if TYPE_CHECKING:
-    from .pipeline import CommandPipeline
+    from .remover import FolderRemover
+    from .slots import RunSlots
 
 
 def _resolve_executable(exe: str, base_dir: str) -> str | None:
@@ -278,12 +279,53 @@ class Command:
                                    pids_cgroup=self.cgroup_parent is not None)
 
 
+class RunJob(Protocol):
+    """What a runner needs of the pipeline whose image it runs (a
+    :class:`~.pipeline.CommandPipeline` is one): its prepared command, whether it was
+    stopped, and its name (in messages)."""
+
+    @property
+    def command(self) -> Command:
+        """The prepared command."""
+        ...
+
+    @property
+    def stopped(self) -> bool:
+        """A stop was asked: runs under way are killed, later ones return at once."""
+        ...
+
+    @property
+    def name(self) -> str:
+        """The pipeline's name."""
+        ...
+
+    def stop(self) -> None:
+        """Kill the runs under way; later ones return at once."""
+        ...
+
+
+class RunPlace(Protocol):
+    """What a runner uses of the run context it serves (a
+    :class:`~.context.RunContext` is one): its run slots and its remover of finished runs'
+    folders."""
+
+    @property
+    def slots(self) -> RunSlots | None:
+        """The run slots bounding the runs at once (``None``: unbounded)."""
+        ...
+
+    @property
+    def remover(self) -> FolderRemover:
+        """Removes finished runs' folders off the callers' threads."""
+        ...
+
+
 class Runner(Protocol):
     """One way of running a command on an image: the warm servers of a context, or cold
     launchers. The pipeline tries its runners in order; a runner that cannot take the image
     answers ``None`` and the next one runs it."""
 
-    def run(self, pipe: CommandPipeline, image_path: Path) -> Prediction | None:
+    def run(self, pipe: RunJob, image_path: Path) -> Prediction | None:
         """Run ``pipe``'s command on one image; ``None``: not here (never for the last runner).
 
         Raises
@@ -293,6 +335,6 @@ class Runner(Protocol):
         """
         ...
 
-    def stop(self, pipe: CommandPipeline) -> None:
+    def stop(self, pipe: RunJob) -> None:
         """Kill ``pipe``'s runs under way here."""
         ...

@@ -40,8 +40,8 @@ from .stale import sweep_stale_runs
 from .warm_client import WarmServers
 
 if TYPE_CHECKING:
+    from .command import RunJob
     from .limits import RunSettings
-    from .pipeline import CommandPipeline
 
 #: ``cgroup_parent`` not given: probe the machine (:func:`.sandbox.pids_cgroup_parent`).
 PROBE = "probe"
@@ -74,7 +74,7 @@ class RunContext:
         self.remover = FolderRemover()
         self.servers = WarmServers(self)
         self._lock = threading.Lock()
-        self._pipelines: weakref.WeakSet[CommandPipeline] = weakref.WeakSet()
+        self._pipelines: weakref.WeakSet[RunJob] = weakref.WeakSet()
         self._prepared: dict[tuple, Command] = {}
 
     def prepared(self, template: str, *, settings: RunSettings, output: str,
@@ -109,7 +109,7 @@ class RunContext:
                                       and not self.slots.waiting):
                 self.slots = RunSlots(n)
 
-    def adopt(self, pipeline: CommandPipeline) -> None:
+    def adopt(self, pipeline: RunJob) -> None:
         """Count ``pipeline`` among this context's (:meth:`stop` stops it)."""
         with self._lock:
             self._pipelines.add(pipeline)

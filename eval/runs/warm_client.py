@@ -8,7 +8,7 @@ command (:mod:`arenabench.eval.runs.warm_server`), started inside the same sandb
 The server imports numpy and cv2 once; each image is a process forked from it that becomes
 the run (see the server's docstring). What a script can tell: ``docs/warm-interpreter.md``.
 
-Interface: :func:`warm_target` (is a command a Python script?) and :class:`WarmServers`, the
+Interface: :class:`WarmServers`, the
 warm servers of one :class:`~arenabench.eval.runs.context.RunContext` and a
 :class:`~arenabench.eval.runs.command.Runner` of its pipelines::
 
@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import marshal
 import os
-import re
 import secrets
 import shutil
 import signal
@@ -36,7 +35,6 @@ import subprocess
 import sys
 import threading
 from collections import OrderedDict
-from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -49,9 +47,7 @@ from .stale import WARM_PREFIX, make_warm_dir
 from .warm_server import recv_message, send_message
 
 if TYPE_CHECKING:
-    from .command import Command
-    from .context import RunContext
-    from .pipeline import CommandPipeline
+    from .command import Command, RunJob, RunPlace
 
 #: Where a server's folder of private run directories appears in the sandbox (hidden from runs).
 WARM_DIR = "/.arenabench-warm"
@@ -73,40 +69,13 @@ WARM_UP_SOURCE = Path(__file__).with_name("warm_up.py")
 #: The stand-alone modules the server loads from source (in this order).
 SERVER_MODULES = ("proctools", "launcher", "warm_up")
 #: What a Python interpreter's file is called (``python``, ``python3``, ``python3.12``).
-PYTHON_NAME = re.compile(r"python(\d+(\.\d+)*)?")
-_MODULE_NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*(\.[A-Za-z_][A-Za-z0-9_]*)*")
 KEEPER = str(Path(__file__).with_name("warm_keeper.py"))
-
-
-@dataclass(frozen=True)
-class WarmTarget:
-    """What a warm run executes: a script file or a module (exactly one is set)."""
-
-    script: str | None = None
-    module: str | None = None
-
-
-def warm_target(argv: list[str]) -> WarmTarget | None:
-    """The script or module that ``argv`` (the command's resolved arguments, before
-    ``{image}`` substitution) runs with a Python interpreter, or ``None`` when it is not
-    ``PYTHON FILE.py ...`` or ``PYTHON -m MODULE ...``."""
-    if len(argv) < 2:
-        return None
-    if argv[0] != "{python}" and not PYTHON_NAME.fullmatch(os.path.basename(argv[0])):
-        return None
-    if argv[1] == "-m" and len(argv) > 2 and _MODULE_NAME.fullmatch(argv[2]):
-        return WarmTarget(module=argv[2])
-    script = argv[1]
-    if script.endswith(".py") and "{" not in script and os.path.isabs(script) and \
-            os.path.isfile(script):
-        return WarmTarget(script=script)
-    return None
 
 
 class _Waiter:
     """One warm run waited for: its end, its exit status, its run slot."""
 
-    def __init__(self, pipe: CommandPipeline) -> None:
+    def __init__(self, pipe: RunJob) -> None:
         self.pipe = pipe
         self.done = threading.Event()
         self.rc: int | None = None
@@ -128,11 +97,11 @@ class WarmServer:
         The command whose script it runs (``command.warm`` is set).
     image_path : Path
         The first image (its folder is hidden in the sandbox where it lies in a visible one).
-    context : RunContext
+    context : RunPlace
         Its remover (the runs' folders) and run slots.
     """
 
-    def __init__(self, command: Command, image_path: Path, context: RunContext) -> None:
+    def __init__(self, command: Command, image_path: Path, context: RunPlace) -> None:
         assert command.warm is not None
         self.command = command
         self.target = command.warm
@@ -248,7 +217,7 @@ class WarmServer:
         with self._lock:
             return bool(self._waiting)
 
-    def run(self, pipe: CommandPipeline, image_path: Path) -> Prediction | None:
+    def run(self, pipe: RunJob, image_path: Path) -> Prediction | None:
         """Run ``pipe``'s command on one image as a warm run (never raises for the
         command's own failures); ``None`` when the server failed it (the server is then
         ended, and the image runs cold).
@@ -280,7 +249,7 @@ class WarmServer:
         finally:
             self.context.remover.remove_later(rundir)  # the worker goes on meanwhile
 
-    def _run_in(self, pipe: CommandPipeline, image_path: Path, token: str, rundir: str,
+    def _run_in(self, pipe: RunJob, image_path: Path, token: str, rundir: str,
                 work: str, tmp: str) -> Prediction | None:
         command = pipe.command
         if self.isolate:
@@ -356,7 +325,7 @@ class WarmServer:
         except OSError:
             pass
 
-    def stop(self, pipe: CommandPipeline) -> None:
+    def stop(self, pipe: RunJob) -> None:
         """End the runs of ``pipe``."""
         with self._lock:
             tokens = [k for k, w in self._waiting.items() if w.pipe is pipe]
@@ -396,7 +365,7 @@ class WarmServers:
     :class:`~arenabench.eval.runs.command.Runner` of its Python-script pipelines (see the module
     docstring)."""
 
-    def __init__(self, context: RunContext) -> None:
+    def __init__(self, context: RunPlace) -> None:
         self.context = context
         self._lock = threading.Lock()
         self._servers: OrderedDict[tuple, WarmServer] = OrderedDict()
@@ -442,7 +411,7 @@ class WarmServers:
         self._servers.move_to_end(key)
         return server
 
-    def server_for(self, pipe: CommandPipeline, image_path: Path) -> WarmServer | None:
+    def server_for(self, pipe: RunJob, image_path: Path) -> WarmServer | None:
         """The running server of ``pipe``'s command for this image's folder, started when
         there is none (``None``: the command runs cold, said once)."""
         key = self._key(pipe.command, image_path)
@@ -486,7 +455,7 @@ class WarmServers:
             old.close()
         return server
 
-    def run(self, pipe: CommandPipeline, image_path: Path) -> Prediction | None:
+    def run(self, pipe: RunJob, image_path: Path) -> Prediction | None:
         """Run one image through the command's warm server; ``None`` when it must run cold
         (no server, or the server failed the run: its next run starts a new one).
 
@@ -498,7 +467,7 @@ class WarmServers:
         server = self.server_for(pipe, image_path)
         return None if server is None else server.run(pipe, image_path)
 
-    def stop(self, pipe: CommandPipeline) -> None:
+    def stop(self, pipe: RunJob) -> None:
         """Kill ``pipe``'s running warm runs."""
         with self._lock:
             servers = list(self._servers.values())

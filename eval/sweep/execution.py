@@ -26,8 +26,8 @@ from typing import Any
 
 import numpy as np
 
-from arenabench.eval.phase_check import phase_summary
 from arenabench.eval.scoring.metrics import summarize
+from arenabench.eval.scoring.phase_summary import phase_summary
 from arenabench.eval.scoring.results import ImageResult
 from arenabench.generator.parameters.params import PARAMETERS
 from arenabench.generator.parameters.presets import resolve

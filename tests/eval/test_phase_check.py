@@ -14,7 +14,6 @@ import pytest
 from arenabench.eval.datasets.reader import load_dataset
 from arenabench.eval.evaluation import evaluate
 from arenabench.eval.phase_check import (
-    PHASE_DEPENDENT_MEANING,
     PhaseResult,
     box_offsets,
     parse_phase_check,
@@ -23,6 +22,7 @@ from arenabench.eval.phase_check import (
     set_presets,
     shifted_scene,
 )
+from arenabench.eval.scoring.phase_summary import PHASE_DEPENDENT_MEANING
 from arenabench.eval.scoring.results import Report, VariantResult
 from arenabench.generator.dataset.dataset_writer import generate_dataset
 from arenabench.generator.model.camera import intrinsics, project, world_from_camera

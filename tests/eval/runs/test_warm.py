@@ -20,7 +20,7 @@ from arenabench.eval.runs import CommandPipeline
 from arenabench.eval.runs.command import Command
 from arenabench.eval.runs.limits import RunLimits, RunSettings
 from arenabench.eval.runs.sandbox import bwrap_problem, pids_cgroup_parent
-from arenabench.eval.runs.warm_client import WarmTarget, warm_target
+from arenabench.eval.runs.warm_target import WarmTarget, warm_target
 
 PIPES = TESTS / "pipelines"
 PROBE = PIPES / "warm_probe.py"
