@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from arenabench.eval.scoring.results import Prediction
+from arenabench.records import to_plain
 
 
 @dataclass(frozen=True)
@@ -66,8 +67,7 @@ class GiveUp:
 
     def to_dict(self) -> dict[str, Any]:
         """JSON form (``given_up`` of the team's ``report.json`` and ``grade-state.json``)."""
-        return {"after": self.after, "first": self.first, "last": self.last,
-                "timeouts": self.timeouts, "skipped": self.skipped}
+        return to_plain(self)
 
     def text(self) -> str:
         """One line for grade's output."""

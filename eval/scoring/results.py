@@ -12,6 +12,7 @@ from typing import Any
 
 from arenabench.competition import DEFAULT_TOLERANCE
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
+from arenabench.records import from_plain, to_plain
 
 REPORT_SCHEMA = "arenabench.report/1"
 
@@ -323,16 +324,16 @@ class Summary:
     """
 
     n: int
+    n_passed: int
     pass_rate: float
     pass_rate_ci95: tuple[float, float]
     count_exact_rate: float
     count_mae: float | None
-    area_rel_err: dict[str, float | None]
-    area_rel_err_signed: dict[str, float | None]
+    area_rel_err: dict[str, Any]
+    area_rel_err_signed: dict[str, Any]
     marker_id_accuracy: float | None
     failures: dict[str, int]
-    latency_ms: dict[str, float | None]
-    n_passed: int = 0
+    latency_ms: dict[str, Any]
     #: Phase check (docs/phase-check.md): robust and phase-dependent failures as fractions of
     #: all images, and its counts; ``None`` when no image was phase-checked.
     robust_failure_rate: float | None = None
@@ -340,44 +341,19 @@ class Summary:
     phase_check: dict[str, Any] | None = None
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON form."""
-        return {
-            "n": self.n,
-            "n_passed": self.n_passed,
-            "pass_rate": self.pass_rate,
-            "pass_rate_ci95": list(self.pass_rate_ci95),
-            "count_exact_rate": self.count_exact_rate,
-            "count_mae": self.count_mae,
-            "area_rel_err": dict(self.area_rel_err),
-            "area_rel_err_signed": dict(self.area_rel_err_signed),
-            "marker_id_accuracy": self.marker_id_accuracy,
-            "failures": dict(self.failures),
-            "latency_ms": dict(self.latency_ms),
-            "robust_failure_rate": self.robust_failure_rate,
-            "phase_dependent_failure_rate": self.phase_dependent_failure_rate,
-            "phase_check": None if self.phase_check is None else dict(self.phase_check),
-        }
+        """JSON form: the fields, in order."""
+        return to_plain(self)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Summary:
-        """Inverse of :meth:`to_dict`."""
-        lo, hi = d.get("pass_rate_ci95", [0.0, 1.0])
-        return cls(
-            n=int(d["n"]),
-            n_passed=int(d.get("n_passed", round(d["pass_rate"] * d["n"]))),
-            pass_rate=float(d["pass_rate"]),
-            pass_rate_ci95=(float(lo), float(hi)),
-            count_exact_rate=float(d.get("count_exact_rate", 0.0)),
-            count_mae=d.get("count_mae"),
-            area_rel_err=dict(d.get("area_rel_err", {})),
-            area_rel_err_signed=dict(d.get("area_rel_err_signed", {})),
-            marker_id_accuracy=d.get("marker_id_accuracy"),
-            failures={k: int(v) for k, v in d.get("failures", {}).items()},
-            latency_ms=dict(d.get("latency_ms", {})),
-            robust_failure_rate=d.get("robust_failure_rate"),
-            phase_dependent_failure_rate=d.get("phase_dependent_failure_rate"),
-            phase_check=d.get("phase_check"),
-        )
+        """Inverse of :meth:`to_dict` (a summary written before ``n_passed`` was kept: from
+        the pass rate; a missing interval: [0, 1])."""
+        return from_plain(cls, {"pass_rate_ci95": (0.0, 1.0), "count_exact_rate": 0.0,
+                                "count_mae": None, "area_rel_err": {},
+                                "area_rel_err_signed": {}, "marker_id_accuracy": None,
+                                "failures": {}, "latency_ms": {}, **d},
+                          **({} if "n_passed" in d else
+                             {"n_passed": round(d["pass_rate"] * d["n"])}))
 
 
 @dataclass(frozen=True)

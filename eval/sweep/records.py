@@ -17,6 +17,7 @@ from arenabench.generator.parameters.params import Value
 from arenabench.generator.parameters.presets import preset_name
 from arenabench.gtrecord import DEFAULT_AREA_REFERENCE
 from arenabench.limits import MAX_SWEEP_SCENES, check_at_most
+from arenabench.records import from_plain, to_plain
 from arenabench.seeds import check_seed
 
 from ..pipelines import Pipeline, make_pipeline, pipeline_name_problem
@@ -256,25 +257,13 @@ class PointSummary:
     skipped: int = 0
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON form."""
-        return {
-            "index": self.index,
-            "params": dict(self.params),
-            "pipeline": self.pipeline,
-            "summary": self.summary.to_dict(),
-            "skipped": self.skipped,
-        }
+        """JSON form: the fields, in order."""
+        return to_plain(self)
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> PointSummary:
         """Inverse of :meth:`to_dict`."""
-        return cls(
-            index=int(d["index"]),
-            params=dict(d["params"]),
-            pipeline=str(d["pipeline"]),
-            summary=Summary.from_dict(d["summary"]),
-            skipped=int(d.get("skipped", 0)),
-        )
+        return from_plain(cls, d, summary=Summary.from_dict(d["summary"]))
 
 
 @dataclass(frozen=True)

@@ -24,6 +24,7 @@ from typing import Any
 from arenabench import glplatform
 from arenabench.cliopts import CommandParser, add_timeout
 from arenabench.exitcodes import ExitCode
+from arenabench.records import to_plain
 
 PROG = "arenabench doctor"
 #: Seconds a check that starts a process (the OpenGL context, the sandbox, the browser) may
@@ -89,9 +90,8 @@ class Check:
     required: bool = True
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-safe form."""
-        return {"name": self.name, "ok": self.ok, "detail": self.detail, "fix": self.fix,
-                "required": self.required}
+        """JSON-safe form: the fields, in order."""
+        return to_plain(self)
 
 
 @dataclass(frozen=True)
