@@ -33,8 +33,8 @@ import numpy as np
 from arenabench.frame import CORNER_ORDER
 from arenabench.generator.fitting import marker_model as mm
 from arenabench.generator.fitting.markers import MarkerFinding
-from arenabench.generator.fitting.scene_fit import camera_from_pose
 from arenabench.generator.model import camera as cam
+from arenabench.generator.model.camera import camera_from_pose
 from arenabench.generator.model.layout import MARKER_Z, marker_corners_world
 from arenabench.generator.model.scene import ArenaSpec, CameraSpec, MarkerSpec, Scene
 from arenabench.interrupts import checkpoint
@@ -220,12 +220,16 @@ def _pose_matrix(rvec: np.ndarray, tvec: np.ndarray) -> np.ndarray:
 
 
 def corner_camera(finding: MarkerFinding, arena: ArenaSpec, markers: MarkerSpec,
-                  width: int, height: int) -> CameraSpec:
-    """Step 1: the camera from the corners alone (field of view from the homography, pose
-    from ``cv2.solvePnP``; 60 deg when the view is too square to give one)."""
+                  width: int, height: int, *, fov_deg: float | None = None) -> CameraSpec:
+    """Step 1: the camera from the corners alone (field of view from the homography, or
+    ``fov_deg`` when it is known; pose from ``cv2.solvePnP``; 60 deg when the view is too
+    square to give one)."""
     world, image = world_corners(arena, markers), image_corners(finding)
-    h, _ = cv2.findHomography(world[:, :2], image, 0)
-    f = focal_from_homography(h, (width - 1) / 2.0, (height - 1) / 2.0)
+    if fov_deg is not None:
+        f = height / 2.0 / math.tan(math.radians(fov_deg / 2.0))
+    else:
+        h, _ = cv2.findHomography(world[:, :2], image, 0)
+        f = focal_from_homography(h, (width - 1) / 2.0, (height - 1) / 2.0)
     if f is None or not 0.2 * width < f < 50.0 * width:
         f = height / 2.0 / math.tan(math.radians(30.0))
     K = _k(f, width, height)
@@ -233,7 +237,7 @@ def corner_camera(finding: MarkerFinding, arena: ArenaSpec, markers: MarkerSpec,
     if not ok:  # pragma: no cover - four or more coplanar points always give a pose
         raise ValueError("image: no camera pose fits the markers")
     rvec, tvec = cv2.solvePnPRefineLM(world, image, K, None, rvec, tvec)
-    fov = math.degrees(2.0 * math.atan(height / 2.0 / f))
+    fov = math.degrees(2.0 * math.atan(height / 2.0 / f)) if fov_deg is None else fov_deg
     return camera_from_pose(_pose_matrix(rvec, tvec), fov_deg=fov, width=width, height=height)
 
 
@@ -408,6 +412,8 @@ def snap_angles(objective: Objective, v: np.ndarray, extra: np.ndarray, rms_free
     snapped: dict[str, tuple[str, float]] = {}
     rms = rms_free
     for name in SNAPPABLE:
+        if name in held:  # a known value stays as it is
+            continue
         k = ORBIT.index(name)
         tried: set[float] = set()
         for unit, step in SNAP_STEPS:
@@ -466,6 +472,7 @@ def metres_up(camera: CameraSpec) -> str:
 
 def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
                markers: MarkerSpec, fit_marker_side: bool, snap: bool = True,
+               fov_deg: float | None = None,
                progress: Callable[[str], None] | None = None,
                up: Callable[[CameraSpec], str] = metres_up) -> CameraFit:
     """Steps 1, 2 and 4: fit the camera (and the marker side when ``fit_marker_side``) to the
@@ -484,6 +491,9 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
         Fit the marker side too.
     snap : bool, keyword-only
         Try round values of the angles.
+    fov_deg : float or None, keyword-only
+        A known field of view, held (``None``: fitted, and the span of those that fit as
+        well scanned).
     progress : callable, keyword-only
         Called with a line on each step.
     up : callable, keyword-only
@@ -498,24 +508,29 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
     side = (_marker_side_by_homography(finding, arena, markers) if fit_marker_side
             else markers.side_m)
     mk = replace(markers, side_m=side)
-    start = corner_camera(finding, arena, mk, width, height)
+    start = corner_camera(finding, arena, mk, width, height, fov_deg=fov_deg)
     objective = MarkerObjective(gray, finding, arena, mk, fit_side=fit_marker_side)
     extra0 = np.array(([side] if fit_marker_side else []) + [START_SIGMA_PX])
-    v, extra, rms_free = levenberg_marquardt(objective, orbit_vector(start), extra0,
-                                             free=tuple(range(len(ORBIT))))
+    held = () if fov_deg is None else ("fov_deg",)
+    v, extra, rms_free = levenberg_marquardt(
+        objective, orbit_vector(start), extra0,
+        free=tuple(i for i, name in enumerate(ORBIT) if name not in held))
     free_camera = rounded_camera(v, width, height)
     if progress:
         progress(f"camera fitted freely to the marker pixels: fov {free_camera.fov_deg:.3f} "
                  f"deg, {up(free_camera)}, tilt {free_camera.tilt_deg:.3f} "
                  f"deg (RMS {rms_free:.2f})")
-    fovs, fov_ends = fov_range(objective, v, extra, rms_free)
-    if progress:
-        progress(f"the markers fit as well from {fovs[0]:.2f} to {fovs[1]:.2f} deg of field of "
-                 "view")
+    fovs = fov_ends = None
+    if fov_deg is None:
+        fovs, fov_ends = fov_range(objective, v, extra, rms_free)
+        if progress:
+            progress(f"the markers fit as well from {fovs[0]:.2f} to {fovs[1]:.2f} deg of "
+                     "field of view")
     snapped: dict[str, tuple[str, float]] = {}
     rms = rms_free
     if snap:
-        v, extra, snapped, rms = snap_angles(objective, v, extra, rms_free, progress=progress)
+        v, extra, snapped, rms = snap_angles(objective, v, extra, rms_free, held=held,
+                                             progress=progress)
     side, sigma = objective.split(extra)
     camera = rounded_camera(v, width, height)
     proj = cam.project(world_corners(arena, replace(markers, side_m=side)),

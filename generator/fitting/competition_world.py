@@ -36,7 +36,7 @@ from dataclasses import replace
 import numpy as np
 
 from arenabench.generator.assets.competition_arena import CAMERA_HFOV_RAD
-from arenabench.generator.fitting.scene_fit import camera_from_pose
+from arenabench.generator.model.camera import camera_from_pose
 from arenabench.generator.model.scene import CameraSpec, Obstacle
 
 #: The camera model's pose in the world: x, y, z (m), roll, pitch, yaw (rad). The public world

@@ -1,9 +1,9 @@
 """Fit a scene description to a real overhead image of the arena.
 
-Steps: (1) detect the four corner markers; (2) choose the field of view by a 1-D search
-minimising the solvePnP reprojection error of the 16 marker corners against the arena
-geometry (square pixels, centred principal point), and turn the pose into a look-at camera, or
-take a known camera (``FitOptions.camera``);
+Steps: (1) detect the four corner markers; (2) fit the camera to them with the twin's camera
+fit (:func:`arenabench.generator.fitting.camera_fit.fit_camera`: a homography, then the
+markers' pixels; the field of view held where it is known, round angles kept where they fit
+as well), or take a known camera (``FitOptions.camera``);
 (3) segment the boxes and fit each one's footprint and height so that its projected
 silhouette matches the image; (4) read the floor, background and box grey levels and set the
 lighting so that the baked shades give the observed top and side faces; (5) optionally refine
@@ -26,10 +26,11 @@ import numpy as np
 from arenabench.aruco import aruco_dictionary
 from arenabench.frame import CORNER_ORDER
 from arenabench.generator.assets import competition_arena as comp
+from arenabench.generator.fitting import camera_fit as cf
+from arenabench.generator.fitting.markers import MarkerFinding
 from arenabench.generator.fitting.similarity import mean_abs_diff, ssim
 from arenabench.generator.model import camera as cam
 from arenabench.generator.model.layout import (
-    MARKER_Z,
     box_vertices,
     facing_side_faces,
     marker_corners_world,
@@ -62,12 +63,9 @@ class FitOptions:
     fov_deg : float or None
         Known vertical field of view (default: that of the camera that rendered the
         competition's example,
-        :data:`~arenabench.generator.assets.competition_arena.CAMERA_FOV_DEG`);
-        None searches ``fov_range_deg``. Under a near-nadir camera the marker corners barely
-        constrain it (the field of view trades against the altitude), so a known value is the
-        better evidence.
-    fov_range_deg : tuple of float
-        Range of the field-of-view search.
+        :data:`~arenabench.generator.assets.competition_arena.CAMERA_FOV_DEG`), held; None
+        fits it too. Under a near-nadir camera the markers barely constrain it (the field of
+        view trades against the altitude), so a known value is the better evidence.
     refine_rounds : int
         Rounds of coordinate-wise SSIM refinement of a few scalars (0 = none).
     camera : CameraSpec or None
@@ -90,7 +88,6 @@ class FitOptions:
     markers: MarkerSpec = field(default_factory=lambda: MarkerSpec(side_m=comp.MARKER_SIDE_M))
     fit_marker_side: bool = False
     fov_deg: float | None = comp.CAMERA_FOV_DEG
-    fov_range_deg: tuple[float, float] = (20.0, 100.0)
     match_detector_rounds: int = 3
     refine_rounds: int = 1
     camera: CameraSpec | None = None
@@ -99,10 +96,6 @@ class FitOptions:
 
     def __post_init__(self) -> None:
         fov = PARAMETERS["camera.fov_deg"].bounds
-        lo, hi = (float(v) for v in self.fov_range_deg)
-        if not fov.lo <= lo < hi <= fov.hi:
-            raise ValueError(f"fov_range_deg must be {fov.lo:g} <= lo < hi <= {fov.hi:g}, "
-                             f"got {self.fov_range_deg!r}")
         if self.refine_rounds < 0:
             raise ValueError(f"refine_rounds must be >= 0, got {self.refine_rounds!r}")
         if self.fov_deg is not None and not fov.lo <= float(self.fov_deg) <= fov.hi:
@@ -168,98 +161,6 @@ def detect_marker_corners(bgr: np.ndarray, markers: MarkerSpec, *,
     return out
 
 
-def _world_points(arena: ArenaSpec, markers: MarkerSpec) -> np.ndarray:
-    pts = [marker_corners_world(arena, markers, c) for c in CORNER_ORDER]
-    xy = np.vstack(pts)
-    return np.column_stack([xy, np.full(len(xy), MARKER_Z)])
-
-
-def _intrinsics(fov_deg: float, width: int, height: int) -> np.ndarray:
-    return cam.intrinsics(CameraSpec(width=width, height=height, fov_deg=fov_deg))
-
-
-def _pnp(world: np.ndarray, image: np.ndarray, K: np.ndarray) -> tuple[np.ndarray, float]:
-    """world_from_camera pose and RMS reprojection error (px)."""
-    ok, rvec, tvec = cv2.solvePnP(world, image, K, None, flags=cv2.SOLVEPNP_ITERATIVE)
-    if not ok:
-        return np.eye(4), math.inf
-    rvec, tvec = cv2.solvePnPRefineLM(world, image, K, None, rvec, tvec)
-    proj, _ = cv2.projectPoints(world, rvec, tvec, K, None)
-    err = float(np.sqrt(np.mean(np.sum((proj.reshape(-1, 2) - image) ** 2, axis=1))))
-    r_cw, _ = cv2.Rodrigues(rvec)
-    pose = np.eye(4)
-    pose[:3, :3] = r_cw.T
-    pose[:3, 3] = (-r_cw.T @ tvec).ravel()
-    return pose, err
-
-
-def camera_from_pose(
-    pose: np.ndarray, *, fov_deg: float, width: int, height: int
-) -> CameraSpec:
-    """An orbit-form :class:`CameraSpec` reproducing an OpenCV ``world_from_camera`` pose.
-
-    Intrinsics: square pixels, centred principal point, vertical field of view ``fov_deg``.
-    ``target_m`` is where the optical axis meets the floor, ``altitude_m`` the camera's
-    height, ``tilt_deg`` and ``yaw_deg`` the axis' angle from the nadir and its heading, and
-    ``roll_deg`` the rest of the rotation (the same parameters as the presets').
-    """
-    eye = pose[:3, 3]
-    axis = pose[:3, 2] / np.linalg.norm(pose[:3, 2])
-    look_at = eye + axis * (eye[2] / max(-axis[2], 1e-9))
-    tilt = math.degrees(math.acos(float(np.clip(-axis[2], -1.0, 1.0))))
-    yaw = math.degrees(math.atan2(-axis[0], axis[1])) if tilt > 1e-9 else 0.0
-    base = CameraSpec(width=width, height=height, fov_deg=round(float(fov_deg), 6),
-                      altitude_m=round(float(eye[2]), 6), tilt_deg=round(tilt, 6),
-                      yaw_deg=round(yaw, 6),
-                      target_m=tuple(round(float(c), 6) for c in look_at[:2]))
-    r0 = cam.world_from_camera(base)[:3, :3]
-    m = r0.T @ pose[:3, :3]
-    roll = math.degrees(math.atan2(m[1, 0], m[0, 0]))
-    return replace(base, roll_deg=round(roll, 6))
-
-
-def fit_camera(
-    corners: dict[str, np.ndarray], *, arena: ArenaSpec, markers: MarkerSpec,
-    width: int, height: int, fov_range_deg: tuple[float, float] = (20.0, 100.0),
-    fov_deg: float | None = None,
-) -> tuple[CameraSpec, float, float]:
-    """Fit intrinsics (fov, unless ``fov_deg`` is given) and pose to the 16 marker corners.
-
-    Returns
-    -------
-    (CameraSpec, fov_deg, rms reprojection error px)
-    """
-    world = _world_points(arena, markers)
-    image = np.vstack([corners[c] for c in CORNER_ORDER])
-    if fov_deg is not None:
-        pose, _ = _pnp(world, image, _intrinsics(fov_deg, width, height))
-        camera = camera_from_pose(pose, fov_deg=fov_deg, width=width, height=height)
-        proj = cam.project(world, cam.intrinsics(camera), cam.world_from_camera(camera))
-        return camera, fov_deg, float(np.sqrt(np.mean(np.sum((proj - image) ** 2, axis=1))))
-
-    def err(fov: float) -> float:
-        return _pnp(world, image, _intrinsics(fov, width, height))[1]
-
-    lo, hi = fov_range_deg
-    grid = np.linspace(lo, hi, 41)
-    errs = [err(f) for f in grid]
-    i = int(np.argmin(errs))
-    a, b = grid[max(i - 1, 0)], grid[min(i + 1, len(grid) - 1)]
-    gr = (math.sqrt(5) - 1) / 2
-    for _ in range(40):  # golden-section search
-        c, d = b - gr * (b - a), a + gr * (b - a)
-        if err(c) < err(d):
-            b = d
-        else:
-            a = c
-    fov = round(float((a + b) / 2), 6)
-    pose, _ = _pnp(world, image, _intrinsics(fov, width, height))
-    camera = camera_from_pose(pose, fov_deg=fov, width=width, height=height)
-    proj = cam.project(world, cam.intrinsics(camera), cam.world_from_camera(camera))
-    e = float(np.sqrt(np.mean(np.sum((proj - image) ** 2, axis=1))))
-    return camera, fov, e
-
-
 #: Steps of :func:`match_detector`'s search, per orbit-camera parameter.
 _MATCH_STEPS = {"target_x": 0.0005, "target_y": 0.0005, "altitude_m": 0.002, "tilt_deg": 0.02,
                 "yaw_deg": 0.02, "roll_deg": 0.02, "fov_deg": 0.02}
@@ -322,41 +223,6 @@ def match_detector(
             if not improved or best < 1.0:
                 break
     return scene, int(best)
-
-
-def fit_arena_camera(
-    corners: dict[str, np.ndarray], *, arena: ArenaSpec, markers: MarkerSpec,
-    width: int, height: int, fov_range_deg: tuple[float, float] = (20.0, 100.0),
-) -> tuple[MarkerSpec, CameraSpec, float, float]:
-    """Fit the marker side (for the given arena side), the fov and the pose to the markers.
-
-    The marker side is searched within 0.5x..1.5x ``markers.side_m``: real arenas print
-    markers at a size the description may not state exactly.
-
-    Returns
-    -------
-    (MarkerSpec, CameraSpec, fov_deg, rms reprojection error px)
-    """
-
-    def run(side: float) -> tuple[CameraSpec, float, float]:
-        m = replace(markers, side_m=side)
-        return fit_camera(corners, arena=arena, markers=m, width=width, height=height,
-                          fov_range_deg=fov_range_deg)
-
-    sides = np.linspace(0.5, 1.5, 21) * markers.side_m
-    errs = [run(s)[2] for s in sides]
-    i = int(np.argmin(errs))
-    a, b = sides[max(i - 1, 0)], sides[min(i + 1, len(sides) - 1)]
-    gr = (math.sqrt(5) - 1) / 2
-    for _ in range(14):
-        c, d = b - gr * (b - a), a + gr * (b - a)
-        if run(c)[2] < run(d)[2]:
-            b = d
-        else:
-            a = c
-    side = round(float((a + b) / 2), 4)
-    camera, fov, err = run(side)
-    return replace(markers, side_m=side), camera, fov, err
 
 
 def _plane_to_image(K: np.ndarray, pose: np.ndarray, z: float) -> np.ndarray:
@@ -612,25 +478,22 @@ def fit_scene(image_bgr: np.ndarray, *, options: FitOptions | None = None,
     if known is not None and (known.width, known.height) != (width, height):
         raise ValueError(f"image is {width} x {height} px, the known camera "
                          f"{known.width} x {known.height}")
-    corners = detect_marker_corners(img, options.markers)
-    if known is not None:
-        markers, camera = options.markers, known
-        fov = camera.fov_deg
-        world = _world_points(options.arena, markers)
-        proj = cam.project(world, cam.intrinsics(camera), cam.world_from_camera(camera))
-        image = np.vstack([corners[c] for c in CORNER_ORDER])
-        err = float(np.sqrt(np.mean(np.sum((proj - image) ** 2, axis=1))))
-    elif options.fit_marker_side:
-        markers, camera, fov, err = fit_arena_camera(
-            corners, arena=options.arena, markers=options.markers, width=width, height=height,
-            fov_range_deg=options.fov_range_deg,
-        )
-    else:
-        markers = options.markers
-        camera, fov, err = fit_camera(corners, arena=options.arena, markers=markers,
-                                      width=width, height=height,
-                                      fov_range_deg=options.fov_range_deg,
-                                      fov_deg=options.fov_deg)
+    markers, camera = options.markers, known
+    corners = detect_marker_corners(img, markers)
+    if camera is None:  # the one camera fit (the twin's): homography, then the marker pixels
+        finding = MarkerFinding(
+            dictionary=markers.dictionary, family=(markers.dictionary,), ids=markers.ids,
+            corners=corners, detector_corners=detect_marker_corners(img, markers, refine=False),
+            rotation_deg=markers.rotation_deg, bit_errors=0, tried=(markers.dictionary,))
+        fit = cf.fit_camera(cv2.cvtColor(img, cv2.COLOR_BGR2GRAY), finding,
+                            arena=options.arena, markers=markers,
+                            fit_marker_side=options.fit_marker_side, fov_deg=options.fov_deg)
+        markers, camera = replace(markers, side_m=fit.marker_side_m), fit.camera
+    fov = camera.fov_deg
+    world = cf.world_corners(options.arena, markers)
+    proj = cam.project(world, cam.intrinsics(camera), cam.world_from_camera(camera))
+    image = np.vstack([corners[c] for c in CORNER_ORDER])
+    err = float(np.sqrt(np.mean(np.sum((proj - image) ** 2, axis=1))))
     arena = options.arena
     probe = Scene(arena=arena, markers=markers, obstacles=(), camera=camera)
     inner = _floor_mask(probe, gray.shape, arena.side_m / 2 - markers.side_m - 0.1)

@@ -12,6 +12,7 @@ Conventions
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 
@@ -127,3 +128,28 @@ def floor_homography(K: np.ndarray, pose_cv: np.ndarray) -> np.ndarray:
     r_cw = pose_cv[:3, :3].T
     t_cw = -r_cw @ pose_cv[:3, 3]
     return np.asarray(K, dtype=np.float64) @ np.column_stack([r_cw[:, 0], r_cw[:, 1], t_cw])
+
+
+def camera_from_pose(
+    pose: np.ndarray, *, fov_deg: float, width: int, height: int
+) -> CameraSpec:
+    """An orbit-form :class:`CameraSpec` reproducing an OpenCV ``world_from_camera`` pose.
+
+    Intrinsics: square pixels, centred principal point, vertical field of view ``fov_deg``.
+    ``target_m`` is where the optical axis meets the floor, ``altitude_m`` the camera's
+    height, ``tilt_deg`` and ``yaw_deg`` the axis' angle from the nadir and its heading, and
+    ``roll_deg`` the rest of the rotation (the same parameters as the presets').
+    """
+    eye = pose[:3, 3]
+    axis = pose[:3, 2] / np.linalg.norm(pose[:3, 2])
+    look_at = eye + axis * (eye[2] / max(-axis[2], 1e-9))
+    tilt = math.degrees(math.acos(float(np.clip(-axis[2], -1.0, 1.0))))
+    yaw = math.degrees(math.atan2(-axis[0], axis[1])) if tilt > 1e-9 else 0.0
+    base = CameraSpec(width=width, height=height, fov_deg=round(float(fov_deg), 6),
+                      altitude_m=round(float(eye[2]), 6), tilt_deg=round(tilt, 6),
+                      yaw_deg=round(yaw, 6),
+                      target_m=tuple(round(float(c), 6) for c in look_at[:2]))
+    r0 = world_from_camera(base)[:3, :3]
+    m = r0.T @ pose[:3, :3]
+    roll = math.degrees(math.atan2(m[1, 0], m[0, 0]))
+    return replace(base, roll_deg=round(roll, 6))

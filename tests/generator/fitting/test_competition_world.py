@@ -51,7 +51,8 @@ def test_example_scene_uses_the_competition_camera():
 def test_camera_puts_the_markers_on_the_examples_corners():
     """The texture's marker corners, projected, fall within 1.1 px RMS of cv2.aruco's sub-pixel
     corners on the example (the corners of a rendered marker come out the same way)."""
-    from arenabench.generator.fitting.scene_fit import _world_points, detect_marker_corners
+    from arenabench.generator.fitting.camera_fit import world_corners as _world_points
+    from arenabench.generator.fitting.scene_fit import detect_marker_corners
 
     scene = load_scene(SCENE)
     corners = detect_marker_corners(cv2.imread(str(IMAGE)), scene.markers)

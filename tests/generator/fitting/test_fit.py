@@ -194,8 +194,9 @@ def test_fit_cli_image_without_markers(tmp_path):
 
 @pytest.mark.integration
 def test_fit_cli_fits_the_camera_on_request(tmp_path, real, real_detection):
-    """``--fit-camera``: the camera from the markers (solvePnP at the example camera's field of
-    view, then the detector-matching nudge) instead of the known one; still a close render."""
+    """``--fit-camera``: the camera from the markers (the twin's camera fit, at the example
+    camera's field of view, then the detector-matching nudge) instead of the known one; still
+    a close render."""
     out = tmp_path / "scene.json"
     proc = _cli("fit", str(IMAGE), "--out", str(out), "--report", "--fit-camera")
     assert proc.returncode == 0, proc.stderr
