@@ -334,11 +334,10 @@ class _EvalRun:
 
         from arenabench.eval.datasets.reader import load_dataset
         from arenabench.eval.runs import (
-            OWN_PYTHON_PLACEHOLDER,
             CommandPipeline,
+            check_command,
             missing_script_problem,
             resolve_competition_python,
-            substitute_competition_python,
             uses_competition_python,
         )
         from arenabench.eval.scoring.thresholds import parse_thresholds
@@ -350,19 +349,18 @@ class _EvalRun:
 
             make_pipeline(args.pipeline)  # an unknown name: refused before the dataset is read
             pipeline = args.pipeline  # evaluate() makes it (a callable: isolated)
-        else:
-            if problem := missing_script_problem(args.cmd, base_dir=os.getcwd()):
-                raise ValueError(f"--cmd {args.cmd!r}: {problem}")
-            settings = run_settings_from_args(args)
-            competition = uses_competition_python(args.cmd)
-            # the rest of the command is checked before the competition's interpreter is made
-            pipeline = CommandPipeline(
-                substitute_competition_python(args.cmd, OWN_PYTHON_PLACEHOLDER)
-                if competition else args.cmd,
-                settings=settings, output=args.output, name=args.name or "")
+        elif problem := missing_script_problem(args.cmd, base_dir=os.getcwd()):
+            raise ValueError(f"--cmd {args.cmd!r}: {problem}")
+        settings = run_settings_from_args(args) if args.cmd else None
+        competition = bool(args.cmd) and uses_competition_python(args.cmd)
+        if competition:  # the rest of the command first: its interpreter is made after
+            check_command(args.cmd, settings=settings, output=args.output)
+        elif args.cmd:
+            pipeline = CommandPipeline(args.cmd, settings=settings, output=args.output,
+                                       name=args.name or "")
         self.dataset = load_dataset(args.dataset, limit=args.limit, verify=not args.no_verify,
                                     skip_damaged=args.skip_damaged)
-        if args.cmd and competition:  # made once, then reused
+        if competition:  # made once, then reused
             (command,), self.interpreter = resolve_competition_python(
                 [args.cmd], progress=not args.no_progress, prog="arenabench eval")
             pipeline = CommandPipeline(command, settings=settings, output=args.output,

@@ -34,10 +34,8 @@ from arenabench.eval.phase_check import add_phase_check_argument, resolve_phases
 from arenabench.eval.pipelines import BUILTIN_PIPELINES
 from arenabench.eval.runs import (
     OUTPUT_MODES,
-    OWN_PYTHON_PLACEHOLDER,
     resolve_competition_python,
     run_settings_from_args,
-    substitute_competition_python,
 )
 from arenabench.exitcodes import ExitCode
 from arenabench.interrupts import Interrupted, stop_on_signals
@@ -192,15 +190,14 @@ def _spec(args: argparse.Namespace):
 
 def _try_pipeline(p, *, timeout_s: float) -> None:
     """Raise ``ValueError`` with one line when pipeline ``p`` cannot run at all."""
-    from arenabench.eval.runs import missing_script_problem, trial_pipeline
+    from arenabench.eval.runs import check_command, missing_script_problem, trial_pipeline
 
     if p.kind == "cmd" and (problem := missing_script_problem(p.value, base_dir=p.base_dir)):
         raise ValueError(f"--cmd {p.value!r}: {problem}")
-    if p.kind == "cmd" or ":" in p.value:
-        # import errors, missing executables now, as one line ({competition_python}
-        # is made after every other check: {python} stands in for it here)
-        trial = substitute_competition_python(p.value, OWN_PYTHON_PLACEHOLDER)
-        replace(p, value=trial).build().close()
+    if p.kind == "cmd":  # missing executables now, as one line
+        check_command(p.value, settings=p.settings, output=p.output, base_dir=p.base_dir)
+    elif ":" in p.value:  # import errors now, as one line
+        p.build().close()
     if p.kind == "pipeline" and ":" in p.value:
         trial_pipeline(p.value, timeout_s=timeout_s)
 

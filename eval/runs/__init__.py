@@ -48,7 +48,7 @@ from .context import RunContext
 from .interpreter import InterpreterInfo, interpreter_folders
 from .isolated import IsolatedCallablePipeline, trial_pipeline
 from .limits import RunLimits, RunSettings, run_settings_from_args
-from .pipeline import CommandPipeline
+from .pipeline import CommandPipeline, check_command
 from .predictions import OUTPUT_MODES, STARVED_RETRIES, STARVED_SHARE
 from .run_images import collect_run_images
 from .sandbox import bwrap_problem, pids_cgroup_parent
@@ -56,11 +56,32 @@ from .stale import owned_dir_prefix, sweep_stale_runs
 from .warm_up import warm_up
 
 __all__ = [
-    "COMPETITION_PINS", "COMPETITION_PLACEHOLDER", "OUTPUT_MODES", "OWN_PYTHON_PLACEHOLDER",
-    "STARVED_RETRIES", "STARVED_SHARE", "CommandPipeline", "Interpreter", "InterpreterInfo",
-    "IsolatedCallablePipeline", "RunContext", "RunLimits", "RunSettings", "bwrap_problem",
-    "collect_run_images", "competition_python", "interpreter_folders", "missing_script_problem",
-    "owned_dir_prefix", "pids_cgroup_parent", "resolve_competition_python",
-    "run_settings_from_args", "substitute_competition_python", "sweep_stale_runs",
-    "trial_pipeline", "uses_competition_python", "warm_up",
+    "COMPETITION_PINS",
+    "COMPETITION_PLACEHOLDER",
+    "OUTPUT_MODES",
+    "OWN_PYTHON_PLACEHOLDER",
+    "STARVED_RETRIES",
+    "STARVED_SHARE",
+    "CommandPipeline",
+    "Interpreter",
+    "InterpreterInfo",
+    "IsolatedCallablePipeline",
+    "RunContext",
+    "RunLimits",
+    "RunSettings",
+    "bwrap_problem",
+    "check_command",
+    "collect_run_images",
+    "competition_python",
+    "interpreter_folders",
+    "missing_script_problem",
+    "owned_dir_prefix",
+    "pids_cgroup_parent",
+    "resolve_competition_python",
+    "run_settings_from_args",
+    "substitute_competition_python",
+    "sweep_stale_runs",
+    "trial_pipeline",
+    "uses_competition_python",
+    "warm_up",
 ]  # fmt: skip

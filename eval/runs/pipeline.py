@@ -223,3 +223,15 @@ class CommandPipeline:
 
 
 __all__ = ["Command", "CommandPipeline", "Runner"]
+
+
+def check_command(template: str, *, settings: RunSettings, output: str = "obstacles",
+                  base_dir: str | None = None) -> None:
+    """Check a command before any work: ``ValueError`` (one line) for a bad placeholder or
+    ``output``, a missing executable, bubblewrap asked for and missing. The harness's own
+    Python stands for ``{competition_python}`` here: the competition's environment is made
+    only once everything else holds. Nothing is kept (no warm server starts)."""
+    from .competition_env import OWN_PYTHON_PLACEHOLDER, substitute_competition_python
+
+    CommandPipeline(substitute_competition_python(template, OWN_PYTHON_PLACEHOLDER),
+                    settings=settings, output=output, base_dir=base_dir).close()
