@@ -331,11 +331,13 @@ class _Check:
         self.progress = not args.no_progress
 
     def main(self) -> int:
+        from arenabench.eval.commands.poor_fit import say_poor_fits
         from arenabench.eval.phase_check import resolve_phases
 
         args = self.args
         if args.out is not None and (problem := self.out_problem(args.out)):
             return _error(problem)
+        say_poor_fits(PROG, [self.preset])
         try:
             self._configure()
         except ValueError as exc:

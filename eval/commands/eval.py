@@ -368,10 +368,12 @@ class _EvalRun:
         return pipeline
 
     def _evaluate(self, pipeline):
+        from arenabench.eval.commands.poor_fit import say_poor_fits
         from arenabench.eval.evaluation import evaluate
         from arenabench.eval.phase_check import resolve_phases, set_presets
 
         args, dataset = self.args, self.dataset
+        say_poor_fits("arenabench eval", set_presets(dataset))
         _warn_if_incomplete(dataset)
         if dataset.skipped:
             first, why = dataset.skipped[0]

@@ -162,6 +162,10 @@ def main(argv: list[str] | None = None) -> int:
             if msg.startswith(f"{param} "):
                 msg = f"{option}{msg[len(param):]}"
         return _error(msg)
+    from arenabench.eval.commands.poor_fit import say_poor_fits
+    from arenabench.eval.phase_check import set_presets
+
+    say_poor_fits(PROG, set_presets(dataset))
     result = _run(args, dataset, options)
     if isinstance(result, int):
         return result

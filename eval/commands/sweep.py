@@ -150,6 +150,9 @@ def main(argv: list[str] | None = None) -> int:
         spec = _spec(args)
     except ValueError as exc:
         return _error(str(exc))
+    from arenabench.eval.commands.poor_fit import say_poor_fits
+
+    say_poor_fits("arenabench sweep", [args.preset])
     if args.scheduler is None:  # renders here: OpenGL must work before anything is written
         from arenabench.generator.dataset.gl_check import OffscreenGLError, require_offscreen_gl
 

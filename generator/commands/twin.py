@@ -52,6 +52,10 @@ def build_parser() -> CommandParser:
                         "(without it the scale is open: the generator's default arena)")
     p.add_argument("--name", default=None,
                    help="the preset's name (default: twin-IMAGE-STEM)")
+    p.add_argument("--accept-poor-fit", action="store_true",
+                   help="exit 0 with a twin whose verdict is poor (its render outside the "
+                        "bounds the blind round trips hold); without it such a twin is written "
+                        "and the exit status is 6")
     add_no_progress(p)
     return p
 
@@ -72,35 +76,19 @@ def _size(text: str) -> tuple[float, float]:
 
 def main(argv: list[str] | None = None) -> int:
     """Run ``arenabench twin``; 0 on success, 2 on bad input (one line, before any work),
-    130 / 143 when stopped (nothing is written; an earlier twin in DIR is kept)."""
+    6 for a twin whose fit is poor (written; 0 with ``--accept-poor-fit``), 130 / 143 when
+    stopped (nothing is written; an earlier twin in DIR is kept)."""
     args = build_parser().parse_args(argv)
-    from arenabench.generator.parameters.preset_files import NAME_RE
-    from arenabench.imageio import image_file_problem
-
-    if problem := image_file_problem(args.image):
-        return usage_error(PROG, f"{args.image}: {problem}")
-    if args.texture is not None:
-        if problem := image_file_problem(args.texture):
-            return usage_error(PROG, f"--texture {args.texture}: {problem}")
-        if args.arena_size is None:
-            return usage_error(PROG, "--texture needs --arena-size W,H (the metres the "
-                                     "texture covers)")
-    try:
-        size = None if args.arena_size is None else _size(args.arena_size)
-    except ValueError as exc:
-        return usage_error(PROG, str(exc))
-    name = args.name or f"twin-{args.image.stem}"
-    if not NAME_RE.fullmatch(name):
-        return usage_error(PROG, f"--name {name!r}: 1 to 64 letters, digits, '.', '_' or '-', "
-                                 "starting with a letter or digit")
+    problem, size, name = _inputs(args)
+    if problem:
+        return usage_error(PROG, problem)
     from arenabench.generator.fitting.writer import TWIN_FILES
 
     if problem := output_problem(args.out, own=TWIN_FILES, what="twin"):
         return usage_error(PROG, problem)
     from arenabench.fileio import FolderLockedError
     from arenabench.generator.dataset.gl_check import OffscreenGLError, require_offscreen_gl
-    from arenabench.generator.fitting.build import TwinOptions, build_twin, records_text
-    from arenabench.generator.fitting.markers import detector_offset_text
+    from arenabench.generator.fitting.build import TwinOptions, build_twin
     from arenabench.generator.fitting.writer import write_twin
     from arenabench.interrupts import Interrupted, stop_on_signals
 
@@ -135,6 +123,40 @@ def main(argv: list[str] | None = None) -> int:
         except OSError as exc:
             print(f"{PROG}: error: {write_failure(exc, args.out)}", file=sys.stderr)
             return ExitCode.FAILED
+    return _said(args, twin, name, written)
+
+
+def _inputs(args) -> tuple[str | None, tuple[float, float] | None, str]:
+    """(what is wrong with the inputs or None, the arena's size, the preset's name), before
+    any work."""
+    from arenabench.generator.parameters.preset_files import NAME_RE
+    from arenabench.imageio import image_file_problem
+
+    name = args.name or f"twin-{args.image.stem}"
+    if problem := image_file_problem(args.image):
+        return f"{args.image}: {problem}", None, name
+    if args.texture is not None:
+        if problem := image_file_problem(args.texture):
+            return f"--texture {args.texture}: {problem}", None, name
+        if args.arena_size is None:
+            return ("--texture needs --arena-size W,H (the metres the texture covers)", None,
+                    name)
+    try:
+        size = None if args.arena_size is None else _size(args.arena_size)
+    except ValueError as exc:
+        return str(exc), None, name
+    if not NAME_RE.fullmatch(name):
+        return (f"--name {name!r}: 1 to 64 letters, digits, '.', '_' or '-', starting with a "
+                "letter or digit"), None, name
+    return None, size, name
+
+
+def _said(args, twin, name: str, written) -> int:
+    """The twin's lines (its verdict first) and exit status."""
+    from arenabench.generator.fitting.build import records_text
+    from arenabench.generator.fitting.markers import detector_offset_text
+
+    print(f"twin {name}: {twin.verdict.line()}")
     f = twin.figures
     print(f"twin {name}: marker squares {f.mad['markers']:.2f} grey levels from the image, "
           f"whole image {f.whole:.2f}, the default detector's corners "
@@ -142,6 +164,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f"wrote {', '.join(str(p) for p in written)}")
     print(f"generate from it: arenabench generate --preset {args.out / 'preset.toml'} "
           f"--count 200 --out SET")
+    if not twin.verdict.good and not args.accept_poor_fit:
+        print(f"{PROG}: the twin's fit is poor (written; its preset is a guess at this arena "
+              "that scripts should not be held to): --accept-poor-fit to exit 0",
+              file=sys.stderr)
+        return ExitCode.POOR_FIT
     return ExitCode.OK
 
 

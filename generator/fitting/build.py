@@ -53,6 +53,7 @@ from arenabench.generator.fitting.regions import (
 from arenabench.generator.fitting.shades import Shades, read_shades
 from arenabench.generator.fitting.similarity import ssim
 from arenabench.generator.fitting.variation import Varied, vary_boxes
+from arenabench.generator.fitting.verdict import GOOD, FitVerdict, judge
 from arenabench.generator.model import camera as cam
 from arenabench.generator.model.layout import floor_extent
 from arenabench.generator.model.scene import (
@@ -63,7 +64,7 @@ from arenabench.generator.model.scene import (
     RenderSpec,
     Scene,
 )
-from arenabench.generator.parameters.params import Range, Value
+from arenabench.generator.parameters.params import PARAMETERS, Range, Value
 from arenabench.generator.parameters.presets import resolve
 from arenabench.imageio import decode_image
 from arenabench.interrupts import checkpoint
@@ -117,6 +118,9 @@ class Twin:
         What was found, for ``twin.json`` and the report.
     timings : dict
         Seconds per step.
+    verdict : FitVerdict
+        Whether the render holds the bounds the blind round trips hold, and if not what is
+        off and why (:mod:`arenabench.generator.fitting.verdict`).
     """
 
     scene: Scene
@@ -129,6 +133,7 @@ class Twin:
     varied: list[Varied]
     facts: dict[str, Any] = field(default_factory=dict)
     timings: dict[str, float] = field(default_factory=dict)
+    verdict: FitVerdict = field(default_factory=lambda: FitVerdict(GOOD, (), ()))
 
     @property
     def open_params(self) -> dict:
@@ -361,14 +366,19 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
     steps.done("figures", f"marker squares {figures.mad['markers']:.2f} grey levels, whole "
                           f"image {figures.whole:.2f}; the default detector's corners "
                           f"{detector_offset_text(figures.detector_px)}")
+    verdict = judge(figures, gray, render_gray, masks, corner_rms_px=fit.corner_rms_px)
+    steps.done("verdict", verdict.line())
     params = _preset_params(scene, varied, facts_file)
     facts = {
         "image": {"file": image_path.name, "width": width, "height": height,
                   "format": facts_file.format, "jpeg_quality": facts_file.jpeg_quality,
                   "jpeg_subsampling": facts_file.jpeg_subsampling,
                   "jpeg_tables_exact": facts_file.exact},
+        "verdict": verdict.to_dict(),
         "markers": {"dictionary": finding.dictionary, "family": list(finding.family),
-                    "ids": list(finding.ids), "rotation_deg": finding.rotation_deg,
+                    "smallest_holding_the_corner_ids": finding.smallest or finding.dictionary,
+                    "ids": list(finding.ids), "others": list(finding.others),
+                    "rotation_deg": finding.rotation_deg,
                     "bit_errors": finding.bit_errors, "dictionaries_tried": len(finding.tried)},
         "camera": {"free": _camera_dict(_scale_camera(fit.free, scale)),
                    "snapped": {k: {"unit": u, "value": v} for k, (u, v) in fit.snapped.items()},
@@ -392,11 +402,11 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
                     "detector_corners_px": {str(k): v for k, v in figures.detector_px.items()}},
     }
     records = _records(scene, params, fit, shades, edges, edge_table, facts_file, finding,
-                       varied, scale_source, figures, renderer, gray)
+                       varied, scale_source, figures, renderer, gray, verdict)
     steps.done("records", records_text(records))
     return Twin(scene=scene, params=params, records=records, figures=figures, real=real,
                 render=render_bgr, texture_rgb=texture_rgb, varied=varied, facts=facts,
-                timings=steps.timings)
+                timings=steps.timings, verdict=verdict)
 
 
 #: Drawn marker sheets this close to the image's marker squares (mean absolute grey
@@ -519,7 +529,11 @@ def _trade_ends(fit: cf.CameraFit, key: str, own: float, metres: float) -> tuple
     assert fit.fov_ends is not None
     free = dict(zip(cf.ORBIT, cf.orbit_vector(fit.free), strict=True))
     unit = metres if key in ("target_x", "target_y", "altitude_m") else 1.0
-    lo, hi = (round(own + (end[key] - free[key]) * unit, 6) for end in fit.fov_ends)
+    # within the parameter's bounds: seen from the nadir the trade would tilt the camera
+    # below 0 deg, which no camera of the generator is (the trade ends there)
+    bounds = PARAMETERS[_CAMERA_NAMES[key]].bounds
+    lo, hi = (round(min(max(own + (end[key] - free[key]) * unit, bounds.lo), bounds.hi), 6)
+              for end in fit.fov_ends)
     return lo, hi
 
 
@@ -813,6 +827,7 @@ class _Found:
     varied: list[Varied]
     scale_source: str
     figures: RegionFigures
+    verdict: FitVerdict
 
     @property
     def own_texture(self) -> bool:
@@ -822,12 +837,13 @@ class _Found:
 
 def _records(scene, params, fit, shades: Shades, edges: EdgeEvidence, edge_table,
              facts_file: FileFacts, finding: MarkerFinding, varied: list[Varied],
-             scale_source: str, figures: RegionFigures, renderer, gray) -> list[rec.Record]:
+             scale_source: str, figures: RegionFigures, renderer, gray,
+             verdict: FitVerdict) -> list[rec.Record]:
     """Every parameter pinned (with its residual) or open (with its range and why)."""
     from arenabench.generator.fitting.residuals import pinned_residuals
 
     found = _Found(scene, params, fit, shades, edges, edge_table, facts_file, finding, varied,
-                   scale_source, figures)
+                   scale_source, figures, verdict)
     res = pinned_residuals(scene, gray, renderer, finding)
     r: dict[str, rec.Record] = {}
     for group in (_camera_records, _marker_records, _arena_records, _light_records,
@@ -855,6 +871,9 @@ def _camera_records(f: _Found, res: dict) -> dict[str, rec.Record]:
         how = (f"fitted freely to the markers, then held at the round {snapped[1]:g} {snapped[0]}"
                + (" of pitch" if key == "tilt_deg" else "") if snapped
                else "fitted to the markers' pixels")
+        if key == "yaw_deg" and fit.nadir:
+            how = (f"held at 0: within {cf.NADIR_TILT_DEG:g} deg of the nadir the heading and "
+                   "the roll turn the image alike, and the turn is fitted as the roll")
         if f.scale_source == "default" and key in ("target_x", "target_y", "altitude_m"):
             r[name] = rec.open_range(name, params[name], _scale_range(name, params[name]),
                                      "the image fixes the camera only up to scale (no "
@@ -1021,12 +1040,17 @@ def _edge_records(f: _Found, res: dict) -> dict[str, rec.Record]:
 
 
 #: Degradations and features the twin does not add: pinned at none when the render without
-#: them matches the image (parameter, what it adds).
-_NOT_ADDED = (("degrade.noise_sigma", "noise"), ("degrade.motion_blur_px", "blur"),
-              ("degrade.defocus_px", "defocus"), ("degrade.vignetting", "vignetting"),
-              ("degrade.exposure_ev", "exposure"), ("lighting.shadow_strength", "shadows"),
-              ("distractors.tapes", "tape"), ("distractors.papers", "papers"),
-              ("camera.k1", "lens distortion"))
+#: them matches the image (parameter, what it adds, the start of the verdict's cause that
+#: shows the image has it: then the record is open, not fitted).
+_NOT_ADDED = (("degrade.noise_sigma", "noise", "noise"),
+              ("degrade.motion_blur_px", "blur", "blur"),
+              ("degrade.defocus_px", "defocus", "blur"),
+              ("degrade.vignetting", "vignetting", "exposure"),
+              ("degrade.exposure_ev", "exposure", "exposure"),
+              ("lighting.shadow_strength", "shadows", "exposure"),
+              ("distractors.tapes", "tape", "a floor unlike"),
+              ("distractors.papers", "papers", "a floor unlike"),
+              ("camera.k1", "lens distortion", "lens distortion"))
 
 
 def _output_records(f: _Found, res: dict) -> dict[str, rec.Record]:
@@ -1042,9 +1066,15 @@ def _output_records(f: _Found, res: dict) -> dict[str, rec.Record]:
         r["output.jpeg_subsampling"] = rec.pinned("output.jpeg_subsampling",
                                                   params["output.jpeg_subsampling"],
                                                   "the file's frame header")
-    for name, what in _NOT_ADDED:
-        r[name] = rec.pinned(name, params[name], f"the render without {what} matches the image "
-                             f"(whole image within {f.figures.whole:.2f} grey levels)")
+    for name, what, cause in _NOT_ADDED:
+        seen = [c for c in f.verdict.causes if c.startswith(cause)]
+        if seen:  # the image has it and the twin renders none: said, not fitted
+            r[name] = rec.open_values(name, params[name], (params[name],),
+                                      f"not fitted: the image shows {seen[0]}")
+        else:
+            r[name] = rec.pinned(name, params[name], f"the render without {what} matches the "
+                                 f"image (whole image within {f.figures.whole:.2f} grey "
+                                 "levels)")
     return r
 
 

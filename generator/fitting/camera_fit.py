@@ -95,6 +95,9 @@ class CameraFit:
     fov_ends : tuple of dict or None
         The two fits at those fields of view: each :data:`ORBIT` parameter's value (lengths in
         the fit's units), at the lowest, then at the highest.
+    nadir : bool
+        The camera looks within :data:`NADIR_TILT_DEG` of straight down: its heading was held
+        at 0 and the image's turn is its roll (the two turn such an image alike).
     """
 
     camera: CameraSpec
@@ -109,6 +112,25 @@ class CameraFit:
     sensitivity: dict[str, float] = field(default_factory=dict)
     fov_range: tuple[float, float] | None = None
     fov_ends: tuple[dict[str, float], dict[str, float]] | None = None
+    nadir: bool = False
+
+
+#: Tilt (deg) below which the axis' heading and the roll turn the image alike (one rotation
+#: about the vertical): the heading is held at 0 and the turn fitted as roll, so neither
+#: drifts along the other nor snaps to a value the other makes fit.
+NADIR_TILT_DEG = 0.5
+
+
+def _heading_into_roll(v: np.ndarray, width: int, height: int) -> np.ndarray:
+    """``v`` with its heading 0 and the same rotation about the vertical in its roll."""
+    camera = orbit_camera(v, width, height)
+    pose = cam.world_from_camera(camera)
+    level = cam.world_from_camera(replace(camera, yaw_deg=0.0, roll_deg=0.0))
+    m = level[:3, :3].T @ pose[:3, :3]
+    out = v.copy()
+    out[ORBIT.index("yaw_deg")] = 0.0
+    out[ORBIT.index("roll_deg")] = math.degrees(math.atan2(m[1, 0], m[0, 0]))
+    return out
 
 
 #: Field-of-view offsets (deg) scanned by :func:`fov_range`, nearest first, each way, until
@@ -121,7 +143,7 @@ FOV_SCAN_BOUNDS = (10.0, 150.0)
 
 
 def fov_range(objective: Objective, v: np.ndarray, extra: np.ndarray, rms_ref: float, *,
-              iterations: int = 8
+              iterations: int = 8, held: tuple[str, ...] = ()
               ) -> tuple[tuple[float, float], tuple[dict[str, float], dict[str, float]]]:
     """The fields of view at which the markers fit as well as at ``v`` (the residual within
     :data:`SNAP_TOLERANCE` of ``rms_ref``), every other parameter refitted, scanned out to
@@ -131,7 +153,7 @@ def fov_range(objective: Objective, v: np.ndarray, extra: np.ndarray, rms_ref: f
     view, (the fit there, the fit there)), each fit as {:data:`ORBIT` name: value}."""
     k, a = ORBIT.index("fov_deg"), ORBIT.index("altitude_m")
     limit = rms_ref * (1.0 + SNAP_TOLERANCE)
-    free = tuple(i for i in range(len(ORBIT)) if i != k)
+    free = tuple(i for i, name in enumerate(ORBIT) if i != k and name not in held)
     ends = []
     for sign in (-1.0, 1.0):
         best = v
@@ -515,6 +537,12 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
     v, extra, rms_free = levenberg_marquardt(
         objective, orbit_vector(start), extra0,
         free=tuple(i for i, name in enumerate(ORBIT) if name not in held))
+    nadir = v[ORBIT.index("tilt_deg")] < NADIR_TILT_DEG
+    if nadir:  # heading and roll are one turn here: held as roll
+        held = (*held, "yaw_deg")
+        v, extra, rms_free = levenberg_marquardt(
+            objective, _heading_into_roll(v, width, height), extra,
+            free=tuple(i for i, name in enumerate(ORBIT) if name not in held))
     free_camera = rounded_camera(v, width, height)
     if progress:
         progress(f"camera fitted freely to the marker pixels: fov {free_camera.fov_deg:.3f} "
@@ -522,7 +550,7 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
                  f"deg (RMS {rms_free:.2f})")
     fovs = fov_ends = None
     if fov_deg is None:
-        fovs, fov_ends = fov_range(objective, v, extra, rms_free)
+        fovs, fov_ends = fov_range(objective, v, extra, rms_free, held=held)
         if progress:
             progress(f"the markers fit as well from {fovs[0]:.2f} to {fovs[1]:.2f} deg of "
                      "field of view")
@@ -540,7 +568,7 @@ def fit_camera(gray: np.ndarray, finding: MarkerFinding, *, arena: ArenaSpec,
                      sigma_px=round(sigma, 4), rms_free=round(rms_free, 4), rms=round(rms, 4),
                      stage="markers", corner_rms_px=round(corner_rms, 4), snapped=snapped,
                      sensitivity=sensitivity(objective, orbit_vector(camera), extra),
-                     fov_range=fovs, fov_ends=fov_ends)
+                     fov_range=fovs, fov_ends=fov_ends, nadir=bool(nadir))
 
 
 def refine_with_renderer(fit: CameraFit, scene: Scene, gray: np.ndarray, mask: np.ndarray,
@@ -554,10 +582,12 @@ def refine_with_renderer(fit: CameraFit, scene: Scene, gray: np.ndarray, mask: n
     objective = RenderObjective(scene, gray, mask, renderer, fit_side=fit_side)
     none = np.array([scene.markers.side_m] if fit_side else [])
     starts = [orbit_vector(fit.camera), orbit_vector(fit.free)]
+    held = ("yaw_deg",) if fit.nadir else ()  # at the nadir the turn stays in the roll
+    free = tuple(i for i, name in enumerate(ORBIT) if name not in held)
     best = None
     for start in starts:  # the snapped camera, then the free one: the better fit wins
-        v, ex, rms_free = levenberg_marquardt(objective, start, none,
-                                              free=tuple(range(len(ORBIT))), iterations=8)
+        v, ex, rms_free = levenberg_marquardt(objective, start, none, free=free,
+                                              iterations=8)
         if best is None or rms_free < best[1]:
             best = (v, rms_free, ex)
     v, rms_free, none = best
@@ -568,8 +598,8 @@ def refine_with_renderer(fit: CameraFit, scene: Scene, gray: np.ndarray, mask: n
     snapped: dict[str, tuple[str, float]] = {}
     rms = rms_free
     if snap:
-        v, none, snapped, rms = snap_angles(objective, v, none, rms_free, iterations=5,
-                                            progress=progress)
+        v, none, snapped, rms = snap_angles(objective, v, none, rms_free, held=held,
+                                            iterations=5, progress=progress)
     camera = rounded_camera(v, width, height)
     side = round(float(none[0]), 6) if fit_side else fit.marker_side_m
     return replace(fit, camera=camera, free=free_camera, rms_free=round(rms_free, 4),

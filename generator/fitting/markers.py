@@ -14,6 +14,7 @@ heading does not change it.
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from dataclasses import dataclass
@@ -76,6 +77,12 @@ class MarkerFinding:
         Bits that differ from the dictionary's codewords, summed over the four markers.
     tried : tuple of str
         The dictionaries tried.
+    others : tuple of int
+        Ids of the markers found besides the four corner ones (an arena with more markers:
+        they are part of its printed floor).
+    smallest : str
+        The smallest dictionary of the family holding the four corner ids (a fact; the
+        ``dictionary`` decodes every id found).
     """
 
     dictionary: str
@@ -86,6 +93,8 @@ class MarkerFinding:
     rotation_deg: float
     bit_errors: int
     tried: tuple[str, ...]
+    others: tuple[int, ...] = ()
+    smallest: str = ""
 
     @property
     def module_count(self) -> int:
@@ -253,41 +262,86 @@ def find_markers(gray: np.ndarray) -> MarkerFinding:
     partial = []
     for name in DICTIONARIES:
         found = _detect(gray, name, refine=False)
-        if len(found) == 4:
+        if len(found) >= 4:
             errors = sum(_bit_errors(gray, q, name, i) for i, q in found.items())
-            candidates.append((errors, name, found))
+            candidates.append((len(found), errors, name, found))
         elif found:
             partial.append((len(found), name, sorted(found)))
     if not candidates:
         tried = f"tried {len(DICTIONARIES)} dictionaries: {', '.join(DICTIONARIES)}"
         if partial:
             n, name, ids = max(partial, key=lambda p: p[0])  # the first of the most
+            shown = ", ".join(map(str, ids))
             raise MarkersNotFoundError(
-                f"image: found {n} marker(s) of {name} (ids {', '.join(map(str, ids))}), not "
-                f"four: a twin needs one marker in each corner of the arena ({tried})")
+                f"image: found {n} marker(s) of {name} (ids {shown}), not four: a twin needs "
+                f"one marker in each corner of the arena ({tried})")
         raise MarkersNotFoundError(f"image: no ArUco markers found ({tried})")
-    best_errors = min(c[0] for c in candidates)
-    best = [c for c in candidates if c[0] == best_errors]
-    # within a family the same ids: the smallest dictionary holding them all
+    # per family (its dictionaries print the same markers): the member decoding the most
+    # markers, the smallest of those: it decodes every id found
     families: dict[str, list] = {}
-    for errors, name, found in best:
+    for n, errors, name, found in candidates:
         fam = _family(name)
-        key = fam[0] if fam else name
-        families.setdefault(key, []).append((fam[1] if fam else 0, name, found, errors))
-    if len(families) > 1:
-        names = ", ".join(sorted(families))
+        families.setdefault(fam[0] if fam else name, []).append(
+            (-n, fam[1] if fam else 0, name, found, errors))
+    members = {key: sorted(found, key=lambda m: m[:3]) for key, found in families.items()}
+    # across families: the fewest bit errors per marker
+    score = {key: m[0][4] / -m[0][0] for key, m in members.items()}
+    best = min(score.values())
+    tied = sorted(key for key, s in score.items() if s == best)
+    if len(tied) > 1:
         raise MarkersNotFoundError(f"image: four markers found by several dictionary families "
-                                   f"equally well ({names}); cannot tell which one is printed")
-    members = sorted(next(iter(families.values())))
-    _, name, found, errors = members[0]
-    ids_found = sorted(found)
-    layout = _layout(found)
+                                   f"equally well ({', '.join(tied)}); cannot tell which one "
+                                   "is printed")
+    chosen = members[tied[0]]
+    _, _, name, found, errors = chosen[0]
+    members = [(0, m[2]) for m in chosen if m[0] == chosen[0][0]]
+    corner_found = found if len(found) == 4 else outermost(found)
+    layout = _layout(corner_found)
     refined = _detect(gray, name, refine=True)
-    if sorted(refined) != ids_found:  # pragma: no cover - refinement never loses a marker
+    if not set(found) <= set(refined):  # pragma: no cover - refinement never loses a marker
         refined = found
     corners = {k: refined[i] for k, i in layout.items()}
     family = tuple(m[1] for m in members)
+    ids = tuple(layout[k] for k in CORNER_ORDER)
     return MarkerFinding(
-        dictionary=name, family=family, ids=tuple(layout[k] for k in CORNER_ORDER),
+        dictionary=name, family=family, ids=ids,
         corners=corners, detector_corners={k: found[i] for k, i in layout.items()},
-        rotation_deg=printed_rotation(corners), bit_errors=int(errors), tried=DICTIONARIES)
+        rotation_deg=printed_rotation(corners), bit_errors=int(errors), tried=DICTIONARIES,
+        others=tuple(sorted(set(found) - set(ids))),
+        smallest=_smallest_holding(name, max(ids)))
+
+
+def outermost(found: dict[int, np.ndarray]) -> dict[int, np.ndarray]:
+    """The four markers that bound an arena of more: of the markers on the convex hull of all
+    the markers' centres, the four spanning the largest quadrilateral (an arena's corner
+    markers; those on its edges and inside lie within it)."""
+    ids = list(found)
+    centres = np.array([found[i].mean(axis=0) for i in ids], np.float32)
+    hull = [ids[int(k)] for k in cv2.convexHull(centres, returnPoints=False).ravel()]
+    if len(hull) < 4:
+        raise MarkersNotFoundError(
+            f"image: {len(found)} markers, but their centres bound no quadrilateral (no "
+            "marker in each corner of an arena)")
+    centre = {i: found[i].mean(axis=0) for i in hull}
+
+    def area(quad: tuple[int, ...]) -> float:
+        pts = np.array([centre[i] for i in quad])
+        x, y = pts[:, 0], pts[:, 1]
+        return 0.5 * abs(float(np.dot(x, np.roll(y, 1)) - np.dot(y, np.roll(x, 1))))
+
+    # hull vertices in hull order: any four of them, kept in that order, form a convex quad
+    best = max(itertools.combinations(hull, 4), key=area)
+    return {i: found[i] for i in best}
+
+
+def _smallest_holding(name: str, top_id: int) -> str:
+    """The smallest dictionary of ``name``'s family that holds id ``top_id`` (``name`` for a
+    dictionary of no family)."""
+    fam = _family(name)
+    if fam is None:
+        return name
+    sizes = sorted(f[1] for d in DICTIONARIES if (f := _family(d)) and f[0] == fam[0])
+    for size in sizes:
+        if size > top_id:
+            return f"DICT_{fam[0]}_{size}"
+    return name

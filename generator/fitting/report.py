@@ -30,6 +30,8 @@ vertical-align:top;text-align:left}th{background:#f2f2f2}.pinned{color:#175}.ope
 figure{display:inline-block;margin:4px 8px 4px 0;text-align:center;font-size:12px}
 img{image-rendering:pixelated;border:1px solid #bbb}.note{color:#555;font-size:13px}
 .warn{color:#a50}
+.verdict{padding:8px 12px;border-radius:4px;font-size:15px}.verdict.good{background:#e6f4ea}
+.verdict.poor{background:#fce8e6}
 """
 
 
@@ -106,6 +108,10 @@ def report_html(twin: Twin, *, name: str) -> str:
              f"<style>{_STYLE}</style>",
              f"<h1>Twin <code>{html.escape(name)}</code> of "
              f"<code>{html.escape(f['image']['file'])}</code></h1>"]
+    verdict = twin.verdict
+    parts.append(f"<p class='verdict {verdict.verdict}'><b>Fit: {verdict.verdict}</b>. "
+                 + html.escape(verdict.line().removeprefix(f"fit: {verdict.verdict}")
+                               .lstrip(":; ")) + "</p>")
     fig = f["figures"]
     parts.append(
         "<p>The fitted scene rendered by the generator and written as the image was "

@@ -61,6 +61,7 @@ def _evidence(twin: Twin) -> dict[str, Any]:
                                for k, v in f["camera"]["snapped"].items()) or "none"),
         "fit": f"marker squares {f['figures']['mad']['markers']:.2f} grey levels from the "
                f"image, whole image {f['figures']['whole']:.2f}",
+        "verdict": twin.verdict.line().removeprefix("fit: "),
         "open": ", ".join(sorted(twin.open_params)) or "none",
         **({"scale": "open: the image fixes lengths only up to one scale (no --arena-size or "
                      "texture); the twin's lengths are in units of the generator's default "

@@ -199,6 +199,16 @@ class ResolvedPreset:
     open: dict[str, OpenParam] = field(default_factory=dict)
     source: Path | None = None
 
+    @property
+    def poor_fit(self) -> str | None:
+        """A twin's preset whose fit is poor: the line that says so, its verdict cut to one
+        line (``arenabench twin`` records ``verdict`` in the evidence); else ``None``."""
+        verdict = self.evidence.get("verdict") if isinstance(self.evidence, dict) else None
+        if not isinstance(verdict, str) or not verdict.startswith("poor"):
+            return None
+        return (f"warning: preset {self.name} is a twin whose fit is poor "
+                f"({cut(verdict)}): its scenes are a guess at that arena, not a twin "
+                "to be held to")
 
     def document(self) -> dict[str, Any]:
         """The preset file's content (:func:`preset_document`)."""

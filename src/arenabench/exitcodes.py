@@ -33,6 +33,10 @@ class ExitCode(enum.IntEnum):
     #: ``grade``: most teams fail alike (one missing module, one wrong path): the set-up, not
     #: the teams, is likely wrong; the leaderboard is written.
     SYSTEMIC = 5
+    #: ``twin``: the twin's render of the image is outside the bounds the blind round trips
+    #: hold (its verdict ``poor``, naming what is off and why); the twin is written, and
+    #: ``--accept-poor-fit`` makes this 0.
+    POOR_FIT = 6
     #: Stopped by SIGINT (Ctrl-C): 128 + 2.
     INTERRUPTED = 130
     #: The reader of its output went away (``... | head -1``): 128 + SIGPIPE.

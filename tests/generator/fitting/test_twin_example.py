@@ -197,3 +197,42 @@ def test_the_log_says_lengths_in_the_presets_metres_and_tilt_in_degrees(own):
     named = records.group(3).split(", ")
     assert len(named) == int(records.group(2)) <= int(records.group(1))
     assert set(named) == set(load_preset_file(own / "preset.toml").open)
+
+
+@pytest.mark.parametrize("which", ["twin", "own"])
+def test_the_examples_twins_are_good(which, request):
+    """The example's twins, with and without the texture, hold every bound: verdict good, in
+    twin.json, the preset's evidence and first in the report."""
+    folder = request.getfixturevalue(which)
+    doc = json.loads((folder / "twin.json").read_text())
+    assert doc["verdict"]["verdict"] == "good" and doc["verdict"]["off"] == [], doc["verdict"]
+    preset = load_preset_file(folder / "preset.toml")
+    assert preset.evidence["verdict"].startswith("good") and preset.poor_fit is None
+    html = (folder / "report.html").read_text()
+    assert html.index("Fit: good") < html.index("Region by region")
+
+
+def test_a_blurred_example_is_a_poor_twin_that_names_the_blur(tmp_path):
+    """The example blurred (Gaussian, sigma 3), with its texture: the twin is written, its
+    verdict poor with the marker squares off and blur named, exit 6; --accept-poor-fit 0."""
+    import cv2
+
+    blurred = tmp_path / "blurred.png"
+    cv2.imwrite(str(blurred), cv2.GaussianBlur(cv2.imread(str(IMAGE)), (0, 0), 3))
+    argv = [sys.executable, "-m", "arenabench", "twin", str(blurred), "--texture",
+            str(TEXTURE), "--arena-size", "3.7,3.7", "--no-progress"]
+    proc = subprocess.run([*argv, "--out", str(tmp_path / "t")], capture_output=True,
+                          text=True)
+    assert proc.returncode == 6, proc.stderr
+    doc = json.loads((tmp_path / "t" / "twin.json").read_text())
+    verdict = doc["verdict"]
+    assert verdict["verdict"] == "poor"
+    assert "marker squares" in {o["figure"] for o in verdict["off"]}
+    assert any(c.startswith("blur") for c in verdict["causes"]), verdict
+    assert proc.stdout.splitlines()[0].startswith("twin twin-blurred: fit: poor: marker squares")
+    assert doc["parameters"]["degrade.defocus_px"]["status"] == "open"
+    assert "blur" in doc["parameters"]["degrade.defocus_px"]["reason"]
+    assert load_preset_file(tmp_path / "t" / "preset.toml").poor_fit is not None
+    accepted = subprocess.run([*argv, "--out", str(tmp_path / "a"), "--accept-poor-fit"],
+                              capture_output=True, text=True)
+    assert accepted.returncode == 0, accepted.stderr
