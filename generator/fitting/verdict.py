@@ -62,8 +62,6 @@ BOUNDS: tuple[Bound, ...] = (
     Bound("faces", 6.0, "grey levels",
           "the same over the boxes' faces (the light's fit leaves a few grey levels on faces "
           "it sees obliquely)"),
-    Bound("whole image", 3.0, "grey levels",
-          "the same over the whole image, background included"),
 )
 #: The bounds by figure.
 BOUND_OF = {b.key: b for b in BOUNDS}
@@ -150,7 +148,6 @@ def figure_values(figures: RegionFigures) -> dict[str, float | None]:
         "detector corners": max(corners, default=None),
         "floor": figures.mad.get("floor"),
         "faces": figures.mad.get("faces"),
-        "whole image": figures.whole,
     }
 
 
@@ -181,7 +178,7 @@ EXPLAINS: tuple[tuple[str, set[str]], ...] = (
     ("noise", {b.key for b in BOUNDS}), ("glare", {b.key for b in BOUNDS}),
     ("exposure", {b.key for b in BOUNDS}),
     ("lens distortion", {"marker squares", "worst marker", "detector corners"}),
-    ("a floor unlike", {"floor", "whole image"}),
+    ("a floor unlike", {"floor"}),
 )
 #: How much softer (or sharper) the image's marker edges may be than the render's before the
 #: difference is put down to blur (their mean gradient's ratio).
@@ -200,9 +197,11 @@ CORNER_RMS_PX = 1.6
 
 
 def _gradient(gray: np.ndarray, mask: np.ndarray) -> float:
+    """RMS gradient in ``mask``: a blur of sigma 1 px takes it to 0.77 of the sharp image's,
+    sigma 3 to 0.44 (the published example's marker squares); noise hardly moves it."""
     g = gray.astype(np.float32)
-    mag = np.hypot(cv2.Sobel(g, cv2.CV_32F, 1, 0), cv2.Sobel(g, cv2.CV_32F, 0, 1))
-    return float(mag[mask].mean()) if mask.any() else 0.0
+    gx, gy = cv2.Sobel(g, cv2.CV_32F, 1, 0), cv2.Sobel(g, cv2.CV_32F, 0, 1)
+    return float(np.sqrt(np.mean((gx * gx + gy * gy)[mask]))) if mask.any() else 0.0
 
 
 def _noise(gray: np.ndarray, mask: np.ndarray) -> float:
