@@ -67,6 +67,14 @@ _GL_CLAMP_TO_EDGE = 33071
 _UNIT_QUAD = np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]])
 
 
+#: Textures a renderer keeps for reuse between scenes, at most this many and this many bytes
+#: of their images (a twin's texel-grid search makes dozens of floors of 2,000-4,000 texels a
+#: side, each tens of MB as an image and more as its upload and mips): beyond, the cache starts
+#: again (a texture still shown stays with its node; the pixels are the same either way).
+TEXTURE_CACHE_COUNT = 64
+TEXTURE_CACHE_BYTES = 256 << 20
+
+
 def _texture(compat, image: np.ndarray, *, min_filter: int = _GL_LINEAR_MIPMAP_LINEAR):
     """A texture of an RGB ``image`` as ogre2 makes one of a diffuse map: sRGB, its mip chain
     averaged in linear light, sampled trilinearly in linear light
@@ -171,6 +179,7 @@ class Renderer(SceneRenderer):
         # a texture in the GL context while any mesh uses it, so reusing the object between
         # scenes avoids re-uploading it
         self._textures: dict[int, tuple[np.ndarray, Any]] = {}
+        self._texture_bytes = 0
         self._new_scene()
 
     def _new_scene(self) -> None:
@@ -213,10 +222,13 @@ class Renderer(SceneRenderer):
     def _cached_texture(self, image: np.ndarray, *, min_filter: int = _GL_LINEAR_MIPMAP_LINEAR):
         hit = self._textures.get(id(image))
         if hit is None or hit[0] is not image:
-            if len(self._textures) >= 64:
+            if (len(self._textures) >= TEXTURE_CACHE_COUNT
+                    or self._texture_bytes + image.nbytes > TEXTURE_CACHE_BYTES):
                 self._textures.clear()
+                self._texture_bytes = 0
             hit = (image, _texture(self._compat, image, min_filter=min_filter))
             self._textures[id(image)] = hit
+            self._texture_bytes += image.nbytes
         return hit[1]
 
     def _update_static(self, scene: Scene) -> None:
