@@ -80,12 +80,22 @@ def texel_map(scene: Scene, texels: int) -> tuple[np.ndarray, np.ndarray]:
     square (row 0 north)."""
     e = floor_extent(scene.arena)
     centres = (np.arange(texels) + 0.5) * (2.0 * e / texels) - e
-    x, y = np.meshgrid(centres, -centres)
     h = cam.floor_homography(cam.intrinsics(scene.camera), cam.world_from_camera(scene.camera))
-    den = h[2, 0] * x + h[2, 1] * y + h[2, 2]
-    u = (h[0, 0] * x + h[0, 1] * y + h[0, 2]) / den
-    v = (h[1, 0] * x + h[1, 1] * y + h[1, 2]) / den
-    return u.astype(np.float32), v.astype(np.float32)
+    u = np.empty((texels, texels), np.float32)
+    v = np.empty((texels, texels), np.float32)
+    x = centres[None, :]
+    # in bands of rows: the same float64 arithmetic, without (texels, texels) float64 arrays
+    # (four of them were 0.5 GB at 4,000 texels)
+    for r0 in range(0, texels, MAP_ROWS):
+        y = -centres[r0:r0 + MAP_ROWS, None]
+        den = h[2, 0] * x + h[2, 1] * y + h[2, 2]
+        u[r0:r0 + MAP_ROWS] = (h[0, 0] * x + h[0, 1] * y + h[0, 2]) / den
+        v[r0:r0 + MAP_ROWS] = (h[1, 0] * x + h[1, 1] * y + h[1, 2]) / den
+    return u, v
+
+
+#: Rows of :func:`texel_map` computed at once.
+MAP_ROWS = 256
 
 
 def texture_side(scene: Scene) -> int:
@@ -237,9 +247,10 @@ class Rectification:
                  * min(floor_factor(scene.lighting), 1.0))
         self.rgb = cv2.cvtColor(real_bgr, cv2.COLOR_BGR2RGB).astype(np.float32)
         self.scale = (255.0 / np.maximum(floor, 1.0)).astype(np.float32)
-        raw = cv2.remap(self.rgb, self.mx, self.my, cv2.INTER_CUBIC,
-                        borderMode=cv2.BORDER_REPLICATE)
-        texture = np.clip(raw * self.scale, 0, 255)
+        texture = cv2.remap(self.rgb, self.mx, self.my, cv2.INTER_CUBIC,
+                            borderMode=cv2.BORDER_REPLICATE)
+        np.multiply(texture, self.scale, out=texture)  # in place: one float image, not three
+        np.clip(texture, 0, 255, out=texture)
         texture[~seen] = 255.0
         texture = texture.astype(np.uint8)
         if fill_hidden and (hidden & seen).any():
@@ -247,6 +258,12 @@ class Rectification:
                                   cv2.INPAINT_TELEA)
         self.texture = texture
         self.unknown = (~seen) | hidden
+
+    def drop_maps(self) -> Rectification:
+        """Free the texel maps (two float images of the texture's size), needed only to
+        back-project: a texel-grid candidate is painted and rendered without them."""
+        self.mx = self.my = None
+        return self
 
     def painted(self, scene: Scene) -> tuple[np.ndarray, np.ndarray]:
         """The texture with ``scene``'s markers painted, and the texels painted."""
@@ -338,7 +355,7 @@ def texel_grid_search(real_bgr: np.ndarray, real_gray: np.ndarray, scene: Scene,
 
     def cost(n: int, extent: float) -> float:
         s = with_extent(scene, extent)
-        rect = Rectification(real_bgr, s, box_mask, texels=n, fill_hidden=False)
+        rect = Rectification(real_bgr, s, box_mask, texels=n, fill_hidden=False).drop_maps()
         return painted_cost(real_gray, s, rect, mask, renderer)
 
     best = None

@@ -70,9 +70,10 @@ _UNIT_QUAD = np.array([[0.0, 1.0], [1.0, 1.0], [1.0, 0.0], [0.0, 0.0]])
 #: Textures a renderer keeps for reuse between scenes, at most this many and this many bytes
 #: of their images (a twin's texel-grid search makes dozens of floors of 2,000-4,000 texels a
 #: side, each tens of MB as an image and more as its upload and mips): beyond, the cache starts
-#: again (a texture still shown stays with its node; the pixels are the same either way).
+#: again (a texture still shown stays with its node; the pixels are the same either way). The
+#: competition's arena texture (2,880 texels a side, 25 MB) and the marker sheets fit.
 TEXTURE_CACHE_COUNT = 64
-TEXTURE_CACHE_BYTES = 256 << 20
+TEXTURE_CACHE_BYTES = 48 << 20
 
 
 def _texture(compat, image: np.ndarray, *, min_filter: int = _GL_LINEAR_MIPMAP_LINEAR):
