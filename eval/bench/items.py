@@ -46,6 +46,9 @@ to end
     and reported in a fresh process: ``bigset_load_s_per_10k`` (CPU s of loading and
     checking every file), ``bigset_eval_s_per_10k`` (all of it), ``bigset_peak_rss_mb`` and
     ``bigset_rss_mb_per_10k`` (what 10,000 more entries add to the peak).
+12. ``twin_example_s`` / ``twin_example_peak_mb``: ``arenabench twin`` on the published
+    example without a texture (:mod:`arenabench.eval.bench.twin_cost`), wall seconds and the
+    command's peak resident memory (not with ``--quick``).
 
 Items 2, 4 and 5 run on ``workers`` spawned processes that are started and warmed up
 (one renderer each) before the clock starts; item 3 on started processes (modules imported)
@@ -94,6 +97,8 @@ TARGETS: tuple[tuple[str, str, float, str], ...] = (
     ("markerless_noise_ms", "<=", 50.0, "ms"),
     ("bigset_load_s_per_10k", "<=", 3.0, "CPU s"),
     ("bigset_rss_mb_per_10k", "<=", 100.0, "MB"),
+    ("twin_example_s", "<=", 180.0, "s"),
+    ("twin_example_peak_mb", "<=", 1536.0, "MB"),
 )
 
 #: The streaming sweep's varied parameter (item 6): Gaussian sensor noise, off to strong.
@@ -136,6 +141,9 @@ class BenchConfig:
         Manifest entries of the synthetic big set (item 11; and a set of half as many).
     workers : int or None
         Processes; default: the usable cores.
+    twin : bool
+        Measure item 12 (a twin of the published example without a texture, about two
+        minutes; ``quick`` leaves it out).
     preset : str
         Scene preset.
     seed : int
@@ -153,6 +161,7 @@ class BenchConfig:
     workers: int | None = None
     preset: str = DEFAULT_PRESET
     seed: int = 0
+    twin: bool = True
 
     def __post_init__(self) -> None:
         for name in ("count", "sweep_count", "naive_count", "rss_renders", "sandbox_runs",
@@ -170,7 +179,8 @@ class BenchConfig:
     def quick(cls, *, workers: int | None = None) -> BenchConfig:
         """A tiny configuration (seconds): every figure, none of them meaningful."""
         return cls(count=6, sweep_count=6, naive_count=2, rss_renders=20, sandbox_runs=3,
-                   script_runs=3, markerless_runs=1, bigset_entries=400, workers=workers)
+                   script_runs=3, markerless_runs=1, bigset_entries=400, workers=workers,
+                   twin=False)
 
 
 @dataclass
@@ -610,6 +620,15 @@ def run_bench(
         bigset_figures, details["bigset"] = big_set_figures(cfg.bigset_entries, scratch)
         figures.update(bigset_figures)
         notify("bigset_load_s_per_10k", time.perf_counter() - t0)
+
+        # 12. a twin of the published example without a texture: time and peak memory
+        if cfg.twin:
+            t0 = time.perf_counter()
+            from .twin_cost import twin_cost
+
+            twin_figures, details["twin"] = twin_cost(scratch)
+            figures.update(twin_figures)
+            notify("twin_example_s", time.perf_counter() - t0)
     finally:
         if scratch is not None:
             shutil.rmtree(scratch, ignore_errors=True)

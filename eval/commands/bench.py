@@ -40,6 +40,8 @@ ROWS: tuple[tuple[str, str, str], ...] = (
     ("bigset_eval_s_per_10k", "11 load, score, report, per 10,000 entries", "CPU s"),
     ("bigset_peak_rss_mb", "11 peak RSS of that run", "MB"),
     ("bigset_rss_mb_per_10k", "11 RSS 10,000 more entries add", "MB"),
+    ("twin_example_s", "12 twin of the example, no texture: wall time", "s"),
+    ("twin_example_peak_mb", "12 the same: peak RSS", "MB"),
     ("disk_vs_naive", "(1)/(3)", "x"),
     ("disk_vs_floor", "(1)/(4)", "x"),
     ("disk_vs_memory_cpu", "(1)/(2) CPU per image, warm", "x"),

@@ -104,3 +104,10 @@ def test_config_rejects_bad_values():
         BenchConfig(naive_count=0)
     with pytest.raises(ValueError, match="workers"):
         BenchConfig(workers=True)
+
+
+def test_the_twin_item_without_its_image_has_no_figures_and_says_why(tmp_path):
+    from arenabench.eval.bench.twin_cost import twin_cost
+
+    figures, details = twin_cost(tmp_path, image=tmp_path / "absent.jpg")
+    assert figures == {} and "absent.jpg not found" in details["skipped"]
