@@ -10,6 +10,12 @@ summary::
     export PYTHONPATH=tests:tests/pipelines
     .venv/bin/python tools/twin_round_trips.py --cases 20 --scenes 100
     .venv/bin/python tools/twin_round_trips.py --seeds 3,7 --keep /tmp/b
+    .venv/bin/python tools/twin_round_trips.py --presets all --scenes 100 --keep /tmp/p
+
+``--presets`` runs the cases drawn from presets instead (``tests/twin_blind_presets.py``: every
+preset, or the comma-separated ones named, ``--per-preset`` each) and prints their table: what
+was hidden, the verdict and its causes, the marker squares, the camera, the reference pipeline's
+pass rate where a good twin's image passes it, and whether the verdict was right.
 
 (``tests`` on ``PYTHONPATH`` for the case drawer, ``tests/pipelines`` for the pass rates.)
 """
@@ -42,7 +48,13 @@ def main(argv: list[str] | None = None) -> int:
                    help="keep the images and twins here (default: a temporary folder)")
     p.add_argument("--reuse", action="store_true",
                    help="compare the twins already in --keep again (no rebuilding)")
+    p.add_argument("--presets", default="",
+                   help="cases drawn from these presets ('all' or comma-separated names)")
+    p.add_argument("--per-preset", type=int, default=0,
+                   help="cases of each preset with --presets (default: all of them)")
     args = p.parse_args(argv)
+    if args.presets:
+        return _preset_cases(args)
     try:  # before any work
         from twin_blind import (
             TOLERANCES,
@@ -112,6 +124,75 @@ def main(argv: list[str] | None = None) -> int:
     print("open, in how many cases: " + ", ".join(f"{k} {v}" for k, v in opened.most_common()))
     print(f"images and twins in {folder}")
     return 1 if failed else 0
+
+
+def _row(r: dict, rate: str) -> str:
+    px = r["checks"].get("camera (image px)", (None, "-", True))[1]
+    variant = ", ".join(f"{k.split('.')[-1]} {v}" for k, v in r["overrides"].items())
+    hidden = "; ".join(x for x in (variant, ", ".join(r["features"])) if x) or "-"
+    missed = ", ".join(k for k, (_, _, ok) in r["checks"].items() if not ok) or "-"
+    causes = "; ".join(c.split(" (")[0] for c in r["causes"]) or "-"
+    squares = "-" if r["marker_squares"] != r["marker_squares"] else f"{r['marker_squares']:.2f}"
+    return (f"| {r['case']} | {hidden} | {r['verdict']} | {causes} | {squares} | {px} | "
+            f"{missed} | {rate} | {r['judged']} |")
+
+
+def _preset_cases(args) -> int:
+    """Run the cases drawn from presets and print their table; 0 when no verdict is wrong."""
+    import json
+
+    try:
+        from twin_blind import TOLERANCES, reference_pass_rate
+        from twin_blind_presets import (
+            BLIND_PRESETS,
+            PRESET_CASES,
+            preset_case,
+            preset_round_trip,
+            reference_passes_image,
+        )
+    except ImportError:
+        print("needs tests and tests/pipelines on PYTHONPATH (see --help)", file=sys.stderr)
+        return 2
+    names = BLIND_PRESETS if args.presets == "all" else tuple(args.presets.split(","))
+    unknown = sorted(set(names) - set(BLIND_PRESETS))
+    if unknown:
+        print(f"--presets: unknown preset(s) {', '.join(unknown)} (known: "
+              f"{', '.join(BLIND_PRESETS)})", file=sys.stderr)
+        return 2
+    from arenabench.generator.rendering.render import Renderer
+
+    folder = args.keep or Path(tempfile.mkdtemp(prefix="twin-blind-presets-"))
+    rows, wrong = [], []
+    with Renderer() as renderer:
+        for name in names:
+            for n in range(1, (args.per_preset or PRESET_CASES) + 1):
+                case = preset_case(name, n)
+                t = time.monotonic()
+                r = preset_round_trip(case, folder / case.name, renderer)
+                hidden = r.pop("hidden")
+                rate = "-"
+                if r["verdict"] == "good" and args.scenes:
+                    if reference_passes_image(hidden):
+                        value = reference_pass_rate(folder / case.name / "twin", args.scenes)
+                        rate = f"{value:.0%}"
+                        if value < TOLERANCES["pass_rate"][0]:
+                            r["judged"], r["ok"] = "WRONG", False
+                    else:
+                        rate = "n/a (fails the image)"
+                r.update(overrides=case.overrides, rate=rate,
+                         seconds=round(time.monotonic() - t))
+                (folder / case.name / "result.json").write_text(json.dumps(
+                    r, default=str, indent=1))
+                rows.append(_row(r, rate))
+                print(rows[-1] + f" ({r['seconds']} s)", flush=True)
+                if not r["ok"]:
+                    wrong.append(case.name)
+    print("\n| case | hidden | verdict | causes | marker squares | camera px | missed | "
+          "reference rate | judged |\n|---|---|---|---|---|---|---|---|---|")
+    print("\n".join(rows))
+    print(f"\n{len(rows) - len(wrong)} of {len(rows)} verdicts right or cautious"
+          + (f" (wrong: {', '.join(wrong)})" if wrong else "") + f"; twins in {folder}")
+    return 1 if wrong else 0
 
 
 if __name__ == "__main__":
