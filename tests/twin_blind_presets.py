@@ -194,7 +194,8 @@ def preset_round_trip(case: PresetCase, folder: Path, renderer) -> dict[str, Any
         lines = proc.stderr.strip().splitlines()
         return {"case": case.name, "checks": {}, "held": False,
                 "features": hidden_features(hidden.params), "verdict": "refused",
-                "causes": lines[-1:], "judged": "right" if len(lines) == 1 else "WRONG",
+                "causes": [{"kind": "refused", "text": t} for t in lines[-1:]],
+                "judged": "right" if len(lines) == 1 else "WRONG",
                 "ok": len(lines) == 1, "marker_squares": float("nan"), "hidden": hidden}
     if proc.returncode not in (0, 6):
         raise AssertionError(f"case {case.name}: arenabench twin exited {proc.returncode}: "

@@ -41,7 +41,7 @@ def run(image: Path, out: Path, extra: list[str]) -> dict:
         row.update(markers=f"{m['dictionary']} {m['ids']} (+{len(m.get('others', []))} others)",
                    verdict=doc["verdict"]["verdict"],
                    off="; ".join(f"{o['figure']} {o['value']}" for o in doc["verdict"]["off"]),
-                   causes="; ".join(doc["verdict"]["causes"]),
+                   causes="; ".join(c["text"] for c in doc["verdict"]["causes"]),
                    squares=doc["figures"]["mad"]["markers"], whole=doc["figures"]["whole"])
     else:
         row["said"] = (log.read_text().strip().splitlines() or [""])[-1]

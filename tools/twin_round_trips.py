@@ -131,7 +131,7 @@ def _row(r: dict, rate: str) -> str:
     variant = ", ".join(f"{k.split('.')[-1]} {v}" for k, v in r["overrides"].items())
     hidden = "; ".join(x for x in (variant, ", ".join(r["features"])) if x) or "-"
     missed = ", ".join(k for k, (_, _, ok) in r["checks"].items() if not ok) or "-"
-    causes = "; ".join(c.split(" (")[0] for c in r["causes"]) or "-"
+    causes = "; ".join(c["text"].split(" (")[0] for c in r["causes"]) or "-"
     squares = "-" if r["marker_squares"] != r["marker_squares"] else f"{r['marker_squares']:.2f}"
     return (f"| {r['case']} | {hidden} | {r['verdict']} | {causes} | {squares} | {px} | "
             f"{missed} | {rate} | {r['judged']} |")

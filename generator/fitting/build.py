@@ -53,7 +53,7 @@ from arenabench.generator.fitting.regions import (
 from arenabench.generator.fitting.shades import Shades, read_shades
 from arenabench.generator.fitting.similarity import ssim
 from arenabench.generator.fitting.variation import Varied, vary_boxes
-from arenabench.generator.fitting.verdict import GOOD, FitVerdict, judge
+from arenabench.generator.fitting.verdict import GOOD, UNRENDERED, FitVerdict, judge
 from arenabench.generator.model import camera as cam
 from arenabench.generator.model.layout import floor_extent
 from arenabench.generator.model.scene import (
@@ -1039,20 +1039,6 @@ def _edge_records(f: _Found, res: dict) -> dict[str, rec.Record]:
     return r
 
 
-#: Degradations and features the twin does not add: pinned at none when the render without
-#: them matches the image (parameter, what it adds, the start of the verdict's cause that
-#: shows the image has it: then the record is open, not fitted).
-_NOT_ADDED = (("degrade.noise_sigma", "noise", "noise"),
-              ("degrade.motion_blur_px", "blur", "blur"),
-              ("degrade.defocus_px", "defocus", "blur"),
-              ("degrade.vignetting", "vignetting", "exposure"),
-              ("degrade.exposure_ev", "exposure", "exposure"),
-              ("lighting.shadow_strength", "shadows", "exposure"),
-              ("distractors.tapes", "tape", "a floor unlike"),
-              ("distractors.papers", "papers", "a floor unlike"),
-              ("camera.k1", "lens distortion", "lens distortion"))
-
-
 def _output_records(f: _Found, res: dict) -> dict[str, rec.Record]:
     """The file's format and JPEG settings, and the degradations the render does without."""
     params, facts_file, r = f.params, f.file, {}
@@ -1066,11 +1052,11 @@ def _output_records(f: _Found, res: dict) -> dict[str, rec.Record]:
         r["output.jpeg_subsampling"] = rec.pinned("output.jpeg_subsampling",
                                                   params["output.jpeg_subsampling"],
                                                   "the file's frame header")
-    for name, what, cause in _NOT_ADDED:
-        seen = [c for c in f.verdict.causes if c.startswith(cause)]
+    for name, what, kind in UNRENDERED:
+        seen = [c for c in f.verdict.causes if c.kind == kind]
         if seen:  # the image has it and the twin renders none: said, not fitted
             r[name] = rec.open_values(name, params[name], (params[name],),
-                                      f"not fitted: the image shows {seen[0]}")
+                                      f"not fitted: the image shows {seen[0].text}")
         else:
             r[name] = rec.pinned(name, params[name], f"the render without {what} matches the "
                                  f"image (whole image within {f.figures.whole:.2f} grey "

@@ -83,3 +83,29 @@ def test_printed_markers_lie_where_the_generator_places_markers():
             w = marker_corners_world(arena, markers, corner)
             want = np.column_stack([(w[:, 0] + e) / texel, (e - w[:, 1]) / texel]) - 0.5
             assert np.abs(found[marker_id] - want).max() <= 0.25, (case.seed, corner)
+
+
+#: One case of each preset (tests/twin_blind_presets.py; tools/twin_round_trips.py --presets
+#: runs all 42), chosen to cover the variants no preset draws: an AprilTag 36h11 arena, a 5x5
+#: one turned 90 deg, a barrel lens, an AprilTag 25h9 one through a pincushion lens.
+PRESET_CASES = (("eyrc", 1), ("eyrc-jitter", 2), ("eyrc-upright", 5), ("eyrc-oblique", 4),
+                ("eyrc-hard", 1), ("warehouse", 6))
+
+
+@pytest.mark.acceptance
+@pytest.mark.parametrize(("preset", "number"), PRESET_CASES)
+def test_blind_case_of_every_preset_gets_a_verdict_it_can_be_held_to(preset, number,
+                                                                      tmp_path, renderer):
+    """A good twin holds every check against what was hidden and its scenes pass the
+    reference pipeline where the image itself does; an image holding what the twin does not
+    render, or one it does not reproduce, is called poor."""
+    from twin_blind_presets import preset_case, preset_round_trip, reference_passes_image
+
+    result = preset_round_trip(preset_case(preset, number), tmp_path, renderer)
+    assert result["verdict"] in {"good", "poor"}, result["causes"]
+    assert result["ok"], {k: v for k, v in result.items() if k != "hidden"}
+    if result["verdict"] == "poor":
+        assert result["causes"], "a poor verdict names what it could not reproduce"
+    elif reference_passes_image(result["hidden"]):
+        rate = reference_pass_rate(tmp_path / "twin", SCENES["fast"])
+        assert rate >= TOLERANCES["pass_rate"][0], rate

@@ -228,7 +228,7 @@ def test_a_blurred_example_is_a_poor_twin_that_names_the_blur(tmp_path):
     verdict = doc["verdict"]
     assert verdict["verdict"] == "poor"
     assert "marker squares" in {o["figure"] for o in verdict["off"]}
-    assert any(c.startswith("blur") for c in verdict["causes"]), verdict
+    assert any(c["kind"] == "blur" for c in verdict["causes"]), verdict
     assert proc.stdout.splitlines()[0].startswith("twin twin-blurred: fit: poor: marker squares")
     assert doc["parameters"]["degrade.defocus_px"]["status"] == "open"
     assert "blur" in doc["parameters"]["degrade.defocus_px"]["reason"]
