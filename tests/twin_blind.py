@@ -341,18 +341,23 @@ def _preset_camera(p: dict[str, Any]) -> CameraSpec:
                       target_m=(p["camera.target_x_m"], p["camera.target_y_m"]))
 
 
-def _camera_px(hidden: Scene, twin_camera: CameraSpec, twin_side: float) -> float:
+def _camera_px(hidden: Scene, twin_camera: CameraSpec, twin_side: float,
+               turn_deg: float = 0.0) -> float:
     """RMS image distance of floor points inside the arena (a 9 x 9 grid), the twin's camera
     scaled to the hidden arena: the floor's homography, which the image pins (the field of view
-    and the altitude trade against each other along it, see the twin's open records)."""
+    and the altitude trade against each other along it, see the twin's open records).
+    ``turn_deg``: the twin's world is the hidden one turned by that angle about the vertical
+    (its first corner another marker's)."""
     k = hidden.arena.side_m / twin_side
     scaled = replace(twin_camera, altitude_m=twin_camera.altitude_m * k,
                      target_m=tuple(v * k for v in twin_camera.target_m))
     h = hidden.arena.side_m / 2
     grid = np.linspace(-h, h, 9)
     pts = np.array([(x, y, 0.0) for x in grid for y in grid])
+    c, s = math.cos(math.radians(turn_deg)), math.sin(math.radians(turn_deg))
+    turned = pts @ np.array([[c, s, 0.0], [-s, c, 0.0], [0.0, 0.0, 1.0]])
     a = cam.project(pts, cam.intrinsics(hidden.camera), cam.world_from_camera(hidden.camera))
-    b = cam.project(pts, cam.intrinsics(scaled), cam.world_from_camera(scaled))
+    b = cam.project(turned, cam.intrinsics(scaled), cam.world_from_camera(scaled))
     return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
 
 

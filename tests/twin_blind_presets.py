@@ -140,6 +140,16 @@ def hidden_features(params: dict[str, Any]) -> list[str]:
     return out
 
 
+def _quarter_turns(hidden_ids: list[int], twin_ids: list[int]) -> int | None:
+    """The quarter turns of the corners that take the hidden ids (in corner order) to the
+    twin's, or None. The twin names the corners from the image alone: a world turned by a
+    quarter turn with its camera is the same image, and equally the arena."""
+    for q in range(4):
+        if hidden_ids[q:] + hidden_ids[:q] == twin_ids:
+            return q
+    return None
+
+
 def compare_preset(case: PresetCase, hidden_case: Hidden, twin_dir: Path) -> dict[str, Any]:
     """The twin in ``twin_dir`` set against ``case``'s hidden scene (``sample``): markers,
     camera (image px), boxes seen, marker squares; and whether its verdict is right: ``good``
@@ -161,9 +171,11 @@ def compare_preset(case: PresetCase, hidden_case: Hidden, twin_dir: Path) -> dic
     check("markers.dictionary", hidden.markers.dictionary, doc["markers"]["dictionary"],
           (fam and got_fam and fam[0] == got_fam[0])
           or hidden.markers.dictionary.upper() == doc["markers"]["dictionary"].upper())
-    check("markers.ids", list(hidden.markers.ids), doc["markers"]["ids"],
-          list(hidden.markers.ids) == doc["markers"]["ids"])
-    px = _camera_px(hidden, twin.camera, twin.arena.side_m)
+    quarters = _quarter_turns(list(hidden.markers.ids), doc["markers"]["ids"])
+    check("markers.ids (corner order, up to quarter turns)", list(hidden.markers.ids),
+          doc["markers"]["ids"], quarters is not None)
+    px = min(_camera_px(hidden, twin.camera, twin.arena.side_m, turn_deg=sign * 90.0 * q)
+             for q in (quarters or 0,) for sign in (1, -1))
     check("camera (image px)", 0.0, round(px, 3), px <= TOLERANCES["camera_px"][0])
     check("obstacles seen", len(hidden.obstacles), len(twin.obstacles),
           len(hidden.obstacles) == len(twin.obstacles))

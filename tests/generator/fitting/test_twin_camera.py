@@ -133,6 +133,33 @@ def test_round_angles():
     assert cf.round_angle(61.3, "deg", 1.0) == 61.0
 
 
+class _FloorObjective(cf.Objective):
+    """The image distance of floor points from those of a camera off round values, beside a
+    large residual the camera does not move (a model unlike the image): 1 % of it is more
+    than a third of a pixel's move."""
+
+    def __init__(self, truth: CameraSpec) -> None:
+        self.arena = ArenaSpec(side_m=8.0)
+        self.width, self.height = truth.width, truth.height
+        self.truth = cf.orbit_vector(truth)
+
+    def residuals(self, v, extra):
+        return np.concatenate([[300.0], self.floor_move_px(v, self.truth) * np.ones(4)])
+
+
+def test_a_round_value_that_moves_the_floor_is_not_snapped():
+    truth = CameraSpec(width=1000, height=1000, fov_deg=58.18, altitude_m=10.9, tilt_deg=14.3,
+                       yaw_deg=-38.06, roll_deg=0.0)
+    objective = _FloorObjective(truth)
+    v = cf.orbit_vector(truth)
+    rms = float(np.sqrt(np.mean(objective.residuals(v, np.zeros(0)) ** 2)))
+    tilt = cf.ORBIT.index("tilt_deg")
+    assert objective.floor_move_px(v, np.where(np.arange(7) == tilt, 14.0, v)) > 0.5
+    _, _, snapped, _ = cf.snap_angles(objective, v, np.zeros(0), rms)
+    assert "roll_deg" in snapped  # at a round value already
+    assert not {"fov_deg", "tilt_deg", "yaw_deg"} & set(snapped), snapped
+
+
 @pytest.mark.integration
 def test_the_examples_camera_is_rediscovered(example):
     """From the markers alone (the competition texture's geometry given), the camera lands on

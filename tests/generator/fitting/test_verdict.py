@@ -115,5 +115,5 @@ def test_every_unrendered_parameter_is_the_generators_and_a_cause_names_its_kind
     names = {p.name for p in PARAMS}
     assert UNRENDERED and {name for name, _, _ in UNRENDERED} <= names
     assert {kind for _, _, kind in UNRENDERED} < set(CAUSE_KINDS)
-    with pytest.raises(ValueError, match="Cause.kind: 'smudge'"):
+    with pytest.raises(ValueError, match=r"Cause\.kind: 'smudge'"):
         Cause("smudge", "a smudge")
