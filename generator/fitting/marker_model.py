@@ -33,6 +33,10 @@ PAD_PX = 4
 TEXELS_PER_MODULE = 32
 #: White modules drawn around the pattern (room for the blur).
 MARGIN_MODULES = 2
+#: The largest blur (modules, a Gaussian's sigma) the pattern is drawn with: a marker blurred
+#: by a module is no longer decoded, and a larger one would run past the white margin. A fit
+#: that wanders beyond it stays there (a photo's fit asked for a blur whose kernel took 6 GB).
+MAX_BLUR_MODULES = 1.0
 
 
 @dataclass(frozen=True)
@@ -112,6 +116,7 @@ def _blurred_pattern(modules: np.ndarray, sigma_tex: float) -> np.ndarray:
     big = cv2.resize(modules.astype(np.float32), None, fx=TEXELS_PER_MODULE,
                      fy=TEXELS_PER_MODULE, interpolation=cv2.INTER_NEAREST)
     big = cv2.copyMakeBorder(big, pad, pad, pad, pad, cv2.BORDER_CONSTANT, value=1.0)
+    sigma_tex = min(sigma_tex, MAX_BLUR_MODULES * TEXELS_PER_MODULE)
     if sigma_tex > 0.05:
         big = cv2.GaussianBlur(big, (0, 0), sigma_tex, borderType=cv2.BORDER_REPLICATE)
     return big

@@ -375,7 +375,9 @@ def fit_boxes(
                      yaw_deg=round(ob.yaw_deg, 3), length_m=round(ob.length_m, 4),
                      width_m=round(ob.width_m, 4), height_m=round(ob.height_m, 3))
         sides = _side_faces(gray, ob, K, pose, blob & ~top.astype(bool))
-        out.append(BoxObservation(ob, float(np.median(gray[top.astype(bool)])), sides, iou))
+        top_px = gray[top.astype(bool)]  # none left by the opening: the blob's commonest grey
+        out.append(BoxObservation(ob, float(np.median(top_px)) if top_px.size else float(mode),
+                                  sides, iou))
     return out
 
 

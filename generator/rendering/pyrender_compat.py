@@ -115,12 +115,15 @@ class SrgbTexture(pyrender.Texture):
     ``tests/generator/fitting/test_twin_fidelity.py``
     checks the levels llvmpipe makes). Drawn by :data:`SRGB_TEXTURE_FRAG`, which encodes the
     filtered colour back to sRGB. ``srgb_space_mips=True``: the mip levels are averaged in sRGB
-    values instead (drawn marker sheets, as up to generator version 5).
+    values instead (drawn marker sheets, as up to generator version 5). ``bottom_up=True``:
+    the source's rows already run bottom-up, as GL takes them (no flipped copy is made).
     """
 
-    def __init__(self, *args, srgb_space_mips: bool = False, **kwargs):
+    def __init__(self, *args, srgb_space_mips: bool = False, bottom_up: bool = False,
+                 **kwargs):
         super().__init__(*args, **kwargs)
         self.srgb_space_mips = srgb_space_mips
+        self.bottom_up = bottom_up
 
     def _add_to_context(self):
         if self._texid is not None:
@@ -130,7 +133,7 @@ class SrgbTexture(pyrender.Texture):
             raise ValueError("SrgbTexture needs an (H, W, 4) uint8 source")
         self._texid = GL.glGenTextures(1)
         GL.glBindTexture(self.tex_type, self._texid)
-        data = np.ascontiguousarray(src[::-1])  # GL rows run bottom-up
+        data = src if self.bottom_up else np.ascontiguousarray(src[::-1])  # GL: bottom-up
         GL.glTexImage2D(self.tex_type, 0, GL.GL_SRGB8_ALPHA8, src.shape[1], src.shape[0], 0,
                         GL.GL_RGBA, GL.GL_UNSIGNED_BYTE, data)
         if self.srgb_space_mips:

@@ -85,10 +85,13 @@ def _texture(compat, image: np.ndarray, *, min_filter: int = _GL_LINEAR_MIPMAP_L
         magFilter=_GL_LINEAR, minFilter=min_filter,
         wrapS=_GL_CLAMP_TO_EDGE, wrapT=_GL_CLAMP_TO_EDGE,
     )
-    # RGBA keeps every row 4-byte aligned (GL's default unpack alignment) whatever the width.
-    rgba = np.concatenate([image, np.full((*image.shape[:2], 1), 255, np.uint8)], axis=2)
+    # RGBA keeps every row 4-byte aligned (GL's default unpack alignment) whatever the width;
+    # made with its rows bottom-up, as GL takes them, in one copy (a 4,000-texel floor's is
+    # 64 MB: a second, flipped one was the twin's peak memory)
+    rgba = np.concatenate([image[::-1], np.full((*image.shape[:2], 1), 255, np.uint8)], axis=2)
     return compat.SrgbTexture(source=rgba, source_channels="RGBA", sampler=sampler,
-                              srgb_space_mips=min_filter == _GL_LINEAR_MIPMAP_NEAREST)
+                              srgb_space_mips=min_filter == _GL_LINEAR_MIPMAP_NEAREST,
+                              bottom_up=True)
 
 
 def _textured_quad(pyrender, corners_xy: np.ndarray, z: float, texture, factor: float):

@@ -199,3 +199,16 @@ def _assert_close(got: CameraSpec, want: CameraSpec, *, metres: float = 0.05,
     angle = np.degrees(np.arccos(np.clip((np.trace(a[:3, :3].T @ b[:3, :3]) - 1) / 2, -1, 1)))
     assert angle <= degrees, (angle, got, want)
     assert replace(got, target_m=want.target_m) is not None
+
+
+def test_the_marker_models_blur_stops_at_a_module():
+    """A fit that wanders to a huge blur (a photo's did, sigma 8e8 texels: its Gaussian kernel
+    took 6 GB) gets the pattern blurred by a module, no more: flat enough to turn the fit
+    back, and the same array whatever the blur beyond."""
+    from arenabench.generator.fitting import marker_model as mm
+
+    modules = mm.module_pattern("DICT_4X4_50", 7)
+    most = mm._blurred_pattern(modules, mm.MAX_BLUR_MODULES * mm.TEXELS_PER_MODULE)
+    huge = mm._blurred_pattern(modules, 8e8)
+    assert huge.shape == most.shape and np.array_equal(huge, most)
+    assert 0.2 < float(most.min()) and float(most.max()) < 1.0  # no module left black
