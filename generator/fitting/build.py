@@ -66,6 +66,7 @@ from arenabench.generator.model.scene import (
 )
 from arenabench.generator.parameters.params import PARAMETERS, Range, Value
 from arenabench.generator.parameters.presets import resolve
+from arenabench.generator.rendering.textures import MODULE_TEXELS
 from arenabench.imageio import decode_image
 from arenabench.interrupts import checkpoint
 
@@ -412,8 +413,12 @@ def _build(image_path: Path, options: TwinOptions, steps: _Steps, renderer) -> T
 #: Drawn marker sheets this close to the image's marker squares (mean absolute grey
 #: difference) are taken without trying painted markers.
 DRAWN_MATCH = 1.5
-#: Quiet zones tried around drawn marker sheets (modules).
-QUIET_ZONES = (0.0, 0.25, 0.5, 0.75, 1.0, 1.5, 2.0)
+#: Quiet zones tried around drawn marker sheets (modules): every whole texel of the sheet's
+#: texture out to two modules. The sheet's side in texels sets its mip chain, and so how its
+#: modules' edges blend at the level a view samples: an ``eyrc-jitter`` sheet's quiet zone of
+#: 14 texels (0.44 modules) rendered at 16 (0.5, the nearest of the quarter modules tried
+#: before) differs by 4.7 grey levels over the marker squares, at 14 by none.
+QUIET_ZONES = tuple(t / MODULE_TEXELS for t in range(0, 2 * MODULE_TEXELS + 1))
 
 
 def _own_texture(real, gray, scene: Scene, fit: cf.CameraFit, shades: Shades,
