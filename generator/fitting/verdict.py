@@ -240,11 +240,12 @@ def judge(figures: RegionFigures, real_gray: np.ndarray, render_gray: np.ndarray
 #: How much softer (or sharper) the image's marker edges may be than the render's before the
 #: difference is put down to blur (their mean gradient's ratio).
 SHARPNESS_RATIO = 0.75
-#: Noise (grey levels: the robust spread over the floor of the image's difference from the
-#: render less its blur of sigma :data:`NOISE_SCALE_PX`) named as noise. A twin of a clean
-#: render reads about 0.1; an ``eyrc-hard`` scene's noise of sigma 3.9 softened by a motion
-#: blur of 0.9 px reads 1.5 (a pixel's spread about its 3 x 3 median read 1.48 there, at
-#: whole grey levels, and missed it).
+#: Noise (grey levels: the robust spread, over the floor or over the boxes' faces, of the
+#: image's difference from the render less its blur of sigma :data:`NOISE_SCALE_PX`) named as
+#: noise. Twins of clean renders read 0.0-0.1; ``eyrc-hard`` scenes with noise of sigma 3.8
+#: and 3.9 under blurs of up to 0.9 px read 1.5 and 1.8 on the faces (their floors, rectified
+#: from the images, carry the noise into the render: 0.5 there; a pixel's spread about its
+#: 3 x 3 median read 1.48 at whole grey levels and missed it).
 NOISE_LEVELS = 1.0
 #: The scale (px) below which a difference from the render is noise rather than shading.
 NOISE_SCALE_PX = 4.0
@@ -292,7 +293,9 @@ def causes(real_gray: np.ndarray, render_gray: np.ndarray, masks: dict[str, np.n
     elif seen > 0 and drawn / seen < SHARPNESS_RATIO:
         out.append(Cause("sharper", f"edges sharper than the render's ({seen / drawn:.2f} "
                          "times)"))
-    noise = _noise(real_gray, render_gray, floor)
+    # the floor, or where the twin rectified it from the image (its noise then copied into
+    # the texture), the boxes' faces, which it renders flat
+    noise = max(_noise(real_gray, render_gray, masks.get(k, floor)) for k in ("floor", "faces"))
     if noise > NOISE_LEVELS:
         out.append(Cause("noise", f"noise (about {noise:.1f} grey levels the render does not "
                          "have; the twin renders none)"))

@@ -93,6 +93,17 @@ def test_noise_softened_by_motion_blur_is_named_and_a_clean_image_names_none():
     assert not any(c.kind == "noise" for c in causes(shaded, render, masks))
 
 
+def test_noise_on_the_faces_alone_is_named():
+    """A floor rectified from the image carries the image's noise into the render; the
+    boxes' faces, rendered flat, still show it."""
+    render, masks = _arena()
+    rng = np.random.default_rng(3)
+    real = render.astype(np.float64)
+    real[masks["faces"]] += rng.normal(0, 3, int(masks["faces"].sum()))
+    real = np.clip(real, 0, 255).round().astype(np.uint8)
+    assert any(c.kind == "noise" for c in causes(real, render, masks))
+
+
 def test_a_marker_the_detector_misses_on_the_render_is_off_without_bound():
     img, masks = _arena()
     figures = _figures(img, img, masks, detector=None)
