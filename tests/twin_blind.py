@@ -428,9 +428,17 @@ def _printed_checks(case: HiddenCase, twin, params: dict, twin_dir: Path, check)
                   drift <= TOLERANCES["texel"][0])
 
 
+def same_family(hidden: str, found: str) -> bool:
+    """Whether the twin's dictionary ``found`` is of the hidden one's family (the image shows
+    the family, not which of its sizes the markers were drawn from), or the same one."""
+    from arenabench.generator.fitting.markers import _family
+
+    fam, got = _family(hidden), _family(found)
+    return bool((fam and got and fam[0] == got[0]) or hidden.upper() == found.upper())
+
+
 def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
     """What the twin in ``twin_dir`` recovered of ``case``, each check with its outcome."""
-    from arenabench.generator.fitting.markers import _family
     from arenabench.generator.model.scene import load_scene
 
     doc = json.loads((Path(twin_dir) / "twin.json").read_text())
@@ -442,11 +450,8 @@ def compare(case: HiddenCase, twin_dir: Path) -> dict[str, Any]:
     def check(name: str, want: Any, got: Any, ok: bool) -> None:
         checks[name] = (want, got, bool(ok))
 
-    fam = _family(hidden.markers.dictionary)
-    got_fam = _family(doc["markers"]["dictionary"])
     check("markers.dictionary", hidden.markers.dictionary, doc["markers"]["dictionary"],
-          (fam and got_fam and fam[0] == got_fam[0]) or hidden.markers.dictionary.upper()
-          == doc["markers"]["dictionary"].upper())
+          same_family(hidden.markers.dictionary, doc["markers"]["dictionary"]))
     check("markers.ids", list(hidden.markers.ids), doc["markers"]["ids"],
           list(hidden.markers.ids) == doc["markers"]["ids"])
     check("markers.rotation_deg", hidden.markers.rotation_deg % 360,

@@ -23,7 +23,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from twin_blind import TOLERANCES, _camera_px
+from twin_blind import TOLERANCES, _camera_px, same_family
 
 from arenabench.generator.parameters.params import Value
 
@@ -156,7 +156,6 @@ def compare_preset(case: PresetCase, hidden_case: Hidden, twin_dir: Path) -> dic
     holding every check, or ``poor`` where a check fails or the image holds what the twin does
     not render (:func:`hidden_features`). A ``poor`` twin that holds every check of an image
     with nothing unrendered is ``cautious``: not wrong, counted apart."""
-    from arenabench.generator.fitting.markers import _family
     from arenabench.generator.model.scene import load_scene
 
     doc = json.loads((Path(twin_dir) / "twin.json").read_text())
@@ -167,10 +166,8 @@ def compare_preset(case: PresetCase, hidden_case: Hidden, twin_dir: Path) -> dic
     def check(name: str, want: Any, got: Any, ok: bool) -> None:
         checks[name] = (want, got, bool(ok))
 
-    fam, got_fam = _family(hidden.markers.dictionary), _family(doc["markers"]["dictionary"])
     check("markers.dictionary", hidden.markers.dictionary, doc["markers"]["dictionary"],
-          (fam and got_fam and fam[0] == got_fam[0])
-          or hidden.markers.dictionary.upper() == doc["markers"]["dictionary"].upper())
+          same_family(hidden.markers.dictionary, doc["markers"]["dictionary"]))
     quarters = _quarter_turns(list(hidden.markers.ids), doc["markers"]["ids"])
     check("markers.ids (corner order, up to quarter turns)", list(hidden.markers.ids),
           doc["markers"]["ids"], quarters is not None)
